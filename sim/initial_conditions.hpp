@@ -1,0 +1,33 @@
+// Initial states of the test cases (SPEC §6) and the translation of a Scene into solver input.
+#pragma once
+
+#include "sim/packing.hpp"
+#include "sim/particles.hpp"
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::sim {
+
+/// Sets velocity (5.1) (+ uniform velocity), density ρ0 = ρ_ref + (p0 - p_ref)/c_s² from
+/// pressure (5.2) and mass M0 = ρ0 Δl³ at the given positions (3D Taylor-Green, SPEC §6.1).
+void set_taylor_green_3d(const Scene& scene, ParticleArrays& particles);
+
+/// 2D Taylor-Green (SPEC §6.2): v = v0 (sin x cos y, -cos x sin y) (+ uniform velocity),
+/// p0 = p_ref + ρ_ref v0²/4 (cos 2x + cos 2y), ρ0 from the EOS, M0 = ρ0 Δl².
+void set_taylor_green_2d(const Scene& scene, ParticleArrays& particles);
+
+/// Analytic kinetic energy e_v(t) = e_v(0) exp(-4 ν t) of the 2D Taylor-Green vortex with
+/// e_v(0) = v0²/4 (SPEC §6.2).
+double taylor_green_2d_energy(double v0, double kinematic_viscosity, double time);
+
+struct RunSetup {
+  SolverConfig solver;
+  ParticleArrays particles;
+  PackingReport packing;
+};
+
+/// Box, kernel, fluid and time stepping from the scene; positions from packed_positions();
+/// fields from the scene's case.
+RunSetup setup_run(const Scene& scene);
+
+}  // namespace sphles::sim

@@ -1,0 +1,174 @@
+#include "sim/neighbour_search.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace sphles::sim {
+
+VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin)
+    : box_(box), cutoff_(cutoff), skin_(skin) {
+  if (!(cutoff > 0.0)) throw std::invalid_argument("neighbour search: cutoff must be > 0");
+  if (!(skin >= 0.0)) throw std::invalid_argument("neighbour search: skin must be >= 0");
+  const double min_length = box.min_length();
+  if (min_length < 2.0 * cutoff) {
+    throw std::invalid_argument("neighbour search: box length " + std::to_string(min_length) +
+                                " is smaller than the kernel support diameter " +
+                                std::to_string(2.0 * cutoff));
+  }
+  // Minimum-image lists need every listed pair closer than half a box.
+  skin_ = std::min(skin_, 0.5 * min_length - cutoff);
+  const double radius = list_radius();
+  for (int d = 0; d < box.dimension; ++d) {
+    cells_[d] = std::max(1, static_cast<int>(std::floor(box.length[d] / radius)));
+    inv_cell_size_[d] = cells_[d] / box.length[d];
+  }
+}
+
+std::vector<std::uint32_t> VerletNeighbourSearch::cell_of(const PositionsView& positions) const {
+  std::vector<std::uint32_t> cell(positions.size);
+  for (std::size_t i = 0; i < positions.size; ++i) {
+    std::uint32_t c = 0;
+    for (int d = positions.dimension - 1; d >= 0; --d) {
+      int k = static_cast<int>(positions.x[d][i] * inv_cell_size_[d]);
+      k = std::clamp(k, 0, cells_[d] - 1);
+      c = c * static_cast<std::uint32_t>(cells_[d]) + static_cast<std::uint32_t>(k);
+    }
+    cell[i] = c;
+  }
+  return cell;
+}
+
+std::vector<std::uint32_t> VerletNeighbourSearch::locality_order(
+    const PositionsView& positions) const {
+  const std::vector<std::uint32_t> cell = cell_of(positions);
+  std::vector<std::uint32_t> order(positions.size);
+  for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](std::uint32_t a, std::uint32_t b) { return cell[a] < cell[b]; });
+  return order;
+}
+
+template <int Dim>
+void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
+  const std::size_t n = positions.size;
+  const std::vector<std::uint32_t> cell = cell_of(positions);
+  std::size_t num_cells = 1;
+  for (int d = 0; d < Dim; ++d) num_cells *= static_cast<std::size_t>(cells_[d]);
+
+  // Counting sort of particle indices by cell (stable: ascending index within a cell).
+  std::vector<std::size_t> cell_start(num_cells + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++cell_start[cell[i] + 1];
+  for (std::size_t c = 0; c < num_cells; ++c) cell_start[c + 1] += cell_start[c];
+  std::vector<std::uint32_t> cell_members(n);
+  {
+    std::vector<std::size_t> fill(cell_start.begin(), cell_start.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) cell_members[fill[cell[i]]++] = static_cast<std::uint32_t>(i);
+  }
+
+  // Distinct cell offsets per direction: {-1,0,1}, or fewer when a direction has < 3 cells so
+  // that no cell is visited twice.
+  std::array<std::vector<int>, 3> offsets;
+  for (int d = 0; d < Dim; ++d) {
+    if (cells_[d] >= 3) offsets[d] = {-1, 0, 1};
+    else if (cells_[d] == 2) offsets[d] = {0, 1};
+    else offsets[d] = {0};
+  }
+
+  std::array<double, 3> length{}, half_length{};
+  for (int d = 0; d < Dim; ++d) {
+    length[d] = box_.length[d];
+    half_length[d] = 0.5 * box_.length[d];
+  }
+  const double radius2 = list_radius() * list_radius();
+
+  // Visits every candidate j of particle i in a fixed order; calls emit(j) for j in range.
+  const auto visit = [&](std::size_t i, auto&& emit) {
+    std::array<int, 3> ci{0, 0, 0};
+    {
+      std::uint32_t c = cell[i];
+      for (int d = 0; d < Dim; ++d) {
+        ci[d] = static_cast<int>(c % static_cast<std::uint32_t>(cells_[d]));
+        c /= static_cast<std::uint32_t>(cells_[d]);
+      }
+    }
+    double xi[Dim];
+    for (int d = 0; d < Dim; ++d) xi[d] = positions.x[d][i];
+    const auto scan_cell = [&](std::size_t c) {
+      for (std::size_t k = cell_start[c]; k < cell_start[c + 1]; ++k) {
+        const std::uint32_t j = cell_members[k];
+        double r2 = 0.0;
+        for (int d = 0; d < Dim; ++d) {
+          const double dx = minimum_image(xi[d] - positions.x[d][j], length[d], half_length[d]);
+          r2 += dx * dx;
+        }
+        if (r2 < radius2 && j != i) emit(j);
+      }
+    };
+    const auto wrap_cell = [&](int d, int k) { return (k + cells_[d]) % cells_[d]; };
+    if constexpr (Dim == 2) {
+      for (int oy : offsets[1])
+        for (int ox : offsets[0])
+          scan_cell(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0] +
+                    static_cast<std::size_t>(wrap_cell(0, ci[0] + ox)));
+    } else {
+      for (int oz : offsets[2])
+        for (int oy : offsets[1])
+          for (int ox : offsets[0])
+            scan_cell((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells_[1] +
+                       static_cast<std::size_t>(wrap_cell(1, ci[1] + oy))) *
+                          cells_[0] +
+                      static_cast<std::size_t>(wrap_cell(0, ci[0] + ox)));
+    }
+  };
+
+  list_.offsets.assign(n + 1, 0);
+  const auto signed_n = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t i = 0; i < signed_n; ++i) {
+    std::size_t count = 0;
+    visit(static_cast<std::size_t>(i), [&](std::uint32_t) { ++count; });
+    list_.offsets[static_cast<std::size_t>(i) + 1] = count;
+  }
+  for (std::size_t i = 0; i < n; ++i) list_.offsets[i + 1] += list_.offsets[i];
+  list_.indices.resize(list_.offsets[n]);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t i = 0; i < signed_n; ++i) {
+    std::uint32_t* out = list_.indices.data() + list_.offsets[static_cast<std::size_t>(i)];
+    visit(static_cast<std::size_t>(i), [&](std::uint32_t j) { *out++ = j; });
+  }
+
+  for (int d = 0; d < Dim; ++d)
+    reference_positions_[d].assign(positions.x[d], positions.x[d] + n);
+  ++num_builds_;
+}
+
+void VerletNeighbourSearch::build(const PositionsView& positions) {
+  if (positions.dimension != box_.dimension)
+    throw std::invalid_argument("neighbour search: dimension of positions and box differ");
+  if (positions.size >= (std::size_t{1} << 32))
+    throw std::invalid_argument("neighbour search: more than 2^32 particles");
+  if (positions.dimension == 2) build_impl<2>(positions);
+  else build_impl<3>(positions);
+}
+
+bool VerletNeighbourSearch::needs_rebuild(const PositionsView& positions) const {
+  if (num_builds_ == 0 || reference_positions_[0].size() != positions.size) return true;
+  const double limit2 = 0.25 * skin_ * skin_;
+  const auto signed_n = static_cast<std::ptrdiff_t>(positions.size);
+  bool moved_too_far = false;
+#pragma omp parallel for reduction(|| : moved_too_far)
+  for (std::ptrdiff_t i = 0; i < signed_n; ++i) {
+    double r2 = 0.0;
+    for (int d = 0; d < positions.dimension; ++d) {
+      const double dx = minimum_image(positions.x[d][i] - reference_positions_[d][i],
+                                      box_.length[d], 0.5 * box_.length[d]);
+      r2 += dx * dx;
+    }
+    moved_too_far = moved_too_far || r2 > limit2;
+  }
+  return moved_too_far;
+}
+
+}  // namespace sphles::sim

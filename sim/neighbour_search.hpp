@@ -1,0 +1,86 @@
+// Periodic cell-list neighbour search producing a Verlet list with a skin.
+//
+// The search borrows positions and owns no particle data (CompactNSearch style): it returns a
+// cell-major sort order that the caller applies to every field in one place
+// (ParticleArrays::reorder), then builds a compressed (CSR) list of all j != i with
+// |x_i - x_j| < cutoff + skin under the minimum-image convention. Lists are rebuilt when some
+// particle has moved more than skin/2 since the last build, so the list stays complete for the
+// cutoff in between. Each particle's list is built independently in a fixed order: the result is
+// identical for any thread count.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <vector>
+
+#include "sim/particles.hpp"
+
+namespace sphles::sim {
+
+/// Compressed neighbour list: the neighbours of i are indices[offsets[i] .. offsets[i+1]).
+struct NeighbourList {
+  std::vector<std::size_t> offsets;
+  std::vector<std::uint32_t> indices;
+
+  std::size_t num_particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::span<const std::uint32_t> of(std::size_t i) const {
+    return {indices.data() + offsets[i], offsets[i + 1] - offsets[i]};
+  }
+};
+
+struct PositionsView {
+  int dimension = 3;
+  std::size_t size = 0;
+  const double* x[3] = {nullptr, nullptr, nullptr};
+};
+
+inline PositionsView view_positions(const ParticleArrays& p) {
+  PositionsView v;
+  v.dimension = p.dimension;
+  v.size = p.size();
+  for (int d = 0; d < p.dimension; ++d) v.x[d] = p.position[d].data();
+  return v;
+}
+
+class VerletNeighbourSearch {
+ public:
+  /// cutoff: interaction radius (kernel support H); skin: extra list radius. The skin is reduced
+  /// automatically when the box is too small for minimum-image lists of radius cutoff + skin.
+  /// Throws std::invalid_argument if the box is shorter than 2 * cutoff in any direction.
+  VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin);
+
+  double cutoff() const { return cutoff_; }
+  double skin() const { return skin_; }
+  double list_radius() const { return cutoff_ + skin_; }
+  std::array<int, 3> cells_per_side() const { return cells_; }
+
+  /// Cell-major order (stable within a cell) for memory locality. Positions must lie in the box.
+  std::vector<std::uint32_t> locality_order(const PositionsView& positions) const;
+
+  /// Builds the list for the given positions and remembers them for needs_rebuild().
+  void build(const PositionsView& positions);
+
+  /// True when the list was never built, the particle count changed, or some particle moved more
+  /// than skin/2 (minimum image) since the last build.
+  bool needs_rebuild(const PositionsView& positions) const;
+
+  const NeighbourList& list() const { return list_; }
+  std::size_t num_builds() const { return num_builds_; }
+
+ private:
+  template <int Dim>
+  void build_impl(const PositionsView& positions);
+  std::vector<std::uint32_t> cell_of(const PositionsView& positions) const;
+
+  PeriodicBox box_;
+  double cutoff_;
+  double skin_;
+  std::array<int, 3> cells_{1, 1, 1};
+  std::array<double, 3> inv_cell_size_{0.0, 0.0, 0.0};
+  NeighbourList list_;
+  std::array<std::vector<double>, 3> reference_positions_;
+  std::size_t num_builds_ = 0;
+};
+
+}  // namespace sphles::sim

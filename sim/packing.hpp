@@ -1,0 +1,53 @@
+// Particle packing (Colagrossi et al. 2012) and its on-disk cache.
+//
+// Particles on a lattice, optionally displaced at random by `perturbation` Δl, are relaxed by a
+// damped fictitious dynamics driven by a constant background pressure p_b:
+//   dv_i/dt = -(2 p_b / ρ_i) Σ_j ∇W_ij V_j - β v_i        (the zero-order term (5.7))
+// until the residual max_i |Σ_j ∇W_ij V_j| Δl drops below the tolerance. The packed arrangement
+// has vanishing discrete background-pressure force, so a flow started on it carries no initial
+// particle noise. Units are fictitious (p_b/ρ = 1 m²/s², dt = 0.2 Δl / 1 m/s); only positions
+// are kept.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include "sim/kernels.hpp"
+#include "sim/particles.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::sim {
+
+struct PackingReport {
+  int iterations = 0;
+  double initial_residual = 0.0;
+  double final_residual = 0.0;
+  bool converged = false;
+  bool from_cache = false;
+  std::string cache_file;  // empty when the cache was not used
+};
+
+/// Particles on a regular lattice of `per_side` points per direction, spacing L/per_side, with
+/// the first point at Δl/2 (velocities zero, masses zero).
+ParticleArrays make_lattice(const PeriodicBox& box, int per_side);
+
+/// Perturbs and relaxes the positions in place.
+PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
+                              KernelType kernel, double support_radius, double spacing,
+                              ParticleArrays& particles);
+
+/// Residual max_i |Σ_j ∇W_ij V_j| Δl of an arrangement (0 for a perfect lattice).
+double packing_residual(const PeriodicBox& box, KernelType kernel, double support_radius,
+                        double spacing, const ParticleArrays& particles);
+
+/// Default cache directory: $XDG_CACHE_HOME/sphles/packing, else $HOME/.cache/sphles/packing.
+std::filesystem::path default_packing_cache_dir();
+
+/// Lattice + relaxation for a scene, reusing a cached result keyed by dimension, N, kernel,
+/// D_K/Δl and the packing parameters. Cache files are written atomically (temporary + rename)
+/// and carry a checksum; a damaged or mismatching file is ignored and rewritten.
+ParticleArrays packed_positions(const Scene& scene, PackingReport* report = nullptr);
+
+}  // namespace sphles::sim

@@ -1,0 +1,49 @@
+#include "sim/particles.hpp"
+
+#include <numeric>
+#include <stdexcept>
+
+namespace sphles::sim {
+
+void ParticleArrays::resize(std::size_t n) {
+  for (int d = 0; d < 3; ++d) {
+    const std::size_t m = d < dimension ? n : 0;
+    position[d].assign(m, 0.0);
+    velocity[d].assign(m, 0.0);
+    acceleration[d].assign(m, 0.0);
+  }
+  mass.assign(n, 0.0);
+  volume.assign(n, 0.0);
+  density.assign(n, 0.0);
+  pressure.assign(n, 0.0);
+  id.resize(n);
+  std::iota(id.begin(), id.end(), std::uint64_t{0});
+}
+
+namespace {
+template <class T>
+void permute(std::vector<T>& values, std::span<const std::uint32_t> order, std::vector<T>& scratch) {
+  if (values.empty()) return;
+  scratch.resize(values.size());
+  for (std::size_t k = 0; k < order.size(); ++k) scratch[k] = values[order[k]];
+  values.swap(scratch);
+}
+}  // namespace
+
+void ParticleArrays::reorder(std::span<const std::uint32_t> order) {
+  if (order.size() != size()) throw std::invalid_argument("reorder: permutation size mismatch");
+  std::vector<double> scratch;
+  for (int d = 0; d < dimension; ++d) {
+    permute(position[d], order, scratch);
+    permute(velocity[d], order, scratch);
+    permute(acceleration[d], order, scratch);
+  }
+  permute(mass, order, scratch);
+  permute(volume, order, scratch);
+  permute(density, order, scratch);
+  permute(pressure, order, scratch);
+  std::vector<std::uint64_t> id_scratch;
+  permute(id, order, id_scratch);
+}
+
+}  // namespace sphles::sim

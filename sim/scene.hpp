@@ -1,0 +1,83 @@
+// Scene files: one validated configuration object for a run (docs/scenes.md).
+//
+// A scene is JSON. Every key has a default (which may depend on "case"); unknown keys, wrong
+// types and out-of-range values raise SceneError naming the field and the reason.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "sim/kernels.hpp"
+#include "sim/physics.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::sim {
+
+class SceneError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+enum class CaseType { TaylorGreen3D, TaylorGreen2D };
+
+std::string_view case_name(CaseType type);
+int case_dimension(CaseType type);
+
+/// Relaxation of the initial lattice (Colagrossi et al. 2012), see initial_conditions.hpp.
+struct PackingConfig {
+  bool enabled = true;
+  bool cache = true;
+  std::string cache_dir;       // empty: $XDG_CACHE_HOME/sphles/packing or ~/.cache/sphles/packing
+  double perturbation = 0.05;  // random lattice displacement before relaxation, in units of Δl
+  int max_iterations = 400;
+  double tolerance = 1e-3;     // stop when max_i |Σ_j ∇W_ij V_j| Δl falls below
+  std::uint64_t seed = 1;
+};
+
+struct OutputConfig {
+  double timeseries_every = 0.0;      // simulated time between rows; 0 writes every step
+  double progress_every_seconds = 1.0;  // wall time between progress lines
+};
+
+struct Scene {
+  std::string name;
+  CaseType case_type = CaseType::TaylorGreen3D;
+  int particles_per_side = 32;
+  KernelType kernel = KernelType::WendlandC4;
+  double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
+  FluidParameters fluid;
+  double velocity_amplitude = 1.0;            // v0 [m/s]
+  std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
+  double end_time = 15.0;                     // [s]
+  TimeStepConfig time_step;
+  double neighbour_skin = 0.15;               // fraction of H
+  PackingConfig packing;
+  OutputConfig output;
+
+  int dimension() const { return case_dimension(case_type); }
+  double box_length() const;        // L [m]
+  double particle_spacing() const;  // Δl = L / particles_per_side [m]
+  double kernel_diameter() const;   // D_K [m]
+  std::size_t num_particles() const;
+};
+
+/// Parses and validates a scene; throws SceneError.
+Scene parse_scene(const nlohmann::json& document);
+
+/// Reads a JSON file; throws SceneError naming the file on I/O or syntax errors.
+nlohmann::json read_scene_file(const std::filesystem::path& path);
+
+/// Applies "dotted.key=value" to a scene document. The value is parsed as JSON when it is valid
+/// JSON, otherwise taken as a string. Throws SceneError on a malformed assignment.
+void apply_override(nlohmann::json& document, const std::string& assignment);
+
+/// The complete scene with every default filled in (written next to each run's output).
+nlohmann::json scene_to_json(const Scene& scene);
+
+}  // namespace sphles::sim

@@ -1,0 +1,209 @@
+#include "sim/solver.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+
+#include "sim/neighbour_search.hpp"
+#include "sim/reduction.hpp"
+
+namespace sphles::sim {
+
+namespace {
+
+void validate(const SolverConfig& c, const ParticleArrays& p) {
+  if (c.box.dimension != 2 && c.box.dimension != 3)
+    throw std::invalid_argument("solver: dimension must be 2 or 3");
+  if (p.dimension != c.box.dimension)
+    throw std::invalid_argument("solver: particle and box dimensions differ");
+  if (p.size() == 0) throw std::invalid_argument("solver: no particles");
+  if (!(c.support_radius > 0.0)) throw std::invalid_argument("solver: support radius must be > 0");
+  if (!(c.particle_spacing > 0.0))
+    throw std::invalid_argument("solver: particle spacing must be > 0");
+  if (!(c.fluid.reference_density > 0.0) || !(c.fluid.sound_speed > 0.0) ||
+      !(c.fluid.dynamic_viscosity >= 0.0))
+    throw std::invalid_argument("solver: invalid fluid parameters");
+}
+
+template <class KernelT>
+class SphSolver final : public Simulation {
+  static constexpr int Dim = KernelT::dimension;
+
+ public:
+  SphSolver(const KernelT& kernel, const SolverConfig& config, ParticleArrays initial,
+            double start_time, std::uint64_t start_step)
+      : config_(config),
+        kernel_(kernel),
+        search_(config.box, config.support_radius, config.neighbour_skin * config.support_radius),
+        particles_(std::move(initial)),
+        time_(start_time),
+        step_(start_step) {
+    for (int d = 0; d < Dim; ++d) {
+      predicted_velocity_[d].resize(particles_.size());
+      particles_.acceleration[d].resize(particles_.size());
+      for (double& x : particles_.position[d]) x = wrap_periodic(x, config_.box.length[d]);
+    }
+    particles_.volume.resize(particles_.size());
+    particles_.density.resize(particles_.size());
+    particles_.pressure.resize(particles_.size());
+    rebuild_neighbours();
+    evaluate_acceleration(view_velocity(particles_), time_);
+    update_diagnostics(0.0);
+  }
+
+  void step(double max_dt) override {
+    const double dt = std::min(stable_time_step(), max_dt);
+    if (!(dt > 0.0)) throw std::invalid_argument("solver: time step must be > 0");
+    const double half_dt = 0.5 * dt;
+    const std::size_t n = particles_.size();
+    // Kick and drift.
+    for (int d = 0; d < Dim; ++d) {
+      double* v = particles_.velocity[d].data();
+      double* x = particles_.position[d].data();
+      const double* a = particles_.acceleration[d].data();
+      const double length = config_.box.length[d];
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) {
+        v[i] += half_dt * a[i];
+        x[i] = wrap_periodic(x[i] + dt * v[i], length);
+      }
+    }
+    if (search_.needs_rebuild(view_positions(particles_))) rebuild_neighbours();
+    // Predicted end-of-step velocity for the velocity-dependent forces.
+    VelocityView predicted;
+    for (int d = 0; d < Dim; ++d) {
+      const double* v = particles_.velocity[d].data();
+      const double* a = particles_.acceleration[d].data();
+      double* vp = predicted_velocity_[d].data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) vp[i] = v[i] + half_dt * a[i];
+      predicted.v[d] = vp;
+    }
+    time_ += dt;
+    ++step_;
+    evaluate_acceleration(predicted, time_);
+    // Closing kick.
+    for (int d = 0; d < Dim; ++d) {
+      double* v = particles_.velocity[d].data();
+      const double* a = particles_.acceleration[d].data();
+#pragma omp parallel for schedule(static)
+      for (std::size_t i = 0; i < n; ++i) v[i] += half_dt * a[i];
+    }
+    update_diagnostics(dt);
+  }
+
+  double time() const override { return time_; }
+  std::uint64_t step_count() const override { return step_; }
+  const StepDiagnostics& diagnostics() const override { return diagnostics_; }
+  const ParticleArrays& particles() const override { return particles_; }
+  const SolverConfig& config() const override { return config_; }
+
+  double stable_time_step() const override {
+    const TimeStepConfig& ts = config_.time_step;
+    if (ts.fixed > 0.0) return ts.fixed;
+    const double spacing = config_.particle_spacing;
+    double dt = ts.cfl_acoustic * spacing / (config_.fluid.sound_speed + diagnostics_.max_speed);
+    const double nu = config_.fluid.kinematic_viscosity();
+    if (nu > 0.0) dt = std::min(dt, ts.cfl_viscous * spacing * spacing / nu);
+    if (max_acceleration_ > 0.0) dt = std::min(dt, ts.cfl_force * std::sqrt(spacing / max_acceleration_));
+    return dt;
+  }
+
+ private:
+  void rebuild_neighbours() {
+    const auto order = search_.locality_order(view_positions(particles_));
+    particles_.reorder(order);
+    search_.build(view_positions(particles_));
+  }
+
+  void evaluate_acceleration(const VelocityView& velocity, double time) {
+    density_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, particles_);
+    force_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, velocity, particles_);
+    if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
+    max_acceleration_ = parallel_max(particles_.size(), [&](std::size_t i) {
+      double a2 = 0.0;
+      for (int d = 0; d < Dim; ++d) a2 += particles_.acceleration[d][i] * particles_.acceleration[d][i];
+      return a2;
+    });
+    max_acceleration_ = std::sqrt(max_acceleration_);
+  }
+
+  void update_diagnostics(double dt) {
+    const ParticleArrays& p = particles_;
+    const std::size_t n = p.size();
+    StepDiagnostics& diag = diagnostics_;
+    diag.time = time_;
+    diag.step = step_;
+    diag.dt = dt;
+    diag.total_mass = deterministic_sum(n, [&](std::size_t i) { return p.mass[i]; });
+    const double twice_energy = deterministic_sum(n, [&](std::size_t i) {
+      double v2 = 0.0;
+      for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
+      return p.mass[i] * v2;
+    });
+    diag.kinetic_energy = 0.5 * twice_energy / diag.total_mass;  // (5.3)
+    for (int d = 0; d < 3; ++d) {
+      diag.momentum[d] = d < Dim ? deterministic_sum(n, [&](std::size_t i) {
+        return p.mass[i] * p.velocity[d][i];
+      })
+                                 : 0.0;
+    }
+    const double rho_ref = config_.fluid.reference_density;
+    diag.max_density_deviation = parallel_max(
+        n, [&](std::size_t i) { return std::abs(p.density[i] - rho_ref) / rho_ref; });
+    diag.max_speed = std::sqrt(parallel_max(n, [&](std::size_t i) {
+      double v2 = 0.0;
+      for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
+      return v2;
+    }));
+    diag.neighbour_builds = search_.num_builds();
+    diag.mean_neighbours = static_cast<double>(search_.list().indices.size()) / static_cast<double>(n);
+    if (!std::isfinite(diag.kinetic_energy) || !std::isfinite(max_acceleration_) ||
+        !std::isfinite(diag.max_density_deviation))
+      report_non_finite();
+  }
+
+  [[noreturn]] void report_non_finite() const {
+    const ParticleArrays& p = particles_;
+    std::ostringstream msg;
+    msg << "solver: non-finite state at t = " << time_ << " (step " << step_ << ")";
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      bool bad = !std::isfinite(p.density[i]) || !std::isfinite(p.pressure[i]);
+      for (int d = 0; d < Dim; ++d)
+        bad = bad || !std::isfinite(p.position[d][i]) || !std::isfinite(p.velocity[d][i]) ||
+              !std::isfinite(p.acceleration[d][i]);
+      if (bad) {
+        msg << ": first at particle id " << p.id[i] << ", position (";
+        for (int d = 0; d < Dim; ++d) msg << (d ? ", " : "") << p.position[d][i];
+        msg << "), density " << p.density[i];
+        break;
+      }
+    }
+    throw SimulationError(msg.str());
+  }
+
+  SolverConfig config_;
+  KernelT kernel_;
+  VerletNeighbourSearch search_;
+  ParticleArrays particles_;
+  std::array<std::vector<double>, 3> predicted_velocity_;
+  double time_;
+  std::uint64_t step_;
+  double max_acceleration_ = 0.0;
+  StepDiagnostics diagnostics_;
+};
+
+}  // namespace
+
+std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
+                                            double start_time, std::uint64_t start_step) {
+  validate(config, initial);
+  return with_kernel(config.kernel, config.box.dimension, config.support_radius,
+                     [&](const auto& kernel) -> std::unique_ptr<Simulation> {
+                       using KernelT = std::decay_t<decltype(kernel)>;
+                       return std::make_unique<SphSolver<KernelT>>(
+                           kernel, config, std::move(initial), start_time, start_step);
+                     });
+}
+
+}  // namespace sphles::sim

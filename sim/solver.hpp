@@ -1,0 +1,94 @@
+// Run-control interface of the solver and its configuration.
+//
+// Time integration (documented in docs/numerics.md): kick-drift-kick leapfrog with a predicted
+// end-of-step velocity for the velocity-dependent (viscous) force, second order in dt:
+//   v^{n+1/2} = v^n + dt/2 a^n,   x^{n+1} = x^n + dt v^{n+1/2},
+//   v*        = v^{n+1/2} + dt/2 a^n,   a^{n+1} = a(x^{n+1}, v*, t^{n+1}),
+//   v^{n+1}   = v^{n+1/2} + dt/2 a^{n+1}.
+// One density pass and one force pass per step.
+#pragma once
+
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+#include <string>
+
+#include "sim/kernels.hpp"
+#include "sim/particles.hpp"
+#include "sim/physics.hpp"
+
+namespace sphles::sim {
+
+/// Time-step limits (docs/numerics.md); Δl is the mean particle spacing, H the kernel support.
+///   acoustic:     dt <= cfl_acoustic * Δl / (c_s + |v|max)
+///   viscous:      dt <= cfl_viscous  * Δl² / ν
+///   acceleration: dt <= cfl_force    * sqrt(Δl / |a|max)
+/// A positive `fixed` step replaces the limits (the limits are still reported).
+struct TimeStepConfig {
+  double cfl_acoustic = 0.4;
+  double cfl_viscous = 0.125;
+  double cfl_force = 0.25;
+  double fixed = 0.0;
+};
+
+/// Adds an external acceleration a_ext (3.25) to every particle; called once per force
+/// evaluation, after the pair forces, with the velocity at which forces are evaluated.
+using ExternalAcceleration =
+    std::function<void(double time, const ParticleArrays& particles, const VelocityView& velocity,
+                       std::array<std::vector<double>, 3>& acceleration)>;
+
+struct SolverConfig {
+  PeriodicBox box;
+  KernelType kernel = KernelType::WendlandC4;
+  double support_radius = 0.0;    // H = D_K / 2 [m]
+  double particle_spacing = 0.0;  // Δl [m], sets the time-step limits
+  FluidParameters fluid;
+  TimeStepConfig time_step;
+  double neighbour_skin = 0.15;   // Verlet skin as a fraction of H
+  ExternalAcceleration external;  // optional
+};
+
+/// Per-step health and energy figures (SPEC §5: e_v of (5.3)).
+struct StepDiagnostics {
+  double time = 0.0;
+  std::uint64_t step = 0;
+  double dt = 0.0;                     // step just taken (0 before the first)
+  double kinetic_energy = 0.0;         // e_v = ½ Σ M v² / Σ M (5.3) [m²/s²]
+  double max_density_deviation = 0.0;  // max |ρ_i - ρ_ref| / ρ_ref
+  double max_speed = 0.0;              // max |v_i| [m/s]
+  double total_mass = 0.0;
+  std::array<double, 3> momentum{0.0, 0.0, 0.0};  // Σ M v [kg m/s]
+  std::size_t neighbour_builds = 0;
+  double mean_neighbours = 0.0;  // mean list length (inside list radius H(1+skin))
+};
+
+/// Thrown when the state becomes non-finite; says where.
+class SimulationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The narrow interface the rest of sphles uses to drive a run.
+class Simulation {
+ public:
+  virtual ~Simulation() = default;
+  /// Advances one step of size min(limit from TimeStepConfig, max_dt).
+  virtual void step(double max_dt = std::numeric_limits<double>::infinity()) = 0;
+  virtual double time() const = 0;
+  virtual std::uint64_t step_count() const = 0;
+  virtual const StepDiagnostics& diagnostics() const = 0;
+  virtual const ParticleArrays& particles() const = 0;
+  virtual const SolverConfig& config() const = 0;
+  /// The step the limits allow for the current state (before max_dt).
+  virtual double stable_time_step() const = 0;
+};
+
+/// Builds a solver for the configured dimension and kernel. `initial` needs positions, velocities
+/// and masses; volume, density, pressure and acceleration are computed here.
+std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
+                                            double start_time = 0.0, std::uint64_t start_step = 0);
+
+}  // namespace sphles::sim

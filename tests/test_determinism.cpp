@@ -1,0 +1,49 @@
+// Bitwise-identical results for any thread count: gather-form passes and fixed-order reductions.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <cstring>
+
+#include "sim/solver.hpp"
+#include "test_support.hpp"
+
+namespace sphles::sim {
+namespace {
+
+ParticleArrays run_with_threads(int threads, int dim) {
+  const int saved = omp_get_max_threads();
+  omp_set_num_threads(threads);
+  auto flow = testing::random_flow(dim, dim == 3 ? 12 : 40, dim == 3 ? 6.0 : 8.0, 1.0, 11);
+  auto sim = make_simulation(flow.config, flow.particles);
+  for (int step = 0; step < 60; ++step) sim->step();
+  omp_set_num_threads(saved);
+  return sim->particles();
+}
+
+bool bitwise_equal(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+class DeterminismTest : public ::testing::TestWithParam<int> {};
+
+TEST_P(DeterminismTest, OneAndTwoThreadsGiveIdenticalState) {
+  const int dim = GetParam();
+  const ParticleArrays one = run_with_threads(1, dim);
+  for (const int threads : {2, 3}) {
+    const ParticleArrays many = run_with_threads(threads, dim);
+    EXPECT_EQ(one.id, many.id) << threads << " threads";
+    for (int d = 0; d < dim; ++d) {
+      EXPECT_TRUE(bitwise_equal(one.position[d], many.position[d])) << threads << " threads";
+      EXPECT_TRUE(bitwise_equal(one.velocity[d], many.velocity[d])) << threads << " threads";
+      EXPECT_TRUE(bitwise_equal(one.acceleration[d], many.acceleration[d]))
+          << threads << " threads";
+    }
+    EXPECT_TRUE(bitwise_equal(one.density, many.density)) << threads << " threads";
+    EXPECT_TRUE(bitwise_equal(one.pressure, many.pressure)) << threads << " threads";
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(Dimensions, DeterminismTest, ::testing::Values(2, 3));
+
+}  // namespace
+}  // namespace sphles::sim

@@ -1,0 +1,114 @@
+// Kernels of SPEC §3: normalisation, gradient and compact support, every kernel in 2D and 3D.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <numbers>
+
+#include "sim/kernels.hpp"
+
+namespace sphles::sim {
+namespace {
+
+template <class Shape, int Dim>
+struct Case {
+  using shape = Shape;
+  static constexpr int dim = Dim;
+};
+
+template <class C>
+class KernelTest : public ::testing::Test {};
+
+using AllKernels = ::testing::Types<
+    Case<kernel_shape::WendlandC2, 2>, Case<kernel_shape::WendlandC2, 3>,
+    Case<kernel_shape::WendlandC4, 2>, Case<kernel_shape::WendlandC4, 3>,
+    Case<kernel_shape::WendlandC6, 2>, Case<kernel_shape::WendlandC6, 3>,
+    Case<kernel_shape::QuinticSpline, 2>, Case<kernel_shape::QuinticSpline, 3>>;
+TYPED_TEST_SUITE(KernelTest, AllKernels);
+
+/// Composite Simpson rule on [a, b] with n (even) intervals.
+template <class F>
+double simpson(F&& f, double a, double b, int n) {
+  const double h = (b - a) / n;
+  double s = f(a) + f(b);
+  for (int k = 1; k < n; ++k) s += (k % 2 ? 4.0 : 2.0) * f(a + k * h);
+  return s * h / 3.0;
+}
+
+TYPED_TEST(KernelTest, IntegratesToOne) {
+  constexpr int dim = TypeParam::dim;
+  for (const double support : {0.37, 1.0, 2.5}) {
+    const Kernel<typename TypeParam::shape, dim> kernel(support);
+    const auto shell = [&](double r) {
+      const double measure = dim == 3 ? 4.0 * std::numbers::pi * r * r : 2.0 * std::numbers::pi * r;
+      return measure * kernel.value(r);
+    };
+    // Integrate piecewise over thirds of the support so that the quintic spline's breakpoints
+    // (s = 1, 2) are interval ends and Simpson's rule is exact to round-off on each piece.
+    double integral = 0.0;
+    for (int piece = 0; piece < 3; ++piece)
+      integral += simpson(shell, piece * support / 3.0, (piece + 1) * support / 3.0, 600);
+    EXPECT_NEAR(integral, 1.0, 1e-6) << "support radius " << support;
+  }
+}
+
+TYPED_TEST(KernelTest, GradientMatchesFiniteDifference) {
+  constexpr int dim = TypeParam::dim;
+  const double support = 1.3;
+  const Kernel<typename TypeParam::shape, dim> kernel(support);
+  for (int k = 1; k < 100; ++k) {
+    const double r = support * k / 100.0;
+    const double h = 1e-6 * support;
+    const double finite_difference = (kernel.value(r + h) - kernel.value(r - h)) / (2.0 * h);
+    const double analytic = kernel.gradient_over_r(r) * r;
+    const double scale = std::abs(kernel.gradient_over_r(0.5 * support)) * support;
+    EXPECT_NEAR(analytic, finite_difference, 1e-7 * scale) << "r/H = " << r / support;
+  }
+}
+
+TYPED_TEST(KernelTest, CompactSupportAndShape) {
+  constexpr int dim = TypeParam::dim;
+  const double support = 0.8;
+  const Kernel<typename TypeParam::shape, dim> kernel(support);
+  EXPECT_EQ(kernel.value(support), 0.0);
+  EXPECT_EQ(kernel.value(1.5 * support), 0.0);
+  EXPECT_EQ(kernel.gradient_over_r(support), 0.0);
+  EXPECT_EQ(kernel.gradient_over_r(2.0 * support), 0.0);
+  EXPECT_GT(kernel.value(0.999 * support), 0.0);
+  // Finite gradient factor at r = 0 (the self pair contributes exactly zero force).
+  EXPECT_TRUE(std::isfinite(kernel.gradient_over_r(0.0)));
+  // Positive and monotonically decreasing inside the support.
+  double previous = kernel.value(0.0);
+  for (int k = 1; k < 200; ++k) {
+    const double w = kernel.value(support * k / 200.0);
+    EXPECT_GT(w, 0.0);
+    EXPECT_LT(w, previous);
+    EXPECT_LE(kernel.gradient_over_r(support * k / 200.0), 0.0);
+    previous = w;
+  }
+}
+
+TEST(KernelNames, RoundTripAndError) {
+  for (const auto type : {KernelType::WendlandC2, KernelType::WendlandC4, KernelType::WendlandC6,
+                          KernelType::QuinticSpline})
+    EXPECT_EQ(kernel_from_name(kernel_name(type)), type);
+  try {
+    kernel_from_name("cubic");
+    FAIL() << "expected an exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("unknown kernel 'cubic'"), std::string::npos);
+    EXPECT_NE(std::string(e.what()).find("wendland_c4"), std::string::npos);
+  }
+}
+
+TEST(KernelDispatch, PicksShapeAndDimension) {
+  const double w = with_kernel(KernelType::WendlandC2, 2, 1.0, [](const auto& k) {
+    EXPECT_EQ(std::decay_t<decltype(k)>::dimension, 2);
+    return k.value(0.0);
+  });
+  EXPECT_DOUBLE_EQ(w, 7.0 / std::numbers::pi);
+  EXPECT_THROW(with_kernel(KernelType::WendlandC2, 4, 1.0, [](const auto&) { return 0.0; }),
+               std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace sphles::sim

@@ -1,0 +1,138 @@
+// The cell-list Verlet search equals brute force on random periodic sets (SWIFT test27cells
+// style), including particles on and near the faces and boxes of one, two and three cells.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <random>
+#include <set>
+
+#include "sim/neighbour_search.hpp"
+
+namespace sphles::sim {
+namespace {
+
+struct SearchCase {
+  int dim;
+  std::array<double, 3> length;
+  double cutoff;
+  double skin;
+  std::size_t count;
+};
+
+ParticleArrays random_particles(const SearchCase& c, std::uint64_t seed) {
+  ParticleArrays p;
+  p.dimension = c.dim;
+  p.resize(c.count);
+  std::mt19937_64 rng(seed);
+  for (std::size_t i = 0; i < c.count; ++i) {
+    for (int d = 0; d < c.dim; ++d) {
+      std::uniform_real_distribution<double> uniform(0.0, c.length[d]);
+      double x = uniform(rng);
+      // Every fifth particle sits on or within 1e-9 L of a face.
+      if (i % 5 == 0) x = (i % 2 ? 0.0 : std::nextafter(c.length[d], 0.0));
+      if (i % 7 == 0) x = (i % 2 ? 1e-9 : c.length[d] - 1e-9) * (d == 0 ? 1.0 : 0.5);
+      p.position[d][i] = x;
+    }
+  }
+  return p;
+}
+
+std::vector<std::set<std::uint32_t>> brute_force(const ParticleArrays& p, const PeriodicBox& box,
+                                                 double radius) {
+  std::vector<std::set<std::uint32_t>> result(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i)
+    for (std::size_t j = 0; j < p.size(); ++j) {
+      if (i == j) continue;
+      double r2 = 0.0;
+      for (int d = 0; d < p.dimension; ++d) {
+        const double dx =
+            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
+        r2 += dx * dx;
+      }
+      if (r2 < radius * radius) result[i].insert(static_cast<std::uint32_t>(j));
+    }
+  return result;
+}
+
+class NeighbourSearchTest : public ::testing::TestWithParam<SearchCase> {};
+
+TEST_P(NeighbourSearchTest, EqualsBruteForce) {
+  const SearchCase c = GetParam();
+  PeriodicBox box{c.dim, c.length};
+  for (std::uint64_t seed = 1; seed <= 3; ++seed) {
+    ParticleArrays p = random_particles(c, seed);
+    VerletNeighbourSearch search(box, c.cutoff, c.skin);
+    p.reorder(search.locality_order(view_positions(p)));
+    search.build(view_positions(p));
+    const auto expected = brute_force(p, box, search.list_radius());
+    const NeighbourList& list = search.list();
+    ASSERT_EQ(list.num_particles(), p.size());
+    std::size_t total = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const auto span = list.of(i);
+      const std::set<std::uint32_t> found(span.begin(), span.end());
+      EXPECT_EQ(found.size(), span.size()) << "duplicate neighbour of particle " << i;
+      EXPECT_EQ(found, expected[i]) << "particle " << i << " seed " << seed;
+      total += span.size();
+    }
+    EXPECT_GT(total, 0u);
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Boxes, NeighbourSearchTest,
+    ::testing::Values(SearchCase{3, {1.0, 1.0, 1.0}, 0.12, 0.02, 1500},   // many cells
+                      SearchCase{3, {1.0, 0.8, 0.6}, 0.2, 0.03, 800},     // 4, 3, 2 cells
+                      SearchCase{3, {1.0, 1.0, 1.0}, 0.5, 0.1, 300},      // support = half box
+                      SearchCase{3, {0.5, 1.0, 1.0}, 0.25, 0.0, 400},     // one cell in x
+                      SearchCase{2, {1.0, 1.0, 0.0}, 0.07, 0.01, 2000},   // 2D, many cells
+                      SearchCase{2, {1.0, 0.3, 0.0}, 0.14, 0.01, 600},    // 2D, two cells in y
+                      SearchCase{2, {1.0, 1.0, 0.0}, 0.5, 0.0, 300}));    // 2D, one cell
+
+TEST(NeighbourSearch, RejectsBoxSmallerThanSupportDiameter) {
+  PeriodicBox box{3, {1.0, 1.0, 0.5}};
+  try {
+    VerletNeighbourSearch search(box, 0.3, 0.0);
+    FAIL() << "expected an exception";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("smaller than the kernel support diameter"),
+              std::string::npos);
+  }
+}
+
+TEST(NeighbourSearch, SkinShrinksToFitSmallBox) {
+  PeriodicBox box{2, {1.0, 1.0, 0.0}};
+  VerletNeighbourSearch search(box, 0.45, 0.2);
+  EXPECT_NEAR(search.list_radius(), 0.5, 1e-15);
+}
+
+TEST(NeighbourSearch, RebuildOnlyAfterHalfSkinDisplacement) {
+  const SearchCase c{3, {1.0, 1.0, 1.0}, 0.15, 0.04, 500};
+  PeriodicBox box{3, c.length};
+  ParticleArrays p = random_particles(c, 9);
+  VerletNeighbourSearch search(box, c.cutoff, c.skin);
+  EXPECT_TRUE(search.needs_rebuild(view_positions(p)));
+  search.build(view_positions(p));
+  EXPECT_FALSE(search.needs_rebuild(view_positions(p)));
+  // Move one particle by 0.49 skin across the periodic face: still valid.
+  p.position[0][3] = wrap_periodic(p.position[0][3] - 0.49 * c.skin, 1.0);
+  EXPECT_FALSE(search.needs_rebuild(view_positions(p)));
+  p.position[0][3] = wrap_periodic(p.position[0][3] - 0.02 * c.skin, 1.0);
+  EXPECT_TRUE(search.needs_rebuild(view_positions(p)));
+}
+
+TEST(Periodic, MinimumImageIsExactlyAntisymmetric) {
+  std::mt19937_64 rng(4);
+  std::uniform_real_distribution<double> uniform(0.0, 2.0);
+  const double length = 2.0;
+  for (int k = 0; k < 100000; ++k) {
+    const double a = uniform(rng), b = uniform(rng);
+    EXPECT_EQ(minimum_image(a - b, length, 1.0), -minimum_image(b - a, length, 1.0));
+  }
+  EXPECT_EQ(wrap_periodic(-1e-18, 1.0), 0.0);
+  EXPECT_EQ(wrap_periodic(1.0, 1.0), 0.0);
+  EXPECT_DOUBLE_EQ(wrap_periodic(1.25, 1.0), 0.25);
+}
+
+}  // namespace
+}  // namespace sphles::sim

@@ -1,0 +1,193 @@
+// Scene files: defaults, overrides and the documented errors, in-process and through the real
+// sphles program (exit code 2 and a message naming the field).
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <sys/wait.h>
+
+#include "sim/scene.hpp"
+
+namespace sphles::sim {
+namespace {
+
+using nlohmann::json;
+
+std::string error_of(const json& document) {
+  try {
+    parse_scene(document);
+  } catch (const SceneError& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(Scene, DefaultsFollowSpecForTaylorGreen3D) {
+  const Scene s = parse_scene(json::object());
+  EXPECT_EQ(s.case_type, CaseType::TaylorGreen3D);
+  EXPECT_EQ(s.dimension(), 3);
+  EXPECT_EQ(s.kernel, KernelType::WendlandC4);
+  EXPECT_DOUBLE_EQ(s.kernel_diameter_over_spacing, 8.0);
+  EXPECT_DOUBLE_EQ(s.fluid.sound_speed, 5.0);          // Ma = 0.2
+  EXPECT_DOUBLE_EQ(s.fluid.reference_pressure, 6.25);  // ρ c²/4
+  EXPECT_DOUBLE_EQ(s.fluid.dynamic_viscosity, 1e-4);   // Re = 10^4
+  EXPECT_DOUBLE_EQ(s.end_time, 15.0);
+  EXPECT_NEAR(s.box_length(), 2.0 * M_PI, 1e-15);
+}
+
+TEST(Scene, RoundTripThroughJson) {
+  json doc = {{"case", "tgv2d"},
+              {"particles_per_side", 40},
+              {"kernel", {{"type", "quintic_spline"}, {"diameter_over_spacing", 6}}},
+              {"flow", {{"uniform_velocity", {0.5, -1.0}}}},
+              {"time", {{"fixed_step", 1e-3}}}};
+  const Scene s = parse_scene(doc);
+  const json written = scene_to_json(s);
+  EXPECT_EQ(scene_to_json(parse_scene(written)), written);
+  EXPECT_EQ(written["kernel"]["type"], "quintic_spline");
+  EXPECT_EQ(written["flow"]["uniform_velocity"], json({0.5, -1.0}));
+  EXPECT_EQ(s.num_particles(), 1600u);
+}
+
+TEST(Scene, OverridesUseDottedPathsAndJsonValues) {
+  json doc = json::object();
+  apply_override(doc, "kernel.type=wendland_c6");
+  apply_override(doc, "particles_per_side=24");
+  apply_override(doc, "packing.enabled=false");
+  apply_override(doc, "flow.uniform_velocity=[0,0,3.14]");
+  const Scene s = parse_scene(doc);
+  EXPECT_EQ(s.kernel, KernelType::WendlandC6);
+  EXPECT_EQ(s.particles_per_side, 24);
+  EXPECT_FALSE(s.packing.enabled);
+  EXPECT_DOUBLE_EQ(s.uniform_velocity[2], 3.14);
+  EXPECT_THROW(apply_override(doc, "no_equals_sign"), SceneError);
+  EXPECT_THROW(apply_override(doc, "kernel..type=x"), SceneError);
+  EXPECT_THROW(apply_override(doc, "particles_per_side.x=1"), SceneError);
+}
+
+struct BadScene {
+  json document;
+  std::string expected;  // substring of the error
+};
+
+class BadSceneTest : public ::testing::TestWithParam<BadScene> {};
+
+TEST_P(BadSceneTest, ErrorNamesFieldAndReason) {
+  const std::string error = error_of(GetParam().document);
+  ASSERT_FALSE(error.empty()) << "scene was accepted: " << GetParam().document.dump();
+  EXPECT_NE(error.find(GetParam().expected), std::string::npos) << error;
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Errors, BadSceneTest,
+    ::testing::Values(
+        BadScene{{{"kernel", {{"typ", "wendland_c4"}}}}, "unknown key 'kernel.typ'"},
+        BadScene{{{"colour", 1}}, "unknown key 'colour'"},
+        BadScene{{{"particles_per_side", "32"}}, "'particles_per_side' must be an integer, got string"},
+        BadScene{{{"particles_per_side", 32.5}}, "'particles_per_side' must be an integer"},
+        BadScene{{{"particles_per_side", 1}}, "'particles_per_side' must be in [2, 4096], got 1"},
+        BadScene{{{"fluid", {{"sound_speed", -1}}}}, "'fluid.sound_speed' must be > 0, got -1"},
+        BadScene{{{"fluid", {{"dynamic_viscosity", "x"}}}}, "'fluid.dynamic_viscosity' must be a number, got string"},
+        BadScene{{{"fluid", 3}}, "'fluid' must be an object, got number"},
+        BadScene{{{"kernel", {{"type", "gauss"}}}}, "'kernel.type': unknown kernel 'gauss'"},
+        BadScene{{{"case", "channel"}}, "'case' must be one of tgv3d, tgv2d, got 'channel'"},
+        BadScene{{{"time", {{"cfl_acoustic", 3}}}}, "'time.cfl_acoustic' must be in (0, 2], got 3"},
+        BadScene{{{"packing", {{"enabled", 1}}}}, "'packing.enabled' must be true or false, got number"},
+        BadScene{{{"case", "tgv2d"}, {"flow", {{"uniform_velocity", {1, 2, 3}}}}},
+                 "'flow.uniform_velocity' must be an array of 2 numbers"},
+        BadScene{{{"particles_per_side", 6}, {"kernel", {{"diameter_over_spacing", 8}}}},
+                 "box length 6.28319 m is smaller than the kernel diameter D_K = 8.37758 m"}),
+    [](const ::testing::TestParamInfo<BadScene>& info) {
+      return "case" + std::to_string(info.index);
+    });
+
+// --- the real program --------------------------------------------------------------------
+
+struct ProcessResult {
+  int exit_code;
+  std::string output;
+};
+
+ProcessResult run_sphles(const std::string& arguments) {
+  const std::string command = std::string(SPHLES_BINARY) + " " + arguments + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return {-1, "popen failed"};
+  std::string output;
+  std::array<char, 4096> buffer;
+  while (std::fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+class CliTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           ("sphles_cli_" + std::to_string(::getpid()) + "_" +
+            ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::create_directories(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::string write(const std::string& name, const std::string& text) {
+    std::ofstream(dir_ / name) << text;
+    return (dir_ / name).string();
+  }
+  std::filesystem::path dir_;
+};
+
+TEST_F(CliTest, BadSceneExitsWithCodeTwoAndNamesField) {
+  const auto bad = write("bad.json", R"({"fluid": {"sound_speed": -5}})");
+  const ProcessResult r = run_sphles("run " + bad + " --out " + (dir_ / "out").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("'fluid.sound_speed' must be > 0"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "out")) << "a rejected scene must not create output";
+}
+
+TEST_F(CliTest, InvalidJsonMissingFileAndBadOptions) {
+  const auto broken = write("broken.json", "{\"case\": ");
+  ProcessResult r = run_sphles("run " + broken);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("is not valid JSON"), std::string::npos) << r.output;
+  r = run_sphles("run " + (dir_ / "missing.json").string());
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("cannot open file"), std::string::npos) << r.output;
+  const auto good = write("good.json", "{}");
+  r = run_sphles("run " + good + " --threads zero");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--threads must be an integer"), std::string::npos) << r.output;
+  r = run_sphles("run " + good + " --set kernel.diameter=4");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown key 'kernel.diameter'"), std::string::npos) << r.output;
+  r = run_sphles("frobnicate");
+  EXPECT_EQ(r.exit_code, 2);
+}
+
+TEST_F(CliTest, SmallRunWritesSceneAndTimeSeries) {
+  const auto scene = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "kernel": {"diameter_over_spacing": 4}, "time": {"end": 0.05},
+      "packing": {"enabled": false}})");
+  const auto out = dir_ / "out";
+  const ProcessResult r = run_sphles("run " + scene + " --threads 2 --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("steps/s"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ETA"), std::string::npos) << r.output;
+  std::ifstream csv(out / "timeseries.csv");
+  std::string header, line, last;
+  std::getline(csv, header);
+  EXPECT_EQ(header, "t,step,dt,e_v,max_density_deviation,max_speed");
+  int rows = 0;
+  while (std::getline(csv, line)) {
+    last = line;
+    ++rows;
+  }
+  EXPECT_GT(rows, 2);
+  EXPECT_DOUBLE_EQ(std::stod(last.substr(0, last.find(','))), 0.05);  // ends exactly at t_end
+  const json written = json::parse(std::ifstream(out / "scene.json"));
+  EXPECT_EQ(written["particles_per_side"], 16);
+  EXPECT_EQ(written["case"], "tgv2d");
+}
+
+}  // namespace
+}  // namespace sphles::sim
