@@ -94,9 +94,9 @@ int run_command(const std::vector<std::string>& args) {
 
   try {
     if (options.threads > 0) omp_set_num_threads(options.threads);
-    const std::filesystem::path out_dir =
-        options.out_dir ? std::filesystem::path(*options.out_dir)
-                        : std::filesystem::path("runs") / scene.name;
+    const std::filesystem::path out_dir = options.out_dir
+                                              ? std::filesystem::path(*options.out_dir)
+                                              : std::filesystem::path("runs") / scene.name;
     std::filesystem::create_directories(out_dir);
     write_text_atomically(out_dir / "scene.json", sim::scene_to_json(scene).dump(2) + "\n");
 
@@ -111,9 +111,8 @@ int run_command(const std::vector<std::string>& args) {
     const double setup_seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - setup_start).count();
     if (scene.packing.enabled) {
-      std::fprintf(stderr,
-                   "packing: %s, %d iterations, residual %.3g -> %.3g%s (%.1f s)%s%s\n",
-                   setup.packing.from_cache ? "from cache"
+      std::fprintf(stderr, "packing: %s, %d iterations, residual %.3g -> %.3g%s (%.1f s)%s%s\n",
+                   setup.packing.from_cache  ? "from cache"
                    : setup.packing.converged ? "converged"
                                              : "NOT converged (max_iterations reached)",
                    setup.packing.iterations, setup.packing.initial_residual,

@@ -11,7 +11,8 @@ void set_taylor_green_3d(const Scene& s, ParticleArrays& p) {
   const double cell_volume = std::pow(s.particle_spacing(), 3);
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double x = p.position[0][i], y = p.position[1][i], z = p.position[2][i];
-    p.velocity[0][i] = v0 * std::sin(x) * std::cos(y) * std::cos(z) + s.uniform_velocity[0];  // (5.1)
+    p.velocity[0][i] =
+        v0 * std::sin(x) * std::cos(y) * std::cos(z) + s.uniform_velocity[0];  // (5.1)
     p.velocity[1][i] = -v0 * std::cos(x) * std::sin(y) * std::cos(z) + s.uniform_velocity[1];
     p.velocity[2][i] = s.uniform_velocity[2];
     const double p0_minus_ref = rho_ref * v0 * v0 / 16.0 * (2.0 + std::cos(2.0 * z)) *
@@ -53,8 +54,12 @@ RunSetup setup_run(const Scene& scene) {
 
   setup.particles = packed_positions(scene, &setup.packing);
   switch (scene.case_type) {
-    case CaseType::TaylorGreen3D: set_taylor_green_3d(scene, setup.particles); break;
-    case CaseType::TaylorGreen2D: set_taylor_green_2d(scene, setup.particles); break;
+    case CaseType::TaylorGreen3D:
+      set_taylor_green_3d(scene, setup.particles);
+      break;
+    case CaseType::TaylorGreen2D:
+      set_taylor_green_2d(scene, setup.particles);
+      break;
   }
   return setup;
 }

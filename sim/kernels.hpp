@@ -153,10 +153,14 @@ decltype(auto) with_kernel(KernelType type, int dim, double support_radius, F&& 
     return f(Kernel<Shape, 3>(support_radius));
   };
   switch (type) {
-    case KernelType::WendlandC2: return for_dim.template operator()<kernel_shape::WendlandC2>();
-    case KernelType::WendlandC4: return for_dim.template operator()<kernel_shape::WendlandC4>();
-    case KernelType::WendlandC6: return for_dim.template operator()<kernel_shape::WendlandC6>();
-    case KernelType::QuinticSpline: return for_dim.template operator()<kernel_shape::QuinticSpline>();
+    case KernelType::WendlandC2:
+      return for_dim.template operator()<kernel_shape::WendlandC2>();
+    case KernelType::WendlandC4:
+      return for_dim.template operator()<kernel_shape::WendlandC4>();
+    case KernelType::WendlandC6:
+      return for_dim.template operator()<kernel_shape::WendlandC6>();
+    case KernelType::QuinticSpline:
+      return for_dim.template operator()<kernel_shape::QuinticSpline>();
   }
   throw std::invalid_argument("unknown kernel type");
 }

@@ -1,5 +1,7 @@
 #include "sim/neighbour_search.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -19,9 +21,10 @@ VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cuto
   }
   // Minimum-image lists need every listed pair closer than half a box.
   skin_ = std::min(skin_, 0.5 * min_length - cutoff);
-  const double radius = list_radius();
+  // Cells of at least radius / kCellsPerRadius: candidates lie at most kCellsPerRadius cells away.
+  const double cell_size = list_radius() / kCellsPerRadius;
   for (int d = 0; d < box.dimension; ++d) {
-    cells_[d] = std::max(1, static_cast<int>(std::floor(box.length[d] / radius)));
+    cells_[d] = std::max(1, static_cast<int>(std::floor(box.length[d] / cell_size)));
     inv_cell_size_[d] = cells_[d] / box.length[d];
   }
 }
@@ -64,17 +67,26 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   std::vector<std::uint32_t> cell_members(n);
   {
     std::vector<std::size_t> fill(cell_start.begin(), cell_start.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) cell_members[fill[cell[i]]++] = static_cast<std::uint32_t>(i);
+    for (std::size_t i = 0; i < n; ++i)
+      cell_members[fill[cell[i]]++] = static_cast<std::uint32_t>(i);
   }
 
-  // Distinct cell offsets per direction: {-1,0,1}, or fewer when a direction has < 3 cells so
-  // that no cell is visited twice.
+  // Distinct cell offsets per direction: -reach..reach, reduced modulo the number of cells when
+  // a direction has fewer than 2 reach + 1 cells, so that no cell is visited twice.
   std::array<std::vector<int>, 3> offsets;
   for (int d = 0; d < Dim; ++d) {
-    if (cells_[d] >= 3) offsets[d] = {-1, 0, 1};
-    else if (cells_[d] == 2) offsets[d] = {0, 1};
-    else offsets[d] = {0};
+    if (cells_[d] >= 2 * kCellsPerRadius + 1) {
+      for (int o = -kCellsPerRadius; o <= kCellsPerRadius; ++o) offsets[d].push_back(o);
+    } else {
+      for (int o = 0; o < cells_[d]; ++o) offsets[d].push_back(o);
+    }
   }
+
+  std::size_t max_occupancy = 0;
+  for (std::size_t c = 0; c < num_cells; ++c)
+    max_occupancy = std::max(max_occupancy, cell_start[c + 1] - cell_start[c]);
+  std::size_t max_candidates = max_occupancy;
+  for (int d = 0; d < Dim; ++d) max_candidates *= offsets[d].size();
 
   std::array<double, 3> length{}, half_length{};
   for (int d = 0; d < Dim; ++d) {
@@ -83,7 +95,8 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   }
   const double radius2 = list_radius() * list_radius();
 
-  // Visits every candidate j of particle i in a fixed order; calls emit(j) for j in range.
+  // Visits every candidate j of particle i in a fixed order and calls emit(j, inside) for each,
+  // so that the caller can append without a data-dependent branch.
   const auto visit = [&](std::size_t i, auto&& emit) {
     std::array<int, 3> ci{0, 0, 0};
     {
@@ -103,7 +116,7 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
           const double dx = minimum_image(xi[d] - positions.x[d][j], length[d], half_length[d]);
           r2 += dx * dx;
         }
-        if (r2 < radius2 && j != i) emit(j);
+        emit(j, r2 < radius2 && j != i);
       }
     };
     const auto wrap_cell = [&](int d, int k) { return (k + cells_[d]) % cells_[d]; };
@@ -123,24 +136,48 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
     }
   };
 
+  // One scan per particle: each thread fills a buffer for a contiguous range of particles, the
+  // buffers are then placed at their offsets. Per-particle content and order do not depend on
+  // the thread count.
   list_.offsets.assign(n + 1, 0);
-  const auto signed_n = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t i = 0; i < signed_n; ++i) {
-    std::size_t count = 0;
-    visit(static_cast<std::size_t>(i), [&](std::uint32_t) { ++count; });
-    list_.offsets[static_cast<std::size_t>(i) + 1] = count;
+  std::vector<std::vector<std::uint32_t>> buffers(static_cast<std::size_t>(omp_get_max_threads()));
+  std::vector<std::size_t> range_begin(buffers.size() + 1, n);
+#pragma omp parallel
+  {
+    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
+    const auto threads = static_cast<std::size_t>(omp_get_num_threads());
+    const std::size_t begin = n * thread / threads, end = n * (thread + 1) / threads;
+    range_begin[thread] = begin;
+    // `buffer` is kept at least max_candidates longer than the entries in use, so candidates are
+    // written unconditionally and kept by advancing `used` by 0 or 1.
+    std::vector<std::uint32_t>& buffer = buffers[thread];
+    std::size_t used = 0;
+    for (std::size_t i = begin; i < end; ++i) {
+      if (buffer.size() < used + max_candidates) buffer.resize(2 * (used + max_candidates));
+      std::uint32_t* out = buffer.data();
+      const std::size_t before = used;
+      visit(i, [&](std::uint32_t j, bool inside) {
+        out[used] = j;
+        used += inside;
+      });
+      list_.offsets[i + 1] = used - before;
+    }
+    buffer.resize(used);
   }
   for (std::size_t i = 0; i < n; ++i) list_.offsets[i + 1] += list_.offsets[i];
   list_.indices.resize(list_.offsets[n]);
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t i = 0; i < signed_n; ++i) {
-    std::uint32_t* out = list_.indices.data() + list_.offsets[static_cast<std::size_t>(i)];
-    visit(static_cast<std::size_t>(i), [&](std::uint32_t j) { *out++ = j; });
+  const auto num_buffers = static_cast<std::ptrdiff_t>(buffers.size());
+#pragma omp parallel for schedule(static, 1)
+  for (std::ptrdiff_t t = 0; t < num_buffers; ++t) {
+    const std::vector<std::uint32_t>& buffer = buffers[static_cast<std::size_t>(t)];
+    if (!buffer.empty())
+      std::copy(
+          buffer.begin(), buffer.end(),
+          list_.indices.begin() +
+              static_cast<std::ptrdiff_t>(list_.offsets[range_begin[static_cast<std::size_t>(t)]]));
   }
 
-  for (int d = 0; d < Dim; ++d)
-    reference_positions_[d].assign(positions.x[d], positions.x[d] + n);
+  for (int d = 0; d < Dim; ++d) reference_positions_[d].assign(positions.x[d], positions.x[d] + n);
   ++num_builds_;
 }
 
@@ -149,8 +186,10 @@ void VerletNeighbourSearch::build(const PositionsView& positions) {
     throw std::invalid_argument("neighbour search: dimension of positions and box differ");
   if (positions.size >= (std::size_t{1} << 32))
     throw std::invalid_argument("neighbour search: more than 2^32 particles");
-  if (positions.dimension == 2) build_impl<2>(positions);
-  else build_impl<3>(positions);
+  if (positions.dimension == 2)
+    build_impl<2>(positions);
+  else
+    build_impl<3>(positions);
 }
 
 bool VerletNeighbourSearch::needs_rebuild(const PositionsView& positions) const {

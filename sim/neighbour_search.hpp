@@ -45,6 +45,9 @@ inline PositionsView view_positions(const ParticleArrays& p) {
 
 class VerletNeighbourSearch {
  public:
+  /// Cells per list radius: 2 scans (5/2)^n list-radius volumes instead of 3^n.
+  static constexpr int kCellsPerRadius = 2;
+
   /// cutoff: interaction radius (kernel support H); skin: extra list radius. The skin is reduced
   /// automatically when the box is too small for minimum-image lists of radius cutoff + skin.
   /// Throws std::invalid_argument if the box is shorter than 2 * cutoff in any direction.

@@ -1,12 +1,12 @@
 #include "sim/packing.hpp"
 
+#include <unistd.h>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
 #include <random>
 #include <sstream>
-#include <unistd.h>
 
 #include "sim/neighbour_search.hpp"
 #include "sim/physics.hpp"
@@ -56,7 +56,8 @@ void fill_packing_arrays(ParticleArrays& p, double spacing) {
   }
 }
 
-std::uint64_t fnv1a(const void* data, std::size_t size, std::uint64_t hash = 1469598103934665603ULL) {
+std::uint64_t fnv1a(const void* data, std::size_t size,
+                    std::uint64_t hash = 1469598103934665603ULL) {
   const auto* bytes = static_cast<const unsigned char*>(data);
   for (std::size_t k = 0; k < size; ++k) {
     hash ^= bytes[k];
@@ -181,8 +182,8 @@ PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& bo
     std::uniform_real_distribution<double> uniform(-1.0, 1.0);
     for (std::size_t i = 0; i < p.size(); ++i)
       for (int d = 0; d < p.dimension; ++d)
-        p.position[d][i] =
-            wrap_periodic(p.position[d][i] + config.perturbation * spacing * uniform(rng), box.length[d]);
+        p.position[d][i] = wrap_periodic(
+            p.position[d][i] + config.perturbation * spacing * uniform(rng), box.length[d]);
   }
   with_kernel(kernel, box.dimension, support_radius, [&](const auto& k) {
     constexpr int Dim = std::decay_t<decltype(k)>::dimension;

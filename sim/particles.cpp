@@ -22,7 +22,8 @@ void ParticleArrays::resize(std::size_t n) {
 
 namespace {
 template <class T>
-void permute(std::vector<T>& values, std::span<const std::uint32_t> order, std::vector<T>& scratch) {
+void permute(std::vector<T>& values, std::span<const std::uint32_t> order,
+             std::vector<T>& scratch) {
   if (values.empty()) return;
   scratch.resize(values.size());
   for (std::size_t k = 0; k < order.size(); ++k) scratch[k] = values[order[k]];

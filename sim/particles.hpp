@@ -56,7 +56,7 @@ struct ParticleArrays {
   std::array<std::vector<double>, 3> acceleration;  // dv_i/dt [m/s²] at the current state
   std::vector<double> mass;                         // M_i [kg] (per unit depth in 2D)
   std::vector<double> volume;                       // V_i = 1/Σ_j W_ij (A.1) [m^n]
-  std::vector<double> density;                     // ρ_i = M_i/V_i (A.2) [kg/m^n]
+  std::vector<double> density;                      // ρ_i = M_i/V_i (A.2) [kg/m^n]
   std::vector<double> pressure;                     // p_i from the EOS [Pa]
   std::vector<std::uint64_t> id;                    // stable identity across reorderings
 

@@ -16,10 +16,10 @@ namespace sphles::sim {
 
 /// Barotropic fluid with constant dynamic viscosity (SPEC §2).
 struct FluidParameters {
-  double reference_density = 1.0;   // ρ_ref [kg/m^n]
-  double sound_speed = 5.0;         // c_s [m/s]
-  double reference_pressure = 6.25; // p_ref [Pa]
-  double dynamic_viscosity = 1e-4;  // η [Pa s]
+  double reference_density = 1.0;    // ρ_ref [kg/m^n]
+  double sound_speed = 5.0;          // c_s [m/s]
+  double reference_pressure = 6.25;  // p_ref [Pa]
+  double dynamic_viscosity = 1e-4;   // η [Pa s]
 
   double kinematic_viscosity() const { return dynamic_viscosity / reference_density; }
 };
@@ -81,10 +81,10 @@ void density_pass(const KernelT& kernel, const PeriodicBox& box, const Neighbour
       }
       if (r2 < support2) weight_sum += kernel.value(std::sqrt(r2));
     }
-    const double volume = 1.0 / weight_sum;                   // (A.1)
+    const double volume = 1.0 / weight_sum;  // (A.1)
     p.volume[i] = volume;
-    p.density[i] = p.mass[i] / volume;                        // (A.2)
-    p.pressure[i] = equation_of_state(p.density[i], fluid);   // EOS
+    p.density[i] = p.mass[i] / volume;                       // (A.2)
+    p.pressure[i] = equation_of_state(p.density[i], fluid);  // EOS
   }
 }
 

@@ -36,12 +36,12 @@ struct PackingConfig {
   std::string cache_dir;       // empty: $XDG_CACHE_HOME/sphles/packing or ~/.cache/sphles/packing
   double perturbation = 0.05;  // random lattice displacement before relaxation, in units of Δl
   int max_iterations = 400;
-  double tolerance = 1e-3;     // stop when max_i |Σ_j ∇W_ij V_j| Δl falls below
+  double tolerance = 1e-3;  // stop when max_i |Σ_j ∇W_ij V_j| Δl falls below
   std::uint64_t seed = 1;
 };
 
 struct OutputConfig {
-  double timeseries_every = 0.0;      // simulated time between rows; 0 writes every step
+  double timeseries_every = 0.0;        // simulated time between rows; 0 writes every step
   double progress_every_seconds = 1.0;  // wall time between progress lines
 };
 
@@ -52,11 +52,11 @@ struct Scene {
   KernelType kernel = KernelType::WendlandC4;
   double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
   FluidParameters fluid;
-  double velocity_amplitude = 1.0;            // v0 [m/s]
+  double velocity_amplitude = 1.0;                        // v0 [m/s]
   std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
-  double end_time = 15.0;                     // [s]
+  double end_time = 15.0;                                 // [s]
   TimeStepConfig time_step;
-  double neighbour_skin = 0.15;               // fraction of H
+  double neighbour_skin = 0.15;  // fraction of H
   PackingConfig packing;
   OutputConfig output;
 

@@ -92,11 +92,21 @@ class SphSolver final : public Simulation {
     update_diagnostics(dt);
   }
 
-  double time() const override { return time_; }
-  std::uint64_t step_count() const override { return step_; }
-  const StepDiagnostics& diagnostics() const override { return diagnostics_; }
-  const ParticleArrays& particles() const override { return particles_; }
-  const SolverConfig& config() const override { return config_; }
+  double time() const override {
+    return time_;
+  }
+  std::uint64_t step_count() const override {
+    return step_;
+  }
+  const StepDiagnostics& diagnostics() const override {
+    return diagnostics_;
+  }
+  const ParticleArrays& particles() const override {
+    return particles_;
+  }
+  const SolverConfig& config() const override {
+    return config_;
+  }
 
   double stable_time_step() const override {
     const TimeStepConfig& ts = config_.time_step;
@@ -105,7 +115,8 @@ class SphSolver final : public Simulation {
     double dt = ts.cfl_acoustic * spacing / (config_.fluid.sound_speed + diagnostics_.max_speed);
     const double nu = config_.fluid.kinematic_viscosity();
     if (nu > 0.0) dt = std::min(dt, ts.cfl_viscous * spacing * spacing / nu);
-    if (max_acceleration_ > 0.0) dt = std::min(dt, ts.cfl_force * std::sqrt(spacing / max_acceleration_));
+    if (max_acceleration_ > 0.0)
+      dt = std::min(dt, ts.cfl_force * std::sqrt(spacing / max_acceleration_));
     return dt;
   }
 
@@ -122,7 +133,8 @@ class SphSolver final : public Simulation {
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
     max_acceleration_ = parallel_max(particles_.size(), [&](std::size_t i) {
       double a2 = 0.0;
-      for (int d = 0; d < Dim; ++d) a2 += particles_.acceleration[d][i] * particles_.acceleration[d][i];
+      for (int d = 0; d < Dim; ++d)
+        a2 += particles_.acceleration[d][i] * particles_.acceleration[d][i];
       return a2;
     });
     max_acceleration_ = std::sqrt(max_acceleration_);
@@ -143,21 +155,22 @@ class SphSolver final : public Simulation {
     });
     diag.kinetic_energy = 0.5 * twice_energy / diag.total_mass;  // (5.3)
     for (int d = 0; d < 3; ++d) {
-      diag.momentum[d] = d < Dim ? deterministic_sum(n, [&](std::size_t i) {
-        return p.mass[i] * p.velocity[d][i];
-      })
-                                 : 0.0;
+      diag.momentum[d] =
+          d < Dim
+              ? deterministic_sum(n, [&](std::size_t i) { return p.mass[i] * p.velocity[d][i]; })
+              : 0.0;
     }
     const double rho_ref = config_.fluid.reference_density;
-    diag.max_density_deviation = parallel_max(
-        n, [&](std::size_t i) { return std::abs(p.density[i] - rho_ref) / rho_ref; });
+    diag.max_density_deviation =
+        parallel_max(n, [&](std::size_t i) { return std::abs(p.density[i] - rho_ref) / rho_ref; });
     diag.max_speed = std::sqrt(parallel_max(n, [&](std::size_t i) {
       double v2 = 0.0;
       for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
       return v2;
     }));
     diag.neighbour_builds = search_.num_builds();
-    diag.mean_neighbours = static_cast<double>(search_.list().indices.size()) / static_cast<double>(n);
+    diag.mean_neighbours =
+        static_cast<double>(search_.list().indices.size()) / static_cast<double>(n);
     if (!std::isfinite(diag.kinetic_energy) || !std::isfinite(max_acceleration_) ||
         !std::isfinite(diag.max_density_deviation))
       report_non_finite();

@@ -35,13 +35,17 @@ TEST_P(MomentumTest, ConservedToRoundOffOver100Steps) {
   for (int d = 0; d < dim; ++d)
     EXPECT_NEAR(sim->diagnostics().momentum[d], initial[d], 1e-12 * scale) << "component " << d;
   // The flow did move: the kinetic energy changed by a visible amount.
-  EXPECT_GT(std::abs(sim->diagnostics().kinetic_energy - 0.5) , 1e-3);
+  EXPECT_GT(std::abs(sim->diagnostics().kinetic_energy - 0.5), 1e-3);
 }
 
 INSTANTIATE_TEST_SUITE_P(DimensionsAndKernels, MomentumTest,
                          ::testing::Combine(::testing::Values(2, 3),
                                             ::testing::Values(KernelType::WendlandC4,
-                                                              KernelType::QuinticSpline)));
+                                                              KernelType::QuinticSpline)),
+                         [](const auto& info) {
+                           return std::to_string(std::get<0>(info.param)) + "D_" +
+                                  std::string(kernel_name(std::get<1>(info.param)));
+                         });
 
 class RestTest : public ::testing::TestWithParam<std::tuple<int, KernelType, double>> {};
 
@@ -79,13 +83,17 @@ TEST_P(RestTest, UniformLatticeStaysAtRest) {
   for (double rho : q.density) EXPECT_NEAR(rho, rho0, 1e-13 * rho0);
 }
 
-INSTANTIATE_TEST_SUITE_P(
-    Lattices, RestTest,
-    ::testing::Values(std::tuple{3, KernelType::WendlandC4, 4.0},
-                      std::tuple{3, KernelType::WendlandC2, 6.0},
-                      std::tuple{3, KernelType::QuinticSpline, 6.0},
-                      std::tuple{2, KernelType::WendlandC6, 8.0},
-                      std::tuple{2, KernelType::QuinticSpline, 6.0}));
+INSTANTIATE_TEST_SUITE_P(Lattices, RestTest,
+                         ::testing::Values(std::tuple{3, KernelType::WendlandC4, 4.0},
+                                           std::tuple{3, KernelType::WendlandC2, 6.0},
+                                           std::tuple{3, KernelType::QuinticSpline, 6.0},
+                                           std::tuple{2, KernelType::WendlandC6, 8.0},
+                                           std::tuple{2, KernelType::QuinticSpline, 6.0}),
+                         [](const auto& info) {
+                           return std::to_string(std::get<0>(info.param)) + "D_" +
+                                  std::string(kernel_name(std::get<1>(info.param))) + "_DK" +
+                                  std::to_string(static_cast<int>(std::get<2>(info.param)));
+                         });
 
 // The external-acceleration hook: a uniform acceleration g on a lattice at rest gives v = g t
 // (pair forces of a uniform velocity field vanish) and momentum Σ M g t.

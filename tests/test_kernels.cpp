@@ -18,11 +18,11 @@ struct Case {
 template <class C>
 class KernelTest : public ::testing::Test {};
 
-using AllKernels = ::testing::Types<
-    Case<kernel_shape::WendlandC2, 2>, Case<kernel_shape::WendlandC2, 3>,
-    Case<kernel_shape::WendlandC4, 2>, Case<kernel_shape::WendlandC4, 3>,
-    Case<kernel_shape::WendlandC6, 2>, Case<kernel_shape::WendlandC6, 3>,
-    Case<kernel_shape::QuinticSpline, 2>, Case<kernel_shape::QuinticSpline, 3>>;
+using AllKernels =
+    ::testing::Types<Case<kernel_shape::WendlandC2, 2>, Case<kernel_shape::WendlandC2, 3>,
+                     Case<kernel_shape::WendlandC4, 2>, Case<kernel_shape::WendlandC4, 3>,
+                     Case<kernel_shape::WendlandC6, 2>, Case<kernel_shape::WendlandC6, 3>,
+                     Case<kernel_shape::QuinticSpline, 2>, Case<kernel_shape::QuinticSpline, 3>>;
 TYPED_TEST_SUITE(KernelTest, AllKernels);
 
 /// Composite Simpson rule on [a, b] with n (even) intervals.

@@ -81,13 +81,16 @@ TEST_P(NeighbourSearchTest, EqualsBruteForce) {
 
 INSTANTIATE_TEST_SUITE_P(
     Boxes, NeighbourSearchTest,
-    ::testing::Values(SearchCase{3, {1.0, 1.0, 1.0}, 0.12, 0.02, 1500},   // many cells
-                      SearchCase{3, {1.0, 0.8, 0.6}, 0.2, 0.03, 800},     // 4, 3, 2 cells
-                      SearchCase{3, {1.0, 1.0, 1.0}, 0.5, 0.1, 300},      // support = half box
-                      SearchCase{3, {0.5, 1.0, 1.0}, 0.25, 0.0, 400},     // one cell in x
-                      SearchCase{2, {1.0, 1.0, 0.0}, 0.07, 0.01, 2000},   // 2D, many cells
-                      SearchCase{2, {1.0, 0.3, 0.0}, 0.14, 0.01, 600},    // 2D, two cells in y
-                      SearchCase{2, {1.0, 1.0, 0.0}, 0.5, 0.0, 300}));    // 2D, one cell
+    ::testing::Values(SearchCase{3, {1.0, 1.0, 1.0}, 0.12, 0.02, 1500},  // many cells
+                      SearchCase{3, {1.0, 0.8, 0.6}, 0.2, 0.03, 800},    // 4, 3, 2 cells
+                      SearchCase{3, {1.0, 1.0, 1.0}, 0.5, 0.1, 300},     // support = half box
+                      SearchCase{3, {0.5, 1.0, 1.0}, 0.25, 0.0, 400},    // one cell in x
+                      SearchCase{2, {1.0, 1.0, 0.0}, 0.07, 0.01, 2000},  // 2D, many cells
+                      SearchCase{2, {1.0, 0.3, 0.0}, 0.14, 0.01, 600},   // 2D, two cells in y
+                      SearchCase{2, {1.0, 1.0, 0.0}, 0.5, 0.0, 300}),    // 2D, one cell
+    [](const ::testing::TestParamInfo<SearchCase>& info) {
+      return std::to_string(info.param.dim) + "D_case" + std::to_string(info.index);
+    });
 
 TEST(NeighbourSearch, RejectsBoxSmallerThanSupportDiameter) {
   PeriodicBox box{3, {1.0, 1.0, 0.5}};

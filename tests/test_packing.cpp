@@ -36,8 +36,9 @@ TEST_F(PackingTest, PerfectLatticeHasZeroResidual) {
   const Scene s = scene(3, 12);
   PeriodicBox box{3, {s.box_length(), s.box_length(), s.box_length()}};
   const ParticleArrays lattice = make_lattice(box, 12);
-  EXPECT_LT(packing_residual(box, s.kernel, 0.5 * s.kernel_diameter(), s.particle_spacing(), lattice),
-            1e-12);
+  EXPECT_LT(
+      packing_residual(box, s.kernel, 0.5 * s.kernel_diameter(), s.particle_spacing(), lattice),
+      1e-12);
 }
 
 TEST_F(PackingTest, RelaxationReachesTolerance) {
@@ -51,9 +52,9 @@ TEST_F(PackingTest, RelaxationReachesTolerance) {
     EXPECT_LE(report.final_residual, s.packing.tolerance);
     PeriodicBox box{dim, {s.box_length(), s.box_length(), s.box_length()}};
     // The residual reported equals an independent evaluation of the returned arrangement.
-    EXPECT_NEAR(packing_residual(box, s.kernel, 0.5 * s.kernel_diameter(), s.particle_spacing(),
-                                 packed),
-                report.final_residual, 1e-6);
+    EXPECT_NEAR(
+        packing_residual(box, s.kernel, 0.5 * s.kernel_diameter(), s.particle_spacing(), packed),
+        report.final_residual, 1e-6);
     // Identities are in lattice order.
     for (std::size_t i = 0; i < packed.size(); ++i) ASSERT_EQ(packed.id[i], i);
   }
@@ -68,7 +69,8 @@ TEST_F(PackingTest, CacheRoundTripsBitForBitAndRecoversFromDamage) {
   const ParticleArrays b = packed_positions(s, &second);
   EXPECT_TRUE(second.from_cache);
   for (int d = 0; d < 2; ++d)
-    EXPECT_EQ(std::memcmp(a.position[d].data(), b.position[d].data(), a.size() * sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(a.position[d].data(), b.position[d].data(), a.size() * sizeof(double)),
+              0);
 
   // Flip one byte in the middle of the positions: the checksum rejects the file, packing reruns
   // and rewrites a valid cache.
@@ -80,7 +82,8 @@ TEST_F(PackingTest, CacheRoundTripsBitForBitAndRecoversFromDamage) {
   const ParticleArrays c = packed_positions(s, &third);
   EXPECT_FALSE(third.from_cache);
   for (int d = 0; d < 2; ++d)
-    EXPECT_EQ(std::memcmp(a.position[d].data(), c.position[d].data(), a.size() * sizeof(double)), 0);
+    EXPECT_EQ(std::memcmp(a.position[d].data(), c.position[d].data(), a.size() * sizeof(double)),
+              0);
   // Truncated file: also rejected.
   std::filesystem::resize_file(first.cache_file, 100);
   PackingReport fourth;

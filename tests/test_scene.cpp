@@ -2,11 +2,11 @@
 // sphles program (exit code 2 and a message naming the field).
 #include <gtest/gtest.h>
 
+#include <sys/wait.h>
 #include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
-#include <sys/wait.h>
 
 #include "sim/scene.hpp"
 
@@ -85,16 +85,19 @@ INSTANTIATE_TEST_SUITE_P(
     ::testing::Values(
         BadScene{{{"kernel", {{"typ", "wendland_c4"}}}}, "unknown key 'kernel.typ'"},
         BadScene{{{"colour", 1}}, "unknown key 'colour'"},
-        BadScene{{{"particles_per_side", "32"}}, "'particles_per_side' must be an integer, got string"},
+        BadScene{{{"particles_per_side", "32"}},
+                 "'particles_per_side' must be an integer, got string"},
         BadScene{{{"particles_per_side", 32.5}}, "'particles_per_side' must be an integer"},
         BadScene{{{"particles_per_side", 1}}, "'particles_per_side' must be in [2, 4096], got 1"},
         BadScene{{{"fluid", {{"sound_speed", -1}}}}, "'fluid.sound_speed' must be > 0, got -1"},
-        BadScene{{{"fluid", {{"dynamic_viscosity", "x"}}}}, "'fluid.dynamic_viscosity' must be a number, got string"},
+        BadScene{{{"fluid", {{"dynamic_viscosity", "x"}}}},
+                 "'fluid.dynamic_viscosity' must be a number, got string"},
         BadScene{{{"fluid", 3}}, "'fluid' must be an object, got number"},
         BadScene{{{"kernel", {{"type", "gauss"}}}}, "'kernel.type': unknown kernel 'gauss'"},
         BadScene{{{"case", "channel"}}, "'case' must be one of tgv3d, tgv2d, got 'channel'"},
         BadScene{{{"time", {{"cfl_acoustic", 3}}}}, "'time.cfl_acoustic' must be in (0, 2], got 3"},
-        BadScene{{{"packing", {{"enabled", 1}}}}, "'packing.enabled' must be true or false, got number"},
+        BadScene{{{"packing", {{"enabled", 1}}}},
+                 "'packing.enabled' must be true or false, got number"},
         BadScene{{{"case", "tgv2d"}, {"flow", {{"uniform_velocity", {1, 2, 3}}}}},
                  "'flow.uniform_velocity' must be an array of 2 numbers"},
         BadScene{{{"particles_per_side", 6}, {"kernel", {{"diameter_over_spacing", 8}}}},

@@ -59,9 +59,10 @@ TEST(TaylorGreen2D, EnergyDecayMatchesAnalyticAndConverges) {
     EXPECT_LT(errors[k], errors[k - 1]) << "error must fall when N rises";
     const double order = std::log(errors[k - 1] / errors[k]) /
                          std::log(static_cast<double>(resolutions[k]) / resolutions[k - 1]);
-    std::printf("observed order between N=%d and N=%d: %.2f\n", resolutions[k - 1],
-                resolutions[k], order);
-    ::testing::Test::RecordProperty("order_" + std::to_string(resolutions[k]), std::to_string(order));
+    std::printf("observed order between N=%d and N=%d: %.2f\n", resolutions[k - 1], resolutions[k],
+                order);
+    ::testing::Test::RecordProperty("order_" + std::to_string(resolutions[k]),
+                                    std::to_string(order));
   }
   EXPECT_LT(errors.back(), 0.02);
 }

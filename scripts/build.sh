@@ -1,0 +1,7 @@
+#!/usr/bin/env bash
+# Configures and builds sphles (Release) in build/. Extra arguments go to cmake.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release "$@" > build.configure.log 2>&1 ||
+  { cat build.configure.log; exit 1; }
+cmake --build build --parallel "$(nproc)"
