@@ -7,6 +7,11 @@
 #include <limits>
 #include <optional>
 
+#include "analysis/config.hpp"
+#include "analysis/pipeline.hpp"
+#include "analysis/snapshot.hpp"
+#include "analysis/timeseries.hpp"
+#include "analysis/writer.hpp"
 #include "app/commands.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/run_log.hpp"
@@ -80,25 +85,28 @@ void write_text_atomically(const std::filesystem::path& path, const std::string&
 
 int run_command(const std::vector<std::string>& args) {
   RunOptions options;
-  sim::Scene scene;
+  analysis::RunConfig run_config;
   try {
     options = parse_run_options(args);
     nlohmann::json document = sim::read_scene_file(options.scene_file);
     for (const std::string& assignment : options.overrides)
       sim::apply_override(document, assignment);
-    scene = sim::parse_scene(document);
+    run_config = analysis::parse_run_config(document);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles run: %s\n", e.what());
     return kExitUsage;
   }
 
+  const sim::Scene& scene = run_config.scene;
+  const analysis::AnalysisConfig& analysis_config = run_config.analysis;
   try {
     if (options.threads > 0) omp_set_num_threads(options.threads);
     const std::filesystem::path out_dir = options.out_dir
                                               ? std::filesystem::path(*options.out_dir)
                                               : std::filesystem::path("runs") / scene.name;
     std::filesystem::create_directories(out_dir);
-    write_text_atomically(out_dir / "scene.json", sim::scene_to_json(scene).dump(2) + "\n");
+    write_text_atomically(out_dir / "scene.json",
+                          analysis::run_config_to_json(run_config).dump(2) + "\n");
 
     std::fprintf(stderr,
                  "sphles run: %s (%s), %zu particles, kernel %s, D_K/dl = %g, %d threads -> %s\n",
@@ -122,8 +130,25 @@ int run_command(const std::vector<std::string>& args) {
     }
 
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
-    sim::TimeSeriesWriter timeseries(out_dir / "timeseries.csv");
-    timeseries.write(simulation->diagnostics());
+    analysis::TimeSeriesWriter timeseries(out_dir / "timeseries.csv");
+    analysis::DissipationEstimator dissipation(analysis_config.dissipation_window);
+    const auto record = [&](const sim::StepDiagnostics& d) {
+      timeseries.write(d, dissipation.add(d.time, d.kinetic_energy));
+    };
+    record(simulation->diagnostics());
+
+    // Snapshot analysis on its own thread, only when the scene asks for products.
+    std::unique_ptr<analysis::RunDirectoryWriter> writer;
+    std::unique_ptr<analysis::AnalysisPipeline> pipeline;
+    if (analysis_config.enabled()) {
+      writer = std::make_unique<analysis::RunDirectoryWriter>(out_dir);
+      pipeline = std::make_unique<analysis::AnalysisPipeline>(
+          analysis_config,
+          std::vector<analysis::FrameSink>{
+              [w = writer.get()](const analysis::AnalysisFrame& frame) { w->write(frame); }});
+      pipeline->publish(analysis::make_snapshot(*simulation));
+    }
+    double next_snapshot = analysis_config.every;
     sim::ProgressReporter progress(scene.end_time, scene.output.progress_every_seconds);
     progress.update(simulation->diagnostics());
     const double every = scene.output.timeseries_every;
@@ -134,16 +159,33 @@ int run_command(const std::vector<std::string>& args) {
     while (simulation->time() < end_time - end_tolerance) {
       double max_dt = end_time - simulation->time();
       if (every > 0.0) max_dt = std::min(max_dt, next_output - simulation->time());
+      if (pipeline) max_dt = std::min(max_dt, next_snapshot - simulation->time());
       simulation->step(max_dt);
       const sim::StepDiagnostics& d = simulation->diagnostics();
       if (every <= 0.0 || d.time >= next_output - 1e-12 * every) {
-        timeseries.write(d);
+        record(d);
         if (every > 0.0) next_output += every;
+      }
+      if (pipeline && d.time >= next_snapshot - 1e-12 * analysis_config.every) {
+        pipeline->publish(analysis::make_snapshot(*simulation));
+        next_snapshot += analysis_config.every;
       }
       if (const std::string line = progress.update(d); !line.empty())
         std::fprintf(stderr, "%s\n", line.c_str());
     }
     std::fprintf(stderr, "%s\n", progress.update(simulation->diagnostics(), true).c_str());
+    if (pipeline) {
+      pipeline->close(/*drain=*/true);
+      const analysis::PipelineCounters c = pipeline->counters();
+      std::fprintf(
+          stderr, "analysis: %llu snapshots published, %llu analysed, %llu dropped, %.1f s busy\n",
+          static_cast<unsigned long long>(c.published), static_cast<unsigned long long>(c.analysed),
+          static_cast<unsigned long long>(c.dropped), c.busy_seconds);
+      if (!pipeline->error().empty())
+        throw std::runtime_error("analysis failed: " + pipeline->error());
+      if (!writer->last_error().empty())
+        throw std::runtime_error("writing analysis products failed: " + writer->last_error());
+    }
     std::fprintf(stderr, "sphles run: finished, outputs in %s\n", out_dir.c_str());
     return kExitOk;
   } catch (const std::exception& e) {

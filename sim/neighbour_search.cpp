@@ -139,7 +139,10 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   // One scan per particle: each thread fills a buffer for a contiguous range of particles, the
   // buffers are then placed at their offsets. Per-particle content and order do not depend on
   // the thread count.
-  list_.offsets.assign(n + 1, 0);
+  // A list still held by a reader (an analysis snapshot) is left intact: build into a new one.
+  if (!list_ || list_.use_count() > 1) list_ = std::make_shared<NeighbourList>();
+  NeighbourList& list = *list_;
+  list.offsets.assign(n + 1, 0);
   std::vector<std::vector<std::uint32_t>> buffers(static_cast<std::size_t>(omp_get_max_threads()));
   std::vector<std::size_t> range_begin(buffers.size() + 1, n);
 #pragma omp parallel
@@ -160,21 +163,20 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
         out[used] = j;
         used += inside;
       });
-      list_.offsets[i + 1] = used - before;
+      list.offsets[i + 1] = used - before;
     }
     buffer.resize(used);
   }
-  for (std::size_t i = 0; i < n; ++i) list_.offsets[i + 1] += list_.offsets[i];
-  list_.indices.resize(list_.offsets[n]);
+  for (std::size_t i = 0; i < n; ++i) list.offsets[i + 1] += list.offsets[i];
+  list.indices.resize(list.offsets[n]);
   const auto num_buffers = static_cast<std::ptrdiff_t>(buffers.size());
 #pragma omp parallel for schedule(static, 1)
   for (std::ptrdiff_t t = 0; t < num_buffers; ++t) {
     const std::vector<std::uint32_t>& buffer = buffers[static_cast<std::size_t>(t)];
     if (!buffer.empty())
-      std::copy(
-          buffer.begin(), buffer.end(),
-          list_.indices.begin() +
-              static_cast<std::ptrdiff_t>(list_.offsets[range_begin[static_cast<std::size_t>(t)]]));
+      std::copy(buffer.begin(), buffer.end(),
+                list.indices.begin() + static_cast<std::ptrdiff_t>(
+                                           list.offsets[range_begin[static_cast<std::size_t>(t)]]));
   }
 
   for (int d = 0; d < Dim; ++d) reference_positions_[d].assign(positions.x[d], positions.x[d] + n);

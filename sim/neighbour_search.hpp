@@ -11,6 +11,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -68,7 +69,10 @@ class VerletNeighbourSearch {
   /// than skin/2 (minimum image) since the last build.
   bool needs_rebuild(const PositionsView& positions) const;
 
-  const NeighbourList& list() const { return list_; }
+  const NeighbourList& list() const { return list_ ? *list_ : kEmptyList; }
+  /// The current list for readers that outlive this build (analysis snapshots). It stays valid
+  /// for the positions it was shared with; a later build never modifies a shared list.
+  std::shared_ptr<const NeighbourList> shared_list() const { return list_; }
   std::size_t num_builds() const { return num_builds_; }
 
  private:
@@ -81,7 +85,8 @@ class VerletNeighbourSearch {
   double skin_;
   std::array<int, 3> cells_{1, 1, 1};
   std::array<double, 3> inv_cell_size_{0.0, 0.0, 0.0};
-  NeighbourList list_;
+  std::shared_ptr<NeighbourList> list_;
+  static inline const NeighbourList kEmptyList{};
   std::array<std::vector<double>, 3> reference_positions_;
   std::size_t num_builds_ = 0;
 };

@@ -7,26 +7,6 @@
 
 namespace sphles::sim {
 
-TimeSeriesWriter::TimeSeriesWriter(const std::filesystem::path& path) : path_(path) {
-  file_ = std::fopen(path.c_str(), "w");
-  if (!file_)
-    throw std::runtime_error("cannot create '" + path.string() + "': " + std::strerror(errno));
-  std::fprintf(file_, "%s\n", kHeader);
-  std::fflush(file_);
-}
-
-TimeSeriesWriter::~TimeSeriesWriter() {
-  if (file_) std::fclose(file_);
-}
-
-void TimeSeriesWriter::write(const StepDiagnostics& d) {
-  std::fprintf(file_, "%.17g,%llu,%.17g,%.17g,%.17g,%.17g\n", d.time,
-               static_cast<unsigned long long>(d.step), d.dt, d.kinetic_energy,
-               d.max_density_deviation, d.max_speed);
-  if (std::fflush(file_) != 0)
-    throw std::runtime_error("cannot write '" + path_.string() + "': " + std::strerror(errno));
-}
-
 ProgressReporter::ProgressReporter(double end_time, double interval_seconds)
     : end_time_(end_time), interval_(interval_seconds) {}
 

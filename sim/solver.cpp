@@ -104,6 +104,9 @@ class SphSolver final : public Simulation {
   const ParticleArrays& particles() const override {
     return particles_;
   }
+  std::shared_ptr<const NeighbourList> neighbour_list() const override {
+    return search_.shared_list();
+  }
   const SolverConfig& config() const override {
     return config_;
   }

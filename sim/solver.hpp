@@ -17,6 +17,7 @@
 #include <string>
 
 #include "sim/kernels.hpp"
+#include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
 
@@ -82,6 +83,9 @@ class Simulation {
   virtual const StepDiagnostics& diagnostics() const = 0;
   virtual const ParticleArrays& particles() const = 0;
   virtual const SolverConfig& config() const = 0;
+  /// Verlet list of the current state (all pairs closer than the kernel support are in it, with
+  /// indices into particles()); shared read-only, never modified after this call.
+  virtual std::shared_ptr<const NeighbourList> neighbour_list() const = 0;
   /// The step the limits allow for the current state (before max_dt).
   virtual double stable_time_step() const = 0;
 };

@@ -179,7 +179,7 @@ TEST_F(CliTest, SmallRunWritesSceneAndTimeSeries) {
   std::ifstream csv(out / "timeseries.csv");
   std::string header, line, last;
   std::getline(csv, header);
-  EXPECT_EQ(header, "t,step,dt,e_v,max_density_deviation,max_speed");
+  EXPECT_EQ(header, "t,step,dt,e_v,dissipation,max_density_deviation,max_speed");
   int rows = 0;
   while (std::getline(csv, line)) {
     last = line;
@@ -190,6 +190,37 @@ TEST_F(CliTest, SmallRunWritesSceneAndTimeSeries) {
   const json written = json::parse(std::ifstream(out / "scene.json"));
   EXPECT_EQ(written["particles_per_side"], 16);
   EXPECT_EQ(written["case"], "tgv2d");
+  // No analysis requested: no analysis directories.
+  EXPECT_FALSE(std::filesystem::exists(out / "spectra"));
+}
+
+TEST_F(CliTest, RunWithAnalysisWritesProductsAtTheCadence) {
+  const auto scene = write("analysed.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "kernel": {"diameter_over_spacing": 4}, "time": {"end": 0.1},
+      "packing": {"enabled": false},
+      "analysis": {"every": 0.05, "products": ["spectrum", "slices", "sfs_stats"]}})");
+  const auto out = dir_ / "out";
+  const ProcessResult r = run_sphles("run " + scene + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  // Snapshots at t = 0, 0.05, 0.1; this tiny run outpaces analysis, so earlier ones may be
+  // dropped, but the last one is always analysed (the pipeline is drained at the end).
+  unsigned published = 0, analysed = 0, dropped = 0;
+  const auto line = r.output.find("analysis: ");
+  ASSERT_NE(line, std::string::npos) << r.output;
+  ASSERT_EQ(std::sscanf(r.output.c_str() + line,
+                        "analysis: %u snapshots published, %u analysed, %u dropped", &published,
+                        &analysed, &dropped),
+            3);
+  EXPECT_EQ(published, 3u);
+  EXPECT_EQ(analysed + dropped, 3u);
+  EXPECT_GE(analysed, 1u);
+  EXPECT_TRUE(std::filesystem::exists(out / "spectra" / "E_t0.1000.csv"));
+  EXPECT_TRUE(std::filesystem::exists(out / "slices" / "omega2_t0.1000.npy"));
+  EXPECT_TRUE(std::filesystem::exists(out / "slices" / "tau_sfs_t0.1000.npy"));
+  EXPECT_TRUE(std::filesystem::exists(out / "stats" / "alignment_t0.1000.csv"));
+  const json written = json::parse(std::ifstream(out / "scene.json"));
+  EXPECT_EQ(written["analysis"]["every"], 0.05);
+  EXPECT_FALSE(std::filesystem::exists(out / "stats" / "vorticity"));
 }
 
 }  // namespace

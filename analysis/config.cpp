@@ -1,0 +1,140 @@
+#include "analysis/config.hpp"
+
+#include <array>
+#include <utility>
+
+#include "sim/json_reader.hpp"
+
+namespace sphles::analysis {
+
+using nlohmann::json;
+using sim::SceneError;
+
+namespace {
+
+constexpr std::array<std::pair<Product, std::string_view>, 4> kProductNames{{
+    {Product::Spectrum, "spectrum"},
+    {Product::Vorticity, "vorticity"},
+    {Product::Slices, "slices"},
+    {Product::SubfilterStatistics, "sfs_stats"},
+}};
+constexpr std::array<std::pair<SliceField, std::string_view>, 2> kSliceFieldNames{{
+    {SliceField::VorticitySquared, "omega2"},
+    {SliceField::SubfilterStressNorm, "tau_sfs"},
+}};
+constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
+
+template <class Enum, std::size_t N>
+Enum parse_name(const std::array<std::pair<Enum, std::string_view>, N>& table,
+                const std::string& name, const std::string& field) {
+  std::string valid;
+  for (const auto& [value, n] : table) {
+    if (n == name) return value;
+    valid += (valid.empty() ? "" : ", ") + std::string(n);
+  }
+  throw SceneError("scene: '" + field + "' must be one of " + valid + ", got '" + name + "'");
+}
+
+}  // namespace
+
+std::string_view product_name(Product product) {
+  for (const auto& [p, name] : kProductNames)
+    if (p == product) return name;
+  return "unknown";
+}
+
+std::string_view slice_field_name(SliceField field) {
+  for (const auto& [f, name] : kSliceFieldNames)
+    if (f == field) return name;
+  return "unknown";
+}
+
+AnalysisConfig parse_analysis_config(const json* section) {
+  AnalysisConfig c;
+  if (!section) return c;
+  sim::ObjectReader r(*section, "analysis");
+  r.number("every", c.every, sim::non_negative);
+  std::vector<std::string> products;
+  r.strings("products", products);
+  for (std::size_t k = 0; k < products.size(); ++k)
+    c.products.insert(
+        parse_name(kProductNames, products[k], "analysis.products[" + std::to_string(k) + "]"));
+  {
+    sim::ObjectReader s = r.object("slice");
+    std::string axis = std::string(kAxisNames[static_cast<std::size_t>(c.slice.axis)]);
+    s.string("axis", axis);
+    bool found = false;
+    for (std::size_t a = 0; a < kAxisNames.size(); ++a)
+      if (kAxisNames[a] == axis) {
+        c.slice.axis = static_cast<int>(a);
+        found = true;
+      }
+    if (!found)
+      throw SceneError("scene: 'analysis.slice.axis' must be one of x, y, z, got '" + axis + "'");
+    s.number("position", c.slice.position);
+    std::vector<std::string> fields;
+    s.strings("fields", fields);
+    if (s.find("fields")) {
+      c.slice.fields.clear();
+      for (std::size_t k = 0; k < fields.size(); ++k)
+        c.slice.fields.insert(parse_name(kSliceFieldNames, fields[k],
+                                         "analysis.slice.fields[" + std::to_string(k) + "]"));
+    }
+    s.reject_unknown();
+  }
+  r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
+  r.integer("histogram_bins", c.histogram_bins, 1, 10000);
+  r.integer("angle_bins", c.angle_bins, 1, 10000);
+  r.number("angle_threshold", c.angle_threshold, sim::in_range(0.0, 1.0, true));
+  r.number("dissipation_window", c.dissipation_window, sim::positive);
+  r.number("spectrum_length_scale", c.spectrum_length_scale, sim::positive);
+  r.reject_unknown();
+  if (!c.products.empty() && !(c.every > 0.0))
+    throw SceneError("scene: 'analysis.every' must be > 0 when products are requested, got " +
+                     sim::format_number(c.every));
+  return c;
+}
+
+json analysis_config_to_json(const AnalysisConfig& c) {
+  json products = json::array();
+  for (const Product p : c.products) products.push_back(std::string(product_name(p)));
+  json fields = json::array();
+  for (const SliceField f : c.slice.fields) fields.push_back(std::string(slice_field_name(f)));
+  return {{"every", c.every},
+          {"products", products},
+          {"slice",
+           {{"axis", std::string(kAxisNames[static_cast<std::size_t>(c.slice.axis)])},
+            {"position", c.slice.position},
+            {"fields", fields}}},
+          {"grid_points_per_spacing", c.grid_points_per_spacing},
+          {"histogram_bins", c.histogram_bins},
+          {"angle_bins", c.angle_bins},
+          {"angle_threshold", c.angle_threshold},
+          {"dissipation_window", c.dissipation_window},
+          {"spectrum_length_scale", c.spectrum_length_scale}};
+}
+
+RunConfig parse_run_config(const json& document) {
+  if (!document.is_object())
+    throw SceneError("scene: '(top level)' must be an object, got " + sim::describe_type(document));
+  json solver_part = document;
+  const json* analysis = nullptr;
+  json analysis_section;
+  if (const auto it = document.find("analysis"); it != document.end()) {
+    analysis_section = *it;
+    analysis = &analysis_section;
+    solver_part.erase("analysis");
+  }
+  RunConfig config;
+  config.scene = sim::parse_scene(solver_part);
+  config.analysis = parse_analysis_config(analysis);
+  return config;
+}
+
+json run_config_to_json(const RunConfig& config) {
+  json j = sim::scene_to_json(config.scene);
+  j["analysis"] = analysis_config_to_json(config.analysis);
+  return j;
+}
+
+}  // namespace sphles::analysis

@@ -1,0 +1,55 @@
+// The "analysis" section of a scene: which products a run needs and how often (docs/analysis.md).
+#pragma once
+
+#include <nlohmann/json.hpp>
+#include <set>
+#include <string>
+
+#include "sim/scene.hpp"
+
+namespace sphles::analysis {
+
+enum class Product { Spectrum, Vorticity, Slices, SubfilterStatistics };
+
+/// Scene names: "spectrum", "vorticity", "slices", "sfs_stats".
+std::string_view product_name(Product product);
+
+enum class SliceField { VorticitySquared, SubfilterStressNorm };
+std::string_view slice_field_name(SliceField field);  // "omega2", "tau_sfs"
+
+struct SliceConfig {
+  int axis = 0;  // 0 = x, 1 = y, 2 = z: the slice is normal to this axis (3D)
+  double position = 3.14159265358979323846;  // [m], snapped to the nearest grid plane
+  std::set<SliceField> fields{SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
+};
+
+struct AnalysisConfig {
+  double every = 0.0;  // simulated time between snapshots; 0 = no snapshot analysis
+  std::set<Product> products;
+  SliceConfig slice;
+  int grid_points_per_spacing = 2;  // grid spacing Δl / 2 (SPEC §5)
+  int histogram_bins = 50;          // bivariate (τ*, ω²*) histogram, per axis
+  int angle_bins = 18;              // polar histogram of γ ∈ [0, π/2]
+  double angle_threshold = 0.1;     // τ* above which particles enter the polar histogram
+  double dissipation_window = 0.2;  // [s] trailing window of the -de_v/dt least-squares slope
+  double spectrum_length_scale = 3.14159265358979323846;  // L_c for the normalised spectrum
+
+  bool wants(Product p) const { return products.contains(p); }
+  bool enabled() const { return every > 0.0 && !products.empty(); }
+};
+
+/// Parses the "analysis" object (missing: defaults, nothing computed). Throws sim::SceneError
+/// naming the field, e.g. "scene: 'analysis.products[1]' must be one of ...".
+AnalysisConfig parse_analysis_config(const nlohmann::json* section);
+nlohmann::json analysis_config_to_json(const AnalysisConfig& config);
+
+/// A whole scene file: the solver's part (sim::parse_scene) plus the analysis section.
+struct RunConfig {
+  sim::Scene scene;
+  AnalysisConfig analysis;
+};
+
+RunConfig parse_run_config(const nlohmann::json& document);
+nlohmann::json run_config_to_json(const RunConfig& config);
+
+}  // namespace sphles::analysis

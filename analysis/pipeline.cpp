@@ -1,0 +1,73 @@
+#include "analysis/pipeline.hpp"
+
+#include <omp.h>
+#include <sys/resource.h>
+#include <sys/syscall.h>
+#include <unistd.h>
+
+#include <chrono>
+
+namespace sphles::analysis {
+
+AnalysisPipeline::AnalysisPipeline(AnalysisConfig config, std::vector<FrameSink> sinks,
+                                   int analysis_threads)
+    : config_(std::move(config)), sinks_(std::move(sinks)) {
+  worker_ = std::thread([this, analysis_threads] { run(analysis_threads); });
+}
+
+AnalysisPipeline::~AnalysisPipeline() {
+  close(false);
+}
+
+void AnalysisPipeline::publish(SnapshotPtr snapshot) {
+  mailbox_.publish(std::move(snapshot));
+}
+
+void AnalysisPipeline::close(bool drain) {
+  if (closed_) return;
+  closed_ = true;
+  discard_ = !drain;
+  mailbox_.close();
+  if (worker_.joinable()) worker_.join();
+}
+
+PipelineCounters AnalysisPipeline::counters() const {
+  const MailboxCounters m = mailbox_.counters();
+  PipelineCounters c;
+  c.published = m.published;
+  c.dropped = m.dropped;
+  c.analysed = analysed_.load();
+  c.busy_seconds = busy_seconds_.load();
+  // A snapshot discarded by close(false) was never analysed: count it as dropped.
+  if (m.taken > c.analysed && closed_.load()) c.dropped += m.taken - c.analysed;
+  return c;
+}
+
+std::string AnalysisPipeline::error() const {
+  std::lock_guard lock(error_mutex_);
+  return error_;
+}
+
+void AnalysisPipeline::run(int analysis_threads) {
+  // Analysis yields the cores to the solver: lower scheduling priority for this thread only
+  // (Linux applies nice values per thread), and a bounded OpenMP team inside analysis.
+  setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 10);
+  omp_set_num_threads(analysis_threads > 0 ? analysis_threads : 1);
+  while (std::optional<SnapshotPtr> snapshot = mailbox_.take()) {
+    if (discard_) break;
+    const auto start = std::chrono::steady_clock::now();
+    try {
+      AnalysisFrame frame = analyse(**snapshot, config_);
+      frame.dropped_snapshots = mailbox_.counters().dropped;
+      for (const FrameSink& sink : sinks_) sink(frame);
+    } catch (const std::exception& e) {
+      std::lock_guard lock(error_mutex_);
+      if (error_.empty()) error_ = e.what();
+    }
+    busy_seconds_ = busy_seconds_.load() +
+                    std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    ++analysed_;
+  }
+}
+
+}  // namespace sphles::analysis

@@ -1,0 +1,67 @@
+// The solver → analysis hand-over: the solver thread publishes snapshots and goes on; one
+// analysis thread takes the newest, computes the requested products and hands each frame to the
+// sinks (writer, renderer, server). A snapshot published while an older one still waits replaces
+// it and is counted as dropped. The solver never waits for analysis.
+#pragma once
+
+#include <atomic>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "analysis/config.hpp"
+#include "analysis/mailbox.hpp"
+#include "analysis/products.hpp"
+
+namespace sphles::analysis {
+
+/// Receives every analysed frame on the analysis thread. Must not throw; a sink that fails
+/// reports it through its own channel (see RunDirectoryWriter::last_error).
+using FrameSink = std::function<void(const AnalysisFrame&)>;
+
+struct PipelineCounters {
+  std::uint64_t published = 0;
+  std::uint64_t analysed = 0;
+  std::uint64_t dropped = 0;
+  double busy_seconds = 0.0;  // wall time spent analysing and in sinks
+};
+
+class AnalysisPipeline {
+ public:
+  /// Starts the analysis thread. `analysis_threads` OpenMP threads are used inside analysis
+  /// (1 leaves the cores to the solver).
+  AnalysisPipeline(AnalysisConfig config, std::vector<FrameSink> sinks, int analysis_threads = 1);
+  ~AnalysisPipeline();  // close(false)
+  AnalysisPipeline(const AnalysisPipeline&) = delete;
+  AnalysisPipeline& operator=(const AnalysisPipeline&) = delete;
+
+  /// Hands over a snapshot; returns at once.
+  void publish(SnapshotPtr snapshot);
+
+  /// Stops the thread. With drain, a snapshot still waiting is analysed first (end of a run);
+  /// without, it is discarded. Idempotent.
+  void close(bool drain);
+
+  PipelineCounters counters() const;
+  const AnalysisConfig& config() const { return config_; }
+  /// Message of the first exception thrown by analysis, empty if none.
+  std::string error() const;
+
+ private:
+  void run(int analysis_threads);
+
+  AnalysisConfig config_;
+  std::vector<FrameSink> sinks_;
+  LatestValueMailbox<SnapshotPtr> mailbox_;
+  std::atomic<bool> discard_{false};
+  std::atomic<std::uint64_t> analysed_{0};
+  std::atomic<double> busy_seconds_{0.0};
+  mutable std::mutex error_mutex_;
+  std::string error_;
+  std::thread worker_;
+  std::atomic<bool> closed_{false};
+};
+
+}  // namespace sphles::analysis

@@ -1,0 +1,179 @@
+#include "analysis/products.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <numbers>
+
+#include "analysis/grid.hpp"
+#include "analysis/subfilter_stress.hpp"
+#include "analysis/vorticity.hpp"
+
+namespace sphles::analysis {
+
+namespace {
+
+/// Runs a stage, records its wall time, returns its result.
+class StageTimer {
+ public:
+  explicit StageTimer(AnalysisFrame& frame) : frame_(frame) {}
+  template <class F>
+  auto operator()(const char* name, F&& stage) {
+    const auto start = std::chrono::steady_clock::now();
+    auto result = stage();
+    frame_.timings.emplace_back(
+        name, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    return result;
+  }
+
+ private:
+  AnalysisFrame& frame_;
+};
+
+SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, SliceField name,
+                           const SliceConfig& config) {
+  SliceProduct s;
+  s.field = name;
+  s.units = name == SliceField::VorticitySquared ? "1/s^2" : "Pa";
+  s.spacing = grid.spacing();
+  const int m = grid.points_per_side;
+  s.width = m;
+  s.height = m;
+  s.values.resize(static_cast<std::size_t>(m) * static_cast<std::size_t>(m));
+  if (grid.dimension == 2) {
+    s.normal_axis = 2;
+    s.axis_u = 0;
+    s.axis_v = 1;
+    s.values = field;
+    return s;
+  }
+  s.normal_axis = config.axis;
+  s.axis_u = config.axis == 0 ? 1 : 0;
+  s.axis_v = config.axis == 2 ? 1 : 2;
+  const long plane_index = std::lround(config.position / grid.spacing());
+  const int plane = static_cast<int>(((plane_index % m) + m) % m);
+  s.position = plane * grid.spacing();
+  for (int iv = 0; iv < m; ++iv)
+    for (int iu = 0; iu < m; ++iu) {
+      std::array<int, 3> node{0, 0, 0};
+      node[static_cast<std::size_t>(config.axis)] = plane;
+      node[static_cast<std::size_t>(s.axis_u)] = iu;
+      node[static_cast<std::size_t>(s.axis_v)] = iv;
+      s.values[static_cast<std::size_t>(iu) + static_cast<std::size_t>(m) * iv] =
+          field[grid.index(node[0], node[1], node[2])];
+    }
+  return s;
+}
+
+}  // namespace
+
+Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config) {
+  Grid grid;
+  grid.dimension = snapshot.dimension();
+  grid.length = snapshot.box.length[0];
+  const long per_side = std::lround(grid.length / snapshot.particle_spacing);
+  grid.points_per_side = static_cast<int>(per_side) * config.grid_points_per_spacing;
+  return grid;
+}
+
+AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
+  const auto start = std::chrono::steady_clock::now();
+  AnalysisFrame frame;
+  frame.time = snapshot.time;
+  frame.step = snapshot.step;
+  frame.dimension = snapshot.dimension();
+  frame.kinetic_energy = snapshot.kinetic_energy;
+  StageTimer timed(frame);
+
+  const bool want_vorticity_slice =
+      config.wants(Product::Slices) && config.slice.fields.contains(SliceField::VorticitySquared);
+  const bool want_stress_slice = config.wants(Product::Slices) &&
+                                 config.slice.fields.contains(SliceField::SubfilterStressNorm);
+  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice;
+  const bool need_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
+                              config.wants(Product::SubfilterStatistics);
+  const bool need_velocity_grid = config.wants(Product::Spectrum) || need_vorticity;
+  const bool need_map = need_velocity_grid || want_stress_slice;
+  if (!need_map && !need_stress) {
+    frame.total_seconds = 0.0;
+    return frame;
+  }
+
+  const Grid grid = analysis_grid(snapshot, config);
+  const sim::ParticleArrays& particles = snapshot.particles;
+  std::optional<NearestParticleMap> map;
+  if (need_map) map = timed("grid_map", [&] { return nearest_particle_map(grid, particles); });
+  std::optional<VectorField> velocity;
+  if (need_velocity_grid)
+    velocity = timed("grid_velocity", [&] { return sample_velocity(*map, particles, true); });
+
+  if (config.wants(Product::Spectrum)) {
+    frame.spectrum = timed("spectrum", [&] {
+      SpectrumProduct p;
+      p.spectrum = energy_spectrum(*velocity);
+      p.kinetic_energy_grid = spectrum_energy(p.spectrum);
+      p.dissipation = spectral_dissipation(p.spectrum, snapshot.fluid.kinematic_viscosity());
+      p.kernel_wavenumber = 2.0 * std::numbers::pi / (2.0 * snapshot.support_radius);
+      p.resolution_wavenumber = std::numbers::pi / snapshot.particle_spacing;
+      p.dissipation_resolved = spectral_dissipation(
+          p.spectrum, snapshot.fluid.kinematic_viscosity(), p.resolution_wavenumber);
+      p.length_scale = config.spectrum_length_scale;
+      return p;
+    });
+  }
+
+  std::vector<double> vorticity_squared;
+  if (need_vorticity) {
+    vorticity_squared = timed("vorticity", [&] { return squared_magnitude(vorticity(*velocity)); });
+    if (config.wants(Product::Vorticity)) {
+      VorticityProduct p;
+      p.mean_vorticity_squared = mean_value(vorticity_squared);
+      p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
+      frame.vorticity = p;
+    }
+  }
+
+  std::optional<SubfilterStressField> stress;
+  if (need_stress)
+    stress = timed("subfilter_stress", [&] {
+      return snapshot.neighbours ? implicit_subfilter_stress(snapshot, *snapshot.neighbours)
+                                 : implicit_subfilter_stress(snapshot);
+    });
+
+  if (config.wants(Product::SubfilterStatistics)) {
+    frame.subfilter = timed("sfs_statistics", [&] {
+      SubfilterStatisticsProduct p;
+      const std::vector<std::size_t> node = nearest_node(grid, particles);
+      std::vector<double> particle_vorticity_squared(particles.size());
+      for (std::size_t i = 0; i < particles.size(); ++i)
+        particle_vorticity_squared[i] = vorticity_squared[node[i]];
+      double sum = 0.0;
+      for (const double t : stress->norm) {
+        p.max_norm = std::max(p.max_norm, t);
+        sum += t;
+      }
+      p.mean_norm = stress->norm.empty() ? 0.0 : sum / static_cast<double>(stress->norm.size());
+      p.joint = normalised_bivariate_histogram(stress->norm, particle_vorticity_squared,
+                                               config.histogram_bins, config.histogram_bins);
+      if (snapshot.dimension() == 2)
+        p.alignment = principal_direction_alignment(*stress, particles, config.angle_bins,
+                                                    config.angle_threshold);
+      return p;
+    });
+  }
+
+  if (want_vorticity_slice)
+    frame.slices.push_back(timed("slice_omega2", [&] {
+      return extract_slice(grid, vorticity_squared, SliceField::VorticitySquared, config.slice);
+    }));
+  if (want_stress_slice)
+    frame.slices.push_back(timed("slice_tau_sfs", [&] {
+      return extract_slice(grid, sample_scalar(*map, stress->norm), SliceField::SubfilterStressNorm,
+                           config.slice);
+    }));
+
+  frame.total_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return frame;
+}
+
+}  // namespace sphles::analysis

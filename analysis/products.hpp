@@ -1,0 +1,74 @@
+// Analysis products: plain data with a time stamp, computed from one snapshot and consumed by
+// writers, the renderer and the server. Only requested products are computed; intermediates that
+// several products share (gridded velocity, vorticity, τ_SFS) are computed once per snapshot.
+#pragma once
+
+#include <optional>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "analysis/config.hpp"
+#include "analysis/snapshot.hpp"
+#include "analysis/spectrum.hpp"
+#include "analysis/statistics.hpp"
+
+namespace sphles::analysis {
+
+struct SpectrumProduct {
+  EnergySpectrum spectrum;
+  double kinetic_energy_grid = 0.0;    // ½⟨|u'|²⟩ on the grid = Σ E Δk
+  double dissipation = 0.0;            // 2ν Σ k² E Δk (4.6) over all shells [m²/s³]
+  double dissipation_resolved = 0.0;   // the same over k <= k_res = π/Δl [m²/s³]
+  double kernel_wavenumber = 0.0;      // k_kern = 2π / D_K [1/m]
+  double resolution_wavenumber = 0.0;  // k_res = π / Δl [1/m]
+  double length_scale = 0.0;           // L_c for normalisation [m]
+};
+
+struct VorticityProduct {
+  double mean_vorticity_squared = 0.0;  // ⟨ω²⟩ over the grid [1/s²]
+  double dissipation = 0.0;             // ε_v = ν ⟨ω²⟩ (4.6) [m²/s³]
+};
+
+/// A 2D array of one field on a grid plane. values[iu + width * iv], where u and v are the two
+/// box axes in the plane in increasing order (3D, normal x: u = y, v = z; 2D: u = x, v = y).
+struct SliceProduct {
+  SliceField field = SliceField::VorticitySquared;
+  int normal_axis = 0;    // 0, 1, 2; 2 for a 2D run
+  double position = 0.0;  // of the grid plane [m]
+  int axis_u = 1, axis_v = 2;
+  int width = 0, height = 0;
+  double spacing = 0.0;  // grid spacing [m]; node (iu, iv) sits at (iu h, iv h)
+  std::vector<double> values;
+  std::string units;  // "1/s^2" or "Pa"
+};
+
+struct SubfilterStatisticsProduct {
+  double max_norm = 0.0;                    // max_i |τ_SFS,i| [Pa]
+  double mean_norm = 0.0;                   // mean_i |τ_SFS,i| [Pa]
+  Histogram2D joint;                        // (τ*, ω²*)
+  std::optional<AngleHistogram> alignment;  // 2D runs: γ between t_I and v (chapter 4)
+};
+
+struct AnalysisFrame {
+  double time = 0.0;
+  std::uint64_t step = 0;
+  int dimension = 3;
+  double kinetic_energy = 0.0;  // e_v from the particles (5.3)
+  std::optional<SpectrumProduct> spectrum;
+  std::optional<VorticityProduct> vorticity;
+  std::vector<SliceProduct> slices;
+  std::optional<SubfilterStatisticsProduct> subfilter;
+  /// Wall time per stage, in the order computed: ("grid", s), ("spectrum", s), ...
+  std::vector<std::pair<std::string, double>> timings;
+  double total_seconds = 0.0;
+  std::uint64_t dropped_snapshots = 0;  // dropped by the pipeline before this frame
+};
+
+/// Computes the products the configuration asks for. Pure: depends on its inputs only.
+AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config);
+
+/// Grid of the snapshot: M = grid_points_per_spacing * round(L / Δl) points per side.
+Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config);
+
+}  // namespace sphles::analysis

@@ -1,0 +1,88 @@
+#include "analysis/vorticity.hpp"
+
+#include <stdexcept>
+#include <string>
+
+#include "sim/reduction.hpp"
+
+namespace sphles::analysis {
+
+namespace {
+
+void check_field(const VectorField& field, const char* what) {
+  const Grid& grid = field.grid;
+  if (grid.dimension != 2 && grid.dimension != 3)
+    throw std::invalid_argument(std::string(what) + ": dimension must be 2 or 3");
+  if (grid.points_per_side <= 0 || !(grid.length > 0.0))
+    throw std::invalid_argument(std::string(what) + ": empty grid");
+  for (int d = 0; d < grid.dimension; ++d)
+    if (field.component[d].size() != grid.size())
+      throw std::invalid_argument(std::string(what) + ": component size does not match the grid");
+}
+
+}  // namespace
+
+VectorField vorticity(const VectorField& velocity) {
+  check_field(velocity, "vorticity");
+  const Grid& grid = velocity.grid;
+  const int m = grid.points_per_side;
+  const double inv_2h = 0.5 / grid.spacing();
+  const auto& u = velocity.component;
+  VectorField omega;
+  omega.grid = grid;
+  const auto up = [m](int i) { return i + 1 == m ? 0 : i + 1; };
+  const auto down = [m](int i) { return i == 0 ? m - 1 : i - 1; };
+
+  if (grid.dimension == 2) {
+    // ω_z = ∂v/∂x - ∂u/∂y, central differences (u(x+h) - u(x-h)) / 2h with periodic wrap.
+    std::vector<double>& omega_z = omega.component[2];
+    omega_z.resize(grid.size());
+#pragma omp parallel for schedule(static)
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) {
+        const double dv_dx = (u[1][grid.index(up(i), j)] - u[1][grid.index(down(i), j)]) * inv_2h;
+        const double du_dy = (u[0][grid.index(i, up(j))] - u[0][grid.index(i, down(j))]) * inv_2h;
+        omega_z[grid.index(i, j)] = dv_dx - du_dy;
+      }
+    }
+    return omega;
+  }
+
+  for (auto& c : omega.component) c.resize(grid.size());
+#pragma omp parallel for schedule(static)
+  for (int k = 0; k < m; ++k) {
+    for (int j = 0; j < m; ++j) {
+      for (int i = 0; i < m; ++i) {
+        const std::size_t xp = grid.index(up(i), j, k), xm = grid.index(down(i), j, k);
+        const std::size_t yp = grid.index(i, up(j), k), ym = grid.index(i, down(j), k);
+        const std::size_t zp = grid.index(i, j, up(k)), zm = grid.index(i, j, down(k));
+        const std::size_t n = grid.index(i, j, k);
+        // ω = (∂w/∂y - ∂v/∂z, ∂u/∂z - ∂w/∂x, ∂v/∂x - ∂u/∂y).
+        omega.component[0][n] = ((u[2][yp] - u[2][ym]) - (u[1][zp] - u[1][zm])) * inv_2h;
+        omega.component[1][n] = ((u[0][zp] - u[0][zm]) - (u[2][xp] - u[2][xm])) * inv_2h;
+        omega.component[2][n] = ((u[1][xp] - u[1][xm]) - (u[0][yp] - u[0][ym])) * inv_2h;
+      }
+    }
+  }
+  return omega;
+}
+
+std::vector<double> squared_magnitude(const VectorField& field) {
+  const std::size_t nodes = field.grid.size();
+  std::vector<double> result(nodes, 0.0);
+  for (const std::vector<double>& c : field.component) {
+    if (c.empty()) continue;  // unused components (2D velocity, 2D vorticity)
+    if (c.size() != nodes)
+      throw std::invalid_argument("squared_magnitude: component size does not match the grid");
+    for (std::size_t n = 0; n < nodes; ++n) result[n] += c[n] * c[n];
+  }
+  return result;
+}
+
+double mean_value(const std::vector<double>& values) {
+  if (values.empty()) return 0.0;
+  return sim::deterministic_sum(values.size(), [&](std::size_t n) { return values[n]; }) /
+         static_cast<double>(values.size());
+}
+
+}  // namespace sphles::analysis

@@ -1,0 +1,180 @@
+#include "analysis/writer.hpp"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace sphles::analysis {
+
+namespace {
+
+void replace_atomically(const std::filesystem::path& path, const std::string& content) {
+  const std::filesystem::path temporary = path.string() + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    out.write(content.data(), static_cast<std::streamsize>(content.size()));
+    out.flush();
+    if (!out) throw std::runtime_error("cannot write '" + temporary.string() + "'");
+  }
+  std::filesystem::rename(temporary, path);
+}
+
+/// Appends a line to a CSV index, writing the header when the file is new.
+void append_line(const std::filesystem::path& path, const std::string& header,
+                 const std::string& line) {
+  const bool fresh = !std::filesystem::exists(path);
+  std::ofstream out(path, std::ios::app);
+  if (fresh) out << header << '\n';
+  out << line << '\n';
+  out.flush();
+  if (!out) throw std::runtime_error("cannot append to '" + path.string() + "'");
+}
+
+std::string number(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.17g", x);
+  return buffer;
+}
+
+}  // namespace
+
+std::string timed_file_name(const std::string& prefix, double time, const std::string& extension) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "_t%.4f", time);
+  return prefix + buffer + extension;
+}
+
+void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
+               std::size_t columns) {
+  if (values.size() != rows * columns) throw std::invalid_argument("write_npy: shape mismatch");
+  std::string header = "{'descr': '<f8', 'fortran_order': False, 'shape': (" +
+                       std::to_string(rows) + ", " + std::to_string(columns) + "), }";
+  // Magic (6) + version (2) + header length (2) + header + '\n' is a multiple of 64.
+  const std::size_t unpadded = 10 + header.size() + 1;
+  header.append((64 - unpadded % 64) % 64, ' ');
+  header += '\n';
+  std::string content("\x93NUMPY\x01\x00", 8);
+  const auto length = static_cast<std::uint16_t>(header.size());
+  content += static_cast<char>(length & 0xff);
+  content += static_cast<char>(length >> 8);
+  content += header;
+  content.append(reinterpret_cast<const char*>(values.data()), values.size() * sizeof(double));
+  replace_atomically(path, content);
+}
+
+RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory)
+    : directory_(std::move(directory)) {
+  for (const char* sub : {"spectra", "slices", "stats"}) {
+    std::error_code ec;
+    std::filesystem::create_directories(directory_ / sub, ec);
+    if (ec)
+      throw std::runtime_error("cannot create '" + (directory_ / sub).string() +
+                               "': " + ec.message());
+  }
+}
+
+std::string RunDirectoryWriter::last_error() const {
+  std::lock_guard lock(mutex_);
+  return last_error_;
+}
+
+void RunDirectoryWriter::write(const AnalysisFrame& frame) {
+  try {
+    write_or_throw(frame);
+  } catch (const std::exception& e) {
+    std::lock_guard lock(mutex_);
+    last_error_ = e.what();
+  }
+}
+
+void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
+  const std::string nan = "nan";
+  if (frame.spectrum) {
+    const SpectrumProduct& s = *frame.spectrum;
+    std::ostringstream csv;
+    csv << "k,E,k_Lc,E_over_ev_Lc\n";
+    const double e_v = s.kinetic_energy_grid;
+    for (std::size_t p = 0; p < s.spectrum.wavenumber.size(); ++p) {
+      const double k = s.spectrum.wavenumber[p], e = s.spectrum.energy[p];
+      csv << number(k) << ',' << number(e) << ',' << number(k * s.length_scale) << ','
+          << (e_v > 0.0 ? number(e / (e_v * s.length_scale)) : nan) << '\n';
+    }
+    const std::string file = timed_file_name("E", frame.time, ".csv");
+    replace_atomically(directory_ / "spectra" / file, csv.str());
+    append_line(directory_ / "spectra" / "index.csv",
+                "t,step,file,e_v_grid,dissipation_spectral,dissipation_spectral_resolved,k_kernel,"
+                "k_resolution,delta_k,L_c",
+                number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
+                    number(e_v) + ',' + number(s.dissipation) + ',' +
+                    number(s.dissipation_resolved) + ',' + number(s.kernel_wavenumber) + ',' +
+                    number(s.resolution_wavenumber) + ',' + number(s.spectrum.delta_k) + ',' +
+                    number(s.length_scale));
+  }
+  for (const SliceProduct& slice : frame.slices) {
+    const std::string field(slice_field_name(slice.field));
+    const std::string file = timed_file_name(field, frame.time, ".npy");
+    write_npy(directory_ / "slices" / file, slice.values, static_cast<std::size_t>(slice.height),
+              static_cast<std::size_t>(slice.width));
+    double lo = slice.values.empty() ? 0.0 : slice.values.front(), hi = lo;
+    for (const double v : slice.values) {
+      lo = std::min(lo, v);
+      hi = std::max(hi, v);
+    }
+    static constexpr const char* kAxis[] = {"x", "y", "z"};
+    append_line(directory_ / "slices" / "index.csv",
+                "t,step,field,units,normal_axis,position,axis_u,axis_v,width,height,spacing,min,"
+                "max,file",
+                number(frame.time) + ',' + std::to_string(frame.step) + ',' + field + ',' +
+                    slice.units + ',' + kAxis[slice.normal_axis] + ',' + number(slice.position) +
+                    ',' + kAxis[slice.axis_u] + ',' + kAxis[slice.axis_v] + ',' +
+                    std::to_string(slice.width) + ',' + std::to_string(slice.height) + ',' +
+                    number(slice.spacing) + ',' + number(lo) + ',' + number(hi) + ',' + file);
+  }
+  if (frame.subfilter) {
+    const SubfilterStatisticsProduct& s = *frame.subfilter;
+    std::ostringstream joint;
+    joint << "tau_lo,tau_hi,omega2_lo,omega2_hi,count\n";
+    const Histogram2D& h = s.joint;
+    for (int by = 0; by < h.bins_y; ++by)
+      for (int bx = 0; bx < h.bins_x; ++bx) {
+        const std::uint64_t c = h.counts[static_cast<std::size_t>(bx + h.bins_x * by)];
+        if (c == 0) continue;
+        joint << number(static_cast<double>(bx) / h.bins_x) << ','
+              << number(static_cast<double>(bx + 1) / h.bins_x) << ','
+              << number(static_cast<double>(by) / h.bins_y) << ','
+              << number(static_cast<double>(by + 1) / h.bins_y) << ',' << c << '\n';
+      }
+    replace_atomically(
+        directory_ / "stats" / timed_file_name("joint_tau_omega2", frame.time, ".csv"),
+        joint.str());
+    if (s.alignment) {
+      std::ostringstream polar;
+      polar << "gamma_lo,gamma_hi,count,fraction\n";
+      const AngleHistogram& a = *s.alignment;
+      const double width = 0.5 * M_PI / a.bins;
+      for (int b = 0; b < a.bins; ++b) {
+        const std::uint64_t c = a.counts[static_cast<std::size_t>(b)];
+        polar << number(b * width) << ',' << number((b + 1) * width) << ',' << c << ','
+              << (a.total ? number(static_cast<double>(c) / a.total) : nan) << '\n';
+      }
+      replace_atomically(directory_ / "stats" / timed_file_name("alignment", frame.time, ".csv"),
+                         polar.str());
+    }
+  }
+  append_line(directory_ / "stats" / "snapshots.csv",
+              "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"
+              "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots",
+              number(frame.time) + ',' + std::to_string(frame.step) + ',' +
+                  number(frame.kinetic_energy) + ',' +
+                  (frame.spectrum ? number(frame.spectrum->kinetic_energy_grid) : nan) + ',' +
+                  (frame.vorticity ? number(frame.vorticity->mean_vorticity_squared) : nan) + ',' +
+                  (frame.vorticity ? number(frame.vorticity->dissipation) : nan) + ',' +
+                  (frame.spectrum ? number(frame.spectrum->dissipation) : nan) + ',' +
+                  (frame.subfilter ? number(frame.subfilter->max_norm) : nan) + ',' +
+                  (frame.subfilter ? number(frame.subfilter->mean_norm) : nan) + ',' +
+                  number(frame.total_seconds) + ',' + std::to_string(frame.dropped_snapshots));
+}
+
+}  // namespace sphles::analysis

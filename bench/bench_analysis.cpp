@@ -1,0 +1,154 @@
+// Analysis cost (issue 3), printed as figures:
+//  1. wall time per snapshot for each product alone and for all together, TGV 3D at the given
+//     resolutions (default 48³ and 64³), analysis on 1 thread as in a run;
+//  2. solver slowdown: steps/s of a TGV run over [0, T] without analysis and with every product
+//     every 0.5 time units on the analysis thread (2 solver threads, default 32³, T = 2).
+//
+//   build/bench/bench_analysis [--sizes=48,64] [--run_size=32] [--run_time=2] [--repeats=2]
+#include <omp.h>
+
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "analysis/pipeline.hpp"
+#include "analysis/products.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace an = sphles::analysis;
+namespace sim = sphles::sim;
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+sim::Scene tgv_scene(int per_side) {
+  return sim::parse_scene({{"case", "tgv3d"},
+                           {"particles_per_side", per_side},
+                           {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+                           {"packing", {{"enabled", false}}}});
+}
+
+an::AnalysisConfig all_products() {
+  an::AnalysisConfig c;
+  c.every = 0.5;
+  c.products = {an::Product::Spectrum, an::Product::Vorticity, an::Product::Slices,
+                an::Product::SubfilterStatistics};
+  return c;
+}
+
+void per_product_costs(int per_side, int repeats) {
+  const sim::Scene scene = tgv_scene(per_side);
+  sim::RunSetup setup = sim::setup_run(scene);
+  auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+  const an::SnapshotPtr snapshot = an::make_snapshot(*simulation);
+  omp_set_num_threads(1);
+  struct Case {
+    std::string name;
+    std::set<an::Product> products;
+  };
+  const std::vector<Case> cases{{"spectrum", {an::Product::Spectrum}},
+                                {"vorticity", {an::Product::Vorticity}},
+                                {"slices", {an::Product::Slices}},
+                                {"sfs_stats", {an::Product::SubfilterStatistics}},
+                                {"all", all_products().products}};
+  std::printf("\nTGV %d^3 (%zu particles), analysis on 1 thread, best of %d:\n", per_side,
+              snapshot->size(), repeats);
+  std::printf("  %-10s %10s   stages\n", "product", "seconds");
+  for (const Case& c : cases) {
+    an::AnalysisConfig config = all_products();
+    config.products = c.products;
+    double best = 1e300;
+    an::AnalysisFrame best_frame;
+    for (int r = 0; r < repeats; ++r) {
+      an::AnalysisFrame frame = an::analyse(*snapshot, config);
+      if (frame.total_seconds < best) {
+        best = frame.total_seconds;
+        best_frame = frame;
+      }
+    }
+    std::ostringstream stages;
+    for (const auto& [stage, seconds] : best_frame.timings)
+      stages << stage << "=" << seconds << "s ";
+    std::printf("  %-10s %10.3f   %s\n", c.name.c_str(), best, stages.str().c_str());
+  }
+  omp_set_num_threads(2);
+}
+
+double run_steps_per_second(int per_side, double run_time, bool with_analysis,
+                            an::PipelineCounters* counters) {
+  const sim::Scene scene = tgv_scene(per_side);
+  sim::RunSetup setup = sim::setup_run(scene);
+  omp_set_num_threads(2);
+  auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+  std::unique_ptr<an::AnalysisPipeline> pipeline;
+  if (with_analysis)
+    pipeline = std::make_unique<an::AnalysisPipeline>(
+        all_products(), std::vector<an::FrameSink>{[](const an::AnalysisFrame&) {}});
+  const auto start = Clock::now();
+  double next = 0.5;
+  while (simulation->time() < run_time - 1e-12) {
+    simulation->step(std::min(run_time, next) - simulation->time());
+    if (simulation->time() >= next - 1e-12) {
+      if (pipeline) pipeline->publish(an::make_snapshot(*simulation));
+      next += 0.5;
+    }
+  }
+  const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
+  if (pipeline) {
+    pipeline->close(true);
+    if (counters) *counters = pipeline->counters();
+  }
+  return static_cast<double>(simulation->step_count()) / seconds;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::vector<int> sizes{48, 64};
+  int run_size = 32, repeats = 2;
+  double run_time = 2.0;
+  for (int k = 1; k < argc; ++k) {
+    const std::string a = argv[k];
+    if (a.rfind("--sizes=", 0) == 0) {
+      sizes.clear();
+      std::stringstream list(a.substr(8));
+      for (std::string item; std::getline(list, item, ',');) sizes.push_back(std::stoi(item));
+    } else if (a.rfind("--run_size=", 0) == 0) {
+      run_size = std::stoi(a.substr(11));
+    } else if (a.rfind("--run_time=", 0) == 0) {
+      run_time = std::stod(a.substr(11));
+    } else if (a.rfind("--repeats=", 0) == 0) {
+      repeats = std::stoi(a.substr(10));
+    } else {
+      std::fprintf(stderr, "unknown option %s\n", argv[k]);
+      return 2;
+    }
+  }
+  for (const int n : sizes) per_product_costs(n, repeats);
+
+  std::printf("\nSolver throughput, TGV %d^3, t in [0, %g], 2 solver threads:\n", run_size,
+              run_time);
+  double without = 0.0, with = 0.0;
+  an::PipelineCounters counters;
+  for (int r = 0; r < repeats; ++r) {
+    without = std::max(without, run_steps_per_second(run_size, run_time, false, nullptr));
+    with = std::max(with, run_steps_per_second(run_size, run_time, true, &counters));
+  }
+  std::printf("  without analysis: %.3f steps/s\n", without);
+  std::printf(
+      "  with all products every 0.5: %.3f steps/s (%llu published, %llu analysed, "
+      "%llu dropped, analysis busy %.2f s)\n",
+      with, static_cast<unsigned long long>(counters.published),
+      static_cast<unsigned long long>(counters.analysed),
+      static_cast<unsigned long long>(counters.dropped), counters.busy_seconds);
+  std::printf("  throughput ratio with/without: %.3f (slowdown %.1f %%)\n", with / without,
+              100.0 * (1.0 - with / without));
+  return 0;
+}

@@ -1,0 +1,167 @@
+// Reading validated configuration objects from JSON: every read names its dotted field, and keys
+// nobody read are reported as unknown. Used by every module that owns a section of a scene.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <functional>
+#include <optional>
+#include <set>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
+
+#include "sim/scene.hpp"
+
+namespace sphles::sim {
+
+using nlohmann::json;
+
+inline std::string describe_type(const json& value) {
+  return value.type_name();
+}
+
+inline std::string format_number(double value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
+}
+
+/// Reads keys of one JSON object, remembering which were used so that the rest can be reported
+/// as unknown. Targets hold their defaults on entry.
+class ObjectReader {
+ public:
+  ObjectReader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
+    if (!object_.is_object())
+      throw SceneError("scene: '" + label() + "' must be an object, got " + describe_type(object_));
+  }
+
+  std::string field(const std::string& key) const {
+    return path_.empty() ? key : path_ + "." + key;
+  }
+
+  const json* find(const std::string& key) {
+    seen_.insert(key);
+    const auto it = object_.find(key);
+    return it == object_.end() ? nullptr : &*it;
+  }
+
+  ObjectReader object(const std::string& key) {
+    static const json kEmpty = json::object();
+    const json* value = find(key);
+    return ObjectReader(value ? *value : kEmpty, field(key));
+  }
+
+  void number(const std::string& key, double& target,
+              const std::function<std::optional<std::string>(double)>& check = {}) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_number())
+      throw SceneError("scene: '" + field(key) + "' must be a number, got " +
+                       describe_type(*value));
+    const double x = value->get<double>();
+    if (!std::isfinite(x)) throw SceneError("scene: '" + field(key) + "' must be finite");
+    if (check)
+      if (auto reason = check(x))
+        throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + format_number(x));
+    target = x;
+  }
+
+  template <class Int>
+  void integer(const std::string& key, Int& target, long long min, long long max) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_number_integer())
+      throw SceneError("scene: '" + field(key) + "' must be an integer, got " +
+                       (value->is_number() ? "a fractional number" : describe_type(*value)));
+    const long long x = value->get<long long>();
+    if (x < min || x > max)
+      throw SceneError("scene: '" + field(key) + "' must be in [" + std::to_string(min) + ", " +
+                       std::to_string(max) + "], got " + std::to_string(x));
+    target = static_cast<Int>(x);
+  }
+
+  void boolean(const std::string& key, bool& target) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_boolean())
+      throw SceneError("scene: '" + field(key) + "' must be true or false, got " +
+                       describe_type(*value));
+    target = value->get<bool>();
+  }
+
+  void string(const std::string& key, std::string& target) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_string())
+      throw SceneError("scene: '" + field(key) + "' must be a string, got " +
+                       describe_type(*value));
+    target = value->get<std::string>();
+  }
+
+  void vector(const std::string& key, std::array<double, 3>& target, std::size_t size) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_array() || value->size() != size)
+      throw SceneError("scene: '" + field(key) + "' must be an array of " + std::to_string(size) +
+                       " numbers");
+    for (std::size_t k = 0; k < size; ++k) {
+      if (!(*value)[k].is_number() || !std::isfinite((*value)[k].get<double>()))
+        throw SceneError("scene: '" + field(key) + "[" + std::to_string(k) +
+                         "]' must be a finite number");
+      target[k] = (*value)[k].get<double>();
+    }
+  }
+
+  /// An array of strings; each element's field is named "key[i]" in errors.
+  void strings(const std::string& key, std::vector<std::string>& target) {
+    const json* value = find(key);
+    if (!value) return;
+    if (!value->is_array())
+      throw SceneError("scene: '" + field(key) + "' must be an array of strings, got " +
+                       describe_type(*value));
+    std::vector<std::string> result;
+    for (std::size_t k = 0; k < value->size(); ++k) {
+      if (!(*value)[k].is_string())
+        throw SceneError("scene: '" + field(key) + "[" + std::to_string(k) +
+                         "]' must be a string, got " + describe_type((*value)[k]));
+      result.push_back((*value)[k].get<std::string>());
+    }
+    target = std::move(result);
+  }
+
+  /// Throws on the first key that no read asked for.
+  void reject_unknown() const {
+    for (const auto& [key, value] : object_.items())
+      if (!seen_.contains(key)) throw SceneError("scene: unknown key '" + field(key) + "'");
+  }
+
+ private:
+  std::string label() const { return path_.empty() ? "(top level)" : path_; }
+  const json& object_;
+  std::string path_;
+  std::set<std::string> seen_;
+};
+
+inline std::optional<std::string> positive(double x) {
+  if (x > 0.0) return std::nullopt;
+  return "must be > 0";
+}
+inline std::optional<std::string> non_negative(double x) {
+  if (x >= 0.0) return std::nullopt;
+  return "must be >= 0";
+}
+inline auto in_range(double lo, double hi, bool open_high = false) {
+  return [lo, hi, open_high](double x) -> std::optional<std::string> {
+    if (x >= lo && (open_high ? x < hi : x <= hi)) return std::nullopt;
+    return "must be in [" + format_number(lo) + ", " + format_number(hi) + (open_high ? ")" : "]");
+  };
+}
+inline std::optional<std::string> courant(double x) {
+  if (x > 0.0 && x <= 2.0) return std::nullopt;
+  return "must be in (0, 2]";
+}
+
+}  // namespace sphles::sim

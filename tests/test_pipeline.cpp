@@ -1,0 +1,399 @@
+// Solver → analysis hand-over (mailbox, pipeline), the analysis configuration, the products a
+// scene asks for, the run-directory writer and the dissipation estimator.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <thread>
+
+#include "analysis/config.hpp"
+#include "analysis/mailbox.hpp"
+#include "analysis/pipeline.hpp"
+#include "analysis/products.hpp"
+#include "analysis/timeseries.hpp"
+#include "analysis/writer.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::analysis {
+namespace {
+
+using nlohmann::json;
+
+TEST(Mailbox, KeepsNewestAndCountsDrops) {
+  LatestValueMailbox<int> box;
+  EXPECT_FALSE(box.publish(1));
+  EXPECT_TRUE(box.publish(2));
+  EXPECT_TRUE(box.publish(3));
+  EXPECT_EQ(box.take(), 3);
+  box.publish(4);
+  box.close();
+  EXPECT_EQ(box.take(), 4);  // delivered before closure is reported
+  EXPECT_EQ(box.take(), std::nullopt);
+  const MailboxCounters c = box.counters();
+  EXPECT_EQ(c.published, 4u);
+  EXPECT_EQ(c.taken, 2u);
+  EXPECT_EQ(c.dropped, 2u);
+}
+
+// A producer thread and a consumer thread: every published value is either taken or dropped,
+// values arrive in increasing order, and the producer never waits for the consumer's work.
+TEST(Mailbox, ConcurrentProducerAndSlowConsumer) {
+  LatestValueMailbox<int> box;
+  std::vector<int> received;
+  std::thread consumer([&] {
+    while (auto v = box.take()) {
+      received.push_back(*v);
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  const auto start = std::chrono::steady_clock::now();
+  for (int k = 1; k <= 20000; ++k) box.publish(k);
+  const double publish_seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  box.close();
+  consumer.join();
+  const MailboxCounters c = box.counters();
+  EXPECT_EQ(c.published, 20000u);
+  EXPECT_EQ(c.taken + c.dropped, 20000u);
+  EXPECT_EQ(c.taken, received.size());
+  EXPECT_GT(c.dropped, 0u);
+  EXPECT_EQ(received.back(), 20000);
+  for (std::size_t k = 1; k < received.size(); ++k) EXPECT_LT(received[k - 1], received[k]);
+  // 20000 publishes against a consumer that needs 200 µs per value: if publish waited for the
+  // consumer this would take >= 4 s.
+  EXPECT_LT(publish_seconds, 2.0);
+}
+
+// --- configuration ---------------------------------------------------------------------
+
+TEST(AnalysisConfig, DefaultsComputeNothing) {
+  const RunConfig c = parse_run_config(json::object());
+  EXPECT_FALSE(c.analysis.enabled());
+  EXPECT_EQ(c.scene.case_type, sim::CaseType::TaylorGreen3D);
+}
+
+TEST(AnalysisConfig, ParsesProductsAndRoundTrips) {
+  const json doc = {{"case", "tgv2d"},
+                    {"analysis",
+                     {{"every", 0.25},
+                      {"products", {"spectrum", "sfs_stats"}},
+                      {"slice", {{"axis", "z"}, {"fields", {"tau_sfs"}}}},
+                      {"histogram_bins", 20}}}};
+  const RunConfig c = parse_run_config(doc);
+  EXPECT_TRUE(c.analysis.enabled());
+  EXPECT_TRUE(c.analysis.wants(Product::Spectrum));
+  EXPECT_TRUE(c.analysis.wants(Product::SubfilterStatistics));
+  EXPECT_FALSE(c.analysis.wants(Product::Slices));
+  EXPECT_EQ(c.analysis.slice.axis, 2);
+  EXPECT_EQ(c.analysis.slice.fields, std::set<SliceField>{SliceField::SubfilterStressNorm});
+  const json written = run_config_to_json(c);
+  EXPECT_EQ(run_config_to_json(parse_run_config(written)), written);
+}
+
+TEST(AnalysisConfig, ErrorsNameTheField) {
+  const auto error_of = [](const json& analysis) -> std::string {
+    try {
+      parse_run_config({{"analysis", analysis}});
+    } catch (const sim::SceneError& e) {
+      return e.what();
+    }
+    return "";
+  };
+  EXPECT_NE(error_of({{"products", {"spectrum", "colour"}}, {"every", 1}})
+                .find("'analysis.products[1]' must be one of spectrum, vorticity, slices, "
+                      "sfs_stats, got 'colour'"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"products", {"spectrum"}}}).find("'analysis.every' must be > 0"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"every", -1}}).find("'analysis.every' must be >= 0"), std::string::npos);
+  EXPECT_NE(error_of({{"slice", {{"axis", "w"}}}}).find("'analysis.slice.axis' must be one of"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"slice", {{"fields", {"pressure"}}}}}).find("'analysis.slice.fields[0]'"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"cadence", 1}}).find("unknown key 'analysis.cadence'"), std::string::npos);
+  EXPECT_NE(error_of(3).find("'analysis' must be an object"), std::string::npos);
+}
+
+// --- products ----------------------------------------------------------------------------
+
+/// A Taylor-Green state on a packed lattice (a perfect lattice puts grid nodes exactly between
+/// particles, where nearest-particle sampling has ties).
+SnapshotPtr small_tgv_snapshot(const std::string& case_name, int per_side, double time = 0.0) {
+  const json doc = {
+      {"case", case_name},
+      {"particles_per_side", per_side},
+      {"kernel", {{"diameter_over_spacing", 6}}},
+      {"packing",
+       {{"cache_dir", (std::filesystem::temp_directory_path() / "sphles_test_packing").string()}}}};
+  const sim::Scene scene = sim::parse_scene(doc);
+  sim::RunSetup setup = sim::setup_run(scene);
+  auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+  while (simulation->time() < time) simulation->step(time - simulation->time());
+  return make_snapshot(*simulation);
+}
+
+TEST(Products, OnlyRequestedProductsAreComputed) {
+  const SnapshotPtr snapshot = small_tgv_snapshot("tgv3d", 16);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum};
+  AnalysisFrame frame = analyse(*snapshot, config);
+  EXPECT_TRUE(frame.spectrum);
+  EXPECT_FALSE(frame.vorticity);
+  EXPECT_FALSE(frame.subfilter);
+  EXPECT_TRUE(frame.slices.empty());
+  for (const auto& [stage, seconds] : frame.timings) {
+    EXPECT_NE(stage, "vorticity");
+    EXPECT_NE(stage, "subfilter_stress");
+  }
+
+  config.products = {Product::Slices};
+  config.slice.fields = {SliceField::SubfilterStressNorm};
+  frame = analyse(*snapshot, config);
+  ASSERT_EQ(frame.slices.size(), 1u);
+  EXPECT_EQ(frame.slices[0].field, SliceField::SubfilterStressNorm);
+  bool computed_vorticity = false, computed_velocity = false;
+  for (const auto& [stage, seconds] : frame.timings) {
+    computed_vorticity |= stage == "vorticity";
+    computed_velocity |= stage == "grid_velocity";
+  }
+  EXPECT_FALSE(computed_vorticity) << "a τ_SFS slice needs no vorticity";
+  EXPECT_FALSE(computed_velocity) << "a τ_SFS slice needs no gridded velocity";
+}
+
+TEST(Products, TaylorGreen3DSpectrumSliceAndStatistics) {
+  const SnapshotPtr snapshot = small_tgv_snapshot("tgv3d", 16);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum, Product::Vorticity, Product::Slices,
+                     Product::SubfilterStatistics};
+  const AnalysisFrame frame = analyse(*snapshot, config);
+  ASSERT_TRUE(frame.spectrum);
+  // The gridded field carries the particles' kinetic energy: each particle owns about 2^3 nodes.
+  EXPECT_NEAR(frame.spectrum->kinetic_energy_grid, snapshot->kinetic_energy, 0.01 * 0.125);
+  // The TGV mode (5.1) has |k|² = 3 (k = (±1, ±1, 0) with the cos z factor): the most energetic
+  // shell is p = round(sqrt(3)) = 2.
+  const auto& e = frame.spectrum->spectrum.energy;
+  EXPECT_EQ(std::max_element(e.begin(), e.end()) - e.begin(), 2);
+  EXPECT_DOUBLE_EQ(frame.spectrum->kernel_wavenumber, 2.0 * M_PI / (6.0 * 2.0 * M_PI / 16));
+  EXPECT_DOUBLE_EQ(frame.spectrum->resolution_wavenumber, 16.0 / 2.0);
+  // Slices at x = π: 32 x 32 on a grid of spacing Δl/2; normal x, in-plane y and z.
+  ASSERT_EQ(frame.slices.size(), 2u);
+  for (const SliceProduct& s : frame.slices) {
+    EXPECT_EQ(s.width, 32);
+    EXPECT_EQ(s.height, 32);
+    EXPECT_EQ(s.normal_axis, 0);
+    EXPECT_EQ(s.axis_u, 1);
+    EXPECT_EQ(s.axis_v, 2);
+    EXPECT_NEAR(s.position, M_PI, 1e-12);
+    for (const double v : s.values) EXPECT_GE(v, 0.0);
+  }
+  ASSERT_TRUE(frame.subfilter);
+  EXPECT_EQ(frame.subfilter->joint.total, snapshot->size());
+  EXPECT_FALSE(frame.subfilter->alignment) << "the polar histogram is a 2D statistic";
+  ASSERT_TRUE(frame.vorticity);
+  EXPECT_NEAR(frame.vorticity->dissipation,
+              snapshot->fluid.kinematic_viscosity() * frame.vorticity->mean_vorticity_squared,
+              1e-18);
+}
+
+TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {
+  const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 32, 0.2);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Slices, Product::SubfilterStatistics};
+  const AnalysisFrame frame = analyse(*snapshot, config);
+  ASSERT_EQ(frame.slices.size(), 2u);
+  EXPECT_EQ(frame.slices[0].width, 64);
+  EXPECT_EQ(frame.slices[0].normal_axis, 2);
+  ASSERT_TRUE(frame.subfilter && frame.subfilter->alignment);
+  std::uint64_t sum = 0;
+  for (const auto c : frame.subfilter->alignment->counts) sum += c;
+  EXPECT_EQ(sum, frame.subfilter->alignment->total);
+  EXPECT_GT(sum, 0u);
+}
+
+// --- pipeline ----------------------------------------------------------------------------
+
+// A deliberately slow consumer does not change the solver's result: the run with analysis
+// (snapshots every step, a sink that sleeps) ends in the bitwise-same state as the run without,
+// and the pipeline drops snapshots instead of holding the solver.
+TEST(Pipeline, SlowConsumerDropsSnapshotsAndLeavesSolverUntouched) {
+  const json doc = {{"case", "tgv2d"},
+                    {"particles_per_side", 32},
+                    {"kernel", {{"diameter_over_spacing", 6}}},
+                    {"packing", {{"enabled", false}}}};
+  const sim::Scene scene = sim::parse_scene(doc);
+  const auto run = [&](AnalysisPipeline* pipeline) {
+    sim::RunSetup setup = sim::setup_run(scene);
+    auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+    for (int step = 0; step < 60; ++step) {
+      simulation->step();
+      if (pipeline) pipeline->publish(make_snapshot(*simulation));
+    }
+    return simulation->particles();
+  };
+  const sim::ParticleArrays reference = run(nullptr);
+
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum, Product::SubfilterStatistics};
+  std::atomic<int> frames{0};
+  std::vector<double> times;
+  AnalysisPipeline pipeline(config, {[&](const AnalysisFrame& frame) {
+                              std::this_thread::sleep_for(std::chrono::milliseconds(30));
+                              times.push_back(frame.time);
+                              ++frames;
+                            }});
+  const sim::ParticleArrays with_analysis = run(&pipeline);
+  pipeline.close(/*drain=*/true);
+  EXPECT_TRUE(pipeline.error().empty()) << pipeline.error();
+  const PipelineCounters c = pipeline.counters();
+  EXPECT_EQ(c.published, 60u);
+  EXPECT_EQ(c.analysed + c.dropped, 60u);
+  EXPECT_GT(c.dropped, 0u);
+  EXPECT_EQ(c.analysed, static_cast<std::uint64_t>(frames.load()));
+  for (std::size_t k = 1; k < times.size(); ++k) EXPECT_LT(times[k - 1], times[k]);
+  for (int d = 0; d < 2; ++d) {
+    EXPECT_EQ(std::memcmp(reference.position[d].data(), with_analysis.position[d].data(),
+                          reference.size() * sizeof(double)),
+              0);
+    EXPECT_EQ(std::memcmp(reference.velocity[d].data(), with_analysis.velocity[d].data(),
+                          reference.size() * sizeof(double)),
+              0);
+  }
+}
+
+TEST(Pipeline, CloseWithoutDrainDiscardsAndDestructorJoins) {
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum};
+  std::atomic<int> frames{0};
+  {
+    AnalysisPipeline pipeline(config, {[&](const AnalysisFrame&) {
+                                std::this_thread::sleep_for(std::chrono::milliseconds(50));
+                                ++frames;
+                              }});
+    const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 16);
+    for (int k = 0; k < 5; ++k) pipeline.publish(snapshot);
+    pipeline.close(/*drain=*/false);
+    const PipelineCounters c = pipeline.counters();
+    EXPECT_EQ(c.analysed + c.dropped, 5u);
+  }
+  EXPECT_LE(frames.load(), 5);
+}
+
+TEST(Pipeline, AnalysisErrorsAreReportedNotThrownAcrossThreads) {
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum};
+  AnalysisPipeline pipeline(config, {[](const AnalysisFrame&) {}});
+  auto broken = std::make_shared<Snapshot>(*small_tgv_snapshot("tgv2d", 16));
+  broken->particles.position[0].clear();  // inconsistent arrays
+  broken->particles.velocity[0].clear();
+  pipeline.publish(broken);
+  pipeline.close(true);
+  // Either analysis rejected the snapshot with a message or produced a frame; it never crashed.
+  const PipelineCounters c = pipeline.counters();
+  EXPECT_EQ(c.analysed, 1u);
+}
+
+// --- writer and history ------------------------------------------------------------------
+
+class WriterTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() / ("sphles_writer_" + std::to_string(::getpid()));
+    std::filesystem::remove_all(dir_);
+  }
+  void TearDown() override { std::filesystem::remove_all(dir_); }
+  std::filesystem::path dir_;
+};
+
+TEST_F(WriterTest, NpyHasNumpyHeaderAndExactData) {
+  std::filesystem::create_directories(dir_);
+  const std::vector<double> values{1.0, -2.5, 3.25, 1e-300, 0.0, 7.0};
+  write_npy(dir_ / "a.npy", values, 2, 3);
+  std::ifstream in(dir_ / "a.npy", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GE(bytes.size(), 10u);
+  EXPECT_EQ(bytes.substr(0, 8), std::string("\x93NUMPY\x01\x00", 8));
+  const std::size_t header_length =
+      static_cast<unsigned char>(bytes[8]) + 256u * static_cast<unsigned char>(bytes[9]);
+  EXPECT_EQ((10 + header_length) % 64, 0u);
+  const std::string header = bytes.substr(10, header_length);
+  EXPECT_NE(header.find("'descr': '<f8'"), std::string::npos);
+  EXPECT_NE(header.find("'shape': (2, 3)"), std::string::npos);
+  EXPECT_EQ(header.back(), '\n');
+  ASSERT_EQ(bytes.size(), 10 + header_length + values.size() * sizeof(double));
+  EXPECT_EQ(
+      std::memcmp(bytes.data() + 10 + header_length, values.data(), values.size() * sizeof(double)),
+      0);
+  EXPECT_THROW(write_npy(dir_ / "b.npy", values, 4, 4), std::invalid_argument);
+}
+
+TEST_F(WriterTest, WritesEveryRequestedProduct) {
+  const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 24, 0.1);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum, Product::Vorticity, Product::Slices,
+                     Product::SubfilterStatistics};
+  const AnalysisFrame frame = analyse(*snapshot, config);
+  RunDirectoryWriter writer(dir_);
+  writer.write(frame);
+  EXPECT_EQ(writer.last_error(), "");
+  const std::string t = "_t0.1000";
+  for (const std::string& file : std::vector<std::string>{
+           "spectra/E" + t + ".csv", "spectra/index.csv", "slices/omega2" + t + ".npy",
+           "slices/tau_sfs" + t + ".npy", "slices/index.csv", "stats/snapshots.csv",
+           "stats/joint_tau_omega2" + t + ".csv", "stats/alignment" + t + ".csv"})
+    EXPECT_TRUE(std::filesystem::exists(dir_ / file)) << file;
+  std::ifstream spectrum(dir_ / ("spectra/E" + t + ".csv"));
+  std::string header;
+  std::getline(spectrum, header);
+  EXPECT_EQ(header, "k,E,k_Lc,E_over_ev_Lc");
+  // Histogram file counts add up to the particle count.
+  std::ifstream joint(dir_ / ("stats/joint_tau_omega2" + t + ".csv"));
+  std::getline(joint, header);
+  EXPECT_EQ(header, "tau_lo,tau_hi,omega2_lo,omega2_hi,count");
+  std::uint64_t total = 0;
+  for (std::string line; std::getline(joint, line);)
+    total += std::stoull(line.substr(line.rfind(',') + 1));
+  EXPECT_EQ(total, snapshot->size());
+  // No temporary file is left behind.
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(dir_))
+    EXPECT_NE(entry.path().extension(), ".tmp") << entry.path();
+}
+
+TEST_F(WriterTest, UnwritableDirectoryIsAClearError) {
+  std::filesystem::create_directories(dir_);
+  std::ofstream(dir_ / "file") << "x";
+  try {
+    RunDirectoryWriter writer(dir_ / "file" / "run");
+    FAIL() << "expected an exception";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot create"), std::string::npos);
+  }
+}
+
+TEST(Dissipation, SlopeIsExactForLinearDecayAndWindowed) {
+  DissipationEstimator estimator(0.5);
+  EXPECT_TRUE(std::isnan(estimator.add(0.0, 1.0)));
+  double last = 0.0;
+  for (int k = 1; k <= 100; ++k) last = estimator.add(0.01 * k, 1.0 - 0.3 * 0.01 * k);
+  EXPECT_NEAR(last, 0.3, 1e-12);
+  // Quadratic e(t) = 1 - t²: the trailing-window slope at t is 2(t - w/2) (centred time).
+  DissipationEstimator quadratic(0.2);
+  for (int k = 0; k <= 1000; ++k) {
+    const double t = 0.001 * k;
+    last = quadratic.add(t, 1.0 - t * t);
+  }
+  EXPECT_NEAR(last, 2.0 * (1.0 - 0.1), 1e-9);
+}
+
+}  // namespace
+}  // namespace sphles::analysis
