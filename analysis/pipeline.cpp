@@ -9,6 +9,10 @@
 
 namespace sphles::analysis {
 
+/// Scheduling priority of the analysis thread: the lowest, so it runs on cycles the solver
+/// leaves idle (the solver's passes use dynamic scheduling and so absorb a preempted thread).
+constexpr int kAnalysisNice = 19;
+
 AnalysisPipeline::AnalysisPipeline(AnalysisConfig config, std::vector<FrameSink> sinks,
                                    int analysis_threads)
     : config_(std::move(config)), sinks_(std::move(sinks)) {
@@ -50,8 +54,8 @@ std::string AnalysisPipeline::error() const {
 
 void AnalysisPipeline::run(int analysis_threads) {
   // Analysis yields the cores to the solver: lower scheduling priority for this thread only
-  // (Linux applies nice values per thread), and a bounded OpenMP team inside analysis.
-  setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), 10);
+  // (Linux applies nice values per thread, here the lowest priority), and a bounded OpenMP team inside analysis.
+  setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kAnalysisNice);
   omp_set_num_threads(analysis_threads > 0 ? analysis_threads : 1);
   while (std::optional<SnapshotPtr> snapshot = mailbox_.take()) {
     if (discard_) break;

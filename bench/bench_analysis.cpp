@@ -13,6 +13,7 @@
 #include <cstring>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "analysis/pipeline.hpp"
@@ -81,21 +82,37 @@ void per_product_costs(int per_side, int repeats) {
   omp_set_num_threads(2);
 }
 
-double run_steps_per_second(int per_side, double run_time, bool with_analysis,
+enum class Mode { NoAnalysis, AllProducts, SlowConsumerEveryStep };
+
+double run_steps_per_second(int per_side, double run_time, Mode mode,
                             an::PipelineCounters* counters) {
   const sim::Scene scene = tgv_scene(per_side);
   sim::RunSetup setup = sim::setup_run(scene);
   omp_set_num_threads(2);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   std::unique_ptr<an::AnalysisPipeline> pipeline;
-  if (with_analysis)
+  if (mode == Mode::AllProducts)
     pipeline = std::make_unique<an::AnalysisPipeline>(
         all_products(), std::vector<an::FrameSink>{[](const an::AnalysisFrame&) {}});
+  if (mode == Mode::SlowConsumerEveryStep) {
+    an::AnalysisConfig spectrum_only = all_products();
+    spectrum_only.products = {an::Product::Spectrum};
+    pipeline = std::make_unique<an::AnalysisPipeline>(
+        spectrum_only, std::vector<an::FrameSink>{[](const an::AnalysisFrame&) {
+          std::this_thread::sleep_for(std::chrono::seconds(1));
+        }});
+  }
+  const bool every_step = mode == Mode::SlowConsumerEveryStep;
   const auto start = Clock::now();
   double next = 0.5;
   while (simulation->time() < run_time - 1e-12) {
     simulation->step(std::min(run_time, next) - simulation->time());
+    if (every_step) pipeline->publish(an::make_snapshot(*simulation));
     if (simulation->time() >= next - 1e-12) {
+      if (every_step) {
+        next += 0.5;
+        continue;
+      }
       if (pipeline) pipeline->publish(an::make_snapshot(*simulation));
       next += 0.5;
     }
@@ -135,11 +152,13 @@ int main(int argc, char** argv) {
 
   std::printf("\nSolver throughput, TGV %d^3, t in [0, %g], 2 solver threads:\n", run_size,
               run_time);
-  double without = 0.0, with = 0.0;
-  an::PipelineCounters counters;
+  double without = 0.0, with = 0.0, slow = 0.0;
+  an::PipelineCounters counters, slow_counters;
   for (int r = 0; r < repeats; ++r) {
-    without = std::max(without, run_steps_per_second(run_size, run_time, false, nullptr));
-    with = std::max(with, run_steps_per_second(run_size, run_time, true, &counters));
+    without = std::max(without, run_steps_per_second(run_size, run_time, Mode::NoAnalysis, nullptr));
+    with = std::max(with, run_steps_per_second(run_size, run_time, Mode::AllProducts, &counters));
+    slow = std::max(slow, run_steps_per_second(run_size, run_time, Mode::SlowConsumerEveryStep,
+                                               &slow_counters));
   }
   std::printf("  without analysis: %.3f steps/s\n", without);
   std::printf(
@@ -150,5 +169,10 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(counters.dropped), counters.busy_seconds);
   std::printf("  throughput ratio with/without: %.3f (slowdown %.1f %%)\n", with / without,
               100.0 * (1.0 - with / without));
+  std::printf("  snapshot every step to a consumer sleeping 1 s per frame: %.3f steps/s, ratio "
+              "%.3f (%llu published, %llu analysed, %llu dropped)\n",
+              slow, slow / without, static_cast<unsigned long long>(slow_counters.published),
+              static_cast<unsigned long long>(slow_counters.analysed),
+              static_cast<unsigned long long>(slow_counters.dropped));
   return 0;
 }

@@ -67,7 +67,7 @@ void density_pass(const KernelT& kernel, const PeriodicBox& box, const Neighbour
     x[d] = p.position[d].data();
   }
   const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static, 512)
+#pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
     double xi[Dim];
@@ -109,7 +109,7 @@ void force_pass(const KernelT& kernel, const PeriodicBox& box, const NeighbourLi
   const double* pressure = p.pressure.data();
   const double* volume = p.volume.data();
   const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static, 512)
+#pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
     double xi[Dim], vi[Dim], force[Dim];
