@@ -12,7 +12,8 @@ using sim::SceneError;
 
 namespace {
 
-constexpr std::array<std::pair<Product, std::string_view>, 4> kProductNames{{
+constexpr std::array<std::pair<Product, std::string_view>, 5> kProductNames{{
+    {Product::Energy, "energy"},
     {Product::Spectrum, "spectrum"},
     {Product::Vorticity, "vorticity"},
     {Product::Slices, "slices"},

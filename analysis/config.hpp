@@ -9,9 +9,9 @@
 
 namespace sphles::analysis {
 
-enum class Product { Spectrum, Vorticity, Slices, SubfilterStatistics };
+enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics };
 
-/// Scene names: "spectrum", "vorticity", "slices", "sfs_stats".
+/// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats".
 std::string_view product_name(Product product);
 
 enum class SliceField { VorticitySquared, SubfilterStressNorm };

@@ -54,7 +54,8 @@ std::string AnalysisPipeline::error() const {
 
 void AnalysisPipeline::run(int analysis_threads) {
   // Analysis yields the cores to the solver: lower scheduling priority for this thread only
-  // (Linux applies nice values per thread, here the lowest priority), and a bounded OpenMP team inside analysis.
+  // (Linux applies nice values per thread, here the lowest priority), and a bounded OpenMP team
+  // inside analysis.
   setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kAnalysisNice);
   omp_set_num_threads(analysis_threads > 0 ? analysis_threads : 1);
   while (std::optional<SnapshotPtr> snapshot = mailbox_.take()) {

@@ -91,7 +91,8 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
   const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice;
   const bool need_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
                               config.wants(Product::SubfilterStatistics);
-  const bool need_velocity_grid = config.wants(Product::Spectrum) || need_vorticity;
+  const bool need_velocity_grid =
+      config.wants(Product::Energy) || config.wants(Product::Spectrum) || need_vorticity;
   const bool need_map = need_velocity_grid || want_stress_slice;
   if (!need_map && !need_stress) {
     frame.total_seconds = 0.0;
@@ -106,6 +107,8 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
   if (need_velocity_grid)
     velocity = timed("grid_velocity", [&] { return sample_velocity(*map, particles, true); });
 
+  if (config.wants(Product::Energy))
+    frame.grid_kinetic_energy = timed("energy", [&] { return grid_kinetic_energy(*velocity); });
   if (config.wants(Product::Spectrum)) {
     frame.spectrum = timed("spectrum", [&] {
       SpectrumProduct p;

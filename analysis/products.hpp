@@ -55,6 +55,8 @@ struct AnalysisFrame {
   std::uint64_t step = 0;
   int dimension = 3;
   double kinetic_energy = 0.0;  // e_v from the particles (5.3)
+  /// ½⟨|u'|²⟩ of the gridded, mean-removed velocity (products "energy" and "spectrum").
+  std::optional<double> grid_kinetic_energy;
   std::optional<SpectrumProduct> spectrum;
   std::optional<VorticityProduct> vorticity;
   std::vector<SliceProduct> slices;

@@ -168,9 +168,11 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
               "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots",
               number(frame.time) + ',' + std::to_string(frame.step) + ',' +
                   number(frame.kinetic_energy) + ',' +
-                  (frame.spectrum ? number(frame.spectrum->kinetic_energy_grid) : nan) + ',' +
-                  (frame.vorticity ? number(frame.vorticity->mean_vorticity_squared) : nan) + ',' +
-                  (frame.vorticity ? number(frame.vorticity->dissipation) : nan) + ',' +
+                  (frame.grid_kinetic_energy ? number(*frame.grid_kinetic_energy)
+                   : frame.spectrum          ? number(frame.spectrum->kinetic_energy_grid)
+                                             : nan) +
+                  ',' + (frame.vorticity ? number(frame.vorticity->mean_vorticity_squared) : nan) +
+                  ',' + (frame.vorticity ? number(frame.vorticity->dissipation) : nan) + ',' +
                   (frame.spectrum ? number(frame.spectrum->dissipation) : nan) + ',' +
                   (frame.subfilter ? number(frame.subfilter->max_norm) : nan) + ',' +
                   (frame.subfilter ? number(frame.subfilter->mean_norm) : nan) + ',' +

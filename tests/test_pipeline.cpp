@@ -104,8 +104,8 @@ TEST(AnalysisConfig, ErrorsNameTheField) {
     return "";
   };
   EXPECT_NE(error_of({{"products", {"spectrum", "colour"}}, {"every", 1}})
-                .find("'analysis.products[1]' must be one of spectrum, vorticity, slices, "
-                      "sfs_stats, got 'colour'"),
+                .find("'analysis.products[1]' must be one of energy, spectrum, vorticity, "
+                      "slices, sfs_stats, got 'colour'"),
             std::string::npos);
   EXPECT_NE(error_of({{"products", {"spectrum"}}}).find("'analysis.every' must be > 0"),
             std::string::npos);
@@ -196,6 +196,12 @@ TEST(Products, TaylorGreen3DSpectrumSliceAndStatistics) {
   EXPECT_EQ(frame.subfilter->joint.total, snapshot->size());
   EXPECT_FALSE(frame.subfilter->alignment) << "the polar histogram is a 2D statistic";
   ASSERT_TRUE(frame.vorticity);
+  EXPECT_FALSE(frame.grid_kinetic_energy) << "energy was not requested";
+  config.products = {Product::Energy};
+  const AnalysisFrame energy_only = analyse(*snapshot, config);
+  ASSERT_TRUE(energy_only.grid_kinetic_energy);
+  EXPECT_NEAR(*energy_only.grid_kinetic_energy, frame.spectrum->kinetic_energy_grid, 1e-15);
+  EXPECT_FALSE(energy_only.spectrum);
   EXPECT_NEAR(frame.vorticity->dissipation,
               snapshot->fluid.kinematic_viscosity() * frame.vorticity->mean_vorticity_squared,
               1e-18);
