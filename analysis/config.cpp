@@ -19,9 +19,10 @@ constexpr std::array<std::pair<Product, std::string_view>, 5> kProductNames{{
     {Product::Slices, "slices"},
     {Product::SubfilterStatistics, "sfs_stats"},
 }};
-constexpr std::array<std::pair<SliceField, std::string_view>, 2> kSliceFieldNames{{
+constexpr std::array<std::pair<SliceField, std::string_view>, 3> kSliceFieldNames{{
     {SliceField::VorticitySquared, "omega2"},
     {SliceField::SubfilterStressNorm, "tau_sfs"},
+    {SliceField::EddyViscosity, "nu_t"},
 }};
 constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
 
@@ -129,6 +130,12 @@ RunConfig parse_run_config(const json& document) {
   RunConfig config;
   config.scene = sim::parse_scene(solver_part);
   config.analysis = parse_analysis_config(analysis);
+  if (config.analysis.wants(Product::Slices) &&
+      config.analysis.slice.fields.contains(SliceField::EddyViscosity) &&
+      config.scene.subfilter.model == sim::SubfilterModel::Implicit)
+    throw SceneError(
+        "scene: 'analysis.slice.fields' asks for nu_t, but 'subfilter.model' is implicit (no "
+        "eddy viscosity)");
   return config;
 }
 

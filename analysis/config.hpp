@@ -14,8 +14,9 @@ enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics };
 /// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats".
 std::string_view product_name(Product product);
 
-enum class SliceField { VorticitySquared, SubfilterStressNorm };
-std::string_view slice_field_name(SliceField field);  // "omega2", "tau_sfs"
+enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
+/// "omega2", "tau_sfs", "nu_t" (ν_t of an explicit sub-filter model).
+std::string_view slice_field_name(SliceField field);
 
 struct SliceConfig {
   int axis = 0;  // 0 = x, 1 = y, 2 = z: the slice is normal to this axis (3D)

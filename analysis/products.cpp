@@ -33,7 +33,9 @@ SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, S
                            const SliceConfig& config) {
   SliceProduct s;
   s.field = name;
-  s.units = name == SliceField::VorticitySquared ? "1/s^2" : "Pa";
+  s.units = name == SliceField::VorticitySquared ? "1/s^2"
+            : name == SliceField::EddyViscosity  ? "m^2/s"
+                                                 : "Pa";
   s.spacing = grid.spacing();
   const int m = grid.points_per_side;
   s.width = m;
@@ -93,7 +95,10 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
                               config.wants(Product::SubfilterStatistics);
   const bool need_velocity_grid =
       config.wants(Product::Energy) || config.wants(Product::Spectrum) || need_vorticity;
-  const bool need_map = need_velocity_grid || want_stress_slice;
+  const bool want_eddy_slice = config.wants(Product::Slices) &&
+                               config.slice.fields.contains(SliceField::EddyViscosity) &&
+                               snapshot.particles.eddy_viscosity.size() == snapshot.size();
+  const bool need_map = need_velocity_grid || want_stress_slice || want_eddy_slice;
   if (!need_map && !need_stress) {
     frame.total_seconds = 0.0;
     return frame;
@@ -172,6 +177,12 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
     frame.slices.push_back(timed("slice_tau_sfs", [&] {
       return extract_slice(grid, sample_scalar(*map, stress->norm), SliceField::SubfilterStressNorm,
                            config.slice);
+    }));
+
+  if (want_eddy_slice)
+    frame.slices.push_back(timed("slice_nu_t", [&] {
+      return extract_slice(grid, sample_scalar(*map, snapshot.particles.eddy_viscosity),
+                           SliceField::EddyViscosity, config.slice);
     }));
 
   frame.total_seconds =

@@ -30,11 +30,15 @@ double DissipationEstimator::add(double time, double kinetic_energy) {
   return -ste / stt;  // ε = -de_v/dt (5.4)
 }
 
-TimeSeriesWriter::TimeSeriesWriter(const std::filesystem::path& path) : path_(path) {
+TimeSeriesWriter::TimeSeriesWriter(const std::filesystem::path& path,
+                                   const std::vector<std::string>& extra_columns)
+    : path_(path), extra_columns_(extra_columns.size()) {
   file_ = std::fopen(path.c_str(), "w");
   if (!file_)
     throw std::runtime_error("cannot create '" + path.string() + "': " + std::strerror(errno));
-  std::fprintf(file_, "%s\n", kHeader);
+  std::fprintf(file_, "%s", kHeader);
+  for (const std::string& column : extra_columns) std::fprintf(file_, ",%s", column.c_str());
+  std::fprintf(file_, "\n");
   std::fflush(file_);
 }
 
@@ -42,10 +46,16 @@ TimeSeriesWriter::~TimeSeriesWriter() {
   if (file_) std::fclose(file_);
 }
 
-void TimeSeriesWriter::write(const sim::StepDiagnostics& d, double dissipation) {
-  std::fprintf(file_, "%.17g,%llu,%.17g,%.17g,%.17g,%.17g,%.17g\n", d.time,
+void TimeSeriesWriter::write(const sim::StepDiagnostics& d, double dissipation,
+                             std::span<const double> extra) {
+  if (extra.size() != extra_columns_)
+    throw std::invalid_argument("timeseries: " + std::to_string(extra.size()) +
+                                " extra values for " + std::to_string(extra_columns_) + " columns");
+  std::fprintf(file_, "%.17g,%llu,%.17g,%.17g,%.17g,%.17g,%.17g", d.time,
                static_cast<unsigned long long>(d.step), d.dt, d.kinetic_energy, dissipation,
                d.max_density_deviation, d.max_speed);
+  for (const double value : extra) std::fprintf(file_, ",%.17g", value);
+  std::fprintf(file_, "\n");
   if (std::fflush(file_) != 0)
     throw std::runtime_error("cannot write '" + path_.string() + "': " + std::strerror(errno));
 }

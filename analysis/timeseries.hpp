@@ -5,7 +5,10 @@
 #include <cstdio>
 #include <deque>
 #include <filesystem>
+#include <span>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "sim/solver.hpp"
 
@@ -28,23 +31,27 @@ class DissipationEstimator {
 
 /// timeseries.csv with the stable columns
 ///   t,step,dt,e_v,dissipation,max_density_deviation,max_speed
-/// (SI units); numbers in full precision, "nan" where undefined; rows flushed as written.
+/// followed by the case's own columns (sim::case_diagnostic_names, e.g. the Kolmogorov energy
+/// budget) (SI units); numbers in full precision, "nan" where undefined; rows flushed as written.
 class TimeSeriesWriter {
  public:
   static constexpr const char* kHeader =
       "t,step,dt,e_v,dissipation,max_density_deviation,max_speed";
 
   /// Creates (truncates) the file; throws std::runtime_error naming the path on failure.
-  explicit TimeSeriesWriter(const std::filesystem::path& path);
+  TimeSeriesWriter(const std::filesystem::path& path,
+                   const std::vector<std::string>& extra_columns = {});
   ~TimeSeriesWriter();
   TimeSeriesWriter(const TimeSeriesWriter&) = delete;
   TimeSeriesWriter& operator=(const TimeSeriesWriter&) = delete;
 
-  void write(const sim::StepDiagnostics& diagnostics, double dissipation);
+  void write(const sim::StepDiagnostics& diagnostics, double dissipation,
+             std::span<const double> extra = {});
 
  private:
   std::FILE* file_ = nullptr;
   std::filesystem::path path_;
+  std::size_t extra_columns_ = 0;
 };
 
 }  // namespace sphles::analysis

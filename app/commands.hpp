@@ -4,6 +4,8 @@
 #include <string>
 #include <vector>
 
+#include "analysis/config.hpp"
+
 namespace sphles::app {
 
 /// Exit codes: 0 success, 1 runtime failure (I/O, blow-up), 2 bad command line or scene.
@@ -11,7 +13,19 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
 
-/// sphles run SCENE.json [--set key=value ...] [--out DIR] [--threads N]
+/// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N]
 int run_command(const std::vector<std::string>& args);
+
+/// sphles presets: lists the preset names.
+int presets_command(const std::vector<std::string>& args);
+
+/// sphles calibrate SCENE.json|PRESET --target-urms U [--time T] [--average-from T0]
+///   [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]
+int calibrate_command(const std::vector<std::string>& args);
+
+/// A scene file, or a preset name when no such file exists, with --set overrides applied.
+/// Throws sim::SceneError.
+analysis::RunConfig load_run_config(const std::string& scene_or_preset,
+                                    const std::vector<std::string>& overrides);
 
 }  // namespace sphles::app

@@ -10,9 +10,15 @@ constexpr const char* kUsage =
     "usage: sphles <command> [options]\n"
     "\n"
     "commands:\n"
-    "  run SCENE.json [--set key=value ...] [--out DIR] [--threads N]\n"
-    "      run a scene to its end time, printing progress and writing DIR/timeseries.csv\n"
-    "      and DIR/scene.json (the scene with every default filled in)\n"
+    "  run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N]\n"
+    "      run a scene (or a preset, see 'presets') to its end time, printing progress and\n"
+    "      writing DIR/timeseries.csv, DIR/scene.json and the requested analysis products\n"
+    "  presets\n"
+    "      list the presets (the 21 Taylor-Green cases of the thesis, kolmogorov2d);\n"
+    "      scale one down with --set particles_per_side=N\n"
+    "  calibrate SCENE.json|PRESET --target-urms U [--time T] [--average-from T0]\n"
+    "            [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]\n"
+    "      find the Kolmogorov forcing amplitude chi giving <u_rms> = U by secant iterations\n"
     "  help       print this text\n"
     "  version    print the version\n";
 
@@ -27,6 +33,8 @@ int main(int argc, char** argv) {
   const std::string command = args[0];
   args.erase(args.begin());
   if (command == "run") return sphles::app::run_command(args);
+  if (command == "presets") return sphles::app::presets_command(args);
+  if (command == "calibrate") return sphles::app::calibrate_command(args);
   if (command == "version" || command == "--version") {
     std::puts("sphles " SPHLES_VERSION);
     return sphles::app::kExitOk;

@@ -88,10 +88,7 @@ int run_command(const std::vector<std::string>& args) {
   analysis::RunConfig run_config;
   try {
     options = parse_run_options(args);
-    nlohmann::json document = sim::read_scene_file(options.scene_file);
-    for (const std::string& assignment : options.overrides)
-      sim::apply_override(document, assignment);
-    run_config = analysis::parse_run_config(document);
+    run_config = load_run_config(options.scene_file, options.overrides);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles run: %s\n", e.what());
     return kExitUsage;
@@ -130,10 +127,12 @@ int run_command(const std::vector<std::string>& args) {
     }
 
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
-    analysis::TimeSeriesWriter timeseries(out_dir / "timeseries.csv");
+    analysis::TimeSeriesWriter timeseries(out_dir / "timeseries.csv",
+                                          sim::case_diagnostic_names(scene));
     analysis::DissipationEstimator dissipation(analysis_config.dissipation_window);
     const auto record = [&](const sim::StepDiagnostics& d) {
-      timeseries.write(d, dissipation.add(d.time, d.kinetic_energy));
+      timeseries.write(d, dissipation.add(d.time, d.kinetic_energy),
+                       sim::case_diagnostics(scene, simulation->particles()));
     };
     record(simulation->diagnostics());
 

@@ -155,7 +155,8 @@ int main(int argc, char** argv) {
   double without = 0.0, with = 0.0, slow = 0.0;
   an::PipelineCounters counters, slow_counters;
   for (int r = 0; r < repeats; ++r) {
-    without = std::max(without, run_steps_per_second(run_size, run_time, Mode::NoAnalysis, nullptr));
+    without =
+        std::max(without, run_steps_per_second(run_size, run_time, Mode::NoAnalysis, nullptr));
     with = std::max(with, run_steps_per_second(run_size, run_time, Mode::AllProducts, &counters));
     slow = std::max(slow, run_steps_per_second(run_size, run_time, Mode::SlowConsumerEveryStep,
                                                &slow_counters));
@@ -169,10 +170,11 @@ int main(int argc, char** argv) {
       static_cast<unsigned long long>(counters.dropped), counters.busy_seconds);
   std::printf("  throughput ratio with/without: %.3f (slowdown %.1f %%)\n", with / without,
               100.0 * (1.0 - with / without));
-  std::printf("  snapshot every step to a consumer sleeping 1 s per frame: %.3f steps/s, ratio "
-              "%.3f (%llu published, %llu analysed, %llu dropped)\n",
-              slow, slow / without, static_cast<unsigned long long>(slow_counters.published),
-              static_cast<unsigned long long>(slow_counters.analysed),
-              static_cast<unsigned long long>(slow_counters.dropped));
+  std::printf(
+      "  snapshot every step to a consumer sleeping 1 s per frame: %.3f steps/s, ratio "
+      "%.3f (%llu published, %llu analysed, %llu dropped)\n",
+      slow, slow / without, static_cast<unsigned long long>(slow_counters.published),
+      static_cast<unsigned long long>(slow_counters.analysed),
+      static_cast<unsigned long long>(slow_counters.dropped));
   return 0;
 }

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
 scripts/build.sh -DSPHLES_WERROR=ON
-(cd build && ctest --output-on-failure --parallel "$(nproc)" --timeout 1200)
+(cd build && ctest --output-on-failure --parallel "$(nproc)" --no-tests=error --timeout 1200)
 
 # libgomp is not instrumented, so OpenMP teams would give false reports: the TSan run checks
 # the std::thread hand-over with one OpenMP thread per thread.
@@ -16,4 +16,4 @@ cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPHLES_TSA
   { cat build-tsan.configure.log; exit 1; }
 cmake --build build-tsan --parallel "$(nproc)" --target pipeline_tests
 (cd build-tsan && OMP_NUM_THREADS=1 TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1" \
-  ctest --output-on-failure --parallel "$(nproc)" -L concurrency --timeout 1200)
+  ctest --output-on-failure --parallel "$(nproc)" -L concurrency --no-tests=error --timeout 1200)

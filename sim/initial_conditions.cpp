@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "sim/reduction.hpp"
+
 namespace sphles::sim {
 
 void set_taylor_green_3d(const Scene& s, ParticleArrays& p) {
@@ -40,6 +42,55 @@ double taylor_green_2d_energy(double v0, double kinematic_viscosity, double time
   return 0.25 * v0 * v0 * std::exp(-4.0 * kinematic_viscosity * time);
 }
 
+void set_kolmogorov_2d(const Scene& s, ParticleArrays& p) {
+  const double cell_volume = std::pow(s.particle_spacing(), 2);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    p.velocity[0][i] = s.uniform_velocity[0];
+    p.velocity[1][i] = s.uniform_velocity[1];
+    p.mass[i] = s.fluid.reference_density * cell_volume;
+  }
+}
+
+ExternalAcceleration kolmogorov_acceleration(const KolmogorovForcing& forcing, double wavenumber) {
+  return [forcing, wavenumber](double, const ParticleArrays& p, const VelocityView& velocity,
+                               std::array<std::vector<double>, 3>& acceleration) {
+    const auto n = static_cast<std::ptrdiff_t>(p.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t si = 0; si < n; ++si) {
+      const auto i = static_cast<std::size_t>(si);
+      // a = χ sin(k_y y) e_x - μ v (SPEC §6.3)
+      acceleration[0][i] += forcing.amplitude * std::sin(wavenumber * p.position[1][i]) -
+                            forcing.friction * velocity.v[0][i];
+      acceleration[1][i] -= forcing.friction * velocity.v[1][i];
+    }
+  };
+}
+
+double kolmogorov_laminar_velocity(const KolmogorovForcing& forcing, double wavenumber,
+                                   double kinematic_viscosity, double y) {
+  return forcing.amplitude * std::sin(wavenumber * y) /
+         (kinematic_viscosity * wavenumber * wavenumber + forcing.friction);
+}
+
+std::vector<std::string> case_diagnostic_names(const Scene& scene) {
+  if (scene.case_type == CaseType::Kolmogorov2D)
+    return {"energy_injection", "film_dissipation", "u_rms"};
+  return {};
+}
+
+std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& p) {
+  if (scene.case_type != CaseType::Kolmogorov2D) return {};
+  const double k = scene.forcing_wavenumber();
+  const double mass = deterministic_sum(p.size(), [&](std::size_t i) { return p.mass[i]; });
+  const double injection = deterministic_sum(p.size(), [&](std::size_t i) {
+    return p.mass[i] * scene.forcing.amplitude * std::sin(k * p.position[1][i]) * p.velocity[0][i];
+  });
+  const double v2 = deterministic_sum(p.size(), [&](std::size_t i) {
+    return p.mass[i] * (p.velocity[0][i] * p.velocity[0][i] + p.velocity[1][i] * p.velocity[1][i]);
+  });
+  return {injection / mass, scene.forcing.friction * v2 / mass, std::sqrt(v2 / mass)};  // (4.3)
+}
+
 RunSetup setup_run(const Scene& scene) {
   RunSetup setup;
   SolverConfig& c = setup.solver;
@@ -51,6 +102,9 @@ RunSetup setup_run(const Scene& scene) {
   c.fluid = scene.fluid;
   c.time_step = scene.time_step;
   c.neighbour_skin = scene.neighbour_skin;
+  c.subfilter = scene.subfilter;
+  if (scene.case_type == CaseType::Kolmogorov2D)
+    c.external = kolmogorov_acceleration(scene.forcing, scene.forcing_wavenumber());
 
   setup.particles = packed_positions(scene, &setup.packing);
   switch (scene.case_type) {
@@ -59,6 +113,9 @@ RunSetup setup_run(const Scene& scene) {
       break;
     case CaseType::TaylorGreen2D:
       set_taylor_green_2d(scene, setup.particles);
+      break;
+    case CaseType::Kolmogorov2D:
+      set_kolmogorov_2d(scene, setup.particles);
       break;
   }
   return setup;

@@ -20,6 +20,23 @@ void set_taylor_green_2d(const Scene& scene, ParticleArrays& particles);
 /// e_v(0) = v0²/4 (SPEC §6.2).
 double taylor_green_2d_energy(double v0, double kinematic_viscosity, double time);
 
+/// Kolmogorov flow (SPEC §6.3): fluid at rest (plus any uniform velocity) with M0 = ρ_ref Δl².
+void set_kolmogorov_2d(const Scene& scene, ParticleArrays& particles);
+
+/// a_ext = χ sin(k_y y) e_x - μ v of the Kolmogorov flow (SPEC §6.3), evaluated at the velocity
+/// the forces use.
+ExternalAcceleration kolmogorov_acceleration(const KolmogorovForcing& forcing, double wavenumber);
+
+/// Laminar steady state v_x = χ sin(k_y y) / (ν k_y² + μ) of the Kolmogorov flow.
+double kolmogorov_laminar_velocity(const KolmogorovForcing& forcing, double wavenumber,
+                                   double kinematic_viscosity, double y);
+
+/// Per-step scalars a case adds to the time series, after the standard columns. kolmogorov2d:
+/// energy_injection = ⟨χ sin(k_y y) v_x⟩, film_dissipation = μ⟨|v|²⟩, u_rms = sqrt(⟨|v|²⟩)
+/// (mass-weighted averages, SPEC (4.3)); the Taylor-Green cases add none.
+std::vector<std::string> case_diagnostic_names(const Scene& scene);
+std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& particles);
+
 struct RunSetup {
   SolverConfig solver;
   ParticleArrays particles;

@@ -16,6 +16,7 @@ void ParticleArrays::resize(std::size_t n) {
   volume.assign(n, 0.0);
   density.assign(n, 0.0);
   pressure.assign(n, 0.0);
+  eddy_viscosity.clear();
   id.resize(n);
   std::iota(id.begin(), id.end(), std::uint64_t{0});
 }
@@ -43,6 +44,7 @@ void ParticleArrays::reorder(std::span<const std::uint32_t> order) {
   permute(volume, order, scratch);
   permute(density, order, scratch);
   permute(pressure, order, scratch);
+  permute(eddy_viscosity, order, scratch);
   std::vector<std::uint64_t> id_scratch;
   permute(id, order, id_scratch);
 }

@@ -58,6 +58,7 @@ struct ParticleArrays {
   std::vector<double> volume;                       // V_i = 1/Σ_j W_ij (A.1) [m^n]
   std::vector<double> density;                      // ρ_i = M_i/V_i (A.2) [kg/m^n]
   std::vector<double> pressure;                     // p_i from the EOS [Pa]
+  std::vector<double> eddy_viscosity;               // ν_t [m²/s] of an explicit model, else empty
   std::vector<std::uint64_t> id;                    // stable identity across reorderings
 
   std::size_t size() const { return mass.size(); }

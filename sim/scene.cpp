@@ -16,16 +16,30 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::array<std::pair<CaseType, std::string_view>, 2> kCaseNames{{
+constexpr std::array<std::pair<CaseType, std::string_view>, 3> kCaseNames{{
     {CaseType::TaylorGreen3D, "tgv3d"},
     {CaseType::TaylorGreen2D, "tgv2d"},
+    {CaseType::Kolmogorov2D, "kolmogorov2d"},
 }};
 
 /// Defaults that depend on the case (SPEC §6.1 for tgv3d; tgv2d at Re = 100, Ma = 0.1).
 Scene case_defaults(CaseType type) {
   Scene s;
   s.case_type = type;
-  if (type == CaseType::TaylorGreen3D) {
+  s.box_length_ = 2.0 * std::numbers::pi;
+  if (type == CaseType::Kolmogorov2D) {
+    // Thin-film experiment of Rivera & Wu 2000 as in SPEC §6.3: Δl = 125 µm, D_K = 1 mm.
+    s.name = "kolmogorov2d";
+    s.box_length_ = 0.042;
+    s.particles_per_side = 336;
+    s.kernel_diameter_over_spacing = 8.0;
+    s.velocity_amplitude = 0.0;  // starts from rest
+    s.fluid = {.reference_density = 1000.0,
+               .sound_speed = 2.0,
+               .reference_pressure = 400.0,
+               .dynamic_viscosity = 1.6e-3};
+    s.end_time = 20.0;
+  } else if (type == CaseType::TaylorGreen3D) {
     s.name = "tgv3d";
     s.particles_per_side = 32;
     s.fluid = {.reference_density = 1.0,
@@ -57,11 +71,11 @@ std::string_view case_name(CaseType type) {
 }
 
 int case_dimension(CaseType type) {
-  return type == CaseType::TaylorGreen2D ? 2 : 3;
+  return type == CaseType::TaylorGreen3D ? 3 : 2;
 }
 
-double Scene::box_length() const {
-  return 2.0 * std::numbers::pi;
+double Scene::forcing_wavenumber() const {
+  return 2.0 * std::numbers::pi * forcing.periods / box_length();
 }
 double Scene::particle_spacing() const {
   return box_length() / particles_per_side;
@@ -75,7 +89,21 @@ std::size_t Scene::num_particles() const {
   return n;
 }
 
-Scene parse_scene(const json& document) {
+Scene parse_scene(const json& input) {
+  if (!input.is_object())
+    throw SceneError("scene: '(top level)' must be an object, got " + describe_type(input));
+  // A preset is the base document; the scene's own keys patch it.
+  json document = input;
+  std::string preset;
+  if (const auto it = input.find("preset"); it != input.end()) {
+    if (!it->is_string())
+      throw SceneError("scene: 'preset' must be a string, got " + describe_type(*it));
+    preset = it->get<std::string>();
+    document = preset_document(preset);
+    json patch = input;
+    patch.erase("preset");
+    document.merge_patch(patch);
+  }
   ObjectReader top(document, "");
   std::string case_string = "tgv3d";
   top.string("case", case_string);
@@ -83,11 +111,20 @@ Scene parse_scene(const json& document) {
   for (const auto& [t, name] : kCaseNames)
     if (name == case_string) type = t;
   if (!type)
-    throw SceneError("scene: 'case' must be one of tgv3d, tgv2d, got '" + case_string + "'");
+    throw SceneError("scene: 'case' must be one of tgv3d, tgv2d, kolmogorov2d, got '" +
+                     case_string + "'");
   Scene s = case_defaults(*type);
+  s.preset = preset;
+  if (!preset.empty()) s.name = preset;
+  top.find("preset");
 
   top.string("name", s.name);
   top.integer("particles_per_side", s.particles_per_side, 2, 4096);
+  if (s.case_type == CaseType::Kolmogorov2D) {
+    top.number("box_length", s.box_length_, positive);
+  } else if (top.find("box_length")) {
+    throw SceneError("scene: 'box_length' is fixed at 2π for the Taylor-Green cases");
+  }
   {
     ObjectReader k = top.object("kernel");
     std::string kernel = std::string(kernel_name(s.kernel));
@@ -122,6 +159,29 @@ Scene parse_scene(const json& document) {
     t.number("cfl_force", s.time_step.cfl_force, courant);
     t.number("fixed_step", s.time_step.fixed, non_negative);
     t.reject_unknown();
+  }
+  {
+    ObjectReader m = top.object("subfilter");
+    std::string model = std::string(subfilter_model_name(s.subfilter.model));
+    m.string("model", model);
+    try {
+      s.subfilter.model = subfilter_model_from_name(model);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'subfilter.model': " + std::string(e.what()));
+    }
+    m.number("smagorinsky_constant", s.subfilter.smagorinsky_constant, positive);
+    m.number("sigma_constant", s.subfilter.sigma_constant, positive);
+    m.number("filter_width", s.subfilter.filter_width, non_negative);
+    m.reject_unknown();
+  }
+  if (s.case_type == CaseType::Kolmogorov2D) {
+    ObjectReader f = top.object("forcing");
+    f.number("amplitude", s.forcing.amplitude);
+    f.integer("periods", s.forcing.periods, 1, 100000);
+    f.number("friction", s.forcing.friction, non_negative);
+    f.reject_unknown();
+  } else if (top.find("forcing")) {
+    throw SceneError("scene: 'forcing' applies to case kolmogorov2d only");
   }
   {
     ObjectReader nb = top.object("neighbours");
@@ -197,6 +257,17 @@ void apply_override(json& document, const std::string& assignment) {
 json scene_to_json(const Scene& s) {
   json j;
   j["name"] = s.name;
+  if (!s.preset.empty()) j["preset"] = s.preset;
+  if (s.case_type == CaseType::Kolmogorov2D) {
+    j["box_length"] = s.box_length();
+    j["forcing"] = {{"amplitude", s.forcing.amplitude},
+                    {"periods", s.forcing.periods},
+                    {"friction", s.forcing.friction}};
+  }
+  j["subfilter"] = {{"model", std::string(subfilter_model_name(s.subfilter.model))},
+                    {"smagorinsky_constant", s.subfilter.smagorinsky_constant},
+                    {"sigma_constant", s.subfilter.sigma_constant},
+                    {"filter_width", s.subfilter.filter_width}};
   j["case"] = std::string(case_name(s.case_type));
   j["particles_per_side"] = s.particles_per_side;
   j["kernel"] = {{"type", std::string(kernel_name(s.kernel))},
@@ -225,6 +296,78 @@ json scene_to_json(const Scene& s) {
   j["output"] = {{"timeseries_every", s.output.timeseries_every},
                  {"progress_every_seconds", s.output.progress_every_seconds}};
   return j;
+}
+
+}  // namespace sphles::sim
+
+namespace sphles::sim {
+
+namespace {
+
+/// One row of SPEC Table 5.1.
+struct ThesisCase {
+  int number;
+  const char* kernel;
+  int particles_per_side;
+  double diameter_over_spacing;
+  const char* model;
+  double smagorinsky_constant;
+  double reference_pressure;  // 0: the default ρ c_s²/4 = 6.25
+  double sound_speed;         // 0: the default 5
+  double uniform_velocity_z;
+};
+
+constexpr ThesisCase kThesisCases[] = {
+    {1, "quintic_spline", 128, 6, "implicit", 0.15, 0, 0, 0},
+    {2, "quintic_spline", 192, 6, "implicit", 0.15, 0, 0, 0},
+    {3, "quintic_spline", 256, 6, "implicit", 0.15, 0, 0, 0},
+    {4, "quintic_spline", 512, 6, "implicit", 0.15, 0, 0, 0},
+    {5, "wendland_c4", 256, 4, "implicit", 0.15, 0, 0, 0},
+    {6, "wendland_c4", 256, 6, "implicit", 0.15, 0, 0, 0},
+    {7, "wendland_c4", 256, 8, "implicit", 0.15, 0, 0, 0},
+    {8, "wendland_c4", 128, 8, "implicit", 0.15, 0, 0, 0},
+    {9, "wendland_c4", 192, 8, "implicit", 0.15, 0, 0, 0},
+    {10, "wendland_c4", 256, 8, "implicit", 0.15, 0, 0, 0},
+    {11, "wendland_c4", 512, 8, "implicit", 0.15, 0, 0, 0},
+    {12, "wendland_c4", 128, 8, "smag", 0.15, 0, 0, 0},
+    {13, "wendland_c4", 192, 8, "smag", 0.15, 0, 0, 0},
+    {14, "wendland_c4", 256, 8, "smag", 0.15, 0, 0, 0},
+    {15, "wendland_c4", 512, 8, "smag", 0.15, 0, 0, 0},
+    {16, "wendland_c4", 256, 8, "sigma", 0.15, 0, 0, 0},
+    {17, "wendland_c4", 256, 8, "smag_mcg", 0.15, 0, 0, 0},
+    {18, "wendland_c4", 256, 8, "smag", 0.075, 0, 0, 0},
+    {19, "wendland_c4", 256, 8, "smag", 0.3, 0, 0, 0},
+    {20, "wendland_c4", 256, 8, "implicit", 0.15, 68, 0, 0},
+    {21, "wendland_c4", 256, 8, "implicit", 0.15, 68, 16.5, std::numbers::pi},
+};
+
+}  // namespace
+
+std::vector<std::string> preset_names() {
+  std::vector<std::string> names;
+  for (const ThesisCase& c : kThesisCases) names.push_back("tgv3d-case" + std::to_string(c.number));
+  names.push_back("kolmogorov2d");
+  return names;
+}
+
+json preset_document(const std::string& name) {
+  if (name == "kolmogorov2d") return {{"case", "kolmogorov2d"}, {"forcing", {{"amplitude", 1.8}}}};
+  for (const ThesisCase& c : kThesisCases) {
+    if (name != "tgv3d-case" + std::to_string(c.number)) continue;
+    json fluid = {{"reference_density", 1.0}, {"dynamic_viscosity", 1e-4}};
+    fluid["sound_speed"] = c.sound_speed > 0.0 ? c.sound_speed : 5.0;
+    fluid["reference_pressure"] = c.reference_pressure > 0.0 ? c.reference_pressure : 6.25;
+    return {{"case", "tgv3d"},
+            {"particles_per_side", c.particles_per_side},
+            {"kernel", {{"type", c.kernel}, {"diameter_over_spacing", c.diameter_over_spacing}}},
+            {"fluid", fluid},
+            {"flow", {{"uniform_velocity", {0.0, 0.0, c.uniform_velocity_z}}}},
+            {"subfilter", {{"model", c.model}, {"smagorinsky_constant", c.smagorinsky_constant}}},
+            {"time", {{"end", 15.0}}}};
+  }
+  std::string valid;
+  for (const std::string& n : preset_names()) valid += (valid.empty() ? "" : ", ") + n;
+  throw SceneError("scene: unknown preset '" + name + "' (valid: " + valid + ")");
 }
 
 }  // namespace sphles::sim

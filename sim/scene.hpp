@@ -24,7 +24,7 @@ class SceneError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-enum class CaseType { TaylorGreen3D, TaylorGreen2D };
+enum class CaseType { TaylorGreen3D, TaylorGreen2D, Kolmogorov2D };
 
 std::string_view case_name(CaseType type);
 int case_dimension(CaseType type);
@@ -40,6 +40,13 @@ struct PackingConfig {
   std::uint64_t seed = 1;
 };
 
+/// Kolmogorov forcing a = χ sin(k_y y) e_x and linear friction -μ v (SPEC §6.3).
+struct KolmogorovForcing {
+  double amplitude = 1.8;  // χ [m/s²]
+  int periods = 7;         // k_y = 2π periods / L (7 periods in 0.042 m: k_y = 1047.2 1/m)
+  double friction = 0.7;   // μ [1/s]
+};
+
 struct OutputConfig {
   double timeseries_every = 0.0;        // simulated time between rows; 0 writes every step
   double progress_every_seconds = 1.0;  // wall time between progress lines
@@ -47,7 +54,9 @@ struct OutputConfig {
 
 struct Scene {
   std::string name;
+  std::string preset;  // preset the scene was built from, empty if none
   CaseType case_type = CaseType::TaylorGreen3D;
+  double box_length_ = 0.0;  // L [m]; 2π for the Taylor-Green cases
   int particles_per_side = 32;
   KernelType kernel = KernelType::WendlandC4;
   double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
@@ -56,18 +65,28 @@ struct Scene {
   std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
   double end_time = 15.0;                                 // [s]
   TimeStepConfig time_step;
+  SubfilterConfig subfilter;
+  KolmogorovForcing forcing;     // kolmogorov2d only
   double neighbour_skin = 0.15;  // fraction of H
   PackingConfig packing;
   OutputConfig output;
 
   int dimension() const { return case_dimension(case_type); }
-  double box_length() const;        // L [m]
-  double particle_spacing() const;  // Δl = L / particles_per_side [m]
-  double kernel_diameter() const;   // D_K [m]
+  double box_length() const { return box_length_; }  // L [m]
+  double forcing_wavenumber() const;                 // k_y [1/m] (kolmogorov2d)
+  double particle_spacing() const;                   // Δl = L / particles_per_side [m]
+  double kernel_diameter() const;                    // D_K [m]
   std::size_t num_particles() const;
 };
 
-/// Parses and validates a scene; throws SceneError.
+/// Names of the built-in presets: tgv3d-case1 ... tgv3d-case21 (SPEC Table 5.1), kolmogorov2d.
+std::vector<std::string> preset_names();
+
+/// The scene document of a preset; throws SceneError for an unknown name.
+nlohmann::json preset_document(const std::string& name);
+
+/// Parses and validates a scene; throws SceneError. A "preset" key starts from that preset's
+/// document, and the other keys override it (JSON merge patch).
 Scene parse_scene(const nlohmann::json& document);
 
 /// Reads a JSON file; throws SceneError naming the file on I/O or syntax errors.

@@ -133,6 +133,7 @@ class SphSolver final : public Simulation {
   void evaluate_acceleration(const VelocityView& velocity, double time) {
     density_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, particles_);
     force_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, velocity, particles_);
+    if (config_.subfilter.model != SubfilterModel::Implicit) add_subfilter_force(velocity);
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
     max_acceleration_ = parallel_max(particles_.size(), [&](std::size_t i) {
       double a2 = 0.0;
@@ -141,6 +142,24 @@ class SphSolver final : public Simulation {
       return a2;
     });
     max_acceleration_ = std::sqrt(max_acceleration_);
+  }
+
+  /// Explicit model: gradient (A.20), ν_t (A.21/A.22), then force (A.18) or (A.23).
+  void add_subfilter_force(const VelocityView& velocity) {
+    const NeighbourList& list = search_.list();
+    velocity_gradient_pass<Dim>(kernel_, config_.box, list, velocity, particles_, gradient_);
+    std::vector<double>& nu_t = particles_.eddy_viscosity;
+    nu_t.resize(particles_.size());
+    const double kernel_diameter = 2.0 * config_.support_radius;
+    const auto n = static_cast<std::ptrdiff_t>(particles_.size());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t i = 0; i < n; ++i)
+      nu_t[static_cast<std::size_t>(i)] = eddy_viscosity(config_.subfilter, kernel_diameter,
+                                                         gradient_[static_cast<std::size_t>(i)]);
+    if (config_.subfilter.model == SubfilterModel::SmagorinskyMcg)
+      subfilter_mcg_pass<Dim>(kernel_, config_.box, list, velocity, nu_t, particles_);
+    else
+      subfilter_divergence_pass<Dim>(kernel_, config_.box, list, gradient_, nu_t, particles_);
   }
 
   void update_diagnostics(double dt) {
@@ -203,6 +222,7 @@ class SphSolver final : public Simulation {
   VerletNeighbourSearch search_;
   ParticleArrays particles_;
   std::array<std::vector<double>, 3> predicted_velocity_;
+  std::vector<VelocityGradient> gradient_;  // scratch of the explicit sub-filter model
   double time_;
   std::uint64_t step_;
   double max_acceleration_ = 0.0;

@@ -20,6 +20,7 @@
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
+#include "sim/subfilter.hpp"
 
 namespace sphles::sim {
 
@@ -48,6 +49,7 @@ struct SolverConfig {
   double particle_spacing = 0.0;  // Δl [m], sets the time-step limits
   FluidParameters fluid;
   TimeStepConfig time_step;
+  SubfilterConfig subfilter;      // explicit sub-filter model (SPEC §4); implicit by default
   double neighbour_skin = 0.15;   // Verlet skin as a fraction of H
   ExternalAcceleration external;  // optional
 };

@@ -116,6 +116,9 @@ TEST(AnalysisConfig, ErrorsNameTheField) {
             std::string::npos);
   EXPECT_NE(error_of({{"cadence", 1}}).find("unknown key 'analysis.cadence'"), std::string::npos);
   EXPECT_NE(error_of(3).find("'analysis' must be an object"), std::string::npos);
+  EXPECT_NE(error_of({{"every", 1}, {"products", {"slices"}}, {"slice", {{"fields", {"nu_t"}}}}})
+                .find("asks for nu_t, but 'subfilter.model' is implicit"),
+            std::string::npos);
 }
 
 // --- products ----------------------------------------------------------------------------
@@ -221,6 +224,34 @@ TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {
   for (const auto c : frame.subfilter->alignment->counts) sum += c;
   EXPECT_EQ(sum, frame.subfilter->alignment->total);
   EXPECT_GT(sum, 0u);
+}
+
+TEST(Products, EddyViscositySliceOfAnExplicitModel) {
+  const json doc = {{"case", "tgv3d"},
+                    {"particles_per_side", 12},
+                    {"kernel", {{"diameter_over_spacing", 6}}},
+                    {"subfilter", {{"model", "smag"}}},
+                    {"packing", {{"enabled", false}}}};
+  const sim::Scene scene = sim::parse_scene(doc);
+  sim::RunSetup setup = sim::setup_run(scene);
+  auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+  simulation->step();
+  const SnapshotPtr snapshot = make_snapshot(*simulation);
+  ASSERT_EQ(snapshot->particles.eddy_viscosity.size(), snapshot->size());
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Slices};
+  config.slice.fields = {SliceField::EddyViscosity};
+  const AnalysisFrame frame = analyse(*snapshot, config);
+  ASSERT_EQ(frame.slices.size(), 1u);
+  EXPECT_EQ(frame.slices[0].units, "m^2/s");
+  const auto& nu = snapshot->particles.eddy_viscosity;
+  const double max_nu = *std::max_element(nu.begin(), nu.end());
+  EXPECT_GT(max_nu, 0.0);
+  for (const double v : frame.slices[0].values) {
+    EXPECT_GE(v, 0.0);
+    EXPECT_LE(v, max_nu);
+  }
 }
 
 // --- pipeline ----------------------------------------------------------------------------

@@ -223,5 +223,42 @@ TEST_F(CliTest, RunWithAnalysisWritesProductsAtTheCadence) {
   EXPECT_FALSE(std::filesystem::exists(out / "stats" / "vorticity"));
 }
 
+TEST_F(CliTest, PresetsAreListedAndRunnableByName) {
+  ProcessResult r = run_sphles("presets");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("tgv3d-case11"), std::string::npos);
+  EXPECT_NE(r.output.find("kolmogorov2d"), std::string::npos);
+  r = run_sphles(
+      "run tgv3d-case17 --set particles_per_side=10 --set time.end=0.05 "
+      "--set packing.enabled=false --out " +
+      (dir_ / "c17").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json written = json::parse(std::ifstream(dir_ / "c17" / "scene.json"));
+  EXPECT_EQ(written["preset"], "tgv3d-case17");
+  EXPECT_EQ(written["subfilter"]["model"], "smag_mcg");
+  EXPECT_EQ(written["particles_per_side"], 10);
+  r = run_sphles("run tgv3d-case99");
+  EXPECT_EQ(r.exit_code, 2);
+}
+
+TEST_F(CliTest, CalibrateFindsForcingForTargetUrms) {
+  // Laminar regime (u ∝ χ): the proportional second try lands within the tolerance.
+  const auto scene = write("kol.json", R"({"case": "kolmogorov2d", "particles_per_side": 16,
+      "fluid": {"reference_pressure": 1.0}, "packing": {"enabled": false},
+      "forcing": {"amplitude": 0.01, "periods": 1, "friction": 4.0}})");
+  ProcessResult r = run_sphles(
+      "calibrate " + scene + " --target-urms 0.004 --time 1.5 --average-from 1.0 --tolerance 0.01");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("try 1: chi = 0.01"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("try 2:"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("converged: chi = "), std::string::npos) << r.output;
+  r = run_sphles("calibrate tgv3d-case1 --target-urms 0.1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("needs a kolmogorov2d scene"), std::string::npos) << r.output;
+  r = run_sphles("calibrate " + scene);
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--target-urms must be given"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace sphles::sim
