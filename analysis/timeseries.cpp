@@ -31,14 +31,17 @@ double DissipationEstimator::add(double time, double kinetic_energy) {
 }
 
 TimeSeriesWriter::TimeSeriesWriter(const std::filesystem::path& path,
-                                   const std::vector<std::string>& extra_columns)
+                                   const std::vector<std::string>& extra_columns, bool append)
     : path_(path), extra_columns_(extra_columns.size()) {
-  file_ = std::fopen(path.c_str(), "w");
+  const bool continue_file = append && std::filesystem::exists(path);
+  file_ = std::fopen(path.c_str(), continue_file ? "a" : "w");
   if (!file_)
     throw std::runtime_error("cannot create '" + path.string() + "': " + std::strerror(errno));
-  std::fprintf(file_, "%s", kHeader);
-  for (const std::string& column : extra_columns) std::fprintf(file_, ",%s", column.c_str());
-  std::fprintf(file_, "\n");
+  if (!continue_file) {
+    std::fprintf(file_, "%s", kHeader);
+    for (const std::string& column : extra_columns) std::fprintf(file_, ",%s", column.c_str());
+    std::fprintf(file_, "\n");
+  }
   std::fflush(file_);
 }
 

@@ -39,8 +39,9 @@ class TimeSeriesWriter {
       "t,step,dt,e_v,dissipation,max_density_deviation,max_speed";
 
   /// Creates (truncates) the file; throws std::runtime_error naming the path on failure.
+  /// With `append`, an existing file is continued (no header); otherwise it is truncated.
   TimeSeriesWriter(const std::filesystem::path& path,
-                   const std::vector<std::string>& extra_columns = {});
+                   const std::vector<std::string>& extra_columns = {}, bool append = false);
   ~TimeSeriesWriter();
   TimeSeriesWriter(const TimeSeriesWriter&) = delete;
   TimeSeriesWriter& operator=(const TimeSeriesWriter&) = delete;

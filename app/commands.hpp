@@ -16,6 +16,9 @@ inline constexpr int kExitUsage = 2;
 /// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N]
 int run_command(const std::vector<std::string>& args);
 
+/// sphles inspect FILE: validates a checkpoint and prints its contents (exit 2 if invalid).
+int inspect_command(const std::vector<std::string>& args);
+
 /// sphles presets: lists the preset names.
 int presets_command(const std::vector<std::string>& args);
 

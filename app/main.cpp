@@ -13,6 +13,10 @@ constexpr const char* kUsage =
     "  run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N]\n"
     "      run a scene (or a preset, see 'presets') to its end time, printing progress and\n"
     "      writing DIR/timeseries.csv, DIR/scene.json and the requested analysis products\n"
+    "  run --restart CHECKPOINT.h5|RUN_DIR [--set key=value ...] [--out DIR] [--threads N]\n"
+    "      continue a run from a checkpoint (a directory: its newest valid checkpoint)\n"
+    "  inspect CHECKPOINT.h5\n"
+    "      validate a checkpoint and print what it holds\n"
     "  presets\n"
     "      list the presets (the 21 Taylor-Green cases of the thesis, kolmogorov2d);\n"
     "      scale one down with --set particles_per_side=N\n"
@@ -34,6 +38,7 @@ int main(int argc, char** argv) {
   args.erase(args.begin());
   if (command == "run") return sphles::app::run_command(args);
   if (command == "presets") return sphles::app::presets_command(args);
+  if (command == "inspect") return sphles::app::inspect_command(args);
   if (command == "calibrate") return sphles::app::calibrate_command(args);
   if (command == "version" || command == "--version") {
     std::puts("sphles " SPHLES_VERSION);

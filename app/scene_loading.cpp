@@ -3,6 +3,7 @@
 #include <filesystem>
 
 #include "app/commands.hpp"
+#include "io/checkpoint.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -20,6 +21,20 @@ analysis::RunConfig load_run_config(const std::string& scene_or_preset,
     document = sim::read_scene_file(scene_or_preset);
   for (const std::string& assignment : overrides) sim::apply_override(document, assignment);
   return analysis::parse_run_config(document);
+}
+
+int inspect_command(const std::vector<std::string>& args) {
+  if (args.size() != 1) {
+    std::fprintf(stderr, "sphles inspect: usage: sphles inspect CHECKPOINT.h5\n");
+    return kExitUsage;
+  }
+  try {
+    std::fputs(io::describe_checkpoint(args[0]).c_str(), stdout);
+    return kExitOk;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles inspect: %s\n", e.what());
+    return kExitUsage;
+  }
 }
 
 int presets_command(const std::vector<std::string>& args) {

@@ -91,9 +91,8 @@ std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& p
   return {injection / mass, scene.forcing.friction * v2 / mass, std::sqrt(v2 / mass)};  // (4.3)
 }
 
-RunSetup setup_run(const Scene& scene) {
-  RunSetup setup;
-  SolverConfig& c = setup.solver;
+SolverConfig make_solver_config(const Scene& scene) {
+  SolverConfig c;
   c.box.dimension = scene.dimension();
   for (int d = 0; d < c.box.dimension; ++d) c.box.length[d] = scene.box_length();
   c.kernel = scene.kernel;
@@ -105,7 +104,12 @@ RunSetup setup_run(const Scene& scene) {
   c.subfilter = scene.subfilter;
   if (scene.case_type == CaseType::Kolmogorov2D)
     c.external = kolmogorov_acceleration(scene.forcing, scene.forcing_wavenumber());
+  return c;
+}
 
+RunSetup setup_run(const Scene& scene) {
+  RunSetup setup;
+  setup.solver = make_solver_config(scene);
   setup.particles = packed_positions(scene, &setup.packing);
   switch (scene.case_type) {
     case CaseType::TaylorGreen3D:

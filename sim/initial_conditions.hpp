@@ -43,6 +43,9 @@ struct RunSetup {
   PackingReport packing;
 };
 
+/// Box, kernel, fluid, time stepping, sub-filter model and forcing of a scene (no particles).
+SolverConfig make_solver_config(const Scene& scene);
+
 /// Box, kernel, fluid and time stepping from the scene; positions from packed_positions();
 /// fields from the scene's case.
 RunSetup setup_run(const Scene& scene);

@@ -74,6 +74,12 @@ class VerletNeighbourSearch {
   /// for the positions it was shared with; a later build never modifies a shared list.
   std::shared_ptr<const NeighbourList> shared_list() const { return list_; }
   std::size_t num_builds() const { return num_builds_; }
+  /// Positions the current list was built from (what a checkpoint needs to rebuild the very
+  /// same list), and the build counter, restorable on restart.
+  const std::array<std::vector<double>, 3>& reference_positions() const {
+    return reference_positions_;
+  }
+  void set_num_builds(std::size_t count) { num_builds_ = count; }
 
  private:
   template <int Dim>

@@ -200,6 +200,14 @@ Scene parse_scene(const json& input) {
     p.reject_unknown();
   }
   {
+    ObjectReader c = top.object("checkpoint");
+    c.number("every", s.checkpoint.every, non_negative);
+    c.number("every_seconds", s.checkpoint.every_seconds, non_negative);
+    c.integer("keep", s.checkpoint.keep, 1, 1000);
+    c.integer("compression", s.checkpoint.compression, 0, 9);
+    c.reject_unknown();
+  }
+  {
     ObjectReader o = top.object("output");
     o.number("timeseries_every", s.output.timeseries_every, non_negative);
     o.number("progress_every_seconds", s.output.progress_every_seconds, positive);
@@ -293,6 +301,10 @@ json scene_to_json(const Scene& s) {
                   {"max_iterations", s.packing.max_iterations},
                   {"tolerance", s.packing.tolerance},
                   {"seed", s.packing.seed}};
+  j["checkpoint"] = {{"every", s.checkpoint.every},
+                     {"every_seconds", s.checkpoint.every_seconds},
+                     {"keep", s.checkpoint.keep},
+                     {"compression", s.checkpoint.compression}};
   j["output"] = {{"timeseries_every", s.output.timeseries_every},
                  {"progress_every_seconds", s.output.progress_every_seconds}};
   return j;

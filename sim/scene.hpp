@@ -47,6 +47,16 @@ struct KolmogorovForcing {
   double friction = 0.7;   // μ [1/s]
 };
 
+/// Checkpoints (docs/checkpoints.md): at a cadence in simulated and/or wall time, keeping the
+/// newest `keep` files.
+struct CheckpointConfig {
+  double every = 0.0;          // simulated time between checkpoints [s]; 0 = none by sim time
+  double every_seconds = 0.0;  // wall time between checkpoints [s]; 0 = none by wall time
+  int keep = 3;                // newest files kept
+  int compression = 0;         // gzip level 0-9 (0 = none)
+  bool enabled() const { return every > 0.0 || every_seconds > 0.0; }
+};
+
 struct OutputConfig {
   double timeseries_every = 0.0;        // simulated time between rows; 0 writes every step
   double progress_every_seconds = 1.0;  // wall time between progress lines
@@ -70,6 +80,7 @@ struct Scene {
   double neighbour_skin = 0.15;  // fraction of H
   PackingConfig packing;
   OutputConfig output;
+  CheckpointConfig checkpoint;
 
   int dimension() const { return case_dimension(case_type); }
   double box_length() const { return box_length_; }  // L [m]

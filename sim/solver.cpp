@@ -51,6 +51,39 @@ class SphSolver final : public Simulation {
     update_diagnostics(0.0);
   }
 
+  /// Restart from a saved state (see restore_simulation).
+  SphSolver(const KernelT& kernel, const SolverConfig& config, SolverState state)
+      : config_(config),
+        kernel_(kernel),
+        search_(config.box, config.support_radius, config.neighbour_skin * config.support_radius),
+        particles_(std::move(state.particles)),
+        time_(state.time),
+        step_(state.step) {
+    for (int d = 0; d < Dim; ++d) predicted_velocity_[d].resize(particles_.size());
+    PositionsView reference;
+    reference.dimension = Dim;
+    reference.size = particles_.size();
+    for (int d = 0; d < Dim; ++d) {
+      if (state.list_reference_positions[d].size() != particles_.size())
+        throw std::invalid_argument("solver: list reference positions do not match the particles");
+      reference.x[d] = state.list_reference_positions[d].data();
+    }
+    search_.build(reference);
+    search_.set_num_builds(state.neighbour_builds);
+    update_max_acceleration();
+    update_diagnostics(0.0);
+  }
+
+  SolverState state() const override {
+    SolverState s;
+    s.particles = particles_;
+    s.list_reference_positions = search_.reference_positions();
+    s.time = time_;
+    s.step = step_;
+    s.neighbour_builds = search_.num_builds();
+    return s;
+  }
+
   void step(double max_dt) override {
     const double dt = std::min(stable_time_step(), max_dt);
     if (!(dt > 0.0)) throw std::invalid_argument("solver: time step must be > 0");
@@ -135,6 +168,10 @@ class SphSolver final : public Simulation {
     force_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, velocity, particles_);
     if (config_.subfilter.model != SubfilterModel::Implicit) add_subfilter_force(velocity);
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
+    update_max_acceleration();
+  }
+
+  void update_max_acceleration() {
     max_acceleration_ = parallel_max(particles_.size(), [&](std::size_t i) {
       double a2 = 0.0;
       for (int d = 0; d < Dim; ++d)
@@ -230,6 +267,24 @@ class SphSolver final : public Simulation {
 };
 
 }  // namespace
+
+std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state) {
+  validate(config, state.particles);
+  const std::size_t n = state.particles.size();
+  const ParticleArrays& p = state.particles;
+  bool complete =
+      p.volume.size() == n && p.density.size() == n && p.pressure.size() == n && p.id.size() == n;
+  for (int d = 0; d < p.dimension; ++d)
+    complete = complete && p.position[d].size() == n && p.velocity[d].size() == n &&
+               p.acceleration[d].size() == n;
+  if (!complete) throw std::invalid_argument("solver: restart state has arrays of unequal length");
+  return with_kernel(config.kernel, config.box.dimension, config.support_radius,
+                     [&](const auto& kernel) -> std::unique_ptr<Simulation> {
+                       using KernelT = std::decay_t<decltype(kernel)>;
+                       return std::make_unique<SphSolver<KernelT>>(kernel, config,
+                                                                   std::move(state));
+                     });
+}
 
 std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
                                             double start_time, std::uint64_t start_step) {

@@ -74,6 +74,18 @@ class SimulationError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Everything a bitwise-exact restart needs: the particle arrays in their current order (with
+/// the acceleration a^n the next kick uses), the positions the current Verlet list was built
+/// from (rebuilding from them gives the identical list, hence identical summation order), the
+/// time, the step and the build counter.
+struct SolverState {
+  ParticleArrays particles;
+  std::array<std::vector<double>, 3> list_reference_positions;
+  double time = 0.0;
+  std::uint64_t step = 0;
+  std::uint64_t neighbour_builds = 0;
+};
+
 /// The narrow interface the rest of sphles uses to drive a run.
 class Simulation {
  public:
@@ -88,6 +100,8 @@ class Simulation {
   /// Verlet list of the current state (all pairs closer than the kernel support are in it, with
   /// indices into particles()); shared read-only, never modified after this call.
   virtual std::shared_ptr<const NeighbourList> neighbour_list() const = 0;
+  /// A copy of the complete state (for checkpoints).
+  virtual SolverState state() const = 0;
   /// The step the limits allow for the current state (before max_dt).
   virtual double stable_time_step() const = 0;
 };
@@ -96,5 +110,10 @@ class Simulation {
 /// and masses; volume, density, pressure and acceleration are computed here.
 std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
                                             double start_time = 0.0, std::uint64_t start_step = 0);
+
+/// Continues from a saved state: no force evaluation, no reordering; the next step() is
+/// bitwise identical to the step the saving run took next. Throws std::invalid_argument if the
+/// state does not fit the configuration.
+std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state);
 
 }  // namespace sphles::sim

@@ -1,0 +1,370 @@
+#include "io/checkpoint.hpp"
+
+#include <fcntl.h>
+#include <hdf5.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <functional>
+#include <mutex>
+#include <sstream>
+
+namespace sphles::io {
+
+namespace {
+
+/// Owns an HDF5 identifier and closes it with the matching function.
+class Handle {
+ public:
+  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
+  ~Handle() {
+    if (id_ >= 0) close_(id_);
+  }
+  Handle(const Handle&) = delete;
+  Handle& operator=(const Handle&) = delete;
+  hid_t get() const { return id_; }
+  bool valid() const { return id_ >= 0; }
+
+ private:
+  hid_t id_;
+  herr_t (*close_)(hid_t);
+};
+
+/// HDF5 prints its own error stack by default; sphles reports errors itself.
+void silence_hdf5() {
+  static std::once_flag once;
+  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
+}
+
+/// The HDF5 library is built without thread safety on Debian: serialise every use.
+std::mutex& hdf5_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+const char* kAxis[] = {"x", "y", "z"};
+
+// --- writing ---------------------------------------------------------------------------
+
+void write_string_attribute(hid_t object, const char* name, const std::string& value,
+                            const std::string& file) {
+  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1));
+  H5Tset_strpad(type.get(), H5T_STR_NULLPAD);
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attribute(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
+                   H5Aclose);
+  const std::string padded = value.empty() ? std::string(1, '\0') : value;
+  if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
+    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+}
+
+template <class T>
+void write_scalar_attribute(hid_t object, const char* name, hid_t type, T value,
+                            const std::string& file) {
+  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  Handle attribute(H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
+    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+}
+
+template <class T>
+void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
+                   const CheckpointWriteOptions& options, const std::string& file) {
+  const hsize_t size = data.size();
+  Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
+  Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (size > 0) {
+    const hsize_t chunk = std::min<hsize_t>(size, hsize_t{1} << 16);
+    H5Pset_chunk(properties.get(), 1, &chunk);
+    H5Pset_fletcher32(properties.get());
+    if (options.gzip_level > 0) {
+      H5Pset_shuffle(properties.get());
+      H5Pset_deflate(properties.get(), static_cast<unsigned>(options.gzip_level));
+    }
+  }
+  Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(),
+                            H5P_DEFAULT),
+                 H5Dclose);
+  if (!dataset.valid() ||
+      (size > 0 && H5Dwrite(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0))
+    throw CheckpointError("checkpoint '" + file + "': cannot write dataset '" + name + "'");
+}
+
+void fsync_path(const std::filesystem::path& path, bool directory) {
+  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
+  if (fd < 0) return;
+  ::fsync(fd);
+  ::close(fd);
+}
+
+// --- reading ---------------------------------------------------------------------------
+
+std::string read_string_attribute(hid_t object, const char* name, const std::string& file) {
+  if (H5Aexists(object, name) <= 0)
+    throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
+  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  Handle type(H5Aget_type(attribute.get()), H5Tclose);
+  if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) > 0)
+    throw CheckpointError("checkpoint '" + file + "': attribute '" + name + "' is not a string");
+  const std::size_t size = H5Tget_size(type.get());
+  std::string value(size, '\0');
+  if (H5Aread(attribute.get(), type.get(), value.data()) < 0)
+    throw CheckpointError("checkpoint '" + file + "': cannot read attribute '" + name + "'");
+  value.resize(std::strlen(value.c_str()));
+  return value;
+}
+
+template <class T>
+T read_scalar_attribute(hid_t object, const char* name, hid_t type, const std::string& file) {
+  if (H5Aexists(object, name) <= 0)
+    throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
+  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  T value{};
+  if (H5Aread(attribute.get(), type, &value) < 0)
+    throw CheckpointError("checkpoint '" + file + "': cannot read attribute '" + name + "'");
+  return value;
+}
+
+template <class T>
+std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, std::size_t expected,
+                            const std::string& file) {
+  if (H5Lexists(group, name.c_str(), H5P_DEFAULT) <= 0)
+    throw CheckpointError("checkpoint '" + file + "': missing dataset 'particles/" + name + "'");
+  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
+  Handle space(H5Dget_space(dataset.get()), H5Sclose);
+  if (H5Sget_simple_extent_ndims(space.get()) != 1)
+    throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
+                          "' is not one-dimensional");
+  hsize_t size = 0;
+  H5Sget_simple_extent_dims(space.get(), &size, nullptr);
+  if (size != expected)
+    throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name + "' has " +
+                          std::to_string(size) + " entries, expected " + std::to_string(expected) +
+                          " (particle count mismatch)");
+  std::vector<T> data(expected);
+  if (expected > 0 && H5Dread(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
+    throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
+                          "' cannot be read (checksum mismatch or truncated file)");
+  return data;
+}
+
+void require_finite(const std::vector<double>& values, const std::string& name,
+                    const std::string& file) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!std::isfinite(values[i]))
+      throw CheckpointError("checkpoint '" + file + "': non-finite value in 'particles/" + name +
+                            "' at index " + std::to_string(i));
+}
+
+}  // namespace
+
+std::string checkpoint_file_name(std::uint64_t step) {
+  char name[64];
+  std::snprintf(name, sizeof name, "ckpt_%010llu.h5", static_cast<unsigned long long>(step));
+  return name;
+}
+
+void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
+                      const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
+  if (options.gzip_level < 0 || options.gzip_level > 9)
+    throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
+  const std::lock_guard lock(hdf5_mutex());
+  silence_hdf5();
+  const std::string file = path.string();
+  const std::filesystem::path temporary =
+      path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+  const sim::ParticleArrays& p = state.particles;
+  const int dim = p.dimension;
+  try {
+    {
+      Handle h5(H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
+      if (!h5.valid())
+        throw CheckpointError("checkpoint: cannot create '" + temporary.string() + "'");
+      const hid_t root = h5.get();
+      write_string_attribute(root, "schema", kCheckpointSchema, file);
+      write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion,
+                             file);
+      write_string_attribute(root, "code_version", metadata.code_version, file);
+      write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, file);
+      write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
+                             static_cast<std::uint64_t>(p.size()), file);
+      write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, file);
+      write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, file);
+      write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
+                             file);
+      write_string_attribute(root, "scene", metadata.scene_json, file);
+      write_string_attribute(root, "packing", metadata.packing, file);
+      write_string_attribute(root, "units",
+                             "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
+                             "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
+                             file);
+      Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+      for (int d = 0; d < dim; ++d) {
+        const std::string axis = kAxis[d];
+        write_dataset(group.get(), "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options,
+                      file);
+        write_dataset(group.get(), "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options,
+                      file);
+        write_dataset(group.get(), "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d],
+                      options, file);
+        write_dataset(group.get(), "list_reference_" + axis, H5T_NATIVE_DOUBLE,
+                      state.list_reference_positions[d], options, file);
+      }
+      write_dataset(group.get(), "mass", H5T_NATIVE_DOUBLE, p.mass, options, file);
+      write_dataset(group.get(), "volume", H5T_NATIVE_DOUBLE, p.volume, options, file);
+      write_dataset(group.get(), "density", H5T_NATIVE_DOUBLE, p.density, options, file);
+      write_dataset(group.get(), "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, file);
+      write_dataset(group.get(), "id", H5T_NATIVE_UINT64, p.id, options, file);
+      if (!p.eddy_viscosity.empty())
+        write_dataset(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options,
+                      file);
+      if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0)
+        throw CheckpointError("checkpoint: cannot flush '" + temporary.string() + "'");
+    }
+    fsync_path(temporary, false);
+    std::filesystem::rename(temporary, path);
+    fsync_path(path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path(), true);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(temporary, ec);
+    throw;
+  }
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& path) {
+  const std::lock_guard lock(hdf5_mutex());
+  silence_hdf5();
+  const std::string file = path.string();
+  if (!std::filesystem::exists(path))
+    throw CheckpointError("checkpoint '" + file + "': file does not exist");
+  if (H5Fis_hdf5(file.c_str()) <= 0)
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!h5.valid())
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  const hid_t root = h5.get();
+  const std::string schema = read_string_attribute(root, "schema", file);
+  if (schema != kCheckpointSchema)
+    throw CheckpointError("checkpoint '" + file + "': wrong schema '" + schema + "' (expected '" +
+                          kCheckpointSchema + "')");
+  const int version = read_scalar_attribute<int>(root, "schema_version", H5T_NATIVE_INT, file);
+  if (version != kCheckpointSchemaVersion)
+    throw CheckpointError("checkpoint '" + file + "': schema version " + std::to_string(version) +
+                          " is not supported (this sphles reads version " +
+                          std::to_string(kCheckpointSchemaVersion) + ")");
+  const int dim = read_scalar_attribute<int>(root, "dimension", H5T_NATIVE_INT, file);
+  if (dim != 2 && dim != 3)
+    throw CheckpointError("checkpoint '" + file + "': dimension " + std::to_string(dim) +
+                          " (expected 2 or 3)");
+  const auto count =
+      read_scalar_attribute<std::uint64_t>(root, "num_particles", H5T_NATIVE_UINT64, file);
+  Checkpoint c;
+  c.state.time = read_scalar_attribute<double>(root, "time", H5T_NATIVE_DOUBLE, file);
+  c.state.step = read_scalar_attribute<std::uint64_t>(root, "step", H5T_NATIVE_UINT64, file);
+  c.state.neighbour_builds =
+      read_scalar_attribute<std::uint64_t>(root, "neighbour_builds", H5T_NATIVE_UINT64, file);
+  if (!std::isfinite(c.state.time))
+    throw CheckpointError("checkpoint '" + file + "': non-finite time");
+  c.metadata.scene_json = read_string_attribute(root, "scene", file);
+  c.metadata.code_version = read_string_attribute(root, "code_version", file);
+  c.metadata.packing = read_string_attribute(root, "packing", file);
+  if (H5Lexists(root, "particles", H5P_DEFAULT) <= 0)
+    throw CheckpointError("checkpoint '" + file + "': missing group 'particles'");
+  Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
+  sim::ParticleArrays& p = c.state.particles;
+  p.dimension = dim;
+  const auto n = static_cast<std::size_t>(count);
+  for (int d = 0; d < dim; ++d) {
+    const std::string axis = kAxis[d];
+    const auto read = [&](const std::string& name) {
+      auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
+      require_finite(values, name, file);
+      return values;
+    };
+    p.position[d] = read("position_" + axis);
+    p.velocity[d] = read("velocity_" + axis);
+    p.acceleration[d] = read("acceleration_" + axis);
+    c.state.list_reference_positions[d] = read("list_reference_" + axis);
+  }
+  for (auto [name, target] :
+       {std::pair{"mass", &p.mass}, std::pair{"volume", &p.volume},
+        std::pair{"density", &p.density}, std::pair{"pressure", &p.pressure}}) {
+    *target = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
+    require_finite(*target, name, file);
+  }
+  p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, file);
+  if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0) {
+    p.eddy_viscosity =
+        read_dataset<double>(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, n, file);
+    require_finite(p.eddy_viscosity, "eddy_viscosity", file);
+  }
+  return c;
+}
+
+std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory) {
+  std::vector<std::filesystem::path> files;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (entry.is_regular_file() && name.starts_with("ckpt_") && name.ends_with(".h5"))
+      files.push_back(entry.path());
+  }
+  // Zero-padded step numbers: lexicographic order is step order.
+  std::sort(files.begin(), files.end(), std::greater<>());
+  return files;
+}
+
+std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
+                                              std::vector<std::string>* rejected) {
+  const auto files = list_checkpoints(directory);
+  for (const auto& file : files) {
+    try {
+      read_checkpoint(file);
+      return file;
+    } catch (const CheckpointError& e) {
+      if (rejected) rejected->push_back(e.what());
+    }
+  }
+  throw CheckpointError("checkpoint: no valid checkpoint in '" + directory.string() + "' (" +
+                        std::to_string(files.size()) + " candidates)");
+}
+
+std::string describe_checkpoint(const std::filesystem::path& path) {
+  const Checkpoint c = read_checkpoint(path);
+  const sim::ParticleArrays& p = c.state.particles;
+  std::ostringstream out;
+  out.precision(17);
+  out << "file:             " << path.string() << " (" << std::filesystem::file_size(path)
+      << " bytes)\n"
+      << "schema:           " << kCheckpointSchema << " version " << kCheckpointSchemaVersion
+      << "\n"
+      << "code version:     " << c.metadata.code_version << "\n"
+      << "dimension:        " << p.dimension << "\n"
+      << "particles:        " << p.size() << "\n"
+      << "time:             " << c.state.time << " s\n"
+      << "step:             " << c.state.step << "\n"
+      << "neighbour builds: " << c.state.neighbour_builds << "\n"
+      << "packing:          " << c.metadata.packing << "\n"
+      << "datasets:         particles/{position,velocity,acceleration,list_reference}_{"
+      << (p.dimension == 3 ? "x,y,z" : "x,y") << "}, mass, volume, density, pressure, id"
+      << (p.eddy_viscosity.empty() ? "" : ", eddy_viscosity") << " (" << p.size()
+      << " entries each)\n";
+  double kinetic = 0.0, mass = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    double v2 = 0.0;
+    for (int d = 0; d < p.dimension; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
+    kinetic += 0.5 * p.mass[i] * v2;
+    mass += p.mass[i];
+  }
+  out << "e_v:              " << (mass > 0.0 ? kinetic / mass : 0.0) << " m^2/s^2\n"
+      << "scene:            " << c.metadata.scene_json << "\n";
+  return out.str();
+}
+
+}  // namespace sphles::io

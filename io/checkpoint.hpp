@@ -1,0 +1,65 @@
+// HDF5 checkpoints: the complete solver state in one file, written atomically, validated on
+// read (docs/checkpoints.md).
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "sim/solver.hpp"
+
+namespace sphles::io {
+
+/// Raised for every unreadable or invalid checkpoint; the message names the file and the reason.
+class CheckpointError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+inline constexpr const char* kCheckpointSchema = "sphles-checkpoint";
+inline constexpr int kCheckpointSchemaVersion = 1;
+
+struct CheckpointMetadata {
+  std::string scene_json;  // the complete run configuration (scene + analysis), JSON text
+  std::string code_version;
+  std::string packing;  // provenance of the initial positions, free text
+};
+
+struct Checkpoint {
+  sim::SolverState state;
+  CheckpointMetadata metadata;
+};
+
+struct CheckpointWriteOptions {
+  int gzip_level = 0;  // 0 = no compression; 1-9 = gzip with byte shuffle
+};
+
+/// Writes `path` atomically: a temporary file in the same directory, flushed and fsync'ed, then
+/// renamed over `path`. A crash at any point leaves either the old file or the new complete one.
+/// Datasets carry Fletcher-32 checksums. Throws CheckpointError.
+void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
+                      const CheckpointMetadata& metadata,
+                      const CheckpointWriteOptions& options = {});
+
+/// Reads and validates: existence, HDF5 readability, schema name and version, dimension,
+/// particle count and array lengths, checksums, finiteness. Throws CheckpointError.
+Checkpoint read_checkpoint(const std::filesystem::path& path);
+
+/// Checkpoint files of a run directory (checkpoints/ckpt_*.h5), newest step first.
+std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory);
+
+/// The newest checkpoint in `directory` that reads and validates; `rejected` receives one line
+/// per newer file that did not. Throws CheckpointError when none is valid.
+std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
+                                              std::vector<std::string>* rejected = nullptr);
+
+/// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
+std::string describe_checkpoint(const std::filesystem::path& path);
+
+/// File name for a step: ckpt_0000001234.h5.
+std::string checkpoint_file_name(std::uint64_t step);
+
+}  // namespace sphles::io
