@@ -12,7 +12,8 @@ using sim::SceneError;
 
 namespace {
 
-constexpr std::array<std::pair<Product, std::string_view>, 5> kProductNames{{
+constexpr std::array<std::pair<Product, std::string_view>, 6> kProductNames{{
+    {Product::Particles, "particles"},
     {Product::Energy, "energy"},
     {Product::Spectrum, "spectrum"},
     {Product::Vorticity, "vorticity"},
@@ -84,6 +85,16 @@ AnalysisConfig parse_analysis_config(const json* section) {
     }
     s.reject_unknown();
   }
+  {
+    std::vector<std::string> fields;
+    r.strings("particle_fields", fields);
+    if (r.find("particle_fields")) {
+      c.particle_fields.clear();
+      for (std::size_t k = 0; k < fields.size(); ++k)
+        c.particle_fields.insert(parse_name(kSliceFieldNames, fields[k],
+                                            "analysis.particle_fields[" + std::to_string(k) + "]"));
+    }
+  }
   r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
   r.integer("histogram_bins", c.histogram_bins, 1, 10000);
   r.integer("angle_bins", c.angle_bins, 1, 10000);
@@ -108,6 +119,13 @@ json analysis_config_to_json(const AnalysisConfig& c) {
            {{"axis", std::string(kAxisNames[static_cast<std::size_t>(c.slice.axis)])},
             {"position", c.slice.position},
             {"fields", fields}}},
+          {"particle_fields",
+           [&] {
+             json list = json::array();
+             for (const SliceField f : c.particle_fields)
+               list.push_back(std::string(slice_field_name(f)));
+             return list;
+           }()},
           {"grid_points_per_spacing", c.grid_points_per_spacing},
           {"histogram_bins", c.histogram_bins},
           {"angle_bins", c.angle_bins},
@@ -130,11 +148,16 @@ RunConfig parse_run_config(const json& document) {
   RunConfig config;
   config.scene = sim::parse_scene(solver_part);
   config.analysis = parse_analysis_config(analysis);
-  if (config.analysis.wants(Product::Slices) &&
-      config.analysis.slice.fields.contains(SliceField::EddyViscosity) &&
-      config.scene.subfilter.model == sim::SubfilterModel::Implicit)
+  const bool implicit = config.scene.subfilter.model == sim::SubfilterModel::Implicit;
+  if (implicit && config.analysis.wants(Product::Slices) &&
+      config.analysis.slice.fields.contains(SliceField::EddyViscosity))
     throw SceneError(
         "scene: 'analysis.slice.fields' asks for nu_t, but 'subfilter.model' is implicit (no "
+        "eddy viscosity)");
+  if (implicit && config.analysis.wants(Product::Particles) &&
+      config.analysis.particle_fields.contains(SliceField::EddyViscosity))
+    throw SceneError(
+        "scene: 'analysis.particle_fields' asks for nu_t, but 'subfilter.model' is implicit (no "
         "eddy viscosity)");
   return config;
 }

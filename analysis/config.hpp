@@ -9,9 +9,9 @@
 
 namespace sphles::analysis {
 
-enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics };
+enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics, Particles };
 
-/// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats".
+/// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats", "particles".
 std::string_view product_name(Product product);
 
 enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
@@ -28,6 +28,10 @@ struct AnalysisConfig {
   double every = 0.0;  // simulated time between snapshots; 0 = no snapshot analysis
   std::set<Product> products;
   SliceConfig slice;
+  /// Extra per-particle fields of the "particles" product (HDF5 + XDMF snapshots): any of
+  /// omega2, tau_sfs, nu_t.
+  std::set<SliceField> particle_fields{SliceField::VorticitySquared,
+                                       SliceField::SubfilterStressNorm};
   int grid_points_per_spacing = 2;  // grid spacing Δl / 2 (SPEC §5)
   int histogram_bins = 50;          // bivariate (τ*, ω²*) histogram, per axis
   int angle_bins = 18;              // polar histogram of γ ∈ [0, π/2]

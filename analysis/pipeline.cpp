@@ -62,7 +62,7 @@ void AnalysisPipeline::run(int analysis_threads) {
     if (discard_) break;
     const auto start = std::chrono::steady_clock::now();
     try {
-      AnalysisFrame frame = analyse(**snapshot, config_);
+      AnalysisFrame frame = analyse(*snapshot, config_);
       frame.dropped_snapshots = mailbox_.counters().dropped;
       for (const FrameSink& sink : sinks_) sink(frame);
     } catch (const std::exception& e) {

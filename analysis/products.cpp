@@ -78,6 +78,11 @@ Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config) {
 }
 
 AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
+  return analyse(SnapshotPtr(std::shared_ptr<const Snapshot>(), &snapshot), config);
+}
+
+AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& config) {
+  const Snapshot& snapshot = *snapshot_ptr;
   const auto start = std::chrono::steady_clock::now();
   AnalysisFrame frame;
   frame.time = snapshot.time;
@@ -90,16 +95,22 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
       config.wants(Product::Slices) && config.slice.fields.contains(SliceField::VorticitySquared);
   const bool want_stress_slice = config.wants(Product::Slices) &&
                                  config.slice.fields.contains(SliceField::SubfilterStressNorm);
-  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice;
+  const bool want_particles = config.wants(Product::Particles);
+  const auto particle_field = [&](SliceField f) {
+    return want_particles && config.particle_fields.contains(f);
+  };
+  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice ||
+                           particle_field(SliceField::SubfilterStressNorm);
   const bool need_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
-                              config.wants(Product::SubfilterStatistics);
+                              config.wants(Product::SubfilterStatistics) ||
+                              particle_field(SliceField::VorticitySquared);
   const bool need_velocity_grid =
       config.wants(Product::Energy) || config.wants(Product::Spectrum) || need_vorticity;
   const bool want_eddy_slice = config.wants(Product::Slices) &&
                                config.slice.fields.contains(SliceField::EddyViscosity) &&
                                snapshot.particles.eddy_viscosity.size() == snapshot.size();
   const bool need_map = need_velocity_grid || want_stress_slice || want_eddy_slice;
-  if (!need_map && !need_stress) {
+  if (!need_map && !need_stress && !want_particles) {
     frame.total_seconds = 0.0;
     return frame;
   }
@@ -147,13 +158,18 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
                                  : implicit_subfilter_stress(snapshot);
     });
 
+  // ω² at each particle: the value at its nearest grid node.
+  std::vector<double> particle_vorticity_squared;
+  if (config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared)) {
+    const std::vector<std::size_t> node = nearest_node(grid, particles);
+    particle_vorticity_squared.resize(particles.size());
+    for (std::size_t i = 0; i < particles.size(); ++i)
+      particle_vorticity_squared[i] = vorticity_squared[node[i]];
+  }
+
   if (config.wants(Product::SubfilterStatistics)) {
     frame.subfilter = timed("sfs_statistics", [&] {
       SubfilterStatisticsProduct p;
-      const std::vector<std::size_t> node = nearest_node(grid, particles);
-      std::vector<double> particle_vorticity_squared(particles.size());
-      for (std::size_t i = 0; i < particles.size(); ++i)
-        particle_vorticity_squared[i] = vorticity_squared[node[i]];
       double sum = 0.0;
       for (const double t : stress->norm) {
         p.max_norm = std::max(p.max_norm, t);
@@ -178,6 +194,19 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
       return extract_slice(grid, sample_scalar(*map, stress->norm), SliceField::SubfilterStressNorm,
                            config.slice);
     }));
+
+  if (want_particles) {
+    ParticlesProduct p;
+    p.snapshot = snapshot_ptr;
+    if (particle_field(SliceField::VorticitySquared))
+      p.fields.push_back({SliceField::VorticitySquared, "1/s^2", particle_vorticity_squared});
+    if (particle_field(SliceField::SubfilterStressNorm))
+      p.fields.push_back({SliceField::SubfilterStressNorm, "Pa", stress->norm});
+    if (particle_field(SliceField::EddyViscosity) &&
+        snapshot.particles.eddy_viscosity.size() == snapshot.size())
+      p.fields.push_back({SliceField::EddyViscosity, "m^2/s", snapshot.particles.eddy_viscosity});
+    frame.particles = std::move(p);
+  }
 
   if (want_eddy_slice)
     frame.slices.push_back(timed("slice_nu_t", [&] {

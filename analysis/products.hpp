@@ -50,6 +50,18 @@ struct SubfilterStatisticsProduct {
   std::optional<AngleHistogram> alignment;  // 2D runs: γ between t_I and v (chapter 4)
 };
 
+/// Per-particle data for an HDF5/XDMF snapshot: the snapshot itself plus requested fields.
+struct ParticleFieldProduct {
+  SliceField field = SliceField::VorticitySquared;
+  std::string units;
+  std::vector<double> values;  // in the snapshot's particle order
+};
+
+struct ParticlesProduct {
+  SnapshotPtr snapshot;
+  std::vector<ParticleFieldProduct> fields;
+};
+
 struct AnalysisFrame {
   double time = 0.0;
   std::uint64_t step = 0;
@@ -61,6 +73,7 @@ struct AnalysisFrame {
   std::optional<VorticityProduct> vorticity;
   std::vector<SliceProduct> slices;
   std::optional<SubfilterStatisticsProduct> subfilter;
+  std::optional<ParticlesProduct> particles;
   /// Wall time per stage, in the order computed: ("grid", s), ("spectrum", s), ...
   std::vector<std::pair<std::string, double>> timings;
   double total_seconds = 0.0;
@@ -69,6 +82,9 @@ struct AnalysisFrame {
 
 /// Computes the products the configuration asks for. Pure: depends on its inputs only.
 AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config);
+/// The same, keeping a reference to the snapshot for the "particles" product (the overload
+/// above refers to its argument without owning it: the frame must not outlive it).
+AnalysisFrame analyse(const SnapshotPtr& snapshot, const AnalysisConfig& config);
 
 /// Grid of the snapshot: M = grid_points_per_spacing * round(L / Δl) points per side.
 Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config);

@@ -1,5 +1,7 @@
 #include "analysis/writer.hpp"
 
+#include "io/particle_snapshot.hpp"
+
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -64,9 +66,9 @@ void write_npy(const std::filesystem::path& path, std::span<const double> values
   replace_atomically(path, content);
 }
 
-RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory)
-    : directory_(std::move(directory)) {
-  for (const char* sub : {"spectra", "slices", "stats"}) {
+RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory, std::string scene_json)
+    : directory_(std::move(directory)), scene_json_(std::move(scene_json)) {
+  for (const char* sub : {"spectra", "slices", "stats", "snapshots"}) {
     std::error_code ec;
     std::filesystem::create_directories(directory_ / sub, ec);
     if (ec)
@@ -162,6 +164,44 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
       replace_atomically(directory_ / "stats" / timed_file_name("alignment", frame.time, ".csv"),
                          polar.str());
     }
+  }
+  if (frame.particles) {
+    const ParticlesProduct& p = *frame.particles;
+    std::vector<io::ParticleField> fields;
+    std::string names;
+    for (const ParticleFieldProduct& f : p.fields) {
+      fields.push_back({std::string(slice_field_name(f.field)), f.units, f.values});
+      names += (names.empty() ? "" : ";") + std::string(slice_field_name(f.field));
+    }
+    const std::string file = timed_file_name("particles", frame.time, ".h5");
+    io::write_particle_snapshot(directory_ / "snapshots" / file, p.snapshot->particles, frame.time,
+                                frame.step, fields, scene_json_);
+    const auto index = directory_ / "snapshots" / "index.csv";
+    append_line(index, "t,step,file,particles,fields",
+                number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
+                    std::to_string(p.snapshot->size()) + ',' + names);
+    // The XDMF series lists every snapshot in the index (including those of earlier runs of
+    // this directory, e.g. before a restart).
+    std::vector<io::SnapshotEntry> entries;
+    std::ifstream in(index);
+    std::string line;
+    std::getline(in, line);
+    while (std::getline(in, line)) {
+      std::vector<std::string> cells;
+      std::stringstream row(line);
+      for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+      if (cells.size() < 4) continue;
+      io::SnapshotEntry e;
+      e.time = std::stod(cells[0]);
+      e.file = cells[2];
+      e.count = std::stoul(cells[3]);
+      if (cells.size() > 4) {
+        std::stringstream list(cells[4]);
+        for (std::string name; std::getline(list, name, ';');) e.scalars.push_back(name);
+      }
+      entries.push_back(e);
+    }
+    io::write_xdmf_series(directory_ / "snapshots" / "particles.xdmf", entries);
   }
   append_line(directory_ / "stats" / "snapshots.csv",
               "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"

@@ -4,6 +4,7 @@
 //   stats/snapshots.csv                          one row of scalars per analysed snapshot
 //   stats/joint_tau_omega2_t{t}.csv              bivariate histogram (τ*, ω²*)
 //   stats/alignment_t{t}.csv                     polar histogram of γ (2D runs)
+//   snapshots/particles_t{t}.h5 + index.csv + particles.xdmf   particle data for ParaView
 // Every file is written to a temporary name and renamed, so no reader sees half a file.
 #pragma once
 
@@ -26,7 +27,8 @@ void write_npy(const std::filesystem::path& path, std::span<const double> values
 class RunDirectoryWriter {
  public:
   /// Creates the sub-directories; throws std::runtime_error naming the path on failure.
-  explicit RunDirectoryWriter(std::filesystem::path directory);
+  /// `scene_json` is stored in particle snapshots.
+  explicit RunDirectoryWriter(std::filesystem::path directory, std::string scene_json = "{}");
 
   /// Writes the frame's products. Errors are kept (last_error) rather than thrown, because this
   /// runs on the analysis thread.
@@ -37,6 +39,7 @@ class RunDirectoryWriter {
  private:
   void write_or_throw(const AnalysisFrame& frame);
   std::filesystem::path directory_;
+  std::string scene_json_;
   mutable std::mutex mutex_;
   std::string last_error_;
 };

@@ -233,7 +233,8 @@ int run_command(const std::vector<std::string>& args) {
     std::unique_ptr<analysis::RunDirectoryWriter> writer;
     std::unique_ptr<analysis::AnalysisPipeline> pipeline;
     if (analysis_config.enabled()) {
-      writer = std::make_unique<analysis::RunDirectoryWriter>(out_dir);
+      writer = std::make_unique<analysis::RunDirectoryWriter>(
+          out_dir, analysis::run_config_to_json(run_config).dump());
       pipeline = std::make_unique<analysis::AnalysisPipeline>(
           analysis_config,
           std::vector<analysis::FrameSink>{

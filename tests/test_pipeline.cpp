@@ -2,11 +2,15 @@
 // scene asks for, the run-directory writer and the dissipation estimator.
 #include <gtest/gtest.h>
 
+#include <hdf5.h>
 #include <atomic>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+
+#include <cstdlib>
+#include <regex>
 #include <thread>
 
 #include "analysis/config.hpp"
@@ -404,6 +408,61 @@ TEST_F(WriterTest, WritesEveryRequestedProduct) {
   // No temporary file is left behind.
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir_))
     EXPECT_NE(entry.path().extension(), ".tmp") << entry.path();
+}
+
+// Particle snapshots: HDF5 files plus an XDMF series that is well-formed XML (checked by
+// Python's XML parser) and whose every DataItem names an existing dataset of the declared shape.
+TEST_F(WriterTest, ParticleSnapshotsWithXdmfSeries) {
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Particles};
+  config.particle_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
+  RunDirectoryWriter writer(dir_, R"({"case":"tgv2d"})");
+  for (const double t : {0.0, 0.05}) {
+    const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 16, t);
+    writer.write(analyse(snapshot, config));
+  }
+  ASSERT_EQ(writer.last_error(), "");
+  const auto xdmf = dir_ / "snapshots" / "particles.xdmf";
+  ASSERT_TRUE(std::filesystem::exists(xdmf));
+  const std::string check =
+      "python3 -c \"import sys, xml.etree.ElementTree as E; "
+      "r = E.parse(sys.argv[1]).getroot(); "
+      "g = r.find('Domain/Grid'); "
+      "assert g.get('CollectionType') == 'Temporal'; "
+      "assert len(g.findall('Grid')) == 2\" " +
+      xdmf.string();
+  EXPECT_EQ(std::system(check.c_str()), 0) << "XDMF is not well-formed or not a 2-step series";
+  std::ifstream in(xdmf);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  const std::regex item(
+      R"(<DataItem Dimensions="(\d+)( 3)?"[^>]*>([^:<]+):/([a-z_0-9]+)</DataItem>)");
+  int items = 0;
+  for (auto it = std::sregex_iterator(text.begin(), text.end(), item); it != std::sregex_iterator();
+       ++it, ++items) {
+    const auto& m = *it;
+    const hsize_t rows = std::stoull(m[1].str());
+    const bool vector = m[2].matched;
+    const auto h5 = dir_ / "snapshots" / m[3].str();
+    ASSERT_TRUE(std::filesystem::exists(h5)) << h5;
+    const hid_t file = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+    ASSERT_GE(file, 0);
+    const hid_t set = H5Dopen2(file, m[4].str().c_str(), H5P_DEFAULT);
+    ASSERT_GE(set, 0) << m[4].str();
+    const hid_t space = H5Dget_space(set);
+    hsize_t dims[2] = {0, 0};
+    const int rank = H5Sget_simple_extent_dims(space, dims, nullptr);
+    EXPECT_EQ(rank, vector ? 2 : 1) << m[4].str();
+    EXPECT_EQ(dims[0], rows);
+    if (vector) {
+      EXPECT_EQ(dims[1], 3u);
+    }
+    H5Sclose(space);
+    H5Dclose(set);
+    H5Fclose(file);
+  }
+  // Per grid: position, velocity, mass, density, pressure, omega2, tau_sfs.
+  EXPECT_EQ(items, 2 * 7);
 }
 
 TEST_F(WriterTest, UnwritableDirectoryIsAClearError) {
