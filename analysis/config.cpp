@@ -13,12 +13,12 @@ using sim::SceneError;
 namespace {
 
 constexpr std::array<std::pair<Product, std::string_view>, 6> kProductNames{{
-    {Product::Particles, "particles"},
     {Product::Energy, "energy"},
     {Product::Spectrum, "spectrum"},
     {Product::Vorticity, "vorticity"},
     {Product::Slices, "slices"},
     {Product::SubfilterStatistics, "sfs_stats"},
+    {Product::Particles, "particles"},
 }};
 constexpr std::array<std::pair<SliceField, std::string_view>, 3> kSliceFieldNames{{
     {SliceField::VorticitySquared, "omega2"},

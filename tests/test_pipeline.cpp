@@ -109,7 +109,7 @@ TEST(AnalysisConfig, ErrorsNameTheField) {
   };
   EXPECT_NE(error_of({{"products", {"spectrum", "colour"}}, {"every", 1}})
                 .find("'analysis.products[1]' must be one of energy, spectrum, vorticity, "
-                      "slices, sfs_stats, got 'colour'"),
+                      "slices, sfs_stats, particles, got 'colour'"),
             std::string::npos);
   EXPECT_NE(error_of({{"products", {"spectrum"}}}).find("'analysis.every' must be > 0"),
             std::string::npos);
