@@ -45,6 +45,24 @@ double sigma_viscosity(const VelocityGradient& gradient, double scale);
 double eddy_viscosity(const SubfilterConfig& config, double kernel_diameter,
                       const VelocityGradient& gradient);
 
+/// Calls visit(j, dx, r2) for every neighbour j of particle i with 0 < |x_ij|² < support², in
+/// list order (dx = x_i - x_j under the minimum image). The pair loop of the model passes.
+template <int Dim, class Visit>
+inline void for_each_pair_in_support(double support2, const PeriodicBox& box,
+                                     const NeighbourList& neighbours, const ParticleArrays& p,
+                                     std::size_t i, Visit&& visit) {
+  for (const std::uint32_t j : neighbours.of(i)) {
+    double dx[Dim];
+    double r2 = 0.0;
+    for (int d = 0; d < Dim; ++d) {
+      dx[d] =
+          minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
+      r2 += dx[d] * dx[d];
+    }
+    if (r2 < support2 && r2 > 0.0) visit(j, dx, r2);
+  }
+}
+
 /// J_i = Σ_j (v_j - v_i) ⊗ ∇W_ij V_j (A.20) for every particle; needs volumes (density_pass).
 template <int Dim, class KernelT>
 void velocity_gradient_pass(const KernelT& kernel, const PeriodicBox& box,
@@ -57,21 +75,14 @@ void velocity_gradient_pass(const KernelT& kernel, const PeriodicBox& box,
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
     VelocityGradient j_sum{};
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] =
-            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-        r2 += dx[d] * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double scale = kernel.gradient_over_r(std::sqrt(r2)) * p.volume[j];
-      for (int a = 0; a < Dim; ++a) {
-        const double dv = velocity.v[a][j] - velocity.v[a][i];
-        for (int b = 0; b < Dim; ++b) j_sum[a][b] += dv * scale * dx[b];  // (A.20)
-      }
-    }
+    for_each_pair_in_support<Dim>(
+        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
+          const double scale = kernel.gradient_over_r(std::sqrt(r2)) * p.volume[j];
+          for (int a = 0; a < Dim; ++a) {
+            const double dv = velocity.v[a][j] - velocity.v[a][i];
+            for (int b = 0; b < Dim; ++b) j_sum[a][b] += dv * scale * dx[b];  // (A.20)
+          }
+        });
     gradient[i] = j_sum;
   }
 }
@@ -96,22 +107,15 @@ void subfilter_divergence_pass(const KernelT& kernel, const PeriodicBox& box,
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
     double force[Dim] = {};
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] =
-            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-        r2 += dx[d] * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double scale = kernel.gradient_over_r(std::sqrt(r2)) * p.volume[j];
-      for (int a = 0; a < Dim; ++a) {
-        double sum = 0.0;
-        for (int b = 0; b < Dim; ++b) sum += (tau[i][a][b] + tau[j][a][b]) * dx[b];
-        force[a] -= sum * scale;  // (A.18)
-      }
-    }
+    for_each_pair_in_support<Dim>(
+        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
+          const double scale = kernel.gradient_over_r(std::sqrt(r2)) * p.volume[j];
+          for (int a = 0; a < Dim; ++a) {
+            double sum = 0.0;
+            for (int b = 0; b < Dim; ++b) sum += (tau[i][a][b] + tau[j][a][b]) * dx[b];
+            force[a] -= sum * scale;  // (A.18)
+          }
+        });
     for (int a = 0; a < Dim; ++a) p.acceleration[a][i] += force[a] / p.density[i];
   }
 }
@@ -130,23 +134,17 @@ void subfilter_mcg_pass(const KernelT& kernel, const PeriodicBox& box,
     const auto i = static_cast<std::size_t>(si);
     double force[Dim] = {};
     const double rho_i = p.density[i];
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0, v_dot_x = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] =
-            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-        r2 += dx[d] * dx[d];
-        v_dot_x += (velocity.v[d][i] - velocity.v[d][j]) * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double rho_j = p.density[j];
-      const double mu_pair =
-          rho_i * rho_j * (eddy_viscosity[i] + eddy_viscosity[j]) / (rho_i + rho_j);  // (A.23)
-      const double scale =
-          factor * mu_pair * v_dot_x / r2 * p.volume[j] * kernel.gradient_over_r(std::sqrt(r2));
-      for (int d = 0; d < Dim; ++d) force[d] += scale * dx[d];
-    }
+    for_each_pair_in_support<Dim>(
+        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
+          double v_dot_x = 0.0;
+          for (int d = 0; d < Dim; ++d) v_dot_x += (velocity.v[d][i] - velocity.v[d][j]) * dx[d];
+          const double rho_j = p.density[j];
+          const double mu_pair =
+              rho_i * rho_j * (eddy_viscosity[i] + eddy_viscosity[j]) / (rho_i + rho_j);  // (A.23)
+          const double scale =
+              factor * mu_pair * v_dot_x / r2 * p.volume[j] * kernel.gradient_over_r(std::sqrt(r2));
+          for (int d = 0; d < Dim; ++d) force[d] += scale * dx[d];
+        });
     for (int d = 0; d < Dim; ++d) p.acceleration[d][i] += force[d] / rho_i;
   }
 }
