@@ -39,12 +39,6 @@ void silence_hdf5() {
   std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
 }
 
-/// The HDF5 library is built without thread safety on Debian: serialise every use.
-std::mutex& hdf5_mutex() {
-  static std::mutex m;
-  return m;
-}
-
 const char* kAxis[] = {"x", "y", "z"};
 
 // --- writing ---------------------------------------------------------------------------
@@ -162,6 +156,11 @@ void require_finite(const std::vector<double>& values, const std::string& name,
 
 }  // namespace
 
+std::mutex& hdf5_library_mutex() {
+  static std::mutex m;
+  return m;
+}
+
 std::string checkpoint_file_name(std::uint64_t step) {
   char name[64];
   std::snprintf(name, sizeof name, "ckpt_%010llu.h5", static_cast<unsigned long long>(step));
@@ -172,7 +171,7 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
                       const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
   if (options.gzip_level < 0 || options.gzip_level > 9)
     throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
-  const std::lock_guard lock(hdf5_mutex());
+  const std::lock_guard lock(hdf5_library_mutex());
   silence_hdf5();
   const std::string file = path.string();
   const std::filesystem::path temporary =
@@ -236,7 +235,7 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
 }
 
 Checkpoint read_checkpoint(const std::filesystem::path& path) {
-  const std::lock_guard lock(hdf5_mutex());
+  const std::lock_guard lock(hdf5_library_mutex());
   silence_hdf5();
   const std::string file = path.string();
   if (!std::filesystem::exists(path))

@@ -4,6 +4,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <mutex>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -58,6 +59,10 @@ std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& direc
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);
+
+/// Debian's HDF5 is built without thread safety: every HDF5 call in sphles (checkpoints on the
+/// solver thread, snapshots on the analysis thread) holds this one mutex.
+std::mutex& hdf5_library_mutex();
 
 /// File name for a step: ckpt_0000001234.h5.
 std::string checkpoint_file_name(std::uint64_t step);

@@ -14,11 +14,6 @@ namespace sphles::io {
 
 namespace {
 
-std::mutex& snapshot_hdf5_mutex() {
-  static std::mutex m;
-  return m;
-}
-
 struct Closer {
   hid_t id;
   herr_t (*close)(hid_t);
@@ -71,7 +66,7 @@ void write_particle_snapshot(const std::filesystem::path& path, const sim::Parti
                              double time, std::uint64_t step,
                              const std::vector<ParticleField>& extra,
                              const std::string& scene_json) {
-  const std::lock_guard lock(snapshot_hdf5_mutex());
+  const std::lock_guard lock(hdf5_library_mutex());
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const std::size_t n = p.size();
   const std::filesystem::path temporary =
