@@ -23,6 +23,9 @@ void validate(const SolverConfig& c, const ParticleArrays& p) {
   if (!(c.fluid.reference_density > 0.0) || !(c.fluid.sound_speed > 0.0) ||
       !(c.fluid.dynamic_viscosity >= 0.0))
     throw std::invalid_argument("solver: invalid fluid parameters");
+  if (!(c.blow_up.energy_factor > 1.0) || !(c.blow_up.reference_mach >= 0.0))
+    throw std::invalid_argument(
+        "solver: blow-up thresholds need energy_factor > 1 and reference_mach >= 0");
 }
 
 template <class KernelT>
@@ -49,6 +52,8 @@ class SphSolver final : public Simulation {
     rebuild_neighbours();
     evaluate_acceleration(view_velocity(particles_), time_);
     update_diagnostics(0.0);
+    set_reference_energy();
+    check_blow_up();
   }
 
   /// Restart from a saved state (see restore_simulation).
@@ -72,6 +77,8 @@ class SphSolver final : public Simulation {
     search_.set_num_builds(state.neighbour_builds);
     update_max_acceleration();
     update_diagnostics(0.0);
+    set_reference_energy();
+    check_blow_up();
   }
 
   SolverState state() const override {
@@ -123,6 +130,7 @@ class SphSolver final : public Simulation {
       for (std::size_t i = 0; i < n; ++i) v[i] += half_dt * a[i];
     }
     update_diagnostics(dt);
+    check_blow_up();
   }
 
   double time() const override {
@@ -230,28 +238,60 @@ class SphSolver final : public Simulation {
     diag.neighbour_builds = search_.num_builds();
     diag.mean_neighbours =
         static_cast<double>(search_.list().indices.size()) / static_cast<double>(n);
-    if (!std::isfinite(diag.kinetic_energy) || !std::isfinite(max_acceleration_) ||
-        !std::isfinite(diag.max_density_deviation))
-      report_non_finite();
+  }
+
+  /// Reference of the runaway test, from the energy of the state the solver starts from.
+  void set_reference_energy() {
+    reference_energy_ = runaway_reference_energy(diagnostics_.kinetic_energy,
+                                                 config_.fluid.sound_speed, config_.blow_up);
+  }
+
+  /// Blow-up test on figures update_diagnostics already has, so it costs a few comparisons: a
+  /// single non-finite velocity or mass makes the e_v sum non-finite, a non-finite density or
+  /// pressure makes the accelerations (hence the velocities of the closing kick) non-finite
+  /// within the same step; parallel_max skips NaN, so the maxima only add the inf cases. Only
+  /// when the test fires is the state scanned to name the particle.
+  void check_blow_up() const {
+    const StepDiagnostics& diag = diagnostics_;
+    const bool finite = std::isfinite(diag.kinetic_energy) && std::isfinite(max_acceleration_) &&
+                        std::isfinite(diag.max_density_deviation);
+    if (!finite) report_non_finite();
+    if (is_energy_runaway(diag.kinetic_energy, reference_energy_, config_.blow_up))
+      report_runaway();
   }
 
   [[noreturn]] void report_non_finite() const {
     const ParticleArrays& p = particles_;
     std::ostringstream msg;
-    msg << "solver: non-finite state at t = " << time_ << " (step " << step_ << ")";
-    for (std::size_t i = 0; i < p.size(); ++i) {
-      bool bad = !std::isfinite(p.density[i]) || !std::isfinite(p.pressure[i]);
-      for (int d = 0; d < Dim; ++d)
-        bad = bad || !std::isfinite(p.position[d][i]) || !std::isfinite(p.velocity[d][i]) ||
-              !std::isfinite(p.acceleration[d][i]);
-      if (bad) {
-        msg << ": first at particle id " << p.id[i] << ", position (";
-        for (int d = 0; d < Dim; ++d) msg << (d ? ", " : "") << p.position[d][i];
-        msg << "), density " << p.density[i];
-        break;
-      }
+    msg << "solver: blow-up, non-finite state at t = " << time_ << " (step " << step_ << ")";
+    if (const auto bad = find_non_finite(p)) {
+      msg << ": " << bad->field << " = " << bad->value << ", first at particle id " << bad->id
+          << ", position (";
+      for (int d = 0; d < Dim; ++d) msg << (d ? ", " : "") << p.position[d][bad->index];
+      msg << "), density " << p.density[bad->index];
+      throw BlowUpError(msg.str(), time_, step_, bad->field, bad->value, bad->id);
     }
-    throw SimulationError(msg.str());
+    // Every value finite but a sum overflowed: name the fastest particle.
+    const std::size_t i = fastest_particle(p);
+    msg << ": kinetic energy e_v = " << diagnostics_.kinetic_energy
+        << " (overflow), fastest particle id " << p.id[i];
+    throw BlowUpError(msg.str(), time_, step_, "kinetic energy", diagnostics_.kinetic_energy,
+                      p.id[i]);
+  }
+
+  [[noreturn]] void report_runaway() const {
+    const ParticleArrays& p = particles_;
+    const std::size_t i = fastest_particle(p);
+    double v2 = 0.0;
+    for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
+    std::ostringstream msg;
+    msg << "solver: blow-up, runaway kinetic energy at t = " << time_ << " (step " << step_
+        << "): e_v = " << diagnostics_.kinetic_energy << " m^2/s^2 > "
+        << config_.blow_up.energy_factor << " x reference " << reference_energy_
+        << " m^2/s^2; fastest particle id " << p.id[i] << ", |v| = " << std::sqrt(v2)
+        << " m/s, density " << p.density[i];
+    throw BlowUpError(msg.str(), time_, step_, "kinetic energy", diagnostics_.kinetic_energy,
+                      p.id[i]);
   }
 
   SolverConfig config_;
@@ -263,6 +303,7 @@ class SphSolver final : public Simulation {
   double time_;
   std::uint64_t step_;
   double max_acceleration_ = 0.0;
+  double reference_energy_ = 0.0;  // E_ref of the runaway test (BlowUpThresholds)
   StepDiagnostics diagnostics_;
 };
 

@@ -15,7 +15,9 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
+#include "sim/health.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
@@ -52,6 +54,7 @@ struct SolverConfig {
   SubfilterConfig subfilter;      // explicit sub-filter model (SPEC §4); implicit by default
   double neighbour_skin = 0.15;   // Verlet skin as a fraction of H
   ExternalAcceleration external;  // optional
+  BlowUpThresholds blow_up;       // runaway-energy test after every step (health.hpp)
 };
 
 /// Per-step health and energy figures (SPEC §5: e_v of (5.3)).
@@ -74,6 +77,37 @@ class SimulationError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Thrown by Simulation::step (and by construction) when the state blows up: a non-finite value
+/// or runaway kinetic energy (BlowUpThresholds). The message names the time, step, quantity,
+/// value and the first bad particle id; the same facts are available as fields. The solver's
+/// state after the throw is not valid: stop, and keep the last checkpoint written before.
+class BlowUpError : public SimulationError {
+ public:
+  BlowUpError(const std::string& message, double time, std::uint64_t step, std::string quantity,
+              double value, std::uint64_t particle_id)
+      : SimulationError(message),
+        time_(time),
+        step_(step),
+        quantity_(std::move(quantity)),
+        value_(value),
+        particle_id_(particle_id) {}
+
+  double time() const { return time_; }
+  std::uint64_t step() const { return step_; }
+  /// "kinetic energy" (runaway or non-finite sum), or the first non-finite particle field such
+  /// as "velocity[0]" or "density".
+  const std::string& quantity() const { return quantity_; }
+  double value() const { return value_; }
+  std::uint64_t particle_id() const { return particle_id_; }
+
+ private:
+  double time_;
+  std::uint64_t step_;
+  std::string quantity_;
+  double value_;
+  std::uint64_t particle_id_;
+};
+
 /// Everything a bitwise-exact restart needs: the particle arrays in their current order (with
 /// the acceleration a^n the next kick uses), the positions the current Verlet list was built
 /// from (rebuilding from them gives the identical list, hence identical summation order), the
@@ -90,7 +124,8 @@ struct SolverState {
 class Simulation {
  public:
   virtual ~Simulation() = default;
-  /// Advances one step of size min(limit from TimeStepConfig, max_dt).
+  /// Advances one step of size min(limit from TimeStepConfig, max_dt). Throws BlowUpError when
+  /// the new state is non-finite or its kinetic energy runs away (SolverConfig::blow_up).
   virtual void step(double max_dt = std::numeric_limits<double>::infinity()) = 0;
   virtual double time() const = 0;
   virtual std::uint64_t step_count() const = 0;
