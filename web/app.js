@@ -1,0 +1,829 @@
+// sphles dashboard: run list, run creation, and for the selected run live images, plots,
+// parameter changes and run control. Talks only to the sphles server that served this page
+// (REST + one WebSocket per selected run, docs/api.md); no build step at run time.
+
+import { api, ApiError, getToken, setToken } from './api.js';
+import { RunStream } from './stream.js';
+import {
+  plottingAvailable, formatNumber, energyChart, dissipationChart, spectrumChart,
+  statisticsChart, spectrumData, drawJointHistogram, drawAlignmentHistogram,
+} from './charts.js';
+
+const POLL_MS = 2000;
+const REDRAW_MS = 250;
+const IMAGE_FIELDS = ['omega2', 'tau_sfs'];
+const ACTIVE = new Set(['created', 'queued', 'running', 'paused']);
+// Which buttons each state allows (control/run.hpp: created/stopped → start, running → pause,
+// paused → resume, anything not terminal → stop).
+const ALLOWED = {
+  created: ['start', 'stop'],
+  queued: ['stop'],
+  running: ['pause', 'stop'],
+  paused: ['resume', 'stop'],
+  stopped: ['start'],
+  finished: [],
+  failed: [],
+};
+// Documented defaults of the 2D Taylor-Green scene (docs/scenes.md), offered when the server
+// has no 2D Taylor-Green preset.
+const TGV2D_SCENE_OPTION = {
+  name: 'tgv2d',
+  case: 'tgv2d',
+  dimension: 2,
+  description: 'Decaying 2D Taylor-Green vortex (SPEC §6.2, scene "case": "tgv2d"), Re = 100',
+  scene: {
+    case: 'tgv2d', particles_per_side: 128, kernel: { type: 'wendland_c4' },
+    subfilter: { model: 'implicit', smagorinsky_constant: 0.15 },
+    fluid: { sound_speed: 10, reference_pressure: 1 }, time: { end: 2 },
+  },
+  builtinScene: true,
+};
+const LIVE_PRODUCTS = ['energy', 'spectrum', 'vorticity', 'slices', 'sfs_stats'];
+
+const $ = (id) => document.getElementById(id);
+
+const app = {
+  runs: [],
+  presets: [],
+  selectedId: null,
+  summary: null,  // run summary of the selected run (from the list, the stream or an action)
+  detail: null,   // run detail (scene, changeable, counters)
+  stream: null,
+  samples: [],    // metrics samples of the selected run, ordered by step
+  analysis: [],   // [{time, spectral, vorticity}]
+  stats: [],      // [{time, max, mean}]
+  spectrum: null,
+  frames: [],     // saved frames grouped by step: [{time, step, files: {field: file}}]
+  live: true,
+  liveImage: {},  // field → {blob, header} of the newest live image not yet shown
+  shownUrl: {},   // field → object URL currently in its <img>
+  charts: null,
+  redrawTimer: null,
+  busy: false,
+};
+
+// ---------------------------------------------------------------- small helpers
+
+function setText(id, text) {
+  const el = $(id);
+  if (el.textContent !== text) el.textContent = text;
+}
+
+function showStatus(id, text, kind = '') {
+  const el = $(id);
+  el.textContent = text;
+  el.dataset.kind = kind;
+}
+
+function errorText(e) {
+  if (e instanceof ApiError) {
+    if (e.status === 401) return `${e.message} — set the server's token in the Token field.`;
+    return e.status ? `${e.message} (HTTP ${e.status})` : e.message;
+  }
+  return String(e && e.message ? e.message : e);
+}
+
+function getPath(object, path) {
+  return path.split('.').reduce((o, k) => (o && typeof o === 'object' ? o[k] : undefined), object);
+}
+
+function setPath(object, path, value) {
+  const keys = path.split('.');
+  let o = object;
+  for (const k of keys.slice(0, -1)) {
+    if (!o[k] || typeof o[k] !== 'object') o[k] = {};
+    o = o[k];
+  }
+  o[keys[keys.length - 1]] = value;
+}
+
+function fmtSeconds(s) {
+  if (!Number.isFinite(s)) return '–';
+  if (s < 120) return `${s.toFixed(1)} s`;
+  if (s < 7200) return `${(s / 60).toFixed(1)} min`;
+  return `${(s / 3600).toFixed(2)} h`;
+}
+
+function finite(v) {
+  return typeof v === 'number' && Number.isFinite(v) ? v : null;
+}
+
+// ---------------------------------------------------------------- run list (polled)
+
+async function pollRuns() {
+  try {
+    const runs = await api.runs();
+    app.runs = Array.isArray(runs) ? runs : [];
+    const el = $('api-state');
+    el.dataset.state = 'open';
+    el.textContent = `server: ok · ${app.runs.length} run${app.runs.length === 1 ? '' : 's'}`;
+    renderRunList();
+    if (app.selectedId) {
+      const s = app.runs.find((r) => r.id === app.selectedId);
+      if (s) mergeSummary(s);
+    } else if (app.runs.length) {
+      const fromHash = new URLSearchParams(location.hash.slice(1)).get('run');
+      const pick = app.runs.find((r) => r.id === fromHash) ??
+        [...app.runs].reverse().find((r) => ACTIVE.has(r.state)) ?? app.runs[app.runs.length - 1];
+      selectRun(pick.id);
+    }
+  } catch (e) {
+    const el = $('api-state');
+    el.dataset.state = 'reconnecting';
+    el.textContent = `server: ${e.status === 0 ? 'unreachable' : errorText(e)} · retrying`;
+  } finally {
+    setTimeout(pollRuns, POLL_MS);
+  }
+}
+
+function renderRunList() {
+  const list = $('run-list');
+  $('run-list-empty').hidden = app.runs.length > 0;
+  const items = [];
+  for (const run of [...app.runs].reverse()) {
+    let li = list.querySelector(`li[data-id="${CSS.escape(run.id)}"]`);
+    if (!li) {
+      li = document.createElement('li');
+      li.dataset.id = run.id;
+      li.innerHTML = `<button type="button" class="run-item">
+          <span class="run-name"></span><span class="state"></span>
+          <progress max="1" value="0"></progress>
+          <span class="run-meta muted small"></span></button>`;
+      li.querySelector('button').addEventListener('click', () => selectRun(run.id));
+    }
+    const button = li.querySelector('button');
+    button.setAttribute('aria-current', run.id === app.selectedId ? 'true' : 'false');
+    li.querySelector('.run-name').textContent = run.name || run.id;
+    const badge = li.querySelector('.state');
+    badge.textContent = run.state;
+    badge.dataset.state = run.state;
+    const progress = li.querySelector('progress');
+    progress.value = Math.min(1, Math.max(0, run.progress ?? 0));
+    const pct = `${Math.round(100 * (run.progress ?? 0))} %`;
+    progress.setAttribute('aria-label', `${run.name || run.id}: ${pct}`);
+    li.querySelector('.run-meta').textContent =
+      `${run.id} · ${run.case ?? ''} ${run.dimension ? `${run.dimension}D` : ''} · ` +
+      `t = ${formatNumber(run.time)} / ${formatNumber(run.end_time)} s · ${pct}`;
+    items.push(li);
+  }
+  list.replaceChildren(...items);
+}
+
+// ---------------------------------------------------------------- run creation
+
+async function loadPresets() {
+  let presets = [];
+  try {
+    presets = await api.presets();
+  } catch (e) {
+    showStatus('create-status', `Could not load presets: ${errorText(e)}`, 'error');
+  }
+  app.presets = Array.isArray(presets) ? presets.slice() : [];
+  if (!app.presets.some((p) => p.case === 'tgv2d')) app.presets.unshift(TGV2D_SCENE_OPTION);
+  const select = $('create-preset');
+  select.replaceChildren(...app.presets.map((p, i) => {
+    const o = document.createElement('option');
+    o.value = String(i);
+    const n = p.particles_per_side ?? getPath(p.scene, 'particles_per_side');
+    const dim = p.dimension ?? (p.case && p.case.includes('2d') ? 2 : 3);
+    o.textContent = `${p.builtinScene ? 'scene: ' : ''}${p.name}${n ? ` (${n}${dim === 2 ? '²' : '³'})` : ''}`;
+    return o;
+  }));
+  // Prefer a small 2D Taylor-Green vortex as the first choice: it runs in seconds.
+  const tgv2d = app.presets.findIndex((p) => p.case === 'tgv2d');
+  select.value = String(Math.max(0, tgv2d));
+  fillCreateForm();
+}
+
+function selectedPreset() {
+  return app.presets[Number($('create-preset').value)] ?? null;
+}
+
+function fillCreateForm() {
+  const preset = selectedPreset();
+  if (!preset) return;
+  $('create-description').textContent = preset.description ?? '';
+  const flat = {
+    particles_per_side: preset.particles_per_side,
+    'kernel.type': preset.kernel,
+    'subfilter.model': preset.subfilter_model,
+  };
+  for (const input of $('create-form').querySelectorAll('[data-path]')) {
+    const path = input.dataset.path;
+    let value = getPath(preset.scene, path);
+    if (value === undefined) value = flat[path];
+    const text = value === undefined || value === null ? '' : String(value);
+    input.value = text;
+    input.dataset.initial = text;
+  }
+}
+
+function readInput(input) {
+  const raw = input.value.trim();
+  if (raw === '') return undefined;
+  if (input.type === 'number') {
+    const v = Number(raw);
+    if (!Number.isFinite(v)) throw new Error(`'${input.dataset.path}' is not a number`);
+    if (input.dataset.type === 'int' && !Number.isInteger(v))
+      throw new Error(`'${input.dataset.path}' must be an integer`);
+    return v;
+  }
+  return raw;
+}
+
+function buildCreateRequest() {
+  const preset = selectedPreset();
+  if (!preset) throw new Error('no preset selected');
+  // Only the parameters the user changed go into the patch; the preset keeps the rest.
+  const patch = {};
+  for (const input of $('create-form').querySelectorAll('[data-path]')) {
+    if (input.value === input.dataset.initial) continue;
+    const v = readInput(input);
+    if (v !== undefined) setPath(patch, input.dataset.path, v);
+  }
+  if ($('create-live').checked) {
+    const every = Number($('create-every').value);
+    if (!(every > 0)) throw new Error("'analysis.every' must be > 0 for live analysis");
+    const products = new Set([...(getPath(preset.scene, 'analysis.products') ?? []), ...LIVE_PRODUCTS]);
+    const sliceFields = new Set([...(getPath(preset.scene, 'analysis.slice.fields') ?? []), ...IMAGE_FIELDS]);
+    patch.analysis = { every, products: [...products], slice: { fields: [...sliceFields] } };
+    patch.render = { fields: IMAGE_FIELDS, combined: false };
+  }
+  const body = preset.builtinScene ? { scene: { ...preset.scene } } : { preset: preset.name };
+  if (Object.keys(patch).length) body.patch = patch;
+  const name = $('create-name').value.trim();
+  if (name) body.name = name;
+  body.start = $('create-start').checked;
+  return body;
+}
+
+async function onCreate(event) {
+  event.preventDefault();
+  let body;
+  try {
+    body = buildCreateRequest();
+  } catch (e) {
+    showStatus('create-status', e.message, 'error');
+    return;
+  }
+  const button = $('create-submit');
+  button.disabled = true;
+  showStatus('create-status', 'Creating…');
+  try {
+    const run = await api.create(body);
+    showStatus('create-status', `Created ${run.name || run.id} (${run.state}).`, 'ok');
+    app.runs = app.runs.filter((r) => r.id !== run.id).concat([run]);
+    renderRunList();
+    selectRun(run.id);
+  } catch (e) {
+    showStatus('create-status', errorText(e), 'error');
+  } finally {
+    button.disabled = false;
+  }
+}
+
+// ---------------------------------------------------------------- selected run
+
+function selectRun(id) {
+  if (id === app.selectedId) return;
+  if (app.stream) app.stream.close();
+  app.stream = null;
+  for (const url of Object.values(app.shownUrl)) if (url && url.startsWith('blob:')) URL.revokeObjectURL(url);
+  Object.assign(app, {
+    selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
+    samples: [], analysis: [], stats: [], spectrum: null, frames: [], live: true,
+    liveImage: {}, shownUrl: {},
+  });
+  history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
+  $('no-run').hidden = true;
+  $('run-detail').hidden = false;
+  for (const f of IMAGE_FIELDS) {
+    const img = $(`img-${f}`);
+    img.removeAttribute('src');
+    delete img.dataset.step;
+    setText(`cap-${f}`, 'no image yet');
+  }
+  showStatus('control-status', '');
+  showStatus('param-status', '');
+  setText('cap-spectrum', 'no spectrum yet');
+  setText('cap-stats', 'no statistics yet');
+  ensureCharts();
+  renderRunList();
+  renderHeader();
+  renderFrames();
+  scheduleRedraw();
+  app.stream = new RunStream(id, getToken(), {
+    onState: onStreamState,
+    onOpen: () => backfill(id),
+    onMessage: (m) => onStreamMessage(id, m),
+    onImage: (h, blob) => onImage(id, h, blob),
+  });
+}
+
+function onStreamState({ state, attempt, delayMs, detail }) {
+  const el = $('ws-state');
+  el.dataset.state = state;
+  const texts = {
+    connecting: attempt ? `stream: connecting (attempt ${attempt + 1})` : 'stream: connecting',
+    open: 'stream: open',
+    closed: app.selectedId ? 'stream: closed' : 'stream: no run selected',
+    reconnecting: `stream: closed${detail ? ` (${detail})` : ''} · reconnecting in ${(delayMs / 1000).toFixed(1)} s`,
+  };
+  el.textContent = texts[state] ?? `stream: ${state}`;
+}
+
+/** After each (re)connection: the history the stream does not repeat. */
+async function backfill(id) {
+  try {
+    const [detail, series, frames] = await Promise.all([
+      api.run(id), api.timeseries(id).catch(() => null), api.frames(id).catch(() => []),
+    ]);
+    if (id !== app.selectedId) return;
+    applyDetail(detail);
+    if (series) addTimeseries(series);
+    addFrames(frames);
+    const products = getPath(detail.scene, 'analysis.products') ?? [];
+    const published = getPath(detail, 'counters.analysis_published');
+    const analysed = published === undefined ? (detail.step ?? 0) > 0 : published > 0;
+    if (analysed && products.includes('spectrum')) {
+      const s = await api.spectrum(id).catch(() => null);
+      if (s && id === app.selectedId) onSpectrum(s);
+    }
+    if (analysed && products.includes('sfs_stats')) {
+      const s = await api.statistics(id).catch(() => null);
+      if (s && id === app.selectedId) onStatistics(s);
+    }
+    if (app.live) showLatestSavedFrames();
+    scheduleRedraw();
+  } catch (e) {
+    if (id === app.selectedId) showStatus('control-status', `Could not load the run: ${errorText(e)}`, 'error');
+  }
+}
+
+function applyDetail(detail) {
+  if (!detail) return;
+  app.detail = detail;
+  mergeSummary(detail);
+  fillParamForm(detail.scene ?? {});
+  const changeable = Array.isArray(detail.changeable) ? detail.changeable : [];
+  setText('param-changeable', changeable.length ? `Changeable while the run exists: ${changeable.join(', ')}.` : '');
+}
+
+function mergeSummary(s) {
+  if (!s || s.id !== app.selectedId) return;
+  const old = app.summary ?? {};
+  app.summary = { ...old, ...s };
+  // Metrics may be newer than a polled summary: keep the later time and step.
+  if ((old.step ?? -1) > (s.step ?? -1)) {
+    app.summary.step = old.step;
+    app.summary.time = old.time;
+    app.summary.progress = old.progress;
+  }
+  renderHeader();
+}
+
+function renderHeader() {
+  const s = app.summary;
+  if (!s) return;
+  setText('run-title', s.name || s.id);
+  const badge = $('run-state');
+  badge.textContent = s.state ?? '–';
+  badge.dataset.state = s.state ?? '';
+  setText('run-reason', s.reason ? `(${s.reason})` : '');
+  const progress = finite(s.progress) ?? (s.end_time > 0 ? (s.time ?? 0) / s.end_time : 0);
+  $('run-progress').value = Math.min(1, Math.max(0, progress));
+  setText('run-time', formatNumber(s.time));
+  setText('run-end', formatNumber(s.end_time));
+  setText('run-step', s.step === undefined ? '–' : String(s.step));
+  setText('run-rate', formatNumber(s.steps_per_second));
+  setText('run-wall', fmtSeconds(s.wall_seconds));
+  setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}`);
+  const allowed = ALLOWED[s.state] ?? [];
+  for (const b of document.querySelectorAll('.controls button[data-action]'))
+    b.disabled = app.busy || !allowed.includes(b.dataset.action);
+}
+
+async function onAction(event) {
+  const verb = event.currentTarget.dataset.action;
+  const id = app.selectedId;
+  if (!id) return;
+  app.busy = true;
+  renderHeader();
+  showStatus('control-status', `${verb}…`);
+  try {
+    const summary = await api.action(id, verb);
+    mergeSummary(summary);
+    showStatus('control-status', `${verb}: now ${summary.state}`, 'ok');
+  } catch (e) {
+    showStatus('control-status', `${verb} refused: ${errorText(e)}`, 'error');
+  } finally {
+    app.busy = false;
+    renderHeader();
+  }
+}
+
+// ---------------------------------------------------------------- stream messages
+
+function onStreamMessage(id, m) {
+  if (id !== app.selectedId || !m || typeof m !== 'object') return;
+  switch (m.type) {
+    case 'hello':
+      applyDetail(m.run);
+      break;
+    case 'state':
+      mergeSummary({ id, state: m.state, reason: m.reason ?? '' });
+      pollSoon();
+      break;
+    case 'metrics':
+      addSamples(Array.isArray(m.samples) ? m.samples : []);
+      break;
+    case 'spectrum':
+      onSpectrum(m);
+      break;
+    case 'statistics':
+      onStatistics(m);
+      break;
+    case 'changed':
+      showStatus('param-status', `Changed: ${(m.changed ?? []).join(', ') || 'nothing'}.`, 'ok');
+      break;
+    case 'error':
+      showStatus('param-status', errorText(new ApiError(m.error?.status ?? 0, m.error?.message ?? 'error', m.error?.field)), 'error');
+      break;
+    default:
+      break;  // newer message types: ignored
+  }
+}
+
+let pollSoonTimer = null;
+function pollSoon() {
+  // A state change also changes the run list; refresh it without waiting for the next poll.
+  if (pollSoonTimer) return;
+  pollSoonTimer = setTimeout(async () => {
+    pollSoonTimer = null;
+    try {
+      app.runs = await api.runs();
+      renderRunList();
+    } catch {
+      // the regular poll reports the connection state
+    }
+  }, 100);
+}
+
+function toSample(s) {
+  return {
+    time: finite(s.time), step: s.step, kinetic_energy: finite(s.kinetic_energy),
+    dissipation: finite(s.dissipation),
+  };
+}
+
+function addSamples(list) {
+  const samples = app.samples;
+  for (const raw of list) {
+    const s = toSample(raw);
+    if (s.time === null || typeof s.step !== 'number') continue;
+    const last = samples[samples.length - 1];
+    if (!last || s.step > last.step) {
+      samples.push(s);
+    } else {
+      // Out of order (the REST backfill and the stream overlap): insert unless present.
+      let lo = 0;
+      let hi = samples.length;
+      while (lo < hi) {
+        const mid = (lo + hi) >> 1;
+        if (samples[mid].step < s.step) lo = mid + 1;
+        else hi = mid;
+      }
+      if (samples[lo]?.step !== s.step) samples.splice(lo, 0, s);
+    }
+  }
+  const last = samples[samples.length - 1];
+  if (last && app.summary && last.step >= (app.summary.step ?? -1)) {
+    const end = app.summary.end_time;
+    mergeSummary({
+      id: app.selectedId, time: last.time, step: last.step,
+      progress: end > 0 ? Math.min(1, last.time / end) : app.summary.progress,
+    });
+  }
+  scheduleRedraw();
+}
+
+function addTimeseries(series) {
+  const columns = Array.isArray(series?.columns) ? series.columns : [];
+  const data = Array.isArray(series?.data) ? series.data : [];
+  const col = (name) => data[columns.indexOf(name)] ?? [];
+  const time = col('time');
+  const step = col('step');
+  const energy = col('kinetic_energy');
+  const dissipation = col('dissipation');
+  const rows = [];
+  for (let i = 0; i < time.length; i++)
+    rows.push({ time: time[i], step: step[i], kinetic_energy: energy[i], dissipation: dissipation[i] });
+  addSamples(rows);
+}
+
+function onSpectrum(m) {
+  app.spectrum = m;
+  const vorticity = finite(m.dissipation_vorticity) ?? finite(m.vorticity?.dissipation);
+  addAnalysisPoint({ time: finite(m.time), spectral: finite(m.dissipation), vorticity });
+  setText('cap-spectrum', `t = ${formatNumber(m.time)} s, step ${m.step ?? '–'}` +
+    `${finite(m.kernel_wavenumber) ? `, k_kern = ${formatNumber(m.kernel_wavenumber)} 1/m` : ''}`);
+  scheduleRedraw();
+}
+
+function addAnalysisPoint(p) {
+  if (p.time === null || (p.spectral === null && p.vorticity === null)) return;
+  const i = app.analysis.findIndex((a) => a.time === p.time);
+  if (i >= 0) app.analysis[i] = { ...app.analysis[i], ...p };
+  else app.analysis.push(p);
+  app.analysis.sort((a, b) => a.time - b.time);
+}
+
+function onStatistics(m) {
+  const time = finite(m.time);
+  if (time !== null && !app.stats.some((s) => s.time === time)) {
+    app.stats.push({ time, max: finite(m.max_norm), mean: finite(m.mean_norm) });
+    app.stats.sort((a, b) => a.time - b.time);
+  }
+  const vorticity = finite(m.dissipation_vorticity);
+  if (vorticity !== null) addAnalysisPoint({ time, vorticity });
+  app.latestStatistics = m;
+  setText('cap-stats', `t = ${formatNumber(m.time)} s: max ${formatNumber(m.max_norm)} Pa, mean ${formatNumber(m.mean_norm)} Pa`);
+  scheduleRedraw();
+}
+
+// ---------------------------------------------------------------- images and frames
+
+function onImage(id, header, blob) {
+  if (id !== app.selectedId || !IMAGE_FIELDS.includes(header.field)) {
+    if (id === app.selectedId && header.file) addFrames([header]);
+    return;
+  }
+  if (header.file) addFrames([header]);
+  app.liveImage[header.field] = { blob, header };
+  if (app.live) showLiveImage(header.field);
+}
+
+function showLiveImage(field) {
+  const pending = app.liveImage[field];
+  if (!pending) return;
+  app.liveImage[field] = null;
+  showImage(field, URL.createObjectURL(pending.blob), pending.header, 'live');
+}
+
+function showImage(field, url, header, how) {
+  const img = $(`img-${field}`);
+  const previous = app.shownUrl[field];
+  app.shownUrl[field] = url;
+  const release = () => {
+    if (previous && previous !== url && previous.startsWith('blob:')) URL.revokeObjectURL(previous);
+  };
+  img.onload = () => {
+    release();
+    img.dataset.step = String(header.step ?? '');
+    img.dataset.time = String(header.time ?? '');
+    setText(`cap-${field}`, `t = ${formatNumber(header.time)} s, step ${header.step ?? '–'} (${how})`);
+  };
+  img.onerror = () => {
+    release();
+    setText(`cap-${field}`, 'image could not be decoded');
+  };
+  img.src = url;
+}
+
+function addFrames(list) {
+  if (!Array.isArray(list)) return;
+  let changed = false;
+  for (const f of list) {
+    if (!f || !f.file || !f.field) continue;
+    let group = app.frames.find((g) => g.step === f.step);
+    if (!group) {
+      group = { time: f.time, step: f.step, files: {} };
+      app.frames.push(group);
+    }
+    if (group.files[f.field] !== f.file) {
+      group.files[f.field] = f.file;
+      changed = true;
+    }
+  }
+  if (changed) {
+    app.frames.sort((a, b) => a.step - b.step);
+    renderFrames();
+  }
+}
+
+function renderFrames() {
+  const scrubber = $('frame-scrubber');
+  const n = app.frames.length;
+  scrubber.disabled = n === 0;
+  scrubber.max = String(Math.max(0, n - 1));
+  if (app.live) scrubber.value = String(Math.max(0, n - 1));
+  $('btn-live').setAttribute('aria-pressed', app.live ? 'true' : 'false');
+  $('btn-live').disabled = app.live;
+  const label = $('frame-label');
+  if (app.live) label.textContent = n ? `live · ${n} saved` : 'live · no saved frames';
+  else {
+    const g = app.frames[Number(scrubber.value)];
+    label.textContent = g ? `t = ${formatNumber(g.time)} s (${Number(scrubber.value) + 1}/${n})` : '–';
+  }
+  scrubber.setAttribute('aria-valuetext', label.textContent);
+}
+
+function showFrame(index) {
+  const g = app.frames[index];
+  if (!g) return;
+  for (const f of IMAGE_FIELDS) {
+    if (g.files[f]) showImage(f, api.frameUrl(app.selectedId, g.files[f]), g, 'saved');
+  }
+}
+
+/** Newest saved frame of each field, until a live image replaces it. */
+function showLatestSavedFrames() {
+  for (const f of IMAGE_FIELDS) {
+    if (app.shownUrl[f]) continue;
+    const g = [...app.frames].reverse().find((x) => x.files[f]);
+    if (g) showImage(f, api.frameUrl(app.selectedId, g.files[f]), g, 'saved');
+  }
+}
+
+function onScrub() {
+  app.live = false;
+  renderFrames();
+  showFrame(Number($('frame-scrubber').value));
+}
+
+function goLive() {
+  app.live = true;
+  renderFrames();
+  for (const f of IMAGE_FIELDS) showLiveImage(f);
+}
+
+// ---------------------------------------------------------------- plots
+
+function ensureCharts() {
+  if (app.charts || !plottingAvailable()) return;
+  app.charts = {
+    energy: energyChart($('chart-energy')),
+    dissipation: dissipationChart($('chart-dissipation')),
+    spectrum: spectrumChart($('chart-spectrum')),
+    stats: statisticsChart($('chart-stats')),
+  };
+}
+
+function scheduleRedraw() {
+  if (app.redrawTimer) return;
+  app.redrawTimer = setTimeout(() => {
+    app.redrawTimer = null;
+    redraw();
+  }, REDRAW_MS);
+}
+
+function redraw() {
+  const c = app.charts;
+  const samples = app.samples;
+  const last = samples[samples.length - 1];
+  setText('cap-energy', last ? `eᵥ = ${formatNumber(last.kinetic_energy)} m²/s² at t = ${formatNumber(last.time)} s (${samples.length} samples)` : 'no samples yet');
+  const lastEps = [...app.analysis].reverse().find((a) => a.spectral !== null || a.vorticity !== null);
+  setText('cap-dissipation', last ? `−deᵥ/dt = ${formatNumber(last.dissipation)}` +
+    `${lastEps ? `, spectral ${formatNumber(lastEps.spectral ?? lastEps.vorticity)}` : ''} m²/s³` : '');
+  drawJointHistogram($('hist-joint'), app.latestStatistics?.joint);
+  drawAlignmentHistogram($('hist-alignment'), app.latestStatistics ? app.latestStatistics.alignment ?? null : undefined);
+  if (!c) return;
+
+  c.energy.setData(samples.map((s) => s.time), [samples.map((s) => s.kinetic_energy)]);
+
+  // ε: the per-step series and the sparse analysis estimates on one merged time axis.
+  const x = [];
+  const fromHistory = [];
+  const spectral = [];
+  const vorticity = [];
+  let i = 0;
+  let j = 0;
+  while (i < samples.length || j < app.analysis.length) {
+    const a = app.analysis[j];
+    if (j >= app.analysis.length || (i < samples.length && samples[i].time < a.time)) {
+      x.push(samples[i].time);
+      fromHistory.push(samples[i].dissipation);
+      spectral.push(null);
+      vorticity.push(null);
+      i++;
+    } else {
+      x.push(a.time);
+      fromHistory.push(null);
+      spectral.push(a.spectral ?? null);
+      vorticity.push(a.vorticity ?? null);
+      j++;
+    }
+  }
+  c.dissipation.setData(x, [fromHistory, spectral, vorticity]);
+
+  const s = app.spectrum;
+  if (s && Array.isArray(s.k) && Array.isArray(s.energy)) {
+    const d = spectrumData(s.k, s.energy);
+    c.spectrum.setData(d.x, d.ys);
+    c.spectrum.setMarkers([
+      { x: s.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },
+      { x: s.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
+    ]);
+  }
+  c.stats.setData(app.stats.map((p) => p.time), [app.stats.map((p) => p.max), app.stats.map((p) => p.mean)]);
+}
+
+// ---------------------------------------------------------------- live parameters
+
+function fillParamForm(scene) {
+  for (const input of $('param-form').querySelectorAll('[data-path]')) {
+    let value = getPath(scene, input.dataset.path);
+    if (input.tagName === 'SELECT' && (value === undefined || value === null)) value = 'log';
+    const text = value === undefined || value === null ? '' : String(value);
+    // Keep what the user is typing; refresh the rest.
+    if (document.activeElement !== input && (input.value === input.dataset.initial || input.dataset.initial === undefined))
+      input.value = text;
+    input.dataset.initial = text;
+  }
+}
+
+function buildParameterPatch() {
+  const patch = {};
+  for (const input of $('param-form').querySelectorAll('[data-path]')) {
+    if (input.value === input.dataset.initial) continue;
+    let v = readInput(input);
+    if (v === undefined) {
+      if (!('nullable' in input.dataset)) continue;
+      v = null;  // an empty bound goes back to the automatic (percentile) range
+    }
+    setPath(patch, input.dataset.path, v);
+  }
+  return patch;
+}
+
+async function onApplyParameters(event) {
+  event.preventDefault();
+  const id = app.selectedId;
+  if (!id) return;
+  let patch;
+  try {
+    patch = buildParameterPatch();
+  } catch (e) {
+    showStatus('param-status', e.message, 'error');
+    return;
+  }
+  if (!Object.keys(patch).length) {
+    showStatus('param-status', 'Nothing changed.');
+    return;
+  }
+  $('param-apply').disabled = true;
+  showStatus('param-status', 'Applying…');
+  try {
+    const r = await api.patchParameters(id, patch);
+    showStatus('param-status', `Changed: ${(r.changed ?? []).join(', ') || 'nothing'}${r.effective ? ` (effective ${r.effective})` : ''}.`, 'ok');
+    for (const input of $('param-form').querySelectorAll('[data-path]')) input.dataset.initial = input.value;
+  } catch (e) {
+    showStatus('param-status', `Rejected: ${errorText(e)}`, 'error');
+  } finally {
+    $('param-apply').disabled = false;
+  }
+}
+
+function resetParamForm() {
+  for (const input of $('param-form').querySelectorAll('[data-path]')) input.value = input.dataset.initial ?? '';
+  showStatus('param-status', '');
+}
+
+// ---------------------------------------------------------------- start-up
+
+function onTokenSave(event) {
+  event.preventDefault();
+  setToken($('token').value.trim());
+  if (app.stream) app.stream.reconnectNow(getToken());
+  showStatus('create-status', getToken() ? 'Token saved in this browser.' : 'Token cleared.', 'ok');
+}
+
+function main() {
+  if (!plottingAvailable()) {
+    const banner = $('page-error');
+    banner.hidden = false;
+    banner.textContent = 'The plotting library is missing (web/vendor/uPlot.iife.min.js): build the ' +
+      'CMake target web_assets (needs npm). Run control, images and parameters still work.';
+  }
+  $('token').value = getToken();
+  $('token-form').addEventListener('submit', onTokenSave);
+  $('create-form').addEventListener('submit', onCreate);
+  $('create-preset').addEventListener('change', fillCreateForm);
+  $('create-live').addEventListener('change', () => { $('create-every').disabled = !$('create-live').checked; });
+  for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);
+  $('frame-scrubber').addEventListener('input', onScrub);
+  $('btn-live').addEventListener('click', goLive);
+  $('param-form').addEventListener('submit', onApplyParameters);
+  $('param-reset').addEventListener('click', resetParamForm);
+  window.addEventListener('hashchange', () => {
+    const id = new URLSearchParams(location.hash.slice(1)).get('run');
+    if (id && app.runs.some((r) => r.id === id)) selectRun(id);
+  });
+  api.health().then((h) => {
+    $('api-state').title = `sphles ${h.version ?? ''} — REST API polled every ${POLL_MS / 1000} s`;
+  }).catch(() => {});
+  loadPresets();
+  pollRuns();
+}
+
+main();
