@@ -1,0 +1,154 @@
+// Off-screen VTK window on OSMesa, read-back and PNG encoding, text actors and the colour bar.
+#include "render/vtk_window.hpp"
+
+#include <vtkCoordinate.h>
+#include <vtkImageData.h>
+#include <vtkTextProperty.h>
+#include <vtkUnsignedCharArray.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <stdexcept>
+
+#include "render/lookup_table.hpp"
+
+namespace sphles::render::detail {
+
+std::mutex& vtk_scene_mutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+double elapsed_ms(Clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
+}
+
+std::string format_number(double value) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.4g", value);
+  return buffer;
+}
+
+vtkSmartPointer<vtkTextActor> make_text(int justification, int vertical_justification,
+                                        int font_size) {
+  auto text = vtkSmartPointer<vtkTextActor>::New();
+  text->SetTextScaleModeToNone();
+  text->GetPositionCoordinate()->SetCoordinateSystemToViewport();
+  vtkTextProperty* property = text->GetTextProperty();
+  property->SetFontFamilyToArial();
+  property->SetFontSize(font_size);
+  property->SetColor(0.0, 0.0, 0.0);
+  property->SetJustification(justification);
+  property->SetVerticalJustification(vertical_justification);
+  return text;
+}
+
+void set_text(vtkTextActor* actor, const std::string& text, double x, double y) {
+  if (actor->GetInput() == nullptr || text != actor->GetInput()) actor->SetInput(text.c_str());
+  actor->SetPosition(x, y);
+}
+
+ColourBar::ColourBar() {
+  actor_->SetOrientationToVertical();
+  actor_->SetMaximumNumberOfColors(kColourCount);
+  actor_->SetNumberOfLabels(5);
+  actor_->SetUnconstrainedFontSize(true);
+  actor_->SetBarRatio(0.3);
+  actor_->SetTextPad(3);
+  actor_->SetLabelFormat("%.3g");
+  actor_->GetPositionCoordinate()->SetCoordinateSystemToViewport();
+  actor_->GetPosition2Coordinate()->SetCoordinateSystemToViewport();
+  for (vtkTextProperty* property :
+       {actor_->GetTitleTextProperty(), actor_->GetLabelTextProperty()}) {
+    property->SetFontFamilyToArial();
+    property->SetColor(0.0, 0.0, 0.0);
+    property->SetBold(false);
+    property->SetItalic(false);
+    property->SetShadow(false);
+    property->SetFontSize(kFontSize);
+  }
+  actor_->GetLabelTextProperty()->SetFontSize(kFontSize - 2);
+}
+
+void ColourBar::update(const std::array<double, 2>& range, bool log_scale, const std::string& title,
+                       double x, double y, double width, double height) {
+  if (range != range_ || log_scale != log_scale_ || actor_->GetLookupTable() == nullptr) {
+    actor_->SetLookupTable(make_lookup_table(range, log_scale));
+    range_ = range;
+    log_scale_ = log_scale;
+  }
+  if (actor_->GetTitle() == nullptr || title != actor_->GetTitle()) {
+    actor_->SetTitle(title.c_str());
+  }
+  actor_->SetPosition(x, y);
+  actor_->SetPosition2(width, height);
+}
+
+OffscreenWindow::OffscreenWindow(int width, int height)
+    : width_(width), height_(height), context_(width, height) {
+  window_->SetOwnContext(false);
+  window_->SetSize(width, height);
+  window_->SetOffScreenRendering(true);
+  window_->SetMultiSamples(0);
+  window_->SetIsDirect(true);
+  window_->SetSupportsOpenGL(true);
+  window_->SetReadyForRendering(true);
+  window_->SetIsCurrent(true);
+  window_->SetMapped(true);
+
+  read_back_->SetInput(window_);
+  read_back_->ShouldRerenderOff();
+  read_back_->ReadFrontBufferOff();
+  read_back_->SetInputBufferTypeToRGB();
+
+  writer_->SetInputConnection(read_back_->GetOutputPort());
+  writer_->WriteToMemoryOn();
+  writer_->SetCompressionLevel(compression_level_);
+}
+
+OffscreenWindow::~OffscreenWindow() {
+  // VTK releases its GL objects on destruction: keep the context current until it has.
+  try {
+    context_.make_current();
+  } catch (...) {
+    return;  // cannot release GL resources safely; leak them rather than crash
+  }
+  writer_ = nullptr;
+  read_back_ = nullptr;
+  window_->Finalize();
+  window_ = nullptr;
+}
+
+void OffscreenWindow::set_compression_level(int level) {
+  compression_level_ = std::clamp(level, 0, 9);
+  writer_->SetCompressionLevel(compression_level_);
+}
+
+std::vector<unsigned char> OffscreenWindow::read_back_png(FrameTimings& timings) {
+  auto start = Clock::now();
+  read_back_->Modified();
+  read_back_->Update();
+  timings.read_back_ms = elapsed_ms(start);
+
+  start = Clock::now();
+  std::vector<unsigned char> bytes;
+  if (png_filter_) {
+    vtkImageData* image = read_back_->GetOutput();
+    int* dimensions = image->GetDimensions();
+    const auto* pixels = static_cast<const unsigned char*>(image->GetScalarPointer());
+    bytes = encode_png_rgb(
+        std::span(pixels, static_cast<std::size_t>(dimensions[0]) * dimensions[1] * 3),
+        dimensions[0], dimensions[1], compression_level_, *png_filter_);
+  } else {
+    writer_->Write();
+    vtkUnsignedCharArray* result = writer_->GetResult();
+    if (result == nullptr || result->GetNumberOfValues() == 0) {
+      throw std::runtime_error("render_png: PNG encoding failed");
+    }
+    bytes.assign(result->GetPointer(0), result->GetPointer(0) + result->GetNumberOfValues());
+  }
+  timings.encode_ms = elapsed_ms(start);
+  return bytes;
+}
+
+}  // namespace sphles::render::detail

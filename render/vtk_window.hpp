@@ -1,0 +1,117 @@
+// Internal pieces shared by the slice renderer (render.cpp) and the 3D particle view (view3d.cpp):
+// the off-screen window on an OSMesa context with read-back and PNG encoding, the process-wide
+// VTK scene lock, text actors and the viridis colour bar. Not part of the public API.
+#pragma once
+
+#include <vtkGenericOpenGLRenderWindow.h>
+#include <vtkPNGWriter.h>
+#include <vtkScalarBarActor.h>
+#include <vtkSmartPointer.h>
+#include <vtkTextActor.h>
+#include <vtkTextProperty.h>  // VTK_TEXT_* justifications for make_text
+#include <vtkWindowToImageFilter.h>
+
+#include <array>
+#include <chrono>
+#include <cstddef>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "render/osmesa_context.hpp"
+#include "render/render.hpp"
+
+namespace sphles::render::detail {
+
+inline constexpr int kFontSize = 14;
+inline constexpr int kTitleFontSize = 15;
+inline constexpr Rgb kNanColour = {128, 128, 128};
+
+/// VTK's text rendering keeps process-wide caches (vtkFreeTypeTools, vtkTextRenderer) that are
+/// not documented as thread-safe: construction, destruction, scene updates and Render of every
+/// window are serialised by this lock. Read-back and PNG encoding use per-window objects only and
+/// run concurrently.
+std::mutex& vtk_scene_mutex();
+
+using Clock = std::chrono::steady_clock;
+double elapsed_ms(Clock::time_point since);
+
+/// "%.4g".
+std::string format_number(double value);
+
+/// Black Arial text at a viewport position (pixels), not scaled with the window.
+vtkSmartPointer<vtkTextActor> make_text(int justification, int vertical_justification,
+                                        int font_size);
+/// Sets the text (only if it changed: a new text rebuilds its texture) and the position.
+void set_text(vtkTextActor* actor, const std::string& text, double x, double y);
+
+/// Vertical viridis colour bar in viewport pixel coordinates whose vtkLookupTable matches the CPU
+/// mapping (make_lookup_table); the table is rebuilt only when the range or scale change.
+class ColourBar {
+ public:
+  ColourBar();
+  vtkScalarBarActor* actor() const { return actor_; }
+  /// Range, scale, title and the rectangle (x, y, width, height) [px] of the bar with its labels.
+  void update(const std::array<double, 2>& range, bool log_scale, const std::string& title,
+              double x, double y, double width, double height);
+
+ private:
+  vtkSmartPointer<vtkScalarBarActor> actor_ = vtkSmartPointer<vtkScalarBarActor>::New();
+  std::array<double, 2> range_{0.0, 0.0};
+  bool log_scale_ = false;
+};
+
+/// An OSMesa context with a vtkGenericOpenGLRenderWindow of fixed size on it, a read-back filter
+/// and the PNG encoders, reused across frames. Construct, destroy, update the scene and Render
+/// with vtk_scene_mutex() held; read_back_png without it. The owner adds its vtkRenderers to
+/// window(); they must be destroyed before this object (declare it first).
+class OffscreenWindow {
+ public:
+  OffscreenWindow(int width, int height);
+  ~OffscreenWindow();
+  OffscreenWindow(const OffscreenWindow&) = delete;
+  OffscreenWindow& operator=(const OffscreenWindow&) = delete;
+
+  int width() const { return width_; }
+  int height() const { return height_; }
+  vtkGenericOpenGLRenderWindow* window() const { return window_; }
+  /// Makes the OSMesa context current on the calling thread (at the start of every frame).
+  void make_current() { context_.make_current(); }
+
+  void set_compression_level(int level);  // clamped to 0..9
+  /// A filter: libpng directly with that row filter; std::nullopt: vtkPNGWriter (adaptive).
+  void set_png_filter(std::optional<PngFilter> filter) { png_filter_ = filter; }
+
+  /// Reads back the frame rendered last (without re-rendering) and encodes it as PNG; sets
+  /// timings.read_back_ms and timings.encode_ms.
+  std::vector<unsigned char> read_back_png(FrameTimings& timings);
+
+ private:
+  int width_, height_;
+  OsmesaContext context_;
+  vtkSmartPointer<vtkGenericOpenGLRenderWindow> window_ =
+      vtkSmartPointer<vtkGenericOpenGLRenderWindow>::New();
+  vtkSmartPointer<vtkWindowToImageFilter> read_back_ =
+      vtkSmartPointer<vtkWindowToImageFilter>::New();
+  vtkSmartPointer<vtkPNGWriter> writer_ = vtkSmartPointer<vtkPNGWriter>::New();
+  int compression_level_ = Renderer::kDefaultCompressionLevel;
+  std::optional<PngFilter> png_filter_ = Renderer::kDefaultPngFilter;
+};
+
+/// The calling thread's renderer (Renderer, ParticleRenderer) of this frame size, created on
+/// first use; a few sizes at most are kept per thread and type.
+template <class R>
+R& thread_local_renderer(int width, int height) {
+  constexpr std::size_t kMaxCachedRenderers = 4;
+  thread_local std::vector<std::unique_ptr<R>> renderers;
+  for (const auto& renderer : renderers) {
+    if (renderer->width() == width && renderer->height() == height) return *renderer;
+  }
+  if (renderers.size() >= kMaxCachedRenderers) renderers.erase(renderers.begin());
+  renderers.push_back(std::make_unique<R>(width, height));
+  return *renderers.back();
+}
+
+}  // namespace sphles::render::detail
