@@ -18,6 +18,7 @@
 
 #include "render/lookup_table.hpp"
 #include "render/render.hpp"
+#include "render/view3d.hpp"
 
 namespace sphles::render {
 namespace {
@@ -346,6 +347,247 @@ TEST(WritePngFile, WritesAtomicallyWithoutLeftovers) {
   EXPECT_EQ(std::distance(std::filesystem::directory_iterator(directory), {}), 1);
   EXPECT_THROW(write_png_file(directory / "missing" / "frame.png", bytes), std::system_error);
   std::filesystem::remove_all(directory);
+}
+
+// 3D particle view.
+
+// Particles on an n^3 lattice filling the cube [lo, hi)^3 (in units of the box length).
+struct ParticleBlock {
+  std::vector<double> x, y, z, values;
+  ParticleBlock(int n, double lo, double hi, double length, double value) {
+    const double spacing = (hi - lo) / n * length;
+    for (int k = 0; k < n; ++k) {
+      for (int j = 0; j < n; ++j) {
+        for (int i = 0; i < n; ++i) {
+          x.push_back(lo * length + (i + 0.5) * spacing);
+          y.push_back(lo * length + (j + 0.5) * spacing);
+          z.push_back(lo * length + (k + 0.5) * spacing);
+          values.push_back(value);
+        }
+      }
+    }
+  }
+  ParticleCloud cloud(double length) const { return {x, y, z, values, length, "omega2", "1/s^2"}; }
+};
+
+constexpr double kBox = 6.283185307179586;
+
+TEST(View3d, CentreOfBlockHasTheSlicesColourForItsValue) {
+  ColourMapping mapping;
+  mapping.min = 0.0;
+  mapping.max = 1.0;
+  const double value = 0.3;
+  const ParticleBlock block(24, 0.35, 0.65, kBox, value);
+  constexpr int kWidth = 640, kHeight = 560;
+  const Decoded image =
+      decode(render_particles_png(block.cloud(kBox), mapping, kLabels, kWidth, kHeight));
+  ASSERT_EQ(image.width, kWidth);
+  ASSERT_EQ(image.height, kHeight);
+  ASSERT_GE(image.components, 3);
+
+  const ImageRect rect = particle_view_rect(kWidth, kHeight);
+  const int expected_index = colour_index(value, {0.0, 1.0}, false);
+  const Rgb expected = viridis_table()[expected_index];
+  const Rgb centre = image.at(rect.x + rect.width / 2, rect.y + rect.height / 2);
+  std::printf("centre pixel (%d,%d,%d), expected index %d (%d,%d,%d)\n", centre[0], centre[1],
+              centre[2], expected_index, expected[0], expected[1], expected[2]);
+  EXPECT_LE(std::abs(nearest_table_index(centre) - expected_index), 1);
+  EXPECT_LE(max_channel_difference(centre, expected), 2);
+
+  // The same value in a slice with the same mapping has the same colour.
+  SliceProduct uniform = ramp_slice(16, 16);
+  std::fill(uniform.values.begin(), uniform.values.end(), value);
+  const Decoded slice_image = decode(render_slice_png(uniform, mapping, kLabels, 400, 300));
+  const ImageRect slice_rect = image_rect(400, 300, uniform);
+  EXPECT_EQ(
+      slice_image.at(slice_rect.x + slice_rect.width / 2, slice_rect.y + slice_rect.height / 2),
+      centre);
+
+  // Outside the block's projection (a corner of the view rectangle) the background is white.
+  EXPECT_EQ(image.at(rect.x + 3, rect.y + 3), (Rgb{255, 255, 255}));
+
+  // The colour bar, right of the view rectangle, shows both end colours of the map.
+  const Rgb low = viridis_table().front(), high = viridis_table().back();
+  bool found_low = false, found_high = false;
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
+    for (int x = rect.x + rect.width + 1; x < kWidth; ++x) {
+      found_low = found_low || max_channel_difference(image.at(x, y), low) <= 1;
+      found_high = found_high || max_channel_difference(image.at(x, y), high) <= 1;
+    }
+  }
+  EXPECT_TRUE(found_low);
+  EXPECT_TRUE(found_high);
+}
+
+TEST(View3d, LogScaleAndNanUseTheSlicesMapping) {
+  ColourMapping mapping;
+  mapping.log_scale = true;
+  mapping.min = 1.0;
+  mapping.max = 1000.0;
+  constexpr int kSize = 500;
+  const ImageRect rect = particle_view_rect(kSize, kSize);
+  const int cx = rect.x + rect.width / 2, cy = rect.y + rect.height / 2;
+
+  const ParticleBlock block(16, 0.4, 0.6, 1.0, 10.0);  // one decade of three: index 85
+  const Rgb decade =
+      decode(render_particles_png(block.cloud(1.0), mapping, kLabels, kSize, kSize)).at(cx, cy);
+  const int expected_index = colour_index(10.0, {1.0, 1000.0}, true);
+  EXPECT_NEAR(expected_index, kColourCount / 3, 1);
+  EXPECT_LE(std::abs(nearest_table_index(decade) - expected_index), 1);
+  EXPECT_LE(max_channel_difference(decade, viridis_table()[expected_index]), 2);
+
+  ParticleBlock nan_block = block;
+  std::fill(nan_block.values.begin(), nan_block.values.end(),
+            std::numeric_limits<double>::quiet_NaN());
+  const Rgb nan =
+      decode(render_particles_png(nan_block.cloud(1.0), mapping, kLabels, kSize, kSize)).at(cx, cy);
+  EXPECT_LE(max_channel_difference(nan, Rgb{128, 128, 128}), 1);
+}
+
+TEST(View3d, TwoDimensionalCloudIsDrawnInThePlane) {
+  // A 100 x 100 particle lattice with the value x / L, no z: seen from above, colours increase
+  // from left to right through the centre.
+  constexpr int kSide = 100;
+  std::vector<double> x, y, values;
+  for (int j = 0; j < kSide; ++j) {
+    for (int i = 0; i < kSide; ++i) {
+      x.push_back((i + 0.5) / kSide);
+      y.push_back((j + 0.5) / kSide);
+      values.push_back(x.back());
+    }
+  }
+  ColourMapping mapping;
+  mapping.min = 0.0;
+  mapping.max = 1.0;
+  const ParticleCloud cloud{x, y, {}, values, 1.0, "x", ""};
+  constexpr int kSize = 600;
+  const Decoded image = decode(render_particles_png(cloud, mapping, kLabels, kSize, kSize));
+  ASSERT_EQ(image.width, kSize);
+  const ImageRect rect = particle_view_rect(kSize, kSize);
+  const int cx = rect.x + rect.width / 2, cy = rect.y + rect.height / 2;
+  const int centre = nearest_table_index(image.at(cx, cy));
+  EXPECT_LE(std::abs(centre - colour_index(0.5, {0.0, 1.0}, false)), 3);
+  // Particles are 2-4 px squares on a ~4 px lattice: find the nearest coloured pixel.
+  const auto index_near = [&](int px) {
+    for (int d = 0; d < 4; ++d) {
+      for (const int x_px : {px + d, px - d}) {
+        const Rgb rgb = image.at(x_px, cy);
+        if (rgb != Rgb{255, 255, 255}) return nearest_table_index(rgb);
+      }
+    }
+    return -1;
+  };
+  const int left = index_near(cx - 100), right = index_near(cx + 100);
+  std::printf("2D: indices %d | %d | %d\n", left, centre, right);
+  EXPECT_GE(left, 0);
+  EXPECT_LT(left, centre);
+  EXPECT_GT(right, centre);
+}
+
+TEST(View3d, SameInputGivesIdenticalBytes) {
+  std::vector<double> x, y, z, values;
+  for (int i = 0; i < 4096; ++i) {
+    x.push_back(std::fmod(0.6180339887 * i, 1.0) * kBox);
+    y.push_back(std::fmod(0.7548776662 * i, 1.0) * kBox);
+    z.push_back(std::fmod(0.5698402910 * i, 1.0) * kBox);
+    values.push_back(std::exp(std::sin(0.37 * i)));
+  }
+  const ParticleCloud cloud{x, y, z, values, kBox, "omega2", "1/s^2"};
+  ColourMapping mapping;
+  mapping.log_scale = true;
+  const auto first = render_particles_png(cloud, mapping, kLabels, 480, 400);
+  const auto second = render_particles_png(cloud, mapping, kLabels, 480, 400);
+  EXPECT_EQ(first, second);
+  std::printf("png %zu bytes\n", first.size());
+  ParticleRenderer fresh(480, 400);  // another context renders the same bytes
+  EXPECT_EQ(fresh.render_png(cloud, mapping, kLabels), first);
+  // Not a blank frame: the points show many colours.
+  const Decoded image = decode(first);
+  std::set<int> indices;
+  for (int y_px = 0; y_px < image.height; ++y_px) {
+    for (int x_px = 0; x_px < image.width / 2; ++x_px) {
+      indices.insert(nearest_table_index(image.at(x_px, y_px)));
+    }
+  }
+  EXPECT_GT(indices.size(), 50u);
+}
+
+TEST(View3d, ConcurrentWithSlicesRendersTheSameBytes) {
+  // 3D views and slices from several threads at once (thread_local renderers, one VTK lock).
+  const ParticleBlock block(12, 0.2, 0.8, kBox, 0.0);
+  ParticleBlock ramp = block;
+  for (std::size_t i = 0; i < ramp.values.size(); ++i) ramp.values[i] = ramp.x[i] + ramp.z[i];
+  const ParticleCloud cloud = ramp.cloud(kBox);
+  const SliceProduct slice = ramp_slice(64, 48);
+  const ColourMapping mapping;
+  const auto view_reference = render_particles_png(cloud, mapping, kLabels, 360, 300);
+  const auto slice_reference = render_slice_png(slice, mapping, kLabels, 400, 300);
+  constexpr int kThreads = 3, kFramesPerThread = 3;
+  std::vector<std::vector<unsigned char>> views(kThreads * kFramesPerThread),
+      slices(kThreads * kFramesPerThread);
+  std::vector<std::thread> threads;
+  for (int t = 0; t < kThreads; ++t) {
+    threads.emplace_back([&, t] {
+      for (int f = 0; f < kFramesPerThread; ++f) {
+        views[t * kFramesPerThread + f] = render_particles_png(cloud, mapping, kLabels, 360, 300);
+        slices[t * kFramesPerThread + f] = render_slice_png(slice, mapping, kLabels, 400, 300);
+      }
+    });
+  }
+  for (auto& thread : threads) thread.join();
+  for (const auto& view : views) EXPECT_EQ(view, view_reference);
+  for (const auto& result : slices) EXPECT_EQ(result, slice_reference);
+}
+
+TEST(View3d, MismatchedSpansOrBadBoxThrow) {
+  const std::vector<double> three{0.1, 0.2, 0.3}, two{0.1, 0.2};
+  const ColourMapping mapping;
+  const auto render = [&](const ParticleCloud& cloud) {
+    return render_particles_png(cloud, mapping, kLabels, 200, 200);
+  };
+  EXPECT_THROW(render({two, three, three, three, 1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, two, three, three, 1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, three, two, three, 1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, three, three, two, 1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, three, {}, two, 1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, three, three, three, 0.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(render({three, three, three, three, -1.0, "f", ""}), std::invalid_argument);
+  EXPECT_THROW(
+      render({three, three, three, three, std::numeric_limits<double>::quiet_NaN(), "f", ""}),
+      std::invalid_argument);
+  EXPECT_NO_THROW(render({three, three, three, three, 1.0, "f", ""}));
+  EXPECT_NO_THROW(render({three, three, {}, three, 1.0, "f", ""}));
+  EXPECT_NO_THROW(render({{}, {}, {}, {}, 1.0, "f", ""}));  // empty box
+}
+
+TEST(View3d, WorksWithoutDisplayAndDrawsTheBoxOutline) {
+  unsetenv("DISPLAY");
+  ASSERT_EQ(std::getenv("DISPLAY"), nullptr);
+  const ParticleBlock block(8, 0.45, 0.55, 2.0, 0.5);
+  const auto png = render_particles_png(block.cloud(2.0), ColourMapping{}, kLabels, 320, 240);
+  ASSERT_GT(png.size(), 8u);
+  const unsigned char signature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  EXPECT_TRUE(std::equal(std::begin(signature), std::end(signature), png.begin()));
+  const Decoded image = decode(png);
+  EXPECT_EQ(image.width, 320);
+  EXPECT_EQ(image.height, 240);
+  // Dark grey outline pixels (0.3 of full scale) inside the view rectangle.
+  const ImageRect rect = particle_view_rect(320, 240);
+  int outline = 0;
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
+    for (int x = rect.x; x < rect.x + rect.width; ++x) {
+      outline += max_channel_difference(image.at(x, y), Rgb{77, 77, 77}) <= 3;
+    }
+  }
+  EXPECT_GT(outline, 100);
+}
+
+TEST(View3d, PointSizeFollowsProjectedDensity) {
+  EXPECT_EQ(particle_point_size(32768, 800, 800, false), 3);
+  EXPECT_EQ(particle_point_size(0, 800, 800, false), 4);
+  EXPECT_EQ(particle_point_size(512, 800, 800, false), 4);
+  EXPECT_EQ(particle_point_size(2097152, 800, 800, false), 2);  // 128^3
+  EXPECT_EQ(particle_point_size(65536, 800, 800, true), 2);     // 256^2 in 2D
 }
 
 }  // namespace

@@ -1,0 +1,394 @@
+// ParticleRenderer: the particles as GL points with per-point RGB from the CPU colour mapping, the
+// box outline, a fixed parallel-projection camera, and the slices' title and colour bar style.
+//
+// Two vtkRenderers share the window: a full-window one (white background, title, colour bar)
+// drawn first, and the scene one on the view rectangle (points, outline, axis labels) drawn over
+// it. The camera is computed here rather than with ResetCamera, so that the box always has the
+// same place and size on screen and the axis labels can be placed without a render pass.
+#include "render/view3d.hpp"
+
+#include <vtkActor.h>
+#include <vtkCamera.h>
+#include <vtkCellArray.h>
+#include <vtkFloatArray.h>
+#include <vtkIdTypeArray.h>
+#include <vtkOutlineSource.h>
+#include <vtkPointData.h>
+#include <vtkPoints.h>
+#include <vtkPolyData.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkProperty.h>
+#include <vtkRenderer.h>
+#include <vtkUnsignedCharArray.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <stdexcept>
+
+#include "render/vtk_window.hpp"
+
+namespace sphles::render {
+namespace {
+
+using detail::Clock;
+using detail::elapsed_ms;
+using detail::format_number;
+using detail::kFontSize;
+using detail::kNanColour;
+using detail::kTitleFontSize;
+using detail::make_text;
+using detail::set_text;
+using detail::vtk_scene_mutex;
+
+// Frame layout [px]: title above the view rectangle, colour bar to its right; the box is fitted
+// kLabelRoomX / kLabelRoomY inside the rectangle, leaving room for the axis labels around it.
+constexpr int kMarginTop = 56;
+constexpr int kMarginBottom = 12;
+constexpr int kMarginLeft = 12;
+constexpr int kMarginRight = 130;
+constexpr int kBarGap = 14;
+constexpr int kBarWidth = 110;
+constexpr int kLabelRoomX = 60;  // "z [m]" beside a vertical edge
+constexpr int kLabelRoomY = 36;
+constexpr double kLabelOffset = 16.0;  // label anchor beyond its edge [px]
+
+constexpr double kAzimuthDegrees = 30.0;
+constexpr double kElevationDegrees = 20.0;
+constexpr std::array<double, 3> kOutlineColour = {0.3, 0.3, 0.3};
+constexpr int kMinPointSize = 2, kMaxPointSize = 4;
+
+using Vec3 = std::array<double, 3>;
+
+double dot(const Vec3& a, const Vec3& b) {
+  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+}
+
+// Unit vectors of the fixed camera: from the focal point to the camera, and screen right and up.
+struct View {
+  Vec3 direction, right, up;
+};
+
+View make_view(bool two_dimensional) {
+  if (two_dimensional) return {{0.0, 0.0, 1.0}, {1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}};
+  const double azimuth = kAzimuthDegrees * std::numbers::pi / 180.0;
+  const double elevation = kElevationDegrees * std::numbers::pi / 180.0;
+  const double ca = std::cos(azimuth), sa = std::sin(azimuth);
+  const double ce = std::cos(elevation), se = std::sin(elevation);
+  // Azimuth 0 looks along +y from the -y side with z up; positive azimuth moves the camera
+  // towards +x. right = z x direction, up = direction x right.
+  return {{sa * ce, -ca * ce, se}, {ca, sa, 0.0}, {-sa * se, ca * se, ce}};
+}
+
+// Where the box lands on screen: the view rectangle, the scale and the screen projection.
+struct Layout {
+  ImageRect rect;
+  View view;
+  bool two_dimensional = false;
+  double pixels_per_length = 1.0;  // screen pixels per box length L
+
+  // Pixel position in the view rectangle of the point p (in units of L, relative to the box
+  // centre).
+  std::array<double, 2> project(const Vec3& p) const {
+    return {0.5 * rect.width + pixels_per_length * dot(p, view.right),
+            0.5 * rect.height + pixels_per_length * dot(p, view.up)};
+  }
+};
+
+Layout make_layout(int width, int height, bool two_dimensional) {
+  Layout layout;
+  layout.rect = particle_view_rect(width, height);
+  layout.view = make_view(two_dimensional);
+  layout.two_dimensional = two_dimensional;
+  // Half extents of the projected box (unit side, centred), over its corners.
+  double half_u = 0.0, half_v = 0.0;
+  const double half_z = two_dimensional ? 0.0 : 0.5;
+  for (const double cx : {-0.5, 0.5}) {
+    for (const double cy : {-0.5, 0.5}) {
+      for (const double cz : {-half_z, half_z}) {
+        const Vec3 corner{cx, cy, cz};
+        half_u = std::max(half_u, std::abs(dot(corner, layout.view.right)));
+        half_v = std::max(half_v, std::abs(dot(corner, layout.view.up)));
+      }
+    }
+  }
+  const double inner_width = std::max(1, layout.rect.width - 2 * kLabelRoomX);
+  const double inner_height = std::max(1, layout.rect.height - 2 * kLabelRoomY);
+  layout.pixels_per_length = std::min(inner_width / (2.0 * half_u), inner_height / (2.0 * half_v));
+  return layout;
+}
+
+// Screen area of the projected box [px^2]: a unit cube covers |d_x| + |d_y| + |d_z| in the
+// plane normal to the view direction d, a unit square in the plane z = 0 covers |d_z|.
+double projected_box_area(const Layout& layout) {
+  const Vec3& d = layout.view.direction;
+  const double area =
+      layout.two_dimensional ? std::abs(d[2]) : std::abs(d[0]) + std::abs(d[1]) + std::abs(d[2]);
+  return area * layout.pixels_per_length * layout.pixels_per_length;
+}
+
+int point_size(std::size_t particle_count, const Layout& layout) {
+  if (particle_count == 0) return kMaxPointSize;
+  const double spacing =
+      std::sqrt(projected_box_area(layout) / static_cast<double>(particle_count));
+  return std::clamp(static_cast<int>(std::lround(spacing)), kMinPointSize, kMaxPointSize);
+}
+
+// An edge label: text anchored kLabelOffset beyond the middle of an edge, away from the centre.
+struct EdgeLabel {
+  vtkSmartPointer<vtkTextActor> actor = make_text(VTK_TEXT_CENTERED, VTK_TEXT_CENTERED, kFontSize);
+
+  void place(const std::string& text, const Layout& layout, const Vec3& from, const Vec3& to) {
+    const Vec3 middle{0.5 * (from[0] + to[0]), 0.5 * (from[1] + to[1]), 0.5 * (from[2] + to[2])};
+    const auto anchor = layout.project(middle);
+    const auto centre = layout.project({0.0, 0.0, 0.0});
+    double out_x = anchor[0] - centre[0], out_y = anchor[1] - centre[1];
+    const double norm = std::hypot(out_x, out_y);
+    if (norm > 0.0) {
+      out_x /= norm;
+      out_y /= norm;
+    }
+    vtkTextProperty* property = actor->GetTextProperty();
+    property->SetJustification(out_x > 0.5    ? VTK_TEXT_LEFT
+                               : out_x < -0.5 ? VTK_TEXT_RIGHT
+                                              : VTK_TEXT_CENTERED);
+    property->SetVerticalJustification(out_y > 0.5    ? VTK_TEXT_BOTTOM
+                                       : out_y < -0.5 ? VTK_TEXT_TOP
+                                                      : VTK_TEXT_CENTERED);
+    set_text(actor, text, std::round(anchor[0] + kLabelOffset * out_x),
+             std::round(anchor[1] + kLabelOffset * out_y));
+  }
+};
+
+void validate(const ParticleCloud& cloud) {
+  const std::size_t count = cloud.values.size();
+  if (cloud.x.size() != count || cloud.y.size() != count ||
+      (!cloud.z.empty() && cloud.z.size() != count)) {
+    throw std::invalid_argument(
+        "render_particles_png: x, y, values (and z unless empty) must have one entry per "
+        "particle");
+  }
+  if (!(cloud.box_length > 0.0) || !std::isfinite(cloud.box_length)) {
+    throw std::invalid_argument("render_particles_png: box_length must be positive and finite");
+  }
+}
+
+}  // namespace
+
+ImageRect particle_view_rect(int width, int height) {
+  ImageRect rect;
+  rect.x = kMarginLeft;
+  rect.y = kMarginBottom;
+  rect.width = std::max(1, width - kMarginLeft - kMarginRight);
+  rect.height = std::max(1, height - kMarginTop - kMarginBottom);
+  return rect;
+}
+
+int particle_point_size(std::size_t particle_count, int width, int height, bool two_dimensional) {
+  return point_size(particle_count, make_layout(width, height, two_dimensional));
+}
+
+struct ParticleRenderer::Impl {
+  detail::OffscreenWindow surface;  // first: destroyed after the renderers and actors below
+  FrameTimings timings;
+
+  // Full window: background, title and colour bar.
+  vtkSmartPointer<vtkRenderer> frame = vtkSmartPointer<vtkRenderer>::New();
+  vtkSmartPointer<vtkTextActor> title = make_text(VTK_TEXT_CENTERED, VTK_TEXT_TOP, kTitleFontSize);
+  detail::ColourBar bar;
+
+  // View rectangle: points, box outline and axis labels.
+  vtkSmartPointer<vtkRenderer> scene = vtkSmartPointer<vtkRenderer>::New();
+  vtkSmartPointer<vtkPoints> points = vtkSmartPointer<vtkPoints>::New();
+  vtkSmartPointer<vtkUnsignedCharArray> colours = vtkSmartPointer<vtkUnsignedCharArray>::New();
+  vtkSmartPointer<vtkPolyData> cloud = vtkSmartPointer<vtkPolyData>::New();
+  vtkSmartPointer<vtkPolyDataMapper> cloud_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  vtkSmartPointer<vtkActor> cloud_actor = vtkSmartPointer<vtkActor>::New();
+  vtkSmartPointer<vtkOutlineSource> outline = vtkSmartPointer<vtkOutlineSource>::New();
+  vtkSmartPointer<vtkPolyDataMapper> outline_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  vtkSmartPointer<vtkActor> outline_actor = vtkSmartPointer<vtkActor>::New();
+  std::array<EdgeLabel, 3> axis_labels;
+  std::vector<int> indices;  // colour index per particle
+
+  Impl(int width, int height) : surface(width, height) {
+    frame->SetBackground(1.0, 1.0, 1.0);
+    frame->AddActor2D(title);
+    frame->AddActor2D(bar.actor());
+
+    const ImageRect rect = particle_view_rect(width, height);
+    scene->SetViewport(static_cast<double>(rect.x) / width, static_cast<double>(rect.y) / height,
+                       static_cast<double>(rect.x + rect.width) / width,
+                       static_cast<double>(rect.y + rect.height) / height);
+    scene->SetBackground(1.0, 1.0, 1.0);
+    scene->AutomaticLightCreationOff();
+
+    points->SetDataTypeToFloat();
+    colours->SetNumberOfComponents(3);
+    colours->SetName("colour");
+    cloud->SetPoints(points);
+    cloud->SetVerts(vtkSmartPointer<vtkCellArray>::New());
+    cloud->GetPointData()->SetScalars(colours);
+    cloud_mapper->SetInputData(cloud);
+    cloud_mapper->ScalarVisibilityOn();
+    cloud_mapper->SetScalarModeToUsePointData();
+    cloud_mapper->SetColorModeToDirectScalars();
+    cloud_actor->SetMapper(cloud_mapper);
+    cloud_actor->GetProperty()->LightingOff();
+    cloud_actor->GetProperty()->SetRepresentationToPoints();
+
+    outline_mapper->SetInputConnection(outline->GetOutputPort());
+    outline_mapper->ScalarVisibilityOff();
+    outline_actor->SetMapper(outline_mapper);
+    outline_actor->GetProperty()->LightingOff();
+    outline_actor->GetProperty()->SetColor(kOutlineColour[0], kOutlineColour[1], kOutlineColour[2]);
+    outline_actor->GetProperty()->SetLineWidth(1.0);
+
+    scene->AddActor(outline_actor);
+    scene->AddActor(cloud_actor);
+    for (const EdgeLabel& label : axis_labels) scene->AddActor2D(label.actor);
+
+    surface.window()->AddRenderer(frame);  // drawn first; the scene clears only its viewport
+    surface.window()->AddRenderer(scene);
+  }
+
+  // Colour index per particle and the range: CPU only, done before taking the VTK lock.
+  std::array<double, 2> map_colours(const ParticleCloud& input, const ColourMapping& mapping) {
+    const std::array<double, 2> range = colour_range(input.values, mapping);
+    indices.resize(input.values.size());
+    colour_indices(input.values, range, mapping.log_scale, indices);
+    return range;
+  }
+
+  void update(const ParticleCloud& input, const std::array<double, 2>& range, bool log_scale,
+              const FrameLabels& labels) {
+    const std::size_t count = input.values.size();
+    const bool two_dimensional = input.z.empty();
+    const double length = input.box_length;
+    const Layout layout = make_layout(surface.width(), surface.height(), two_dimensional);
+
+    // Positions, and one vertex cell per particle (rebuilt only when the count changes).
+    points->SetNumberOfPoints(static_cast<vtkIdType>(count));
+    float* xyz = vtkFloatArray::SafeDownCast(points->GetData())->GetPointer(0);
+    for (std::size_t i = 0; i < count; ++i) {
+      xyz[3 * i] = static_cast<float>(input.x[i]);
+      xyz[3 * i + 1] = static_cast<float>(input.y[i]);
+      xyz[3 * i + 2] = two_dimensional ? 0.0f : static_cast<float>(input.z[i]);
+    }
+    points->Modified();
+    if (cloud->GetVerts()->GetNumberOfCells() != static_cast<vtkIdType>(count)) {
+      auto connectivity = vtkSmartPointer<vtkIdTypeArray>::New();
+      connectivity->SetNumberOfValues(static_cast<vtkIdType>(count));
+      for (vtkIdType i = 0; i < static_cast<vtkIdType>(count); ++i) connectivity->SetValue(i, i);
+      auto verts = vtkSmartPointer<vtkCellArray>::New();
+      verts->SetData(1, connectivity);
+      cloud->SetVerts(verts);
+    }
+
+    // Colours: the slices' CPU mapping, as RGB per point.
+    colours->SetNumberOfTuples(static_cast<vtkIdType>(count));
+    unsigned char* rgb = colours->GetPointer(0);
+    const auto& table = viridis_table();
+    for (std::size_t i = 0; i < count; ++i) {
+      const Rgb& colour = indices[i] < 0 ? kNanColour : table[indices[i]];
+      rgb[3 * i] = colour[0];
+      rgb[3 * i + 1] = colour[1];
+      rgb[3 * i + 2] = colour[2];
+    }
+    colours->Modified();
+    cloud->Modified();
+    cloud_actor->GetProperty()->SetPointSize(static_cast<float>(point_size(count, layout)));
+
+    outline->SetBounds(0.0, length, 0.0, length, 0.0, two_dimensional ? 0.0 : length);
+
+    // Camera: parallel projection, the box centre at the middle of the view rectangle.
+    const Vec3 centre{0.5 * length, 0.5 * length, two_dimensional ? 0.0 : 0.5 * length};
+    const double distance = 4.0 * length;
+    const View& view = layout.view;
+    vtkCamera* camera = scene->GetActiveCamera();
+    camera->ParallelProjectionOn();
+    camera->SetFocalPoint(centre[0], centre[1], centre[2]);
+    camera->SetPosition(centre[0] + distance * view.direction[0],
+                        centre[1] + distance * view.direction[1],
+                        centre[2] + distance * view.direction[2]);
+    camera->SetViewUp(view.up[0], view.up[1], view.up[2]);
+    camera->SetParallelScale(0.5 * layout.rect.height / layout.pixels_per_length * length);
+    camera->SetClippingRange(distance - length, distance + length);
+
+    // Axis names beside three silhouette edges (in units of L, relative to the box centre).
+    if (two_dimensional) {
+      axis_labels[0].place("x [m]", layout, {-0.5, -0.5, 0.0}, {0.5, -0.5, 0.0});
+      axis_labels[1].place("y [m]", layout, {-0.5, -0.5, 0.0}, {-0.5, 0.5, 0.0});
+      axis_labels[2].actor->VisibilityOff();
+    } else {
+      axis_labels[0].place("x [m]", layout, {-0.5, -0.5, -0.5}, {0.5, -0.5, -0.5});
+      axis_labels[1].place("y [m]", layout, {0.5, -0.5, -0.5}, {0.5, 0.5, -0.5});
+      axis_labels[2].place("z [m]", layout, {-0.5, -0.5, -0.5}, {-0.5, -0.5, 0.5});
+      axis_labels[2].actor->VisibilityOn();
+    }
+
+    const ImageRect& rect = layout.rect;
+    const std::string bar_title =
+        input.units.empty() ? input.field_name : input.field_name + " [" + input.units + "]";
+    bar.update(range, log_scale, bar_title, rect.x + rect.width + kBarGap, rect.y + kLabelRoomY,
+               kBarWidth, rect.height - 2 * kLabelRoomY);
+    const std::string title_text = labels.case_name + "   t = " + format_number(labels.time) +
+                                   " s   step " + std::to_string(labels.step) + "\n" +
+                                   input.field_name + " on " + std::to_string(count) +
+                                   " particles, box " + format_number(length) + " m";
+    set_text(title, title_text, surface.width() / 2.0, surface.height() - 6.0);
+  }
+};
+
+ParticleRenderer::ParticleRenderer(int width, int height) {
+  const std::lock_guard lock(vtk_scene_mutex());
+  impl_ = std::make_unique<Impl>(width, height);
+}
+ParticleRenderer::~ParticleRenderer() {
+  const std::lock_guard lock(vtk_scene_mutex());
+  impl_.reset();
+}
+int ParticleRenderer::width() const {
+  return impl_->surface.width();
+}
+int ParticleRenderer::height() const {
+  return impl_->surface.height();
+}
+const FrameTimings& ParticleRenderer::last_timings() const {
+  return impl_->timings;
+}
+void ParticleRenderer::set_compression_level(int level) {
+  impl_->surface.set_compression_level(level);
+}
+void ParticleRenderer::set_png_filter(std::optional<PngFilter> filter) {
+  impl_->surface.set_png_filter(filter);
+}
+
+std::vector<unsigned char> ParticleRenderer::render_png(const ParticleCloud& cloud,
+                                                        const ColourMapping& mapping,
+                                                        const FrameLabels& labels) {
+  validate(cloud);
+  Impl& impl = *impl_;
+  auto start = Clock::now();
+  const std::array<double, 2> range = impl.map_colours(cloud, mapping);
+  std::unique_lock lock(vtk_scene_mutex());
+  impl.surface.make_current();
+  impl.update(cloud, range, mapping.log_scale, labels);
+  impl.timings.prepare_ms = elapsed_ms(start);
+
+  start = Clock::now();
+  impl.surface.window()->Render();
+  impl.timings.render_ms = elapsed_ms(start);
+  lock.unlock();
+
+  return impl.surface.read_back_png(impl.timings);
+}
+
+std::vector<unsigned char> render_particles_png(const ParticleCloud& cloud,
+                                                const ColourMapping& mapping,
+                                                const FrameLabels& labels, int width, int height) {
+  return detail::thread_local_renderer<ParticleRenderer>(width, height)
+      .render_png(cloud, mapping, labels);
+}
+
+}  // namespace sphles::render
