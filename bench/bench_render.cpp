@@ -1,6 +1,7 @@
 // Two-panel 1200x600 frames from 256² slices: ms per frame split into CPU colour mapping and
 // scene update, render (vtkRenderWindow::Render), read-back (vtkWindowToImageFilter) and PNG
-// encode. Prints averages over kFrames frames after kWarmUpFrames.
+// encode. Prints averages over kFrames frames after kWarmUpFrames. Then the same split for the
+// 3D particle view: 32³ = 32768 particles in an 800x800 frame.
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "render/render.hpp"
+#include "render/view3d.hpp"
 
 namespace {
 
@@ -18,6 +20,8 @@ using sphles::analysis::SliceProduct;
 using sphles::render::ColourMapping;
 using sphles::render::FrameLabels;
 using sphles::render::FrameTimings;
+using sphles::render::ParticleCloud;
+using sphles::render::ParticleRenderer;
 using sphles::render::Renderer;
 
 constexpr int kSide = 256;
@@ -58,6 +62,52 @@ Totals run(Renderer& renderer, const ColourMapping& mapping, int frames) {
     const FrameLabels labels{"bench", 0.01 * frame, static_cast<std::uint64_t>(100 * frame)};
     const auto start = std::chrono::steady_clock::now();
     const auto png = renderer.render_png(slices, std::span(&mapping, 1), labels);
+    totals.wall_ms +=
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+    const FrameTimings& t = renderer.last_timings();
+    totals.sum.prepare_ms += t.prepare_ms;
+    totals.sum.render_ms += t.render_ms;
+    totals.sum.read_back_ms += t.read_back_ms;
+    totals.sum.encode_ms += t.encode_ms;
+    totals.bytes += png.size();
+  }
+  return totals;
+}
+
+// A jittered 32³ lattice in a 2π box with a Taylor-Green-like vorticity magnitude per particle.
+struct SyntheticCloud {
+  std::vector<double> x, y, z, values;
+  ParticleCloud cloud(double phase) {
+    constexpr int kParticleSide = 32;
+    const double spacing = kTwoPi / kParticleSide;
+    x.clear();
+    y.clear();
+    z.clear();
+    values.clear();
+    for (int k = 0; k < kParticleSide; ++k) {
+      for (int j = 0; j < kParticleSide; ++j) {
+        for (int i = 0; i < kParticleSide; ++i) {
+          const double jitter = 0.1 * std::sin(1.7 * i + 2.3 * j + 3.1 * k + phase);
+          x.push_back((i + 0.5 + jitter) * spacing);
+          y.push_back((j + 0.5 - jitter) * spacing);
+          z.push_back((k + 0.5) * spacing);
+          const double s = std::sin(x.back() + phase) * std::cos(y.back()) * std::cos(z.back());
+          values.push_back(std::exp(3.0 * s));  // > 0
+        }
+      }
+    }
+    return {x, y, z, values, kTwoPi, "omega2", "1/s^2"};
+  }
+};
+
+Totals run_particles(ParticleRenderer& renderer, const ColourMapping& mapping, int frames) {
+  Totals totals;
+  SyntheticCloud data;
+  for (int frame = 0; frame < frames; ++frame) {
+    const ParticleCloud cloud = data.cloud(0.1 * frame);
+    const FrameLabels labels{"bench", 0.01 * frame, static_cast<std::uint64_t>(100 * frame)};
+    const auto start = std::chrono::steady_clock::now();
+    const auto png = renderer.render_png(cloud, mapping, labels);
     totals.wall_ms +=
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
     const FrameTimings& t = renderer.last_timings();
@@ -125,6 +175,26 @@ int main() {
                                            synthetic_slice(SliceField::SubfilterStressNorm, 0.0)};
     sphles::render::write_png_file(
         path, renderer.render_png(slices, std::span(&mapping, 1), FrameLabels{"bench", 1.5, 150}));
+  }
+
+  // 3D particle view.
+  const auto particles_start = std::chrono::steady_clock::now();
+  ParticleRenderer particles(800, 800);
+  const Totals first_view = run_particles(particles, mapping, 1);
+  std::printf(
+      "3D view: context + first frame: %.1f ms (render %.1f ms)\n",
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - particles_start)
+          .count(),
+      first_view.sum.render_ms);
+  run_particles(particles, mapping, kWarmUpFrames - 1);
+  std::printf("3D view 800x800, 32^3 = 32768 particles, log scale, mean of %d frames:\n", kFrames);
+  print("default (libpng, level 1, none)", run_particles(particles, mapping, kFrames), kFrames);
+  print("default, fixed colour range", run_particles(particles, fixed, kFrames), kFrames);
+  // SPHLES_BENCH_VIEW3D_PNG=path writes one 3D view for inspection.
+  if (const char* path = std::getenv("SPHLES_BENCH_VIEW3D_PNG")) {
+    SyntheticCloud data;
+    sphles::render::write_png_file(
+        path, particles.render_png(data.cloud(0.0), mapping, FrameLabels{"bench", 1.5, 150}));
   }
   return 0;
 }
