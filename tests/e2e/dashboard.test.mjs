@@ -1,0 +1,283 @@
+// Browser end-to-end test of the sphles dashboard (ctest: web_e2e, label e2e).
+//
+// Starts the real server (`sphles serve --port 0` on loopback, a fresh data directory), opens the
+// dashboard in Debian's chromium (headless, driven by playwright-core), creates a small 2D
+// Taylor-Green run from the form, and checks what a person would see: the e_v plot gets data, the
+// ω² slice image updates (two decoded images of different steps), pause stops the step count,
+// resume advances it again, stop ends the run; and the page logs no console error.
+//
+//   node tests/e2e/dashboard.test.mjs --sphles build/app/sphles --web web \
+//        [--chromium /usr/bin/chromium] [--screenshot /tmp/dashboard.png]
+// Environment instead of flags: SPHLES_BINARY, SPHLES_WEB, SPHLES_CHROMIUM, SPHLES_SCREENSHOT.
+// Exit 0 when every check passes, 1 with the failed check and the server's output otherwise.
+
+import { spawn } from 'node:child_process';
+import { existsSync, mkdtempSync, rmSync } from 'node:fs';
+import { tmpdir } from 'node:os';
+import { join, resolve } from 'node:path';
+import { createRequire } from 'node:module';
+
+const DEADLINE_MS = 90_000;
+const PARTICLES_PER_SIDE = 24;  // 24² particles: hundreds of steps per second on one core
+const END_TIME = 500;           // [s] far beyond what the test runs: the run cannot finish early
+const ANALYSIS_EVERY = 0.05;    // [s] simulated time between analysis frames (and images)
+
+const started = Date.now();
+const elapsed = () => `${((Date.now() - started) / 1000).toFixed(1)} s`;
+const log = (text) => console.log(`[web_e2e ${elapsed()}] ${text}`);
+
+function option(name, envName, fallback) {
+  const i = process.argv.indexOf(`--${name}`);
+  if (i >= 0 && i + 1 < process.argv.length) return process.argv[i + 1];
+  return process.env[envName] ?? fallback;
+}
+
+const sphles = option('sphles', 'SPHLES_BINARY');
+const webDir = option('web', 'SPHLES_WEB');
+const chromiumPath = option('chromium', 'SPHLES_CHROMIUM', '/usr/bin/chromium');
+const screenshot = option('screenshot', 'SPHLES_SCREENSHOT');
+
+class CheckFailed extends Error {}
+
+let page = null;
+let server = null;
+let serverOutput = '';
+let browser = null;
+let dataDir = null;
+let currentStep = 'setting up';
+const consoleErrors = [];
+const checks = [];
+
+function fail(message) {
+  throw new CheckFailed(message);
+}
+
+function pass(name) {
+  checks.push(name);
+  log(`ok: ${name}`);
+}
+
+function preflight() {
+  const missing = [];
+  if (!sphles || !existsSync(sphles)) missing.push(`sphles binary (--sphles, got ${sphles ?? 'nothing'})`);
+  if (!webDir || !existsSync(join(webDir, 'index.html'))) missing.push(`web directory with index.html (--web, got ${webDir ?? 'nothing'})`);
+  else if (!existsSync(join(webDir, 'vendor', 'uPlot.iife.min.js')))
+    missing.push(`${join(webDir, 'vendor', 'uPlot.iife.min.js')} (build the CMake target web_assets)`);
+  if (!existsSync(chromiumPath)) missing.push(`chromium at ${chromiumPath} (scripts/setup.sh installs Debian's chromium)`);
+  if (missing.length) fail(`missing: ${missing.join('; ')}`);
+}
+
+function loadPlaywright() {
+  const require = createRequire(import.meta.url);
+  try {
+    return require('playwright-core');
+  } catch {
+    fail('playwright-core is not installed in tests/e2e/node_modules: build the CMake target ' +
+      'e2e_node_modules or run `npm ci` in tests/e2e');
+  }
+  return null;
+}
+
+/** Starts `sphles serve` and resolves with its base URL from the "listening on" line. */
+function startServer() {
+  dataDir = mkdtempSync(join(tmpdir(), 'sphles-e2e-'));
+  const args = ['serve', '--port', '0', '--data', join(dataDir, 'data'), '--web', resolve(webDir)];
+  log(`starting ${sphles} ${args.join(' ')}`);
+  server = spawn(sphles, args, {
+    stdio: ['ignore', 'pipe', 'pipe'],
+    env: { ...process.env, XDG_CACHE_HOME: join(dataDir, 'cache') },
+  });
+  return new Promise((resolvePromise, reject) => {
+    const timer = setTimeout(() => reject(new CheckFailed('the server printed no "listening on" line within 20 s')), 20_000);
+    let buffer = '';
+    server.stdout.on('data', (chunk) => {
+      const text = chunk.toString();
+      serverOutput += text;
+      buffer += text;
+      const m = buffer.match(/sphles serve: listening on (http:\/\/\S+?)\/?\s/);
+      if (m) {
+        clearTimeout(timer);
+        resolvePromise(`${m[1]}/`);
+      }
+    });
+    server.stderr.on('data', (chunk) => { serverOutput += chunk.toString(); });
+    server.on('exit', (code, signal) => {
+      clearTimeout(timer);
+      reject(new CheckFailed(`the server exited early (code ${code}, signal ${signal})`));
+    });
+  });
+}
+
+async function stopServer() {
+  if (!server || server.exitCode !== null) return;
+  const exited = new Promise((r) => server.once('exit', r));
+  server.kill('SIGTERM');
+  const timer = setTimeout(() => server.kill('SIGKILL'), 10_000);
+  await exited;
+  clearTimeout(timer);
+}
+
+/** Polls fn() until it returns a truthy value; fails with `what` after timeoutMs. */
+async function waitFor(what, fn, timeoutMs) {
+  currentStep = what;
+  const end = Date.now() + timeoutMs;
+  let last;
+  for (;;) {
+    last = await fn();
+    if (last) return last;
+    if (Date.now() > end) fail(`timed out after ${timeoutMs / 1000} s waiting for: ${what}`);
+    await new Promise((r) => setTimeout(r, 200));
+  }
+}
+
+const text = (page, selector) => page.locator(selector).textContent();
+const stepOf = async (page) => Number(await text(page, '#run-step'));
+
+async function imageState(page) {
+  return page.evaluate(() => {
+    const img = document.getElementById('img-omega2');
+    return { src: img.getAttribute('src') ?? '', step: img.dataset.step ?? '', width: img.naturalWidth, complete: img.complete };
+  });
+}
+
+async function run() {
+  preflight();
+  const { chromium } = loadPlaywright();
+  const base = await startServer();
+  log(`server at ${base}`);
+
+  currentStep = 'launching chromium';
+  browser = await chromium.launch({
+    executablePath: chromiumPath,
+    headless: true,
+    args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+      '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+  });
+  page = await browser.newPage({ viewport: { width: 1440, height: 1500 } });
+  page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(`console: ${m.text()}`); });
+  page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
+
+  currentStep = 'opening the dashboard';
+  await page.goto(base, { waitUntil: 'load' });
+  await waitFor('the server connection to show "ok"', async () =>
+    (await page.locator('#api-state').getAttribute('data-state')) === 'open', 10_000);
+  if (await page.locator('#page-error').isVisible()) fail(`page shows an error: ${await text(page, '#page-error')}`);
+  pass('dashboard loads, REST API reachable, plotting library present');
+
+  // The run form: a 2D Taylor-Green vortex (a server preset, or the dashboard's tgv2d scene).
+  const labels = await waitFor('presets in the form', async () => {
+    const all = await page.locator('#create-preset option').allTextContents();
+    return all.length ? all : null;
+  }, 10_000);
+  const label = labels.find((l) => /tgv2d/i.test(l));
+  if (!label) fail(`no 2D Taylor-Green choice in the run form (options: ${labels.join(', ')})`);
+  await page.selectOption('#create-preset', { label });
+  await page.fill('#create-particles', String(PARTICLES_PER_SIDE));
+  await page.fill('#create-end', String(END_TIME));
+  await page.check('#create-live');
+  await page.fill('#create-every', String(ANALYSIS_EVERY));
+  await page.fill('#create-name', 'e2e-tgv2d');
+  await page.check('#create-start');
+  await page.click('#create-submit');
+  await waitFor('the new run to be selected', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
+  const createStatus = await text(page, '#create-status');
+  if (/refused|error|must|unknown/i.test(createStatus)) fail(`creating the run failed: ${createStatus}`);
+  await waitFor('state "running"', async () => (await text(page, '#run-state')) === 'running', 30_000);
+  pass(`run created from "${label}" with ${PARTICLES_PER_SIDE}² particles and running`);
+
+  await waitFor('the stream connection to open', async () =>
+    (await page.locator('#ws-state').getAttribute('data-state')) === 'open', 10_000);
+  pass('WebSocket stream open');
+
+  const points = await waitFor('the e_v plot to get data (>= 3 samples)', async () => {
+    const n = Number(await page.locator('#chart-energy').getAttribute('data-points'));
+    return n >= 3 ? n : 0;
+  }, 30_000);
+  const morePoints = await waitFor('the e_v plot to grow', async () => {
+    const n = Number(await page.locator('#chart-energy').getAttribute('data-points'));
+    return n > points ? n : 0;
+  }, 15_000);
+  pass(`e_v plot has data and grows (${points} → ${morePoints} samples)`);
+
+  const first = await waitFor('a decoded ω² slice image', async () => {
+    const s = await imageState(page);
+    return s.complete && s.width > 0 && s.step ? s : null;
+  }, 40_000);
+  const second = await waitFor('a second ω² image of a later step', async () => {
+    const s = await imageState(page);
+    return s.complete && s.width > 0 && s.step && s.step !== first.step && s.src !== first.src ? s : null;
+  }, 30_000);
+  pass(`ω² image updated: step ${first.step} → ${second.step} (${second.width} px wide)`);
+
+  if (screenshot) {
+    await page.waitForTimeout(1500);  // let the spectrum and statistics plots fill in
+    await page.screenshot({ path: screenshot, fullPage: true });
+    log(`screenshot: ${screenshot}`);
+  }
+
+  // Pause: the state shows paused and the step count stops.
+  currentStep = 'pausing';
+  await page.click('#btn-pause');
+  await waitFor('state "paused"', async () => (await text(page, '#run-state')) === 'paused', 10_000);
+  await page.waitForTimeout(500);  // metrics in flight before the pause arrive
+  const pausedStep = await stepOf(page);
+  await page.waitForTimeout(2000);
+  const stillStep = await stepOf(page);
+  if (stillStep !== pausedStep) fail(`the step count advanced while paused: ${pausedStep} → ${stillStep}`);
+  if (!(await page.locator('#btn-resume').isEnabled()) || (await page.locator('#btn-pause').isEnabled()))
+    fail('while paused, Resume should be enabled and Pause disabled');
+  pass(`paused: step stays at ${pausedStep} for 2 s, Resume enabled`);
+
+  // Resume: running again and the step count advances.
+  currentStep = 'resuming';
+  await page.click('#btn-resume');
+  await waitFor('state "running" after resume', async () => (await text(page, '#run-state')) === 'running', 10_000);
+  const resumedStep = await waitFor('the step count to advance after resume', async () => {
+    const s = await stepOf(page);
+    return s > pausedStep ? s : 0;
+  }, 15_000);
+  pass(`resumed: step ${pausedStep} → ${resumedStep}`);
+
+  currentStep = 'stopping';
+  await page.click('#btn-stop');
+  await waitFor('state "stopped"', async () => (await text(page, '#run-state')) === 'stopped', 20_000);
+  pass('stopped');
+
+  if (consoleErrors.length) fail(`the page logged errors:\n  ${consoleErrors.join('\n  ')}`);
+  pass('no console errors or uncaught exceptions');
+}
+
+const watchdog = setTimeout(() => {
+  console.error(`web_e2e: FAILED: over the ${DEADLINE_MS / 1000} s limit while ${currentStep}`);
+  if (server && server.exitCode === null) server.kill('SIGKILL');
+  process.exit(1);
+}, DEADLINE_MS);
+
+let exitCode = 0;
+try {
+  await run();
+  console.log(`web_e2e: ${checks.length} checks passed in ${elapsed()}`);
+} catch (e) {
+  exitCode = 1;
+  console.error(`web_e2e: FAILED while ${currentStep}: ${e instanceof CheckFailed ? e.message : e.stack}`);
+  if (consoleErrors.length) console.error(`page errors:\n  ${consoleErrors.join('\n  ')}`);
+  if (page) {
+    const shown = await page.evaluate(() => ['run-state', 'run-step', 'control-status', 'ws-state',
+      'api-state', 'create-status', 'param-status'].map((id) => {
+      const el = document.getElementById(id);
+      return `${id}: ${el ? el.textContent.trim() : '(missing)'}`;
+    })).catch(() => []);
+    if (shown.length) console.error(`page shows:\n  ${shown.join('\n  ')}`);
+  }
+  if (serverOutput) console.error(`--- server output (last 4000 characters) ---\n${serverOutput.slice(-4000)}`);
+} finally {
+  try {
+    if (browser) await browser.close();
+  } catch {
+    // the browser may already be gone
+  }
+  await stopServer();
+  if (dataDir) rmSync(dataDir, { recursive: true, force: true });
+  clearTimeout(watchdog);
+}
+process.exit(exitCode);
