@@ -31,8 +31,10 @@ const TGV2D_SCENE_OPTION = {
   case: 'tgv2d',
   dimension: 2,
   description: 'Decaying 2D Taylor-Green vortex (SPEC §6.2, scene "case": "tgv2d"), Re = 100',
-  scene: {
-    case: 'tgv2d', particles_per_side: 128, kernel: { type: 'wendland_c4' },
+  scene: { case: 'tgv2d' },
+  // Shown in the form only; the server fills in the same defaults.
+  defaults: {
+    particles_per_side: 128, kernel: { type: 'wendland_c4' },
     subfilter: { model: 'implicit', smagorinsky_constant: 0.15 },
     fluid: { sound_speed: 10, reference_pressure: 1 }, time: { end: 2 },
   },
@@ -184,7 +186,7 @@ async function loadPresets() {
   select.replaceChildren(...app.presets.map((p, i) => {
     const o = document.createElement('option');
     o.value = String(i);
-    const n = p.particles_per_side ?? getPath(p.scene, 'particles_per_side');
+    const n = p.particles_per_side ?? getPath(p.defaults, 'particles_per_side');
     const dim = p.dimension ?? (p.case && p.case.includes('2d') ? 2 : 3);
     o.textContent = `${p.builtinScene ? 'scene: ' : ''}${p.name}${n ? ` (${n}${dim === 2 ? '²' : '³'})` : ''}`;
     return o;
@@ -203,15 +205,19 @@ function fillCreateForm() {
   const preset = selectedPreset();
   if (!preset) return;
   $('create-description').textContent = preset.description ?? '';
+  // The preset's scene document holds only what differs from the case defaults; the entry's
+  // own fields and the built-in defaults fill in the rest. Empty inputs keep the preset's value.
   const flat = {
     particles_per_side: preset.particles_per_side,
     'kernel.type': preset.kernel,
     'subfilter.model': preset.subfilter_model,
+    'time.end': preset.end_time,
   };
   for (const input of $('create-form').querySelectorAll('[data-path]')) {
     const path = input.dataset.path;
     let value = getPath(preset.scene, path);
     if (value === undefined) value = flat[path];
+    if (value === undefined) value = getPath(preset.defaults, path);
     const text = value === undefined || value === null ? '' : String(value);
     input.value = text;
     input.dataset.initial = text;
