@@ -219,8 +219,16 @@ async function run() {
   currentStep = 'pausing';
   await page.click('#btn-pause');
   await waitFor('state "paused"', async () => (await text(page, '#run-state')) === 'paused', 10_000);
-  await page.waitForTimeout(500);  // metrics in flight before the pause arrive
-  const pausedStep = await stepOf(page);
+  // The step under way when the pause arrived still completes and its metrics follow: wait
+  // until the count has settled (unchanged for 1 s), then require it to stay put for 2 s.
+  let previous = await stepOf(page);
+  const { pausedStep } = await waitFor('the step count to settle after the pause', async () => {
+    await page.waitForTimeout(1000);
+    const now = await stepOf(page);
+    const settled = now === previous;
+    previous = now;
+    return settled ? { pausedStep: now } : null;
+  }, 10_000);
   await page.waitForTimeout(2000);
   const stillStep = await stepOf(page);
   if (stillStep !== pausedStep) fail(`the step count advanced while paused: ${pausedStep} → ${stillStep}`);
