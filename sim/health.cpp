@@ -58,31 +58,40 @@ PairingStatistics pairing_statistics(const ParticleArrays& p, const NeighbourLis
   PairingStatistics result;
   const std::size_t n = std::min(p.size(), list.num_particles());
   const int dim = p.dimension;
-  std::vector<double> nearest2(n, std::numeric_limits<double>::infinity());
+  constexpr double kNone = std::numeric_limits<double>::infinity();
+  std::vector<double> nearest2(n, kNone), second2(n, kNone);
   const auto signed_n = static_cast<std::ptrdiff_t>(n);
 #pragma omp parallel for schedule(static)
   for (std::ptrdiff_t si = 0; si < signed_n; ++si) {
     const auto i = static_cast<std::size_t>(si);
-    double best = std::numeric_limits<double>::infinity();
+    double r1 = kNone, r2 = kNone;  // squared, r1 <= r2
     for (const std::uint32_t j : list.of(i)) {
-      double r2 = 0.0;
+      double d2 = 0.0;
       for (int d = 0; d < dim; ++d) {
         const double dx =
             minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-        r2 += dx * dx;
+        d2 += dx * dx;
       }
-      if (r2 < best) best = r2;
+      if (d2 < r1) {
+        r2 = r1;
+        r1 = d2;
+      } else if (d2 < r2) {
+        r2 = d2;
+      }
     }
-    nearest2[i] = best;
+    nearest2[i] = r1;
+    second2[i] = r2;
   }
-  const double paired2 = thresholds.pairing_distance * thresholds.pairing_distance;
-  double min2 = std::numeric_limits<double>::infinity();
+  const double distance2 = thresholds.pairing_distance * thresholds.pairing_distance;
+  const double ratio2 = thresholds.pairing_ratio * thresholds.pairing_ratio;
+  const double spacing2 = spacing * spacing;
+  double min2 = kNone;
   for (std::size_t i = 0; i < n; ++i) {
-    const double r2 = nearest2[i] / (spacing * spacing);
-    min2 = std::min(min2, r2);
-    if (r2 < paired2) ++result.paired_count;
+    min2 = std::min(min2, nearest2[i]);
+    if (nearest2[i] < distance2 * spacing2 && nearest2[i] < ratio2 * second2[i])
+      ++result.paired_count;
   }
-  result.min_distance = std::sqrt(min2);
+  result.min_distance = std::sqrt(min2 / spacing2);
   result.paired_fraction =
       n > 0 ? static_cast<double>(result.paired_count) / static_cast<double>(n) : 0.0;
   return result;
@@ -129,7 +138,8 @@ double mean_kinetic_energy(const ParticleArrays& p) {
 double runaway_reference_energy(double initial_energy, double sound_speed,
                                 const BlowUpThresholds& thresholds) {
   const double acoustic_speed = thresholds.reference_mach * sound_speed;
-  return std::max(initial_energy, 0.5 * acoustic_speed * acoustic_speed);
+  return std::max(
+      {initial_energy, thresholds.reference_energy, 0.5 * acoustic_speed * acoustic_speed});
 }
 
 bool is_energy_runaway(double kinetic_energy, double reference_energy,
@@ -174,9 +184,14 @@ HealthReport assess_health(const ParticleArrays& p, const NeighbourList& list,
            << thresholds.blow_up.energy_factor << " x reference " << reference_energy;
   } else if (report.pairing.paired_fraction > thresholds.paired_fraction) {
     report.classification = Classification::Paired;
-    reason << report.pairing.paired_fraction * 100.0 << " % of particles closer than "
-           << thresholds.pairing_distance << " dl to a neighbour (> "
+    reason << report.pairing.paired_fraction * 100.0 << " % of particles paired (nearest "
+           << "neighbour < " << thresholds.pairing_distance << " dl and < "
+           << thresholds.pairing_ratio << " x second nearest; limit "
            << thresholds.paired_fraction * 100.0 << " %)";
+  } else if (report.density.rms > thresholds.noisy_rms_density_deviation) {
+    report.classification = Classification::Noisy;
+    reason << "rms density deviation " << report.density.rms << " > "
+           << thresholds.noisy_rms_density_deviation;
   } else if (report.density.max > thresholds.noisy_max_density_deviation) {
     report.classification = Classification::Noisy;
     reason << "max density deviation " << report.density.max << " > "

@@ -23,9 +23,11 @@ void validate(const SolverConfig& c, const ParticleArrays& p) {
   if (!(c.fluid.reference_density > 0.0) || !(c.fluid.sound_speed > 0.0) ||
       !(c.fluid.dynamic_viscosity >= 0.0))
     throw std::invalid_argument("solver: invalid fluid parameters");
-  if (!(c.blow_up.energy_factor > 1.0) || !(c.blow_up.reference_mach >= 0.0))
+  if (!(c.blow_up.energy_factor > 1.0) || !(c.blow_up.reference_mach >= 0.0) ||
+      !(c.blow_up.reference_energy >= 0.0))
     throw std::invalid_argument(
-        "solver: blow-up thresholds need energy_factor > 1 and reference_mach >= 0");
+        "solver: blow-up thresholds need energy_factor > 1, reference_mach >= 0 and "
+        "reference_energy >= 0");
 }
 
 template <class KernelT>
