@@ -10,7 +10,7 @@ packages=(
   libboost-dev libboost-system-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
-  python3
+  python3 python3-matplotlib
 )
 
 missing=()
