@@ -1,0 +1,302 @@
+#include "server/websocket_session.hpp"
+
+#include <array>
+#include <boost/asio/bind_executor.hpp>
+#include <boost/asio/post.hpp>
+#include <boost/beast/core/bind_handler.hpp>
+#include <boost/beast/core/buffers_to_string.hpp>
+#include <boost/beast/version.hpp>
+#include <boost/beast/websocket.hpp>
+#include <type_traits>
+
+namespace sphles::server {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace net = boost::asio;
+namespace websocket = beast::websocket;
+
+namespace {
+
+template <class... F>
+struct Overloaded : F... {
+  using F::operator()...;
+};
+template <class... F>
+Overloaded(F...) -> Overloaded<F...>;
+
+/// 4-byte big-endian length of the JSON header, then the header (docs/api.md).
+std::string binary_head(const std::string& header) {
+  const auto n = static_cast<std::uint32_t>(header.size());
+  std::string head(4, '\0');
+  head[0] = static_cast<char>((n >> 24) & 0xff);
+  head[1] = static_cast<char>((n >> 16) & 0xff);
+  head[2] = static_cast<char>((n >> 8) & 0xff);
+  head[3] = static_cast<char>(n & 0xff);
+  return head + header;
+}
+
+}  // namespace
+
+WebSocketSession::WebSocketSession(beast::tcp_stream&& stream, std::shared_ptr<control::Run> run,
+                                   StreamRegistry& registry, net::any_io_executor workers,
+                                   StreamLimits limits, bool authorised)
+    : ws_(std::move(stream)),
+      run_(std::move(run)),
+      registry_(registry),
+      workers_(std::move(workers)),
+      limits_(limits),
+      authorised_(authorised) {}
+
+WebSocketSession::~WebSocketSession() {
+  if (queue_) queue_->close();
+  if (observer_) run_->remove_observer(observer_.get());
+  registry_.remove(*this);
+}
+
+void WebSocketSession::start(http::request<http::string_body> upgrade) {
+  // The websocket stream keeps its own timers: handshake 30 s, idle pings.
+  beast::get_lowest_layer(ws_).expires_never();
+  ws_.set_option(websocket::stream_base::timeout::suggested(beast::role_type::server));
+  ws_.set_option(websocket::stream_base::decorator([](websocket::response_type& res) {
+    res.set(http::field::server, "sphles/" SPHLES_VERSION);
+  }));
+  ws_.read_message_max(limits_.max_incoming);
+  ws_.auto_fragment(false);
+  ws_.async_accept(upgrade,
+                   beast::bind_front_handler(&WebSocketSession::on_accept, shared_from_this()));
+}
+
+void WebSocketSession::on_accept(beast::error_code ec) {
+  if (ec) return finish();
+  // The wake posts to this session's strand and holds it only weakly: the run's threads never
+  // own (and so never destroy) a session.
+  std::weak_ptr<WebSocketSession> weak = weak_from_this();
+  auto executor = ws_.get_executor();
+  queue_ = std::make_shared<ClientQueue>(limits_, [weak, executor] {
+    net::post(executor, [weak] {
+      if (auto self = weak.lock()) self->on_wake();
+    });
+  });
+  observer_ = std::make_shared<QueueObserver>(queue_);
+  registry_.add(shared_from_this());
+  run_->add_observer(observer_);  // from here on, items queue up behind the hello
+
+  nlohmann::json hello = {{"type", "hello"},
+                          {"run", run_detail_json(*run_, registry_.counters(run_->id()))}};
+  out_head_ = dump(hello);
+  out_png_.reset();
+  writing_ = true;
+  ws_.text(true);
+  ws_.async_write(net::buffer(out_head_),
+                  beast::bind_front_handler(&WebSocketSession::on_write, shared_from_this()));
+  do_read();
+}
+
+void WebSocketSession::on_wake() {
+  if (started_ && !writing_ && !closing_) send_next();
+}
+
+void WebSocketSession::send_next() {
+  std::optional<QueuedItem> item = queue_->pop();
+  if (!item) {
+    writing_ = false;
+    return;
+  }
+  writing_ = true;
+  out_png_.reset();
+  bool binary = false;
+  try {
+    std::visit(Overloaded{
+                   [&](QueuedText& t) { out_head_ = std::move(t.text); },
+                   [&](QueuedMetrics& m) {
+                     nlohmann::json samples = nlohmann::json::array();
+                     for (const control::MetricsSample& s : m.samples)
+                       samples.push_back(metrics_json(s));
+                     out_head_ = dump({{"type", "metrics"}, {"samples", std::move(samples)}});
+                   },
+                   [&](QueuedSpectrum& s) {
+                     nlohmann::json body = *spectrum_json(*s.frame);
+                     body["type"] = "spectrum";
+                     out_head_ = dump(body);
+                   },
+                   [&](QueuedStatistics& s) {
+                     nlohmann::json body = *statistics_json(*s.frame);
+                     body["type"] = "statistics";
+                     out_head_ = dump(body);
+                   },
+                   [&](control::ImageEvent& image) {
+                     out_head_ = binary_head(dump(image_header_json(run_->id(), image)));
+                     out_png_ = std::move(image.png);
+                     binary = true;
+                   },
+               },
+               *item);
+  } catch (const std::exception& e) {
+    out_head_ = dump({{"type", "error"}, {"error", error_json(ApiError(500, e.what()))["error"]}});
+    binary = false;
+  }
+  ws_.binary(binary);
+  const std::array<net::const_buffer, 2> buffers{
+      net::buffer(out_head_), out_png_ ? net::buffer(*out_png_) : net::const_buffer()};
+  ws_.async_write(buffers,
+                  beast::bind_front_handler(&WebSocketSession::on_write, shared_from_this()));
+}
+
+void WebSocketSession::on_write(beast::error_code ec, std::size_t) {
+  out_png_.reset();
+  if (ec) return finish();
+  started_ = true;
+  if (closing_) {
+    writing_ = false;
+    return do_close();
+  }
+  send_next();
+}
+
+void WebSocketSession::close() {
+  if (queue_) queue_->close();
+  net::post(ws_.get_executor(), [self = shared_from_this()] {
+    self->closing_ = true;
+    if (!self->writing_) self->do_close();
+  });
+}
+
+void WebSocketSession::do_close() {
+  if (close_sent_ || finished_) return;
+  close_sent_ = true;
+  if (!ws_.is_open()) return finish();
+  ws_.async_close(websocket::close_code::going_away,
+                  [self = shared_from_this()](beast::error_code) { self->finish(); });
+}
+
+void WebSocketSession::do_read() {
+  ws_.async_read(in_, beast::bind_front_handler(&WebSocketSession::on_read, shared_from_this()));
+}
+
+void WebSocketSession::on_read(beast::error_code ec, std::size_t) {
+  if (ec) return finish();
+  if (ws_.got_text())
+    handle_message(beast::buffers_to_string(in_.data()));
+  else
+    reply_error(ApiError(400, "message: binary messages are not accepted"));
+  in_.consume(in_.size());
+  do_read();
+}
+
+void WebSocketSession::reply_error(const ApiError& error) {
+  queue_->push_text(dump({{"type", "error"}, {"error", error_json(error)["error"]}}));
+}
+
+void WebSocketSession::handle_message(const std::string& text) {
+  try {
+    const nlohmann::json message = parse_client_json(text, "message");
+    if (!message.is_object()) throw ApiError(400, "message: must be a JSON object");
+    const auto type = message.find("type");
+    if (type == message.end() || !type->is_string())
+      throw ApiError(400, "'type' must be a string: parameters or images", "type");
+    const std::string& kind = type->get_ref<const std::string&>();
+    const auto only = [&](std::initializer_list<const char*> keys) {
+      for (const auto& [key, value] : message.items()) {
+        bool known = false;
+        for (const char* k : keys) known |= key == k;
+        if (!known)
+          throw ApiError(400, "'" + key + "' is not a field of a '" + kind + "' message", key);
+      }
+    };
+    if (kind == "parameters") {
+      only({"type", "patch"});
+      if (!authorised_)
+        throw ApiError(401, "parameter changes need the token (connect with ?token=TOKEN)");
+      const auto patch = message.find("patch");
+      if (patch == message.end() || !patch->is_object())
+        throw ApiError(400, "'patch' must be a JSON object (a merge patch over the scene)",
+                       "patch");
+      // apply_changes validates the whole scene: off the I/O threads.
+      net::post(workers_, [run = run_, queue = queue_, patch = *patch] {
+        try {
+          const std::vector<std::string> changed = run->apply_changes(patch);
+          queue->push_text(
+              dump({{"type", "changed"}, {"changed", changed}, {"effective", "next step"}}));
+        } catch (const std::exception& e) {
+          queue->push_text(
+              dump({{"type", "error"}, {"error", error_json(to_api_error(e))["error"]}}));
+        }
+      });
+    } else if (kind == "images") {
+      only({"type", "enabled"});
+      const auto enabled = message.find("enabled");
+      if (enabled == message.end() || !enabled->is_boolean())
+        throw ApiError(400, "'enabled' must be true or false", "enabled");
+      queue_->set_images_enabled(enabled->get<bool>());
+    } else {
+      throw ApiError(400, "'type' must be one of: parameters, images (got '" + kind + "')", "type");
+    }
+  } catch (const ApiError& e) {
+    reply_error(e);
+  } catch (const std::exception& e) {
+    reply_error(to_api_error(e));
+  }
+}
+
+void WebSocketSession::finish() {
+  if (finished_) return;
+  finished_ = true;
+  if (queue_) queue_->close();
+  if (observer_) {
+    // Removing may wait for the run's current callback; do it off the I/O thread.
+    net::post(workers_,
+              [run = run_, observer = observer_] { run->remove_observer(observer.get()); });
+  }
+  registry_.remove(*this);
+}
+
+// ---------------------------------------------------------------------------------------------
+
+void StreamRegistry::add(const std::shared_ptr<WebSocketSession>& session) {
+  std::lock_guard lock(mutex_);
+  live_[session.get()] = Entry{session->run()->id(), session, session->queue()};
+}
+
+void StreamRegistry::remove(const WebSocketSession& session) {
+  std::lock_guard lock(mutex_);
+  const auto it = live_.find(&session);
+  if (it == live_.end()) return;
+  closed_dropped_[it->second.run_id] += it->second.queue->images_dropped();
+  live_.erase(it);
+}
+
+StreamCounters StreamRegistry::counters(const std::string& run_id) const {
+  std::lock_guard lock(mutex_);
+  StreamCounters c;
+  if (const auto it = closed_dropped_.find(run_id); it != closed_dropped_.end())
+    c.dropped = it->second;
+  for (const auto& [session, entry] : live_) {
+    if (entry.run_id != run_id) continue;
+    ++c.clients;
+    c.dropped += entry.queue->images_dropped();
+  }
+  return c;
+}
+
+std::size_t StreamRegistry::size() const {
+  std::lock_guard lock(mutex_);
+  return live_.size();
+}
+
+void StreamRegistry::close_all() {
+  std::vector<std::shared_ptr<WebSocketSession>> sessions;
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& [key, entry] : live_) {
+      entry.queue->close();
+      if (auto s = entry.session.lock()) sessions.push_back(std::move(s));
+    }
+  }
+  for (const auto& s : sessions) {
+    s->run()->remove_observer(s->observer().get());
+    s->close();
+  }
+}
+
+}  // namespace sphles::server
