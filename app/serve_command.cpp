@@ -1,0 +1,182 @@
+// sphles serve: the HTTP/WebSocket service (server/) over a run manager (control/).
+#include <algorithm>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/signal_set.hpp>
+#include <csignal>
+#include <cstdio>
+#include <filesystem>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "app/commands.hpp"
+#include "control/run_manager.hpp"
+#include "server/http_server.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::app {
+
+namespace {
+
+class UsageError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+struct ServeOptions {
+  server::ServerOptions server;
+  control::ManagerOptions manager;
+  std::optional<std::string> start_run;  // preset name or scene file
+  std::vector<std::string> overrides;    // --set, for --start-run
+};
+
+int parse_int(const std::string& option, const std::string& text, int min, int max) {
+  std::size_t used = 0;
+  int value = 0;
+  try {
+    value = std::stoi(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used == 0 || used != text.size() || value < min || value > max)
+    throw UsageError(option + " must be an integer in [" + std::to_string(min) + ", " +
+                     std::to_string(max) + "], got '" + text + "'");
+  return value;
+}
+
+ServeOptions parse_serve_options(const std::vector<std::string>& args) {
+  ServeOptions o;
+  o.server.web_root = SPHLES_WEB_DIR;
+  o.manager.data_directory = "sphles-data";
+  for (std::size_t k = 0; k < args.size(); ++k) {
+    const std::string& a = args[k];
+    const auto value = [&]() -> const std::string& {
+      if (k + 1 >= args.size()) throw UsageError(a + " needs a value");
+      return args[++k];
+    };
+    if (a == "--port")
+      o.server.port = static_cast<unsigned short>(parse_int(a, value(), 0, 65535));
+    else if (a == "--bind")
+      o.server.address = value();
+    else if (a == "--data")
+      o.manager.data_directory = value();
+    else if (a == "--token")
+      o.server.token = value();
+    else if (a == "--web")
+      o.server.web_root = value();
+    else if (a == "--max-running")
+      o.manager.max_running = parse_int(a, value(), 1, 1024);
+    else if (a == "--threads")
+      o.manager.run_options.threads = parse_int(a, value(), 0, 1024);
+    else if (a == "--start-run")
+      o.start_run = value();
+    else if (a == "--set")
+      o.overrides.push_back(value());
+    else
+      throw UsageError("unknown option '" + a + "'");
+  }
+  if (o.server.token.empty() && std::find(args.begin(), args.end(), "--token") != args.end())
+    throw UsageError("--token must not be empty");
+  if (!o.overrides.empty() && !o.start_run) throw UsageError("--set needs --start-run");
+  return o;
+}
+
+control::CreateRequest start_request(const std::string& scene_or_preset,
+                                     const std::vector<std::string>& overrides) {
+  control::CreateRequest request;
+  const auto presets = sim::preset_names();
+  if (std::filesystem::exists(scene_or_preset))
+    request.scene = sim::read_scene_file(scene_or_preset);
+  else if (std::find(presets.begin(), presets.end(), scene_or_preset) != presets.end())
+    request.preset = scene_or_preset;
+  else
+    throw UsageError("--start-run: '" + scene_or_preset +
+                     "' is neither a scene file nor a preset (see 'sphles presets')");
+  request.overrides = overrides;
+  request.start = true;
+  return request;
+}
+
+}  // namespace
+
+int serve_command(const std::vector<std::string>& args) {
+  ServeOptions options;
+  try {
+    options = parse_serve_options(args);
+  } catch (const UsageError& e) {
+    std::fprintf(stderr,
+                 "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
+                 "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--threads N] "
+                 "[--start-run PRESET|SCENE.json [--set key=value ...]]\n",
+                 e.what());
+    return kExitUsage;
+  }
+
+  // Signals are handled by the io_context below; block nothing, but install before any thread
+  // starts so that every thread sees the same disposition.
+  boost::asio::io_context signals_context;
+  boost::asio::signal_set signals(signals_context, SIGINT, SIGTERM);
+
+  std::optional<control::RunManager> manager;
+  try {
+    manager.emplace(options.manager);
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles serve: cannot open the data directory %s: %s\n",
+                 options.manager.data_directory.c_str(), e.what());
+    return kExitFailure;
+  }
+  std::fprintf(stderr, "sphles serve: data directory %s, %zu run(s) found\n",
+               options.manager.data_directory.c_str(), manager->list().size());
+
+  if (options.start_run) {
+    try {
+      const auto run = manager->create(start_request(*options.start_run, options.overrides));
+      std::fprintf(stderr, "sphles serve: started run %s (%s)\n", run->id().c_str(),
+                   options.start_run->c_str());
+    } catch (const UsageError& e) {
+      std::fprintf(stderr, "sphles serve: %s\n", e.what());
+      return kExitUsage;
+    } catch (const sim::SceneError& e) {
+      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run->c_str(),
+                   e.what());
+      return kExitUsage;
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run->c_str(),
+                   e.what());
+      return kExitFailure;
+    }
+  }
+
+  server::HttpServer http(*manager, options.server);
+  try {
+    http.start();
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles serve: %s\n", e.what());
+    manager->shutdown();
+    return kExitFailure;
+  }
+  if (!std::filesystem::is_directory(options.server.web_root))
+    std::fprintf(stderr, "sphles serve: warning: web root %s does not exist (API only)\n",
+                 options.server.web_root.c_str());
+  if (!options.server.token.empty())
+    std::fprintf(stderr, "sphles serve: mutating calls need 'Authorization: Bearer <token>'\n");
+  std::printf("sphles serve: listening on %s\n", http.url().c_str());
+  std::fflush(stdout);
+
+  int received = 0;
+  signals.async_wait([&](const boost::system::error_code& ec, int signal_number) {
+    if (!ec) received = signal_number;
+  });
+  signals_context.run();
+
+  std::fprintf(stderr, "sphles serve: signal %d: stopping runs (checkpoints) and the server\n",
+               received);
+  http.stop_accepting();
+  manager->shutdown();  // every active run writes a checkpoint and is marked stopped
+  http.stop();
+  manager.reset();
+  std::fprintf(stderr, "sphles serve: stopped\n");
+  return kExitOk;
+}
+
+}  // namespace sphles::app

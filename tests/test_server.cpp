@@ -1,0 +1,1277 @@
+// Integration tests of the sphles service (server/) against real servers on ephemeral loopback
+// ports, driving real runs (tiny 2D Taylor-Green scenes) through the REST API and WebSocket
+// streams of docs/api.md. Clients are Boost.Beast / raw sockets; nothing is mocked.
+#include <gtest/gtest.h>
+
+#include <sys/socket.h>
+#include <sys/time.h>
+#include <unistd.h>
+#include <array>
+#include <boost/asio/connect.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/read.hpp>
+#include <boost/asio/write.hpp>
+#include <boost/beast/core.hpp>
+#include <boost/beast/http.hpp>
+#include <boost/beast/websocket.hpp>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <map>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <random>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "control/run_manager.hpp"
+#include "server/client_queue.hpp"
+#include "server/http_server.hpp"
+#include "server/routes.hpp"
+#include "server/static_files.hpp"
+#include "server/url.hpp"
+
+namespace {
+
+namespace beast = boost::beast;
+namespace http = beast::http;
+namespace net = boost::asio;
+namespace websocket = beast::websocket;
+namespace fs = std::filesystem;
+using tcp = net::ip::tcp;
+using nlohmann::json;
+using namespace std::chrono_literals;
+using sphles::server::HttpServer;
+using sphles::server::ServerOptions;
+
+constexpr std::string_view kPngSignature("\x89PNG\r\n\x1a\n", 8);
+constexpr const char* kSecret = "top-secret-outside-the-web-root";
+
+// --- scenes --------------------------------------------------------------------------------
+
+/// A 16² 2D Taylor-Green run without packing: thousands of steps per second on one thread.
+json tiny_scene(double end_time = 1000.0, const std::string& name = "tiny") {
+  return {{"name", name},
+          {"case", "tgv2d"},
+          {"particles_per_side", 16},
+          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+          {"packing", {{"enabled", false}}},
+          {"time", {{"end", end_time}}}};
+}
+
+/// The same with analysis (spectrum, slices, statistics) and rendered ω² images.
+json rendered_scene(double end_time = 1000.0) {
+  json scene = tiny_scene(end_time, "rendered");
+  scene["analysis"] = {{"every", 0.05},
+                       {"products", {"energy", "spectrum", "slices", "sfs_stats"}},
+                       {"slice", {{"fields", {"omega2", "tau_sfs"}}}}};
+  scene["render"] = {{"fields", {"omega2"}}, {"width", 128}, {"height", 64}};
+  return scene;
+}
+
+// --- scratch directories and servers ---------------------------------------------------------
+
+fs::path scratch(const std::string& name) {
+  static int counter = 0;
+  const fs::path dir =
+      fs::temp_directory_path() / ("sphles-server-test-" + std::to_string(::getpid()) + "-" +
+                                   std::to_string(counter++) + "-" + name);
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+/// A web root with a few files, a secret next to it and a symbolic link pointing out of it.
+fs::path make_web_root(const fs::path& base) {
+  fs::remove_all(base);
+  const fs::path web = base / "web";
+  fs::create_directories(web / "sub");
+  std::ofstream(web / "index.html") << "<!doctype html><title>sphles</title>";
+  std::ofstream(web / "app.js") << "console.log('sphles');";
+  std::ofstream(web / "sub" / "style.css") << "body{}";
+  std::ofstream(web / ".hidden") << "hidden";
+  std::ofstream(base / "secret.txt") << kSecret;
+  fs::create_directory_symlink(base, web / "escape");
+  return web;
+}
+
+struct TestServer {
+  explicit TestServer(fs::path data, std::string token = "", int max_running = 2)
+      : data_directory(std::move(data)) {
+    sphles::control::ManagerOptions m;
+    m.data_directory = data_directory;
+    m.max_running = max_running;
+    m.run_options.threads = 1;
+    m.run_options.metrics_batch_seconds = 0.05;
+    manager = std::make_unique<sphles::control::RunManager>(m);
+    ServerOptions o;
+    o.address = "127.0.0.1";
+    o.port = 0;
+    o.token = std::move(token);
+    o.web_root = make_web_root(data_directory.parent_path() /
+                               (data_directory.filename().string() + "-site"));
+    http = std::make_unique<HttpServer>(*manager, o);
+    http->start();
+  }
+  ~TestServer() { shutdown(); }
+  void shutdown() {
+    if (http) http->stop_accepting();
+    if (manager) manager->shutdown();
+    http.reset();
+    manager.reset();
+  }
+  unsigned short port() const { return http->port(); }
+
+  fs::path data_directory;
+  std::unique_ptr<sphles::control::RunManager> manager;
+  std::unique_ptr<HttpServer> http;
+};
+
+// --- HTTP client -----------------------------------------------------------------------------
+
+void set_socket_timeout(tcp::socket& socket, std::chrono::milliseconds timeout) {
+  timeval tv{};
+  tv.tv_sec = static_cast<time_t>(timeout.count() / 1000);
+  tv.tv_usec = static_cast<suseconds_t>((timeout.count() % 1000) * 1000);
+  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv);
+  ::setsockopt(socket.native_handle(), SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+}
+
+struct Reply {
+  int status = 0;
+  std::map<std::string, std::string> headers;  // lower-case names
+  std::string body;
+  json body_json() const { return json::parse(body); }
+  std::string header(const std::string& name) const {
+    const auto it = headers.find(name);
+    return it == headers.end() ? "" : it->second;
+  }
+};
+
+struct Request {
+  Request(http::verb m, std::string t, std::string b = "", std::string type = "application/json",
+          std::vector<std::pair<std::string, std::string>> h = {})
+      : method(m),
+        target(std::move(t)),
+        body(std::move(b)),
+        content_type(std::move(type)),
+        headers(std::move(h)) {}
+  http::verb method;
+  std::string target;
+  std::string body;
+  std::string content_type;
+  std::vector<std::pair<std::string, std::string>> headers;
+};
+
+Reply send(unsigned short port, const Request& r) {
+  net::io_context ioc;
+  tcp::socket socket(ioc);
+  socket.connect({net::ip::make_address("127.0.0.1"), port});
+  set_socket_timeout(socket, 30s);
+  http::request<http::string_body> req{r.method, r.target, 11};
+  req.set(http::field::host, "127.0.0.1");
+  if (!r.body.empty()) req.set(http::field::content_type, r.content_type);
+  for (const auto& [name, value] : r.headers) req.set(name, value);
+  req.body() = r.body;
+  req.prepare_payload();
+  http::write(socket, req);
+  beast::flat_buffer buffer;
+  http::response_parser<http::string_body> parser;
+  parser.body_limit(256u << 20);
+  parser.skip(r.method == http::verb::head);  // a HEAD response has a length but no body
+  http::read(socket, buffer, parser);
+  const auto& res = parser.get();
+  Reply reply;
+  reply.status = static_cast<int>(res.result_int());
+  for (const auto& field : res) {
+    std::string name(field.name_string());
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    reply.headers[name] = std::string(field.value());
+  }
+  reply.body = res.body();
+  return reply;
+}
+
+struct Api {
+  explicit Api(unsigned short p, std::string t = "") : port(p), token(std::move(t)) {}
+  unsigned short port;
+  std::string token;
+
+  Request with_token(Request r) const {
+    if (!token.empty()) r.headers.emplace_back("Authorization", "Bearer " + token);
+    return r;
+  }
+  Reply get(const std::string& target) const { return send(port, {http::verb::get, target}); }
+  Reply post(const std::string& target, const json& body = nullptr) const {
+    return send(port, with_token({http::verb::post, target, body.is_null() ? "" : body.dump()}));
+  }
+  Reply patch(const std::string& target, const json& body) const {
+    return send(port, with_token({http::verb::patch, target, body.dump()}));
+  }
+  json run(const std::string& id) const {
+    const Reply r = get("/api/runs/" + id);
+    EXPECT_EQ(r.status, 200) << r.body;
+    return r.body_json();
+  }
+  std::string create(const json& request) const {
+    const Reply r = post("/api/runs", request);
+    EXPECT_EQ(r.status, 201) << r.body;
+    return r.body_json().value("id", "");
+  }
+};
+
+/// Sends bytes on a fresh connection, optionally half-closes, and returns everything the server
+/// sends until it closes (or the timeout).
+std::string raw_exchange(unsigned short port, const std::string& bytes, bool half_close = true,
+                         std::chrono::milliseconds timeout = 10s) {
+  net::io_context ioc;
+  tcp::socket socket(ioc);
+  socket.connect({net::ip::make_address("127.0.0.1"), port});
+  set_socket_timeout(socket, timeout);
+  beast::error_code ec;
+  net::write(socket, net::buffer(bytes), ec);
+  if (half_close) socket.shutdown(tcp::socket::shutdown_send, ec);
+  std::string received;
+  std::array<char, 8192> chunk{};
+  while (true) {
+    const std::size_t n = socket.read_some(net::buffer(chunk), ec);
+    received.append(chunk.data(), n);
+    if (ec) break;
+  }
+  return received;
+}
+
+int status_of(const std::string& raw) {
+  if (raw.rfind("HTTP/1.", 0) != 0 || raw.size() < 12) return 0;
+  return std::atoi(raw.substr(9, 3).c_str());
+}
+
+std::string body_of(const std::string& raw) {
+  const std::size_t end = raw.find("\r\n\r\n");
+  return end == std::string::npos ? "" : raw.substr(end + 4);
+}
+
+// --- WebSocket client ------------------------------------------------------------------------
+
+struct WsMessage {
+  bool binary = false;
+  std::string data;
+  json text() const { return json::parse(data); }
+};
+
+class WsClient {
+ public:
+  WsClient(unsigned short port, const std::string& target) : ws_(ioc_) {
+    tcp::socket& socket = ws_.next_layer();
+    socket.connect({net::ip::make_address("127.0.0.1"), port});
+    set_socket_timeout(socket, 30s);
+    ws_.read_message_max(64u << 20);
+    ws_.handshake(response_, "127.0.0.1", target);
+  }
+  ~WsClient() {
+    beast::error_code ec;
+    ws_.close(websocket::close_code::normal, ec);
+  }
+  WsMessage read() {
+    beast::flat_buffer buffer;
+    ws_.read(buffer);
+    return {ws_.got_binary(), beast::buffers_to_string(buffer.data())};
+  }
+  /// Reads until `accept` is true for a message; fails the test after `timeout`.
+  WsMessage read_until(const std::function<bool(const WsMessage&)>& accept,
+                       std::chrono::seconds timeout = 30s) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (std::chrono::steady_clock::now() < deadline) {
+      WsMessage m = read();
+      if (accept(m)) return m;
+    }
+    ADD_FAILURE() << "no matching WebSocket message within " << timeout.count() << " s";
+    return {};
+  }
+  WsMessage read_type(const std::string& type, std::chrono::seconds timeout = 30s) {
+    return read_until(
+        [&](const WsMessage& m) { return !m.binary && m.text().value("type", "") == type; },
+        timeout);
+  }
+  void send(const json& message) { ws_.write(net::buffer(message.dump())); }
+  void send_raw(const std::string& text, bool binary = false) {
+    ws_.binary(binary);
+    ws_.write(net::buffer(text));
+    ws_.text(true);
+  }
+
+ private:
+  net::io_context ioc_;
+  websocket::stream<tcp::socket> ws_;
+  websocket::response_type response_;
+};
+
+/// Status of the answer to a WebSocket upgrade request (101 when accepted). Raw, because
+/// Beast 1.74's client handshake does not hand out the response when it is declined.
+int upgrade_status(unsigned short port, const std::string& target) {
+  const std::string raw = raw_exchange(port,
+                                       "GET " + target +
+                                           " HTTP/1.1\r\nHost: 127.0.0.1\r\n"
+                                           "Connection: Upgrade\r\nUpgrade: websocket\r\n"
+                                           "Sec-WebSocket-Version: 13\r\n"
+                                           "Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+                                       true, 5s);
+  return status_of(raw);
+}
+
+bool wait_until(const std::function<bool()>& condition, std::chrono::milliseconds timeout = 30s) {
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (condition()) return true;
+    std::this_thread::sleep_for(20ms);
+  }
+  return condition();
+}
+
+void expect_error(const Reply& r, int status, const std::optional<std::string>& field = {}) {
+  EXPECT_EQ(r.status, status) << r.body;
+  ASSERT_NE(r.header("content-type").find("application/json"), std::string::npos) << r.body;
+  const json body = r.body_json();
+  ASSERT_TRUE(body.contains("error")) << r.body;
+  EXPECT_EQ(body["error"]["status"], status);
+  EXPECT_FALSE(body["error"]["message"].get<std::string>().empty());
+  if (field) {
+    EXPECT_EQ(body["error"]["field"], *field) << r.body;
+  }
+}
+
+// =============================================================================================
+
+TEST(Server, HealthAndVersion) {
+  TestServer server(scratch("health") / "data");
+  const Reply r = Api{server.port()}.get("/api/health");
+  ASSERT_EQ(r.status, 200);
+  EXPECT_EQ(r.header("content-type"), "application/json");
+  const json body = r.body_json();
+  EXPECT_EQ(body["status"], "ok");
+  EXPECT_EQ(body["version"], "0.1.0");
+  EXPECT_EQ(body["runs"], 0);
+}
+
+TEST(Server, OpenApiDocumentListsEveryRoute) {
+  TestServer server(scratch("openapi") / "data");
+  const Reply r = Api{server.port()}.get("/api/openapi.json");
+  ASSERT_EQ(r.status, 200);
+  const json doc = r.body_json();
+  ASSERT_TRUE(doc.contains("openapi"));
+  EXPECT_EQ(doc["openapi"].get<std::string>().substr(0, 2), "3.");
+  const json& paths = doc.at("paths");
+  std::size_t operations = 0;
+  for (const auto& route : sphles::server::Router::routes()) {
+    std::string method(http::to_string(route.method));
+    for (char& c : method) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::string path(route.path);
+    ASSERT_TRUE(paths.contains(path)) << path << " is missing from server/openapi.json";
+    EXPECT_TRUE(paths[path].contains(method)) << method << " " << path << " is not documented";
+    ++operations;
+  }
+  // And nothing documented that the router does not know.
+  std::size_t documented = 0;
+  for (const auto& [path, item] : paths.items())
+    for (const auto& [key, value] : item.items())
+      if (key != "parameters" && key != "summary" && key != "description") ++documented;
+  EXPECT_EQ(documented, operations);
+}
+
+TEST(Server, ListsPresets) {
+  TestServer server(scratch("presets") / "data");
+  const Reply r = Api{server.port()}.get("/api/presets");
+  ASSERT_EQ(r.status, 200);
+  const json presets = r.body_json();
+  ASSERT_TRUE(presets.is_array());
+  ASSERT_GE(presets.size(), 22u);
+  bool kolmogorov = false;
+  for (const json& p : presets) {
+    EXPECT_TRUE(p.contains("name") && p.contains("scene") && p.contains("dimension")) << p;
+    kolmogorov |= p["name"] == "kolmogorov2d";
+  }
+  EXPECT_TRUE(kolmogorov);
+}
+
+TEST(Server, CreateListGetRun) {
+  TestServer server(scratch("create") / "data");
+  const Api api{server.port()};
+  const Reply created =
+      api.post("/api/runs", {{"scene", tiny_scene()}, {"name", "first"}, {"start", false}});
+  ASSERT_EQ(created.status, 201) << created.body;
+  const json summary = created.body_json();
+  const std::string id = summary["id"];
+  EXPECT_EQ(created.header("location"), "/api/runs/" + id);
+  EXPECT_EQ(summary["state"], "created");
+  EXPECT_EQ(summary["name"], "first");
+  EXPECT_EQ(summary["case"], "tgv2d");
+  EXPECT_EQ(summary["dimension"], 2);
+  EXPECT_EQ(summary["particles_per_side"], 16);
+  EXPECT_DOUBLE_EQ(summary["end_time"], 1000.0);
+  for (const char* key : {"reason", "time", "step", "progress", "steps_per_second", "wall_seconds"})
+    EXPECT_TRUE(summary.contains(key)) << key;
+
+  // From a preset with a merge patch and overrides.
+  const Reply from_preset = api.post(
+      "/api/runs", {{"preset", "kolmogorov2d"},
+                    {"patch", {{"packing", {{"enabled", false}}}}},
+                    {"overrides", {"particles_per_side=16", "kernel.diameter_over_spacing=8"}},
+                    {"start", false}});
+  ASSERT_EQ(from_preset.status, 201) << from_preset.body;
+  EXPECT_EQ(from_preset.body_json()["case"], "kolmogorov2d");
+
+  const json runs = api.get("/api/runs").body_json();
+  ASSERT_EQ(runs.size(), 2u);
+  EXPECT_EQ(runs[0]["id"], id);  // oldest first
+
+  const json detail = api.run(id);
+  EXPECT_EQ(detail["scene"]["particles_per_side"], 16);
+  EXPECT_TRUE(detail["latest"].is_null());
+  EXPECT_TRUE(detail["changeable"].is_array());
+  EXPECT_EQ(detail["stream"]["clients"], 0);
+  EXPECT_EQ(detail["stream"]["dropped"], 0);
+  EXPECT_TRUE(detail["counters"].contains("frames_rendered"));
+  EXPECT_EQ(api.get("/api/health").body_json()["runs"], 2);
+
+  expect_error(api.get("/api/runs/no-such-run"), 404, "id");
+  expect_error(api.get("/api/runs/no-such-run/timeseries"), 404, "id");
+}
+
+TEST(Server, CreateRejectsBadRequestsNamingTheField) {
+  TestServer server(scratch("badcreate") / "data");
+  const Api api{server.port()};
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"colour", "red"}}), 400, "colour");
+  expect_error(api.post("/api/runs", {{"preset", 5}}), 400, "preset");
+  expect_error(api.post("/api/runs", {{"preset", "no-such-preset"}}), 400, "preset");
+  expect_error(api.post("/api/runs", {{"scene", "tgv2d"}}), 400, "scene");
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"start", "yes"}}), 400, "start");
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"overrides", {1}}}), 400,
+               "overrides[0]");
+  json bad_scene = tiny_scene();
+  bad_scene["particles_per_side"] = "many";
+  expect_error(api.post("/api/runs", {{"scene", bad_scene}}), 400, "particles_per_side");
+  bad_scene = tiny_scene();
+  bad_scene["kernel"]["shape"] = "round";
+  expect_error(api.post("/api/runs", {{"scene", bad_scene}}), 400, "kernel.shape");
+  expect_error(send(server.port(), {http::verb::post, "/api/runs", "[1,2]"}), 400);
+  expect_error(send(server.port(), {http::verb::post, "/api/runs", "{\"scene\": "}), 400);
+  expect_error(send(server.port(), {http::verb::post, "/api/runs", ""}), 400);
+  expect_error(send(server.port(), {http::verb::post, "/api/runs", std::string(200, '[')}), 400);
+  expect_error(send(server.port(), {http::verb::post, "/api/runs", "preset=tgv2d", "text/plain"}),
+               415, "Content-Type");
+  // Nothing was created.
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u);
+  EXPECT_TRUE(fs::is_empty(server.data_directory / "runs"));
+}
+
+TEST(Server, EveryStateTransitionAndItsIllegalVariants) {
+  TestServer server(scratch("states") / "data");
+  const Api api{server.port()};
+  const auto action = [&](const std::string& id, const std::string& name) {
+    return api.post("/api/runs/" + id + "/" + name);
+  };
+  const auto state = [&](const std::string& id) { return api.run(id)["state"].get<std::string>(); };
+
+  const std::string id = api.create({{"scene", tiny_scene()}, {"start", false}});
+  // created
+  expect_error(action(id, "pause"), 409);
+  expect_error(action(id, "resume"), 409);
+  // created → running
+  Reply r = action(id, "start");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "running");
+  expect_error(action(id, "start"), 409);
+  expect_error(action(id, "resume"), 409);
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > 20; }));
+  // running → paused
+  r = action(id, "pause");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "paused");
+  expect_error(action(id, "pause"), 409);
+  expect_error(action(id, "start"), 409);
+  std::this_thread::sleep_for(100ms);
+  const std::uint64_t paused_step = api.run(id)["step"];
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(api.run(id)["step"].get<std::uint64_t>(), paused_step) << "a paused run stepped";
+  // paused → running
+  r = action(id, "resume");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "running");
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > paused_step; }));
+  // running → stopped
+  r = action(id, "stop");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "stopped");
+  expect_error(action(id, "stop"), 409);
+  expect_error(action(id, "pause"), 409);
+  const double stopped_time = api.run(id)["time"];
+  // stopped → running (from the checkpoint written at stop)
+  r = action(id, "resume");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "running");
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > stopped_time; }));
+  // paused → stopped; stopped → running with start
+  ASSERT_EQ(action(id, "pause").status, 200);
+  ASSERT_EQ(action(id, "stop").status, 200);
+  r = action(id, "start");
+  ASSERT_EQ(r.status, 200) << r.body;
+  ASSERT_EQ(action(id, "stop").status, 200);
+
+  // created → stopped
+  const std::string idle = api.create({{"scene", tiny_scene()}, {"start", false}});
+  ASSERT_EQ(action(idle, "stop").status, 200);
+  EXPECT_EQ(state(idle), "stopped");
+
+  // running → finished; nothing but a raised time.end revives it
+  const std::string short_run = api.create({{"scene", tiny_scene(0.2, "short")}});
+  ASSERT_TRUE(wait_until([&] { return state(short_run) == "finished"; }));
+  EXPECT_DOUBLE_EQ(api.run(short_run)["progress"], 1.0);
+  for (const char* name : {"start", "pause", "resume", "stop"})
+    expect_error(action(short_run, name), 409);
+
+  // unknown run
+  for (const char* name : {"start", "pause", "resume", "stop"})
+    expect_error(action("0999-nothing", name), 404, "id");
+}
+
+TEST(Server, RunsQueueBeyondMaxRunning) {
+  TestServer server(scratch("queue") / "data", "", /*max_running=*/1);
+  const Api api{server.port()};
+  const std::string first = api.create({{"scene", tiny_scene()}});
+  const std::string second = api.create({{"scene", tiny_scene()}});
+  EXPECT_EQ(api.run(first)["state"], "running");
+  EXPECT_EQ(api.run(second)["state"], "queued");
+  expect_error(api.post("/api/runs/" + second + "/pause"), 409);
+  expect_error(api.post("/api/runs/" + second + "/resume"), 409);
+  ASSERT_EQ(api.post("/api/runs/" + first + "/stop").status, 200);
+  ASSERT_TRUE(wait_until([&] { return api.run(second)["state"] == "running"; }));
+  // queued → stopped
+  const std::string third = api.create({{"scene", tiny_scene()}});
+  EXPECT_EQ(api.run(third)["state"], "queued");
+  ASSERT_EQ(api.post("/api/runs/" + third + "/stop").status, 200);
+  EXPECT_EQ(api.run(third)["state"], "stopped");
+}
+
+TEST(Server, ParameterChangesTakeEffect) {
+  TestServer server(scratch("params") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", tiny_scene()}});
+  ASSERT_TRUE(wait_until([&] { return !api.run(id)["latest"].is_null(); }));
+  WsClient ws(server.port(), "/api/runs/" + id + "/stream");
+  ws.read_type("hello");
+
+  Reply r = api.patch("/api/runs/" + id + "/parameters",
+                      {{"fluid", {{"reference_pressure", 2.5}}}, {"time", {{"fixed_step", 1e-3}}}});
+  ASSERT_EQ(r.status, 200) << r.body;
+  const json changed = r.body_json();
+  EXPECT_EQ(changed["effective"], "next step");
+  EXPECT_NE(
+      std::find(changed["changed"].begin(), changed["changed"].end(), "fluid.reference_pressure"),
+      changed["changed"].end())
+      << changed;
+  // Visible in the scene and in the metrics from the next step on: dt = fixed_step.
+  EXPECT_TRUE(
+      wait_until([&] { return api.run(id)["scene"]["fluid"]["reference_pressure"] == 2.5; }));
+  ws.read_until([](const WsMessage& m) {
+    if (m.binary) return false;
+    const json j = m.text();
+    if (j["type"] != "metrics") return false;
+    for (const json& s : j["samples"])
+      if (std::abs(s["dt"].get<double>() - 1e-3) < 1e-12) return true;
+    return false;
+  });
+  EXPECT_NEAR(api.run(id)["latest"]["dt"].get<double>(), 1e-3, 1e-12);
+
+  // time.end: visible in the summary.
+  ASSERT_EQ(api.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 2000.0}}}}).status,
+            200);
+  EXPECT_TRUE(wait_until([&] { return api.run(id)["end_time"] == 2000.0; }));
+
+  // Rejected, naming the field: not changeable, wrong type, unknown, not an object, not JSON.
+  expect_error(api.patch("/api/runs/" + id + "/parameters", {{"particles_per_side", 32}}), 400,
+               "particles_per_side");
+  expect_error(
+      api.patch("/api/runs/" + id + "/parameters", {{"fluid", {{"reference_pressure", "high"}}}}),
+      400, "fluid.reference_pressure");
+  expect_error(api.patch("/api/runs/" + id + "/parameters", {{"nonsense", 1}}), 400, "nonsense");
+  expect_error(send(server.port(), {http::verb::patch, "/api/runs/" + id + "/parameters", "[]"}),
+               400);
+  expect_error(send(server.port(),
+                    {http::verb::patch, "/api/runs/" + id + "/parameters", "x", "text/plain"}),
+               415);
+  expect_error(api.patch("/api/runs/0999-none/parameters", {{"time", {{"end", 5.0}}}}), 404);
+  EXPECT_DOUBLE_EQ(api.run(id)["scene"]["fluid"]["reference_pressure"], 2.5);
+
+  // The same over the WebSocket.
+  ws.send({{"type", "parameters"}, {"patch", {{"fluid", {{"reference_pressure", 3.0}}}}}});
+  const json ok = ws.read_until([](const WsMessage& m) {
+                      if (m.binary) return false;
+                      const std::string type = m.text().value("type", "");
+                      return type == "changed" || type == "error";
+                    }).text();
+  ASSERT_EQ(ok["type"], "changed") << ok;
+  EXPECT_EQ(ok["changed"], json({"fluid.reference_pressure"}));
+  EXPECT_TRUE(
+      wait_until([&] { return api.run(id)["scene"]["fluid"]["reference_pressure"] == 3.0; }));
+  ws.send({{"type", "parameters"}, {"patch", {{"particles_per_side", 8}}}});
+  json error = ws.read_type("error").text();
+  EXPECT_EQ(error["error"]["field"], "particles_per_side");
+  ws.send({{"type", "parameters"}, {"patch", 3}});
+  EXPECT_EQ(ws.read_type("error").text()["error"]["field"], "patch");
+  ws.send({{"type", "launch"}});
+  EXPECT_EQ(ws.read_type("error").text()["error"]["field"], "type");
+  ws.send({{"type", "images"}, {"enabled", "no"}});
+  EXPECT_EQ(ws.read_type("error").text()["error"]["field"], "enabled");
+  ws.send({{"type", "images"}, {"enabled", false}, {"extra", 1}});
+  EXPECT_EQ(ws.read_type("error").text()["error"]["field"], "extra");
+  ws.send_raw("{not json");
+  EXPECT_EQ(ws.read_type("error").text()["error"]["status"], 400);
+  ws.send_raw("binary", true);
+  EXPECT_EQ(ws.read_type("error").text()["error"]["status"], 400);
+}
+
+TEST(Server, TimeSeries) {
+  TestServer server(scratch("timeseries") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", tiny_scene()}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > 50; }));
+  ASSERT_EQ(api.post("/api/runs/" + id + "/pause").status, 200);
+  const json series = api.get("/api/runs/" + id + "/timeseries").body_json();
+  const json& columns = series["columns"];
+  ASSERT_GE(columns.size(), 7u);
+  EXPECT_EQ(columns[0], "time");
+  EXPECT_EQ(columns[1], "step");
+  EXPECT_EQ(columns[3], "kinetic_energy");
+  const json& data = series["data"];
+  ASSERT_EQ(data.size(), columns.size());
+  const std::size_t rows = data[0].size();
+  ASSERT_GT(rows, 20u);
+  for (const json& column : data) EXPECT_EQ(column.size(), rows);
+  for (std::size_t k = 1; k < rows; ++k) EXPECT_GT(data[1][k], data[1][k - 1]);
+  EXPECT_NEAR(data[3][0].get<double>(), 0.25, 0.01);  // e_v(0) = v0²/4 for the 2D TGV
+
+  const std::uint64_t since = data[1][rows / 2];
+  const json tail =
+      api.get("/api/runs/" + id + "/timeseries?since_step=" + std::to_string(since)).body_json();
+  ASSERT_FALSE(tail["data"][1].empty());
+  EXPECT_GT(tail["data"][1][0].get<std::uint64_t>(), since);
+  expect_error(api.get("/api/runs/" + id + "/timeseries?since_step=soon"), 400, "since_step");
+}
+
+TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
+  TestServer server(scratch("stream") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", rendered_scene()}});
+  WsClient ws(server.port(), "/api/runs/" + id + "/stream");
+  const json hello = ws.read().text();
+  ASSERT_EQ(hello["type"], "hello");
+  EXPECT_EQ(hello["run"]["id"], id);
+  EXPECT_TRUE(hello["run"].contains("scene"));
+
+  bool metrics = false, spectrum = false, statistics = false, image = false;
+  std::optional<std::uint64_t> last_step;
+  ws.read_until(
+      [&](const WsMessage& m) {
+        if (m.binary) {
+          // 4-byte big-endian header length, JSON header, PNG.
+          const auto* p = reinterpret_cast<const unsigned char*>(m.data.data());
+          const std::size_t length = (std::size_t{p[0]} << 24) | (std::size_t{p[1]} << 16) |
+                                     (std::size_t{p[2]} << 8) | std::size_t{p[3]};
+          EXPECT_LT(4 + length, m.data.size());
+          const json header = json::parse(m.data.substr(4, length));
+          EXPECT_EQ(header["type"], "image");
+          EXPECT_TRUE(header["field"] == "omega2" || header["field"] == "combined") << header;
+          EXPECT_TRUE(header["created_ns"].is_number_integer());
+          EXPECT_TRUE(header["url"].get<std::string>().starts_with("/api/runs/" + id + "/"));
+          EXPECT_EQ(m.data.substr(4 + length, 8), kPngSignature);
+          image = true;
+        } else {
+          const json j = m.text();
+          if (j["type"] == "metrics") {
+            EXPECT_FALSE(j["samples"].empty());
+            for (const json& s : j["samples"]) {
+              if (last_step) {
+                EXPECT_GT(s["step"].get<std::uint64_t>(), *last_step);
+              }
+              last_step = s["step"].get<std::uint64_t>();
+              EXPECT_TRUE(s.contains("kinetic_energy") && s.contains("max_speed"));
+            }
+            metrics = true;
+          } else if (j["type"] == "spectrum") {
+            EXPECT_EQ(j["k"].size(), j["energy"].size());
+            EXPECT_GT(j["kernel_wavenumber"].get<double>(), 0.0);
+            spectrum = true;
+          } else if (j["type"] == "statistics") {
+            EXPECT_TRUE(j.contains("joint") && j.contains("max_norm"));
+            statistics = true;
+          }
+        }
+        return metrics && spectrum && statistics && image;
+      },
+      60s);
+  EXPECT_EQ(api.run(id)["stream"]["clients"], 1);
+
+  // The same products over REST.
+  Reply r = api.get("/api/runs/" + id + "/images/omega2");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.header("content-type"), "image/png");
+  EXPECT_EQ(r.body.substr(0, 8), kPngSignature);
+  expect_error(api.get("/api/runs/" + id + "/images/view3d"), 404, "field");
+  expect_error(api.get("/api/runs/" + id + "/images/..%2fscene.json"), 400);
+  expect_error(api.get("/api/runs/" + id + "/images/omega2.png"), 400, "field");
+  EXPECT_EQ(api.get("/api/runs/" + id + "/spectrum").status, 200);
+  EXPECT_EQ(api.get("/api/runs/" + id + "/statistics").status, 200);
+  json frames;
+  ASSERT_TRUE(wait_until([&] {
+    frames = api.get("/api/runs/" + id + "/frames").body_json();
+    return !frames.empty();
+  }));
+  const json& frame = frames[0];
+  EXPECT_TRUE(frame.contains("time") && frame.contains("step") && frame.contains("field"));
+  r = api.get(frame["url"].get<std::string>());
+  ASSERT_EQ(r.status, 200) << frame;
+  EXPECT_EQ(r.body.substr(0, 8), kPngSignature);
+  expect_error(api.get("/api/runs/" + id + "/frames/nothing.png"), 404, "file");
+  for (const char* bad : {"..%2f..%2fscene.json", "%2e%2e", "..", ".hidden.png", "a%00.png"}) {
+    const Reply t = api.get("/api/runs/" + id + "/frames/" + bad);
+    EXPECT_TRUE(t.status == 400 || t.status == 404) << bad << ": " << t.status;
+  }
+
+  // Images off: the stream goes on with metrics only.
+  ws.send({{"type", "images"}, {"enabled", false}});
+  std::this_thread::sleep_for(300ms);
+  int binaries = 0, texts = 0;
+  ws.read_until([&](const WsMessage& m) {
+    (m.binary ? binaries : texts)++;
+    return texts >= 10;
+  });
+  EXPECT_LE(binaries, 6);  // at most what was queued or in flight before the switch
+
+  // A state change reaches the client.
+  ASSERT_EQ(api.post("/api/runs/" + id + "/pause").status, 200);
+  const json state = ws.read_type("state").text();
+  EXPECT_EQ(state["state"], "paused");
+
+  // Unknown run or path: the upgrade is declined with 404.
+  EXPECT_EQ(upgrade_status(server.port(), "/api/runs/0999-none/stream"), 404);
+  EXPECT_EQ(upgrade_status(server.port(), "/api/runs"), 404);
+  EXPECT_EQ(upgrade_status(server.port(), "/api/runs/" + id + "/stream"), 101);
+  // Plain GET on the stream endpoint.
+  expect_error(api.get("/api/runs/" + id + "/stream"), 426);
+}
+
+TEST(Server, ManyClientsAndDisconnectsLeaveTheRunAlone) {
+  TestServer server(scratch("clients") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", rendered_scene()}});
+  {
+    std::vector<std::unique_ptr<WsClient>> clients;
+    for (int k = 0; k < 8; ++k)
+      clients.push_back(std::make_unique<WsClient>(server.port(), "/api/runs/" + id + "/stream"));
+    for (auto& c : clients) c->read_type("metrics");
+    EXPECT_EQ(api.run(id)["stream"]["clients"], 8);
+    // Some vanish without a close frame.
+    for (int k = 0; k < 4; ++k) clients.pop_back();
+  }
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["stream"]["clients"] == 0; }));
+  const std::uint64_t step = api.run(id)["step"];
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > step; }));
+  EXPECT_EQ(api.run(id)["state"], "running");
+}
+
+TEST(Server, TokenGuardsMutatingCalls) {
+  const std::string token = "s3cret-token";
+  TestServer server(scratch("token") / "data", token);
+  const Api anonymous{server.port()};
+  const Api wrong{server.port(), "not-the-token"};
+  const Api owner{server.port(), token};
+
+  for (const Api* api : {&anonymous, &wrong}) {
+    const Reply r = api->post("/api/runs", {{"scene", tiny_scene()}});
+    expect_error(r, 401, "Authorization");
+    EXPECT_EQ(r.header("www-authenticate"), "Bearer");
+  }
+  EXPECT_EQ(send(server.port(), {http::verb::post,
+                                 "/api/runs",
+                                 json{{"scene", tiny_scene()}}.dump(),
+                                 "application/json",
+                                 {{"Authorization", "Basic " + token}}})
+                .status,
+            401);
+  const std::string id = owner.create({{"scene", tiny_scene()}, {"start", false}});
+  ASSERT_FALSE(id.empty());
+  // Reading needs no token.
+  EXPECT_EQ(anonymous.get("/api/runs").status, 200);
+  EXPECT_EQ(anonymous.get("/api/runs/" + id).status, 200);
+  for (const char* action : {"start", "pause", "resume", "stop"})
+    expect_error(anonymous.post("/api/runs/" + id + "/" + action), 401);
+  expect_error(anonymous.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 5.0}}}}), 401);
+  EXPECT_EQ(anonymous.run(id)["state"], "created");
+  ASSERT_EQ(owner.post("/api/runs/" + id + "/start").status, 200);
+
+  // WebSocket: reading is open, parameter messages need ?token=.
+  {
+    WsClient ws(server.port(), "/api/runs/" + id + "/stream");
+    ws.read_type("hello");
+    ws.send({{"type", "parameters"}, {"patch", {{"time", {{"end", 5000.0}}}}}});
+    EXPECT_EQ(ws.read_type("error").text()["error"]["status"], 401);
+  }
+  {
+    WsClient ws(server.port(), "/api/runs/" + id + "/stream?token=" + token);
+    ws.read_type("hello");
+    ws.send({{"type", "parameters"}, {"patch", {{"time", {{"end", 5000.0}}}}}});
+    EXPECT_EQ(ws.read_type("changed").text()["changed"], json({"time.end"}));
+  }
+  EXPECT_TRUE(wait_until([&] { return owner.run(id)["end_time"] == 5000.0; }));
+}
+
+TEST(Server, RestartResumesFromTheCheckpoint) {
+  const fs::path data = scratch("restart") / "data";
+  std::string id;
+  double stopped_time = 0.0;
+  std::uint64_t stopped_step = 0;
+  {
+    TestServer a(data);
+    const Api api{a.port()};
+    id = api.create({{"scene", tiny_scene()}});
+    ASSERT_TRUE(wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > 100; }));
+    a.shutdown();  // as on SIGTERM: stop accepting, RunManager::shutdown, stop
+  }
+  {
+    // run.json says stopped, and a checkpoint is there.
+    std::ifstream in(data / "runs" / id / "run.json");
+    const json record = json::parse(in);
+    EXPECT_EQ(record["state"], "stopped") << record;
+    stopped_time = record["time"];
+    stopped_step = record["step"];
+    EXPECT_GT(stopped_step, 100u);
+    ASSERT_TRUE(fs::exists(data / "runs" / id / "checkpoints"));
+    EXPECT_FALSE(fs::is_empty(data / "runs" / id / "checkpoints"));
+  }
+  TestServer b(data);
+  const Api api{b.port()};
+  const json runs = api.get("/api/runs").body_json();
+  ASSERT_EQ(runs.size(), 1u);
+  EXPECT_EQ(runs[0]["id"], id);
+  EXPECT_EQ(runs[0]["state"], "stopped");
+  EXPECT_DOUBLE_EQ(runs[0]["time"], stopped_time);
+
+  WsClient ws(b.port(), "/api/runs/" + id + "/stream");
+  ws.read_type("hello");
+  const Reply r = api.post("/api/runs/" + id + "/resume");
+  ASSERT_EQ(r.status, 200) << r.body;
+  EXPECT_EQ(r.body_json()["state"], "running");
+  // The first metrics after the restart continue from the checkpoint, not from t = 0.
+  const json first = ws.read_type("metrics").text()["samples"][0];
+  EXPECT_GT(first["step"].get<std::uint64_t>(), stopped_step);
+  EXPECT_GE(first["time"].get<double>(), stopped_time);
+  ASSERT_TRUE(
+      wait_until([&] { return api.run(id)["step"].get<std::uint64_t>() > stopped_step + 50; }));
+  EXPECT_GT(api.run(id)["time"].get<double>(), stopped_time);
+  // The time series on disk goes on without repeating steps.
+  std::ifstream csv(data / "runs" / id / "timeseries.csv");
+  std::string line;
+  std::getline(csv, line);
+  long long previous = -1;
+  while (std::getline(csv, line)) {
+    const std::size_t comma = line.find(',');
+    if (comma == std::string::npos || line.find(',', comma + 1) == std::string::npos) continue;
+    const long long step = std::atoll(line.c_str() + comma + 1);
+    EXPECT_GT(step, previous) << line;
+    previous = step;
+  }
+}
+
+TEST(Server, StaticFilesAndTraversal) {
+  TestServer server(scratch("static") / "data");
+  const Api api{server.port()};
+  Reply r = api.get("/");
+  ASSERT_EQ(r.status, 200);
+  EXPECT_EQ(r.header("content-type"), "text/html; charset=utf-8");
+  EXPECT_NE(r.body.find("sphles"), std::string::npos);
+  r = api.get("/app.js");
+  EXPECT_EQ(r.status, 200);
+  EXPECT_EQ(r.header("content-type"), "text/javascript; charset=utf-8");
+  r = api.get("/sub/style.css?v=3");
+  EXPECT_EQ(r.status, 200);
+  EXPECT_EQ(r.header("content-type"), "text/css; charset=utf-8");
+  r = send(server.port(), {http::verb::head, "/app.js"});
+  EXPECT_EQ(r.status, 200);
+  EXPECT_TRUE(r.body.empty());
+  EXPECT_EQ(r.header("content-length"), "22");
+  expect_error(api.get("/missing.html"), 404);
+  expect_error(api.post("/index.html"), 405);
+  expect_error(api.get("/api/nothing-here"), 404, "path");
+  r = send(server.port(), {http::verb::delete_, "/api/runs"});
+  expect_error(r, 405, "method");
+  EXPECT_EQ(r.header("allow"), "GET, HEAD, POST");
+
+  const std::vector<std::string> attacks = {"/../secret.txt",
+                                            "/%2e%2e/secret.txt",
+                                            "/%2E%2E/secret.txt",
+                                            "/%2e%2e%2fsecret.txt",
+                                            "/..%2fsecret.txt",
+                                            "/sub/../../secret.txt",
+                                            "/sub/%2e%2e/%2e%2e/secret.txt",
+                                            "/%252e%252e/secret.txt",
+                                            "/..\\secret.txt",
+                                            "/%5c..%5csecret.txt",
+                                            "//etc/passwd",
+                                            "/escape/secret.txt",
+                                            "/escape/data/../secret.txt",
+                                            "/.hidden",
+                                            "/%00",
+                                            "/sub/%00/../../secret.txt",
+                                            "/%",
+                                            "/%zz",
+                                            "/./secret.txt",
+                                            "/sub/./../../secret.txt"};
+  for (const std::string& target : attacks) {
+    const std::string raw = raw_exchange(
+        server.port(), "GET " + target + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    const int status = status_of(raw);
+    EXPECT_TRUE(status == 400 || status == 404) << target << " → " << status;
+    EXPECT_EQ(raw.find(kSecret), std::string::npos) << target;
+  }
+  for (const std::string& target :
+       {std::string("http://127.0.0.1/etc/passwd"), std::string("*"), std::string("/etc/passwd")}) {
+    const std::string raw = raw_exchange(
+        server.port(), "GET " + target + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+    EXPECT_TRUE(status_of(raw) == 400 || status_of(raw) == 404) << target << ": " << raw;
+  }
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+TEST(Server, LimitsOnBodiesHeadersAndKeepAlive) {
+  TestServer server(scratch("limits") / "data");
+  const Api api{server.port()};
+  // Declared body over 1 MiB: 413 before any of it is read.
+  std::string raw = raw_exchange(server.port(),
+                                 "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: "
+                                 "application/json\r\nContent-Length: 99999999999\r\n\r\n");
+  EXPECT_EQ(status_of(raw), 413) << raw;
+  EXPECT_EQ(json::parse(body_of(raw))["error"]["status"], 413);
+  // An actual 2 MiB body.
+  const Reply big = send(server.port(), {http::verb::post, "/api/runs",
+                                         "{\"name\":\"" + std::string(2u << 20, 'a') + "\"}"});
+  EXPECT_EQ(big.status, 413);
+  // Chunked over the limit.
+  std::string chunked =
+      "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+      "Transfer-Encoding: chunked\r\n\r\n";
+  for (int k = 0; k < 20; ++k) chunked += "10000\r\n" + std::string(0x10000, ' ') + "\r\n";
+  raw = raw_exchange(server.port(), chunked);
+  EXPECT_EQ(status_of(raw), 413) << raw.substr(0, 200);
+  // Header over the limit.
+  raw = raw_exchange(server.port(), "GET /api/health HTTP/1.1\r\nHost: x\r\nX-Big: " +
+                                        std::string(40000, 'b') + "\r\n\r\n");
+  EXPECT_EQ(status_of(raw), 431) << raw.substr(0, 200);
+  // Keep-alive: three requests on one connection.
+  raw = raw_exchange(server.port(),
+                     "GET /api/health HTTP/1.1\r\nHost: x\r\n\r\n"
+                     "GET /api/health HTTP/1.1\r\nHost: x\r\n\r\n"
+                     "GET /api/health HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n");
+  std::size_t count = 0;
+  for (std::size_t at = raw.find("HTTP/1.1 200"); at != std::string::npos;
+       at = raw.find("HTTP/1.1 200", at + 1))
+    ++count;
+  EXPECT_EQ(count, 3u);
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+/// Thousands of malformed requests; afterwards the server answers correctly and a run that
+/// existed before is unharmed.
+TEST(Server, HostileInputFuzz) {
+  TestServer server(scratch("fuzz") / "data");
+  const Api api{server.port()};
+  // `precious` is never addressed by the fuzz; `id` is, and may legitimately change state.
+  const std::string precious = api.create({{"scene", tiny_scene(1000.0, "precious")}});
+  ASSERT_TRUE(wait_until([&] { return api.run(precious)["step"].get<std::uint64_t>() > 10; }));
+  ASSERT_EQ(api.post("/api/runs/" + precious + "/pause").status, 200);
+  std::this_thread::sleep_for(200ms);  // pausing takes effect between two steps
+  const json before = api.run(precious);
+  const std::string id = api.create({{"scene", tiny_scene(1000.0, "target")}, {"start", false}});
+
+  std::mt19937 random(20241122);  // deterministic
+  const auto pick = [&](const auto& items) -> const auto& {
+    return items[std::uniform_int_distribution<std::size_t>(0, items.size() - 1)(random)];
+  };
+  const auto bytes = [&](std::size_t n) {
+    std::string s(n, '\0');
+    for (char& c : s) c = static_cast<char>(random() & 0xff);
+    return s;
+  };
+  const std::vector<std::string> methods = {"GET",     "POST",  "PATCH",   "PUT",  "DELETE", "HEAD",
+                                            "OPTIONS", "TRACE", "CONNECT", "BREW", "G\x01T", ""};
+  const std::vector<std::string> targets = {"/api/runs",
+                                            "/api/runs/" + id,
+                                            "/api/runs/" + id + "/parameters",
+                                            "/api/runs/" + id + "/start",
+                                            "/api/runs/" + id + "/stop",
+                                            "/api/runs/" + id + "/pause",
+                                            "/api/runs/%2e%2e/frames/x",
+                                            "/api/runs/" + id + "/frames/..%2f..%2frun.json",
+                                            "/api/runs/" + id + "/images/%00",
+                                            "/api/runs/" + id + "/timeseries?since_step=-1",
+                                            "/api/health?%zz",
+                                            "/../../etc/passwd",
+                                            "/%2e%2e/%2e%2e/etc/passwd",
+                                            "/api/presets",
+                                            "/api/openapi.json",
+                                            "/index.html",
+                                            "/api/runs/" + id + "/stream",
+                                            "*",
+                                            "",
+                                            "http://x/api/health",
+                                            "/api/runs/\xff\xfe",
+                                            "/api/runs/" + std::string(3000, 'r')};
+  const std::vector<std::string> bodies = {
+      "{}",
+      "[]",
+      "null",
+      "1",
+      "\"x\"",
+      "{\"preset\":5}",
+      "{\"scene\":\"x\"}",
+      "{\"scene\":{\"case\":\"tgv9d\"},\"start\":false}",
+      "{\"start\":\"yes\"}",
+      "{\"overrides\":[1]}",
+      "{\"overrides\":\"a=b\"}",
+      "{\"patch\":[]}",
+      "{\"preset\":\"tgv2d\"",
+      "{\"fluid\":{\"reference_pressure\":\"high\"}}",
+      "{\"time\":{\"end\":-1}}",
+      "{\"particles_per_side\":1e308}",
+      "{\"a\":{\"b\":{\"c\":{\"d\":[[[[[[]]]]]]}}}}",
+      std::string(5000, '['),
+      std::string(5000, '{'),
+      "{\"\xff\":1}",
+      "{\"name\":\"\\ud800\"}",
+      "{\"scene\":{},\"preset\":\"tgv3d-case1\",\"start\":false}",
+      "\xef\xbb\xbf{}",
+      "{\"time\":{\"end\":1e999}}",
+      "{\"render\":{\"colour\":{\"omega2\":{\"min\":-1}}}}"};
+  const json valid_create = {{"scene", tiny_scene()}, {"start", false}, {"name", "fuzz"}};
+  const std::vector<std::string> content_types = {
+      "application/json",         "text/plain",         "", "application/json; charset=utf-8",
+      "application/problem+json", "multipart/form-data"};
+
+  int answered = 0, server_errors = 0, created = 0;
+  std::map<int, int> statuses;
+  constexpr int kCases = 5000;
+  for (int k = 0; k < kCases; ++k) {
+    std::string request;
+    bool expect_answer = true;
+    switch (k % 10) {
+      case 0:  // garbage bytes
+        request = bytes(1 + random() % 600);
+        expect_answer = false;
+        break;
+      case 1: {  // bad request lines
+        const std::vector<std::string> lines = {
+            "GET\r\n\r\n",
+            "GET / HTTP/9.9\r\n\r\n",
+            "GET  / HTTP/1.1\r\n\r\n",
+            "GET / HTTP/1.1 extra\r\n\r\n",
+            "/ GET HTTP/1.1\r\n\r\n",
+            "GET / FTP/1.1\r\n\r\n",
+            "\r\n\r\n",
+            "GET /\x7f HTTP/1.1\r\nHost: x\r\n\r\n",
+            "GET " + std::string(20000, 'a') + " HTTP/1.1\r\n\r\n"};
+        request = pick(lines);
+        break;
+      }
+      case 2: {  // bad headers
+        const std::vector<std::string> headers = {
+            "Host: x\r\nBad Header\r\n",
+            "Host: x\r\n: empty\r\n",
+            "Host x\r\n",
+            "Host: x\r\nContent-Length: -5\r\n",
+            "Host: x\r\nContent-Length: 1, 2\r\n",
+            "Host: x\r\nContent-Length: abc\r\n",
+            "Host: x\r\nTransfer-Encoding: gzip\r\n",
+            "Host: x\r\nTransfer-Encoding: chunked\r\n\r\nzz\r\n",
+            "Host: x\r\nX: " + std::string(20000, 'x') + "\r\n",
+            "Host: x\r\n\tfolded\r\n",
+            "Host: x\r\nContent-Length: 3\r\nContent-Length: 4\r\n"};
+        request = pick(methods) + " " + pick(targets) + " HTTP/1.1\r\n" + pick(headers) + "\r\n";
+        break;
+      }
+      case 3:  // huge declared length
+        request =
+            "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            "Content-Length: " +
+            std::to_string(
+                std::uniform_int_distribution<long long>((1 << 20) + 1, 1LL << 50)(random)) +
+            "\r\n\r\n{";
+        break;
+      case 4: {  // truncated body
+        const std::string body = valid_create.dump();
+        request =
+            "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+            "Content-Length: " +
+            std::to_string(body.size() + 10) + "\r\n\r\n" + body.substr(0, random() % body.size());
+        break;
+      }
+      case 5:
+      case 6: {  // malformed or wrongly typed JSON, or a mutated valid request
+        std::string body = pick(bodies);
+        if (k % 20 == 5) {
+          body = valid_create.dump();
+          for (int m = 0; m < 3; ++m) body[random() % body.size()] = static_cast<char>(random());
+        }
+        const std::string target = pick(std::vector<std::string>{
+            "/api/runs", "/api/runs/" + id + "/parameters", "/api/runs/" + id + "/start"});
+        const std::string method = target.ends_with("parameters") ? "PATCH" : "POST";
+        request = method + " " + target + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n" +
+                  "Content-Type: " + pick(content_types) +
+                  "\r\nContent-Length: " + std::to_string(body.size()) + "\r\n\r\n" + body;
+        break;
+      }
+      case 7: {  // random method/target combinations
+        request = pick(methods) + " " + pick(targets) +
+                  " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+        expect_answer = !request.starts_with(" ") && !request.starts_with("G\x01T");
+        break;
+      }
+      case 8: {  // traversal
+        const std::vector<std::string> paths = {
+            "/..",
+            "/../",
+            "/%2e%2e%2f%2e%2e%2fetc%2fpasswd",
+            "/.%2e/.%2e/etc/passwd",
+            "/static/..%5c..%5cwindows",
+            "/%c0%ae%c0%ae/etc/passwd",
+            "/%252e%252e%252f",
+            "/api/runs/" + id + "/frames/%2e%2e%2f%2e%2e%2fscene.json",
+            "/api/runs/" + id + "/frames/..",
+            "/escape/secret.txt",
+            "/escape/../secret.txt"};
+        request = "GET " + pick(paths) + " HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n";
+        break;
+      }
+      case 9: {  // a valid request with random bytes flipped
+        request =
+            "POST /api/runs HTTP/1.1\r\nHost: x\r\nConnection: close\r\n"
+            "Content-Type: application/json\r\nContent-Length: " +
+            std::to_string(valid_create.dump().size()) + "\r\n\r\n" + valid_create.dump();
+        for (int m = 0; m < 2; ++m)
+          request[random() % request.size()] = static_cast<char>(random() & 0xff);
+        expect_answer = false;
+        break;
+      }
+    }
+    const std::string raw = raw_exchange(server.port(), request, true, 10s);
+    const int status = status_of(raw);
+    ++statuses[status];
+    if (status != 0) {
+      ++answered;
+      if (status >= 500) {
+        ++server_errors;
+        ADD_FAILURE() << "case " << k << ": " << status << "\n" << raw.substr(0, 300);
+      }
+      if (status == 201) ++created;
+      if (status >= 400 && status != 405 && !body_of(raw).empty() &&
+          raw.find("chunked") == std::string::npos) {
+        // Every error body is the JSON error object.
+        const json error = json::parse(body_of(raw), nullptr, false);
+        EXPECT_FALSE(error.is_discarded()) << "case " << k << ": " << raw.substr(0, 300);
+        if (!error.is_discarded()) {
+          EXPECT_EQ(error["error"]["status"], status) << raw;
+        }
+      }
+      if (raw.find("top-secret") != std::string::npos) ADD_FAILURE() << "leak in case " << k;
+    } else if (expect_answer && k % 10 != 4) {
+      ADD_FAILURE() << "case " << k << " got no answer: " << request.substr(0, 200);
+    }
+    if (server_errors > 5) break;
+  }
+  std::printf("fuzz: %d cases, %d answered, %d created runs; status (count):", kCases, answered,
+              created);
+  for (const auto& [status, count] : statuses) std::printf(" %d (%d)", status, count);
+  std::printf("\n");
+  EXPECT_GT(answered, kCases * 7 / 10);
+
+  // Still healthy, and the run from before is exactly as it was, then continues.
+  const Reply health = api.get("/api/health");
+  ASSERT_EQ(health.status, 200);
+  EXPECT_EQ(health.body_json()["status"], "ok");
+  const json after = api.run(precious);
+  EXPECT_EQ(after["state"], "paused");
+  EXPECT_EQ(after["step"], before["step"]);
+  EXPECT_EQ(after["scene"], before["scene"]);
+  ASSERT_EQ(api.post("/api/runs/" + precious + "/resume").status, 200);
+  ASSERT_TRUE(wait_until([&] {
+    return api.run(precious)["step"].get<std::uint64_t>() > before["step"].get<std::uint64_t>();
+  }));
+  EXPECT_NE(api.run(id)["state"], "failed");
+  EXPECT_TRUE(wait_until([&] { return server.http->connections() == 0; }, 5s));
+}
+
+// --- pieces without sockets ------------------------------------------------------------------
+
+TEST(ServerParts, ClientQueueDropsOldestImagesAndCoalescesMetrics) {
+  int wakes = 0;
+  sphles::server::StreamLimits limits;
+  limits.max_images = 3;
+  limits.max_samples = 5;
+  sphles::server::ClientQueue queue(limits, [&] { ++wakes; });
+  for (int k = 0; k < 10; ++k) {
+    sphles::control::ImageEvent image;
+    image.field = "omega2";
+    image.step = static_cast<std::uint64_t>(k);
+    image.png = std::make_shared<const std::vector<unsigned char>>(8, 0);
+    queue.push_image(image);
+  }
+  std::vector<sphles::control::MetricsSample> samples(4);
+  for (std::size_t k = 0; k < samples.size(); ++k) samples[k].step = k;
+  queue.push_metrics(samples);
+  queue.push_metrics(samples);  // 8 > 5: the oldest 3 go
+  EXPECT_EQ(wakes, 1);          // one wake until the consumer finds the queue empty
+  EXPECT_EQ(queue.counters().images_dropped, 7u);
+  EXPECT_EQ(queue.counters().samples_dropped, 3u);
+
+  auto item = queue.pop();  // metrics first, coalesced into one message
+  ASSERT_TRUE(item && std::holds_alternative<sphles::server::QueuedMetrics>(*item));
+  EXPECT_EQ(std::get<sphles::server::QueuedMetrics>(*item).samples.size(), 5u);
+  for (std::uint64_t expected : {7u, 8u, 9u}) {  // the newest three images, oldest first
+    item = queue.pop();
+    ASSERT_TRUE(item && std::holds_alternative<sphles::control::ImageEvent>(*item));
+    EXPECT_EQ(std::get<sphles::control::ImageEvent>(*item).step, expected);
+  }
+  EXPECT_FALSE(queue.pop());
+  queue.push_text("{}");
+  EXPECT_EQ(wakes, 2);
+  queue.set_images_enabled(false);
+  sphles::control::ImageEvent image;
+  image.png = std::make_shared<const std::vector<unsigned char>>(8, 0);
+  queue.push_image(image);
+  EXPECT_EQ(queue.counters().images_queued, 10u);
+  queue.close();
+  queue.push_text("{}");
+  EXPECT_FALSE(queue.pop());
+}
+
+TEST(ServerParts, UrlDecodingIsStrict) {
+  using sphles::server::path_segments;
+  using sphles::server::percent_decode;
+  EXPECT_EQ(percent_decode("a%41+b"), "aA+b");
+  EXPECT_EQ(percent_decode("a+b", true), "a b");
+  EXPECT_FALSE(percent_decode("%4"));
+  EXPECT_FALSE(percent_decode("%zz"));
+  EXPECT_EQ(*path_segments("/api//runs/%61"), (std::vector<std::string>{"api", "runs", "a"}));
+  EXPECT_FALSE(path_segments("/a%2fb"));
+  EXPECT_FALSE(path_segments("/a%5cb"));
+  EXPECT_FALSE(path_segments("/a%00b"));
+  EXPECT_FALSE(sphles::server::split_target("http://x/y"));
+  const auto query = sphles::server::parse_query("a=1&b=x%20y&c");
+  ASSERT_TRUE(query);
+  EXPECT_EQ(query->at("b"), "x y");
+  EXPECT_EQ(query->at("c"), "");
+}
+
+}  // namespace
