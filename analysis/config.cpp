@@ -52,6 +52,10 @@ std::string_view slice_field_name(SliceField field) {
   return "unknown";
 }
 
+SliceField slice_field_from_name(const std::string& name, const std::string& field) {
+  return parse_name(kSliceFieldNames, name, field);
+}
+
 AnalysisConfig parse_analysis_config(const json* section) {
   AnalysisConfig c;
   if (!section) return c;

@@ -17,6 +17,8 @@ std::string_view product_name(Product product);
 enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
 /// "omega2", "tau_sfs", "nu_t" (ν_t of an explicit sub-filter model).
 std::string_view slice_field_name(SliceField field);
+/// Inverse of slice_field_name; throws sim::SceneError naming `field` (the dotted scene key).
+SliceField slice_field_from_name(const std::string& name, const std::string& field);
 
 struct SliceConfig {
   int axis = 0;  // 0 = x, 1 = y, 2 = z: the slice is normal to this axis (3D)

@@ -47,6 +47,16 @@ PipelineCounters AnalysisPipeline::counters() const {
   return c;
 }
 
+AnalysisConfig AnalysisPipeline::config() const {
+  std::lock_guard lock(config_mutex_);
+  return config_;
+}
+
+void AnalysisPipeline::set_config(AnalysisConfig config) {
+  std::lock_guard lock(config_mutex_);
+  config_ = std::move(config);
+}
+
 std::string AnalysisPipeline::error() const {
   std::lock_guard lock(error_mutex_);
   return error_;
@@ -62,7 +72,7 @@ void AnalysisPipeline::run(int analysis_threads) {
     if (discard_) break;
     const auto start = std::chrono::steady_clock::now();
     try {
-      AnalysisFrame frame = analyse(*snapshot, config_);
+      AnalysisFrame frame = analyse(*snapshot, config());
       frame.dropped_snapshots = mailbox_.counters().dropped;
       for (const FrameSink& sink : sinks_) sink(frame);
     } catch (const std::exception& e) {

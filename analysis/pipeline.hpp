@@ -45,13 +45,17 @@ class AnalysisPipeline {
   void close(bool drain);
 
   PipelineCounters counters() const;
-  const AnalysisConfig& config() const { return config_; }
+  /// The configuration the next analysis uses.
+  AnalysisConfig config() const;
+  /// Replaces the configuration (a live change); the snapshot being analysed keeps the old one.
+  void set_config(AnalysisConfig config);
   /// Message of the first exception thrown by analysis, empty if none.
   std::string error() const;
 
  private:
   void run(int analysis_threads);
 
+  mutable std::mutex config_mutex_;
   AnalysisConfig config_;
   std::vector<FrameSink> sinks_;
   LatestValueMailbox<SnapshotPtr> mailbox_;

@@ -8,8 +8,8 @@
 
 namespace sphles::app {
 
-analysis::RunConfig load_run_config(const std::string& scene_or_preset,
-                                    const std::vector<std::string>& overrides) {
+nlohmann::json load_scene_document(const std::string& scene_or_preset,
+                                   const std::vector<std::string>& overrides) {
   nlohmann::json document;
   const auto presets = sim::preset_names();
   const bool is_preset =
@@ -20,6 +20,13 @@ analysis::RunConfig load_run_config(const std::string& scene_or_preset,
   else
     document = sim::read_scene_file(scene_or_preset);
   for (const std::string& assignment : overrides) sim::apply_override(document, assignment);
+  return document;
+}
+
+analysis::RunConfig load_run_config(const std::string& scene_or_preset,
+                                    const std::vector<std::string>& overrides) {
+  nlohmann::json document = load_scene_document(scene_or_preset, overrides);
+  document.erase("render");  // the solver and analysis sections only
   return analysis::parse_run_config(document);
 }
 

@@ -261,6 +261,13 @@ std::vector<unsigned char> render_slices_png(std::span<const analysis::SliceProd
       .render_png(slices, std::span(&mapping, 1), labels);
 }
 
+std::vector<unsigned char> render_slices_png(std::span<const analysis::SliceProduct> slices,
+                                             std::span<const ColourMapping> mappings,
+                                             const FrameLabels& labels, int width, int height) {
+  return detail::thread_local_renderer<Renderer>(width, height)
+      .render_png(slices, mappings, labels);
+}
+
 void write_png_file(const std::filesystem::path& path, std::span<const unsigned char> bytes) {
   static std::atomic<unsigned> counter{0};
   std::filesystem::path temporary = path;

@@ -132,6 +132,10 @@ std::vector<unsigned char> render_slices_png(std::span<const analysis::SliceProd
                                              const ColourMapping& mapping,
                                              const FrameLabels& labels, int width = 1200,
                                              int height = 600);
+/// The same with one mapping per slice.
+std::vector<unsigned char> render_slices_png(std::span<const analysis::SliceProduct> slices,
+                                             std::span<const ColourMapping> mappings,
+                                             const FrameLabels& labels, int width, int height);
 
 /// Writes bytes to path atomically: to "<path>.tmp.<pid>.<n>" first, then renames over path.
 /// Throws std::runtime_error on failure (the temporary is removed).

@@ -1,0 +1,178 @@
+// Run control: the narrow interface through which the command line and the server drive a
+// simulation (docs/ARCHITECTURE.md). A Run owns the solver, its time series, checkpoints, the
+// analysis pipeline and the renderer, all in one run directory:
+//   scene.json  run.json  timeseries.csv  checkpoints/  spectra/  slices/  stats/  frames/
+// The solver advances on the run's own thread; analysis and rendering run on theirs and never
+// block it. Observers receive metrics, analysis frames and images as they appear.
+#pragma once
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdint>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "analysis/config.hpp"
+#include "analysis/products.hpp"
+#include "render/config.hpp"
+
+namespace sphles::control {
+
+/// A scene document parsed in full: solver, analysis and render sections.
+struct RunSpec {
+  analysis::RunConfig run;
+  render::RenderConfig render;
+};
+
+/// Throws sim::SceneError naming the field.
+RunSpec parse_run_spec(const nlohmann::json& document);
+nlohmann::json run_spec_to_json(const RunSpec& spec);
+
+/// created → (queued →) running ⇄ paused → finished | stopped | failed; stopped → running again
+/// resumes from the newest checkpoint (also after a server restart).
+enum class RunState { Created, Queued, Running, Paused, Finished, Stopped, Failed };
+std::string_view run_state_name(RunState state);
+bool is_terminal(RunState state);  // finished, stopped, failed
+
+/// A state change the current state does not allow (HTTP 409).
+class StateError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// A parameter change that is malformed or not allowed while the run exists (HTTP 400/422).
+class ChangeError : public std::runtime_error {
+ public:
+  ChangeError(std::string field, const std::string& reason)
+      : std::runtime_error("'" + field + "' " + reason), field_(std::move(field)) {}
+  const std::string& field() const { return field_; }
+
+ private:
+  std::string field_;
+};
+
+/// One row of the time series, as pushed to observers.
+struct MetricsSample {
+  double time = 0.0;  // [s]
+  std::uint64_t step = 0;
+  double dt = 0.0;
+  double kinetic_energy = 0.0;         // e_v (5.3) [m²/s²]
+  double dissipation = 0.0;            // -de_v/dt, trailing-window slope; NaN at first
+  double max_density_deviation = 0.0;  // max |ρ/ρ_ref - 1|
+  double max_speed = 0.0;              // [m/s]
+  std::vector<std::pair<std::string, double>> case_values;  // e.g. u_rms, eps_inj (Kolmogorov)
+};
+
+/// A rendered image, PNG-encoded in memory.
+struct ImageEvent {
+  std::string field;  // "omega2", "tau_sfs", "nu_t", "combined", "view3d"
+  double time = 0.0;
+  std::uint64_t step = 0;
+  std::string file;  // name under frames/ if saved, else empty
+  std::shared_ptr<const std::vector<unsigned char>> png;
+  std::chrono::steady_clock::time_point created;  // when encoding finished
+};
+
+/// Progress and health of a run at one moment.
+struct RunStatus {
+  RunState state = RunState::Created;
+  std::string reason;    // why it stopped or failed; empty otherwise
+  bool holding = false;  // paused and the solver thread has finished its step and is waiting
+  double time = 0.0;
+  double end_time = 0.0;
+  std::uint64_t step = 0;
+  double wall_seconds = 0.0;      // spent stepping (excludes paused time)
+  double steps_per_second = 0.0;  // over the last progress interval
+  std::optional<MetricsSample> latest;
+  std::uint64_t analysis_published = 0, analysis_dropped = 0, frames_rendered = 0;
+  std::uint64_t frames_skipped = 0;  // analysis frames nobody needed an image of
+};
+
+/// Receives a run's products. Called from the solver, analysis or render thread; must be quick
+/// (copy or enqueue) and must not throw or call back into the Run.
+class RunObserver {
+ public:
+  virtual ~RunObserver() = default;
+  virtual void on_metrics(std::span<const MetricsSample> /*batch*/) {}
+  virtual void on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& /*frame*/) {}
+  virtual void on_image(const ImageEvent& /*image*/) {}
+  virtual void on_state(RunState /*state*/, const std::string& /*reason*/) {}
+  /// True if this observer wants images: a run renders frames its scene does not save only
+  /// while some observer wants them.
+  virtual bool wants_images() const { return false; }
+};
+
+struct RunOptions {
+  int threads = 0;                     // OpenMP threads of the solver; 0 = default
+  bool log_progress = false;           // progress lines on stderr (command line)
+  double metrics_batch_seconds = 0.1;  // observers get metrics at most this often (wall time)
+};
+
+/// One simulation with everything it writes. All methods are thread-safe.
+class Run {
+ public:
+  /// A new run in `directory` (created; must not already hold a run). Writes scene.json and
+  /// run.json; packing and solver set-up happen when it starts.
+  Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptions options = {});
+  /// An existing run directory (after a server restart, or `sphles run --restart`). Its state is
+  /// read from run.json (a run that was running when the process died is marked stopped); it
+  /// continues from the newest valid checkpoint when started. `checkpoint` picks a file instead.
+  static std::unique_ptr<Run> open(std::string id, const std::filesystem::path& directory,
+                                   RunOptions options = {},
+                                   const std::vector<std::string>& overrides = {},
+                                   std::optional<std::filesystem::path> checkpoint = {});
+  ~Run();  // stop() and join
+  Run(const Run&) = delete;
+  Run& operator=(const Run&) = delete;
+
+  const std::string& id() const { return id_; }
+  const std::filesystem::path& directory() const { return directory_; }
+
+  /// created/queued → running; stopped → running (from the newest checkpoint). Returns at once;
+  /// the solver thread does the set-up.
+  void start();
+  void mark_queued();  // created → queued (the run manager has no free slot)
+  void pause();        // running → paused (takes effect between steps)
+  void resume();       // paused → running
+  /// running/paused/queued/created → stopped: the solver thread finishes its step, writes a
+  /// checkpoint (if checkpoints are on or the run has stepped) and exits. Blocks until it has.
+  void stop(const std::string& reason = "stopped by request");
+  /// Blocks until the run is finished, stopped or failed (or was never started).
+  void wait();
+  /// Runs on the calling thread until the end (command line). Returns the final state.
+  RunState run_here();
+
+  /// Applies a JSON merge patch to the scene document. Validated in full first; fields the
+  /// solver can change safely (docs/rendering.md, "Live changes") take effect at the next step,
+  /// the others throw ChangeError naming the field and the reason. Returns the changed fields.
+  std::vector<std::string> apply_changes(const nlohmann::json& patch);
+  /// Dotted names of the fields apply_changes accepts.
+  static const std::vector<std::string>& changeable_fields();
+
+  RunStatus status() const;
+  nlohmann::json document() const;  // the current scene document
+  std::shared_ptr<const analysis::AnalysisFrame> latest_frame() const;
+  std::optional<ImageEvent> latest_image(const std::string& field) const;
+
+  void add_observer(std::shared_ptr<RunObserver> observer);
+  void remove_observer(const RunObserver* observer);
+
+ private:
+  struct Impl;
+  Run(std::string id, std::filesystem::path directory, RunOptions options,
+      std::unique_ptr<Impl> impl);
+  std::string id_;
+  std::filesystem::path directory_;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace sphles::control

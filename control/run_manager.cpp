@@ -1,0 +1,297 @@
+#include "control/run_manager.hpp"
+
+#include <algorithm>
+#include <cstdio>
+
+#include "sim/json_reader.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::control {
+
+using nlohmann::json;
+using sim::SceneError;
+
+namespace {
+
+/// Longest run name kept in a directory name.
+constexpr std::size_t kMaxNameInId = 40;
+
+std::string sanitised(const std::string& name) {
+  std::string out;
+  for (const char c : name) {
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                       c == '-' || c == '_' || c == '.';
+    out += plain ? c : '-';
+    if (out.size() >= kMaxNameInId) break;
+  }
+  while (!out.empty() && out.front() == '.') out.erase(out.begin());
+  return out.empty() ? "run" : out;
+}
+
+std::string description(const std::string& name, const sim::Scene& s) {
+  char text[256];
+  std::snprintf(text, sizeof text, "%s: %s, %d^%d particles, %s D_K/dl = %g, %s model",
+                name.c_str(), std::string(sim::case_name(s.case_type)).c_str(),
+                s.particles_per_side, s.dimension(),
+                std::string(sim::kernel_name(s.kernel)).c_str(), s.kernel_diameter_over_spacing,
+                std::string(sim::subfilter_model_name(s.subfilter.model)).c_str());
+  return text;
+}
+
+bool occupies_slot(RunState s) {
+  return s == RunState::Running || s == RunState::Paused;
+}
+
+}  // namespace
+
+CreateRequest parse_create_request(const json& body) {
+  if (!body.is_object())
+    throw SceneError("request: '(body)' must be a JSON object, got " + sim::describe_type(body));
+  CreateRequest request;
+  for (const auto& [key, value] : body.items()) {
+    if (key == "preset") {
+      if (!value.is_string())
+        throw SceneError("request: 'preset' must be a string, got " + sim::describe_type(value));
+      request.preset = value.get<std::string>();
+    } else if (key == "scene") {
+      if (!value.is_object())
+        throw SceneError("request: 'scene' must be an object, got " + sim::describe_type(value));
+      request.scene = value;
+    } else if (key == "patch") {
+      if (!value.is_object())
+        throw SceneError("request: 'patch' must be an object (a JSON merge patch), got " +
+                         sim::describe_type(value));
+      request.patch = value;
+    } else if (key == "overrides") {
+      if (!value.is_array())
+        throw SceneError("request: 'overrides' must be an array of \"key=value\" strings, got " +
+                         sim::describe_type(value));
+      for (std::size_t k = 0; k < value.size(); ++k) {
+        if (!value[k].is_string())
+          throw SceneError("request: 'overrides[" + std::to_string(k) +
+                           "]' must be a string, got " + sim::describe_type(value[k]));
+        request.overrides.push_back(value[k].get<std::string>());
+      }
+    } else if (key == "name") {
+      if (!value.is_string() || value.get<std::string>().empty())
+        throw SceneError("request: 'name' must be a non-empty string");
+      request.name = value.get<std::string>();
+    } else if (key == "start") {
+      if (!value.is_boolean())
+        throw SceneError("request: 'start' must be true or false, got " +
+                         sim::describe_type(value));
+      request.start = value.get<bool>();
+    } else {
+      throw SceneError("request: unknown key '" + key +
+                       "' (valid: preset, scene, patch, overrides, name, start)");
+    }
+  }
+  if (request.preset.has_value() == request.scene.has_value())
+    throw SceneError("request: give exactly one of 'preset' and 'scene'");
+  return request;
+}
+
+/// Starts queued runs when a run leaves its slot.
+class RunManager::SlotObserver : public RunObserver {
+ public:
+  explicit SlotObserver(RunManager* manager) : manager_(manager) {}
+  void on_state(RunState state, const std::string&) override {
+    if (!occupies_slot(state) && state != RunState::Queued) manager_->start_queued_locked();
+  }
+
+ private:
+  RunManager* manager_;
+};
+
+RunManager::RunManager(ManagerOptions options)
+    : options_(std::move(options)), slot_observer_(std::make_shared<SlotObserver>(this)) {
+  if (options_.max_running < 1)
+    throw std::invalid_argument("max_running must be >= 1, got " +
+                                std::to_string(options_.max_running));
+  const std::filesystem::path runs = options_.data_directory / "runs";
+  std::filesystem::create_directories(runs);
+  std::vector<std::filesystem::path> directories;
+  for (const auto& entry : std::filesystem::directory_iterator(runs))
+    if (entry.is_directory()) directories.push_back(entry.path());
+  std::sort(directories.begin(), directories.end());
+  for (const auto& directory : directories) {
+    const std::string id = directory.filename().string();
+    try {
+      auto run = std::shared_ptr<Run>(Run::open(id, directory, options_.run_options));
+      run->add_observer(slot_observer_);
+      runs_.push_back(std::move(run));
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sphles: skipping run directory %s: %s\n", directory.c_str(), e.what());
+    }
+    next_number_ =
+        std::max<std::uint64_t>(next_number_, std::strtoull(id.c_str(), nullptr, 10) + 1);
+  }
+}
+
+RunManager::~RunManager() {
+  shutdown();
+  for (const auto& run : runs_) run->remove_observer(slot_observer_.get());
+}
+
+std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
+  json document;
+  if (request.preset) {
+    const auto names = sim::preset_names();
+    if (std::find(names.begin(), names.end(), *request.preset) == names.end()) {
+      std::string valid;
+      for (const auto& n : names) valid += (valid.empty() ? "" : ", ") + n;
+      throw SceneError("request: 'preset' must be one of " + valid + ", got '" + *request.preset +
+                       "'");
+    }
+    document = {{"preset", *request.preset}};
+  } else {
+    document = *request.scene;
+  }
+  document.merge_patch(request.patch);
+  for (const std::string& assignment : request.overrides) sim::apply_override(document, assignment);
+  if (request.name) document["name"] = *request.name;
+  RunSpec spec = parse_run_spec(document);  // throws naming the field; nothing created yet
+
+  std::shared_ptr<Run> run;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) throw StateError("the server is shutting down");
+    char number[32];
+    std::snprintf(number, sizeof number, "%04llu", static_cast<unsigned long long>(next_number_++));
+    const std::string id = std::string(number) + "-" + sanitised(spec.run.scene.name);
+    run = std::make_shared<Run>(id, std::move(spec), options_.data_directory / "runs" / id,
+                                options_.run_options);
+    run->add_observer(slot_observer_);
+    runs_.push_back(run);
+  }
+  if (request.start) start(run->id());
+  return run;
+}
+
+std::vector<std::shared_ptr<Run>> RunManager::list() const {
+  std::lock_guard lock(mutex_);
+  return runs_;
+}
+
+std::shared_ptr<Run> RunManager::get(const std::string& id) const {
+  std::lock_guard lock(mutex_);
+  for (const auto& run : runs_)
+    if (run->id() == id) return run;
+  throw UnknownRunError("no run with id '" + id + "'");
+}
+
+void RunManager::start(const std::string& id) {
+  const std::shared_ptr<Run> run = get(id);
+  bool queue = false;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) throw StateError("the server is shutting down");
+    int active = 0;
+    for (const auto& r : runs_)
+      if (r != run && occupies_slot(r->status().state)) ++active;
+    queue = active >= options_.max_running;
+    if (queue) {
+      run->mark_queued();  // throws StateError if the run is active
+      if (std::find(queue_.begin(), queue_.end(), id) == queue_.end()) queue_.push_back(id);
+    }
+  }
+  if (!queue) {
+    run->start();
+    std::lock_guard lock(mutex_);
+    std::erase(queue_, id);
+  }
+}
+
+void RunManager::pause(const std::string& id) {
+  get(id)->pause();
+}
+
+void RunManager::resume(const std::string& id) {
+  const std::shared_ptr<Run> run = get(id);
+  if (run->status().state == RunState::Paused)
+    run->resume();
+  else if (is_terminal(run->status().state))
+    start(id);
+  else
+    run->resume();  // throws StateError naming the state
+}
+
+void RunManager::stop(const std::string& id) {
+  const std::shared_ptr<Run> run = get(id);
+  {
+    std::lock_guard lock(mutex_);
+    std::erase(queue_, id);
+  }
+  run->stop();
+}
+
+void RunManager::start_queued_locked() {
+  // Called from a run's thread when it leaves its slot: start the oldest queued runs that fit.
+  std::vector<std::shared_ptr<Run>> starting;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) return;
+    int active = 0;
+    for (const auto& r : runs_)
+      if (occupies_slot(r->status().state)) ++active;
+    while (active < options_.max_running && !queue_.empty()) {
+      const std::string id = queue_.front();
+      queue_.erase(queue_.begin());
+      for (const auto& r : runs_)
+        if (r->id() == id && r->status().state == RunState::Queued) {
+          starting.push_back(r);
+          ++active;
+        }
+    }
+  }
+  for (const auto& run : starting) {
+    try {
+      run->start();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "sphles: could not start queued run %s: %s\n", run->id().c_str(),
+                   e.what());
+    }
+  }
+}
+
+void RunManager::shutdown() {
+  std::vector<std::shared_ptr<Run>> runs;
+  {
+    std::lock_guard lock(mutex_);
+    if (shut_down_) return;
+    shut_down_ = true;
+    queue_.clear();
+    runs = runs_;
+  }
+  for (const auto& run : runs) {
+    const RunState s = run->status().state;
+    if (s == RunState::Running || s == RunState::Paused || s == RunState::Queued) {
+      try {
+        run->stop("the server shut down; resume continues from the newest checkpoint");
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "sphles: stopping run %s: %s\n", run->id().c_str(), e.what());
+      }
+    }
+  }
+}
+
+json RunManager::presets() {
+  json list = json::array();
+  for (const std::string& name : sim::preset_names()) {
+    const sim::Scene s = sim::parse_scene({{"preset", name}});
+    json entry = {{"name", name},
+                  {"case", sim::case_name(s.case_type)},
+                  {"dimension", s.dimension()},
+                  {"particles_per_side", s.particles_per_side},
+                  {"kernel", sim::kernel_name(s.kernel)},
+                  {"kernel_diameter_over_spacing", s.kernel_diameter_over_spacing},
+                  {"subfilter_model", sim::subfilter_model_name(s.subfilter.model)},
+                  {"end_time", s.end_time},
+                  {"description", description(name, s)},
+                  {"scene", sim::preset_document(name)}};
+    list.push_back(std::move(entry));
+  }
+  return list;
+}
+
+}  // namespace sphles::control

@@ -1,0 +1,91 @@
+// The runs of one data directory: creation from presets or scenes, a bounded number running at
+// once (the rest queue), and recovery of the runs a previous process left behind.
+//   {data}/runs/{id}/   one run directory each (see control/run.hpp)
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "control/run.hpp"
+
+namespace sphles::control {
+
+struct ManagerOptions {
+  std::filesystem::path data_directory = "sphles-data";
+  int max_running = 1;  // runs stepping at once; further starts queue
+  RunOptions run_options;
+};
+
+/// What a client asks for when creating a run: a preset or a full scene (exactly one), then a
+/// JSON merge patch and/or dotted key=value overrides (sim::apply_override syntax).
+struct CreateRequest {
+  std::optional<std::string> preset;
+  std::optional<nlohmann::json> scene;
+  nlohmann::json patch = nlohmann::json::object();
+  std::vector<std::string> overrides;
+  std::optional<std::string> name;  // replaces the scene's name
+  bool start = true;
+};
+
+/// Parses a create request body: {"preset"|"scene", "patch", "overrides", "name", "start"}.
+/// Throws sim::SceneError naming the field for unknown keys and wrong types.
+CreateRequest parse_create_request(const nlohmann::json& body);
+
+/// A run id that does not exist (HTTP 404).
+class UnknownRunError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+class RunManager {
+ public:
+  /// Creates the data directory if needed and opens every run directory found in it (runs that
+  /// were active when the previous process ended are listed as stopped and can be resumed).
+  explicit RunManager(ManagerOptions options);
+  ~RunManager();  // shutdown()
+  RunManager(const RunManager&) = delete;
+  RunManager& operator=(const RunManager&) = delete;
+
+  /// Validates the request in full (throws sim::SceneError naming the field, nothing created),
+  /// then creates the run directory and starts or queues the run if request.start.
+  std::shared_ptr<Run> create(const CreateRequest& request);
+
+  /// All runs, oldest first.
+  std::vector<std::shared_ptr<Run>> list() const;
+  /// Throws UnknownRunError.
+  std::shared_ptr<Run> get(const std::string& id) const;
+
+  /// State transitions with queueing; throw UnknownRunError or StateError.
+  void start(const std::string& id);  // created/stopped → running or queued
+  void pause(const std::string& id);
+  void resume(const std::string& id);  // paused → running; stopped → running or queued
+  void stop(const std::string& id);
+
+  /// Stops every active run (each writes a checkpoint and is marked stopped). Idempotent.
+  void shutdown();
+
+  const ManagerOptions& options() const { return options_; }
+
+  /// The built-in presets: [{"name", "case", "dimension", "particles_per_side", "kernel",
+  /// "subfilter_model", "description", "scene": {...}}].
+  static nlohmann::json presets();
+
+ private:
+  void start_queued_locked();
+  class SlotObserver;
+
+  ManagerOptions options_;
+  std::shared_ptr<SlotObserver> slot_observer_;
+  mutable std::mutex mutex_;
+  std::vector<std::shared_ptr<Run>> runs_;
+  std::vector<std::string> queue_;  // ids waiting for a slot, oldest first
+  std::uint64_t next_number_ = 1;
+  bool shut_down_ = false;
+};
+
+}  // namespace sphles::control

@@ -1,0 +1,54 @@
+// The "render" section of a scene: which images a run produces from its analysis frames and how
+// they are colour-mapped (docs/rendering.md). Rendering is off unless the section asks for it.
+#pragma once
+
+#include <map>
+#include <nlohmann/json.hpp>
+#include <set>
+
+#include "analysis/config.hpp"
+#include "render/render.hpp"
+
+namespace sphles::render {
+
+/// Log scale between the 1st and 99th percentiles.
+inline ColourMapping log_mapping() {
+  ColourMapping mapping;
+  mapping.log_scale = true;
+  return mapping;
+}
+
+/// A 3D view of the particles coloured by a per-particle field, at a lower cadence than slices.
+struct View3dConfig {
+  bool enabled = false;
+  analysis::SliceField field = analysis::SliceField::VorticitySquared;
+  double every = 0.0;  // simulated time between 3D views [s]; 0 = with every analysis frame
+  int width = 800, height = 800;
+  ColourMapping colour = log_mapping();
+};
+
+struct RenderConfig {
+  /// Slice fields rendered (each must be a slice field of the analysis section).
+  std::set<analysis::SliceField> fields;
+  bool single = true;              // one frame per field: frames/{field}_t{t}.png
+  bool combined = true;            // all fields side by side: frames/combined_t{t}.png
+  bool save = true;                // write the image series; false: images only for live viewers
+  int width = 1200, height = 600;  // of a combined frame; single frames are height x height
+  std::map<analysis::SliceField, ColourMapping> colour;  // per field; default: log, percentiles
+  View3dConfig view3d;
+
+  bool enabled() const { return !fields.empty() || view3d.enabled; }
+  const ColourMapping& mapping(analysis::SliceField field) const;
+};
+
+/// Default mapping of a field: log scale between the 1st and 99th percentiles.
+ColourMapping default_mapping(analysis::SliceField field);
+
+/// Parses the "render" object (missing: rendering off). Checks it against the analysis section:
+/// rendered slice fields must be computed there, a 3D view needs the "particles" product with its
+/// field. Throws sim::SceneError naming the field, e.g. "scene: 'render.width' must be ...".
+RenderConfig parse_render_config(const nlohmann::json* section,
+                                 const analysis::AnalysisConfig& analysis);
+nlohmann::json render_config_to_json(const RenderConfig& config);
+
+}  // namespace sphles::render

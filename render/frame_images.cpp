@@ -1,0 +1,48 @@
+#include "render/frame_images.hpp"
+
+#include <chrono>
+
+namespace sphles::render {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double elapsed_ms(Clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
+}
+}  // namespace
+
+std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame,
+                                            const RenderConfig& config,
+                                            const std::string& case_name, bool include_view3d) {
+  const FrameLabels labels{case_name, frame.time, frame.step};
+  std::vector<FrameImage> images;
+  std::vector<analysis::SliceProduct> slices;
+  std::vector<ColourMapping> mappings;
+  for (const analysis::SliceProduct& slice : frame.slices)
+    if (config.fields.contains(slice.field)) {
+      slices.push_back(slice);
+      mappings.push_back(config.mapping(slice.field));
+    }
+  if (config.single) {
+    // A single-field frame is square: the slice plus its margins at the combined frame's height.
+    for (std::size_t i = 0; i < slices.size(); ++i) {
+      const auto start = Clock::now();
+      FrameImage image{
+          std::string(analysis::slice_field_name(slices[i].field)),
+          render_slice_png(slices[i], mappings[i], labels, config.height, config.height)};
+      image.milliseconds = elapsed_ms(start);
+      images.push_back(std::move(image));
+    }
+  }
+  if (config.combined && !slices.empty()) {
+    const auto start = Clock::now();
+    FrameImage image{"combined",
+                     render_slices_png(slices, mappings, labels, config.width, config.height)};
+    image.milliseconds = elapsed_ms(start);
+    images.push_back(std::move(image));
+  }
+  (void)include_view3d;  // 3D view: see render/view3d.hpp
+  return images;
+}
+
+}  // namespace sphles::render

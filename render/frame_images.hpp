@@ -1,0 +1,26 @@
+// The images one analysis frame yields under a render configuration: one per slice field, all
+// fields side by side, and the 3D view when due. Pure: depends on its inputs only.
+#pragma once
+
+#include <string>
+#include <vector>
+
+#include "analysis/products.hpp"
+#include "render/config.hpp"
+
+namespace sphles::render {
+
+struct FrameImage {
+  std::string field;  // "omega2", "tau_sfs", "nu_t", "combined" or "view3d"
+  std::vector<unsigned char> png;
+  double milliseconds = 0.0;  // wall time to render and encode
+};
+
+/// Renders the slices of `frame` that `config` asks for (in the order omega2, tau_sfs, nu_t,
+/// combined) and, with `include_view3d`, the 3D particle view. A requested slice missing from
+/// the frame is skipped (the analysis had it switched off at that time).
+std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame,
+                                            const RenderConfig& config,
+                                            const std::string& case_name, bool include_view3d);
+
+}  // namespace sphles::render

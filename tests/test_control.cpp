@@ -1,0 +1,382 @@
+// Run control: state machine, live changes, rendering sink, checkpoint on stop and resume, and
+// the run manager's queue and recovery. Real runs (tiny 2D Taylor-Green), real files.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <thread>
+
+#include "control/run.hpp"
+#include "control/run_manager.hpp"
+#include "io/checkpoint.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::control {
+namespace {
+
+using nlohmann::json;
+using namespace std::chrono_literals;
+
+std::filesystem::path fresh_directory(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("sphles_control_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  return dir;
+}
+
+/// 16² Taylor-Green at Re = 100 on a lattice; about 40 steps per 0.1 s of simulated time.
+json tiny_scene(double end_time, bool render = false) {
+  json scene = {{"name", "tiny"},
+                {"case", "tgv2d"},
+                {"particles_per_side", 16},
+                {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 6}}},
+                {"fluid",
+                 {{"reference_density", 1.0},
+                  {"dynamic_viscosity", 0.01},
+                  {"sound_speed", 10.0},
+                  {"reference_pressure", 1.0}}},
+                {"packing", {{"enabled", false}}},
+                {"time", {{"end", end_time}}}};
+  if (render) {
+    scene["analysis"] = {{"every", 0.05},
+                         {"products", {"energy", "vorticity", "slices"}},
+                         {"slice", {{"fields", {"omega2", "tau_sfs"}}}}};
+    scene["render"] = {{"fields", {"omega2", "tau_sfs"}}, {"width", 480}, {"height", 240}};
+  }
+  return scene;
+}
+
+std::vector<std::string> lines_of(const std::filesystem::path& path) {
+  std::ifstream in(path);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+template <class Predicate>
+bool eventually(Predicate predicate, std::chrono::milliseconds limit = 60s) {
+  const auto deadline = std::chrono::steady_clock::now() + limit;
+  while (std::chrono::steady_clock::now() < deadline) {
+    if (predicate()) return true;
+    std::this_thread::sleep_for(5ms);
+  }
+  return predicate();
+}
+
+ManagerOptions manager_options(const std::filesystem::path& data, int max_running) {
+  ManagerOptions options;
+  options.data_directory = data;
+  options.max_running = max_running;
+  return options;
+}
+
+class Recorder : public RunObserver {
+ public:
+  explicit Recorder(bool want_images = false) : want_images_(want_images) {}
+  void on_metrics(std::span<const MetricsSample> batch) override {
+    std::lock_guard lock(mutex);
+    for (const auto& m : batch) metrics.push_back(m);
+  }
+  void on_image(const ImageEvent& image) override {
+    std::lock_guard lock(mutex);
+    images.push_back(image);
+  }
+  void on_state(RunState state, const std::string&) override {
+    std::lock_guard lock(mutex);
+    states.push_back(state);
+  }
+  bool wants_images() const override { return want_images_; }
+  std::mutex mutex;
+  std::vector<MetricsSample> metrics;
+  std::vector<ImageEvent> images;
+  std::vector<RunState> states;
+
+ private:
+  bool want_images_;
+};
+
+TEST(RunControl, RunsToTheEndAndRecordsItsState) {
+  const auto dir = fresh_directory("finish");
+  control::Run run("r1", parse_run_spec(tiny_scene(0.1)), dir);
+  EXPECT_EQ(run.status().state, RunState::Created);
+  auto recorder = std::make_shared<Recorder>();
+  run.add_observer(recorder);
+  EXPECT_EQ(run.run_here(), RunState::Finished);
+  const RunStatus s = run.status();
+  EXPECT_NEAR(s.time, 0.1, 1e-12);
+  EXPECT_GT(s.step, 5u);
+  ASSERT_TRUE(s.latest.has_value());
+  EXPECT_EQ(s.latest->step, s.step);
+  EXPECT_EQ(lines_of(dir / "timeseries.csv").size(), s.step + 2);  // header + t = 0 + steps
+  const json run_file = json::parse(std::ifstream(dir / "run.json"));
+  EXPECT_EQ(run_file.at("state"), "finished");
+  std::lock_guard lock(recorder->mutex);
+  EXPECT_EQ(recorder->metrics.size(), s.step + 1);
+  EXPECT_EQ(recorder->states.back(), RunState::Finished);
+  // A finished run cannot start again until time.end is raised.
+  EXPECT_THROW(run.start(), StateError);
+  EXPECT_THROW(run.pause(), StateError);
+}
+
+TEST(RunControl, RefusesADirectoryThatHoldsARun) {
+  const auto dir = fresh_directory("twice");
+  { control::Run run("a", parse_run_spec(tiny_scene(0.1)), dir); }
+  EXPECT_THROW(control::Run("b", parse_run_spec(tiny_scene(0.1)), dir), std::runtime_error);
+}
+
+TEST(RunControl, PauseHoldsTheStepAndResumeContinues) {
+  const auto dir = fresh_directory("pause");
+  control::Run run("r", parse_run_spec(tiny_scene(50.0)), dir);
+  EXPECT_THROW(run.pause(), StateError);  // created
+  run.start();
+  EXPECT_THROW(run.start(), StateError);
+  ASSERT_TRUE(eventually([&] { return run.status().step > 5; }));
+  run.pause();
+  EXPECT_EQ(run.status().state, RunState::Paused);
+  EXPECT_THROW(run.pause(), StateError);
+  ASSERT_TRUE(eventually([&] { return run.status().holding; }));  // the step in flight ended
+  const std::uint64_t held = run.status().step;
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(run.status().step, held);
+  run.resume();
+  EXPECT_THROW(run.resume(), StateError);
+  ASSERT_TRUE(eventually([&] { return run.status().step > held + 5; }));
+  run.stop();
+  EXPECT_EQ(run.status().state, RunState::Stopped);
+  EXPECT_THROW(run.stop(), StateError);
+  // The stop wrote a checkpoint of the state it stopped at.
+  const auto files = io::list_checkpoints(dir / "checkpoints");
+  ASSERT_FALSE(files.empty());
+  EXPECT_EQ(io::read_checkpoint(files.front()).state.step, run.status().step);
+}
+
+TEST(RunControl, StopAndResumeGivesTheSameResultAsAnUninterruptedRun) {
+  const auto dir = fresh_directory("interrupted");
+  double stopped_at = 0.0;
+  {
+    control::Run first("i", parse_run_spec(tiny_scene(50.0)), dir);
+    first.start();
+    ASSERT_TRUE(eventually([&] { return first.status().step > 10; }));
+    first.stop("test");
+    ASSERT_EQ(first.status().state, RunState::Stopped);
+    stopped_at = first.status().time;
+  }
+  const double end = std::floor(stopped_at) + 1.0;
+  // A new process: open the directory, end the run at `end`, resume from the checkpoint.
+  std::unique_ptr<control::Run> reopened = control::Run::open("i", dir);
+  EXPECT_EQ(reopened->status().state, RunState::Stopped);
+  EXPECT_EQ(reopened->status().time, stopped_at);
+  reopened->apply_changes({{"time", {{"end", end}}}});
+  reopened->resume();
+  reopened->wait();
+  ASSERT_EQ(reopened->status().state, RunState::Finished) << reopened->status().reason;
+
+  const auto straight_dir = fresh_directory("straight");
+  control::Run straight("s", parse_run_spec(tiny_scene(end)), straight_dir);
+  ASSERT_EQ(straight.run_here(), RunState::Finished);
+  EXPECT_EQ(reopened->status().step, straight.status().step);
+  // Bitwise: the time series rows (17 significant digits) are identical.
+  EXPECT_EQ(lines_of(dir / "timeseries.csv"), lines_of(straight_dir / "timeseries.csv"));
+}
+
+TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {
+  const auto dir = fresh_directory("changes");
+  control::Run run("r", parse_run_spec(tiny_scene(50.0)), dir);
+  run.start();
+  ASSERT_TRUE(eventually([&] { return run.status().step > 3; }));
+  const auto changed = run.apply_changes({{"fluid", {{"reference_pressure", 4.0}}}});
+  EXPECT_EQ(changed, std::vector<std::string>{"fluid.reference_pressure"});
+  EXPECT_EQ(run.document().at("fluid").at("reference_pressure"), 4.0);
+  try {
+    run.apply_changes({{"kernel", {{"type", "quintic_spline"}}}});
+    ADD_FAILURE() << "kernel change accepted";
+  } catch (const ChangeError& e) {
+    EXPECT_EQ(e.field(), "kernel.type");
+    EXPECT_NE(std::string(e.what()).find("create a new run"), std::string::npos);
+  }
+  try {
+    run.apply_changes({{"fluid", {{"reference_pressure", "high"}}}});
+    ADD_FAILURE() << "string p_ref accepted";
+  } catch (const ChangeError& e) {
+    EXPECT_EQ(e.field(), "fluid.reference_pressure");
+  }
+  try {
+    run.apply_changes({{"time", {{"end", 0.0}}}});
+    ADD_FAILURE() << "end time 0 accepted";
+  } catch (const ChangeError& e) {
+    EXPECT_EQ(e.field(), "time.end");
+  }
+  EXPECT_THROW(run.apply_changes(json::array()), ChangeError);
+  // Shorten the run: it finishes at the new end.
+  const double end = run.status().time + 0.05;
+  run.apply_changes({{"time", {{"end", end}}}});
+  run.wait();
+  EXPECT_EQ(run.status().state, RunState::Finished);
+  EXPECT_NEAR(run.status().time, end, 1e-9);
+  const json scene = json::parse(std::ifstream(dir / "scene.json"));
+  EXPECT_EQ(scene.at("fluid").at("reference_pressure"), 4.0);
+  // Raising time.end lets a finished run continue.
+  run.apply_changes({{"time", {{"end", end + 0.02}}}});
+  run.start();
+  run.wait();
+  EXPECT_EQ(run.status().state, RunState::Finished);
+  EXPECT_NEAR(run.status().time, end + 0.02, 1e-9);
+}
+
+bool is_png(const std::vector<unsigned char>& bytes) {
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1a, '\n'};
+  return bytes.size() > 8 && std::equal(kSignature, kSignature + 8, bytes.begin());
+}
+
+TEST(RunControl, RendersAndSavesTheImageSeriesWithAnIndex) {
+  const auto dir = fresh_directory("render");
+  control::Run run("r", parse_run_spec(tiny_scene(0.1, true)), dir);
+  auto recorder = std::make_shared<Recorder>();
+  run.add_observer(recorder);
+  ASSERT_EQ(run.run_here(), RunState::Finished) << run.status().reason;
+  const auto index = lines_of(dir / "frames" / "index.csv");
+  ASSERT_GE(index.size(), 2u);
+  EXPECT_EQ(index.front(), "time,step,field,file");
+  std::set<std::string> fields;
+  for (std::size_t k = 1; k < index.size(); ++k) {
+    const std::string file = index[k].substr(index[k].rfind(',') + 1);
+    fields.insert(index[k]
+                      .substr(0, index[k].rfind(','))
+                      .substr(index[k].substr(0, index[k].rfind(',')).rfind(',') + 1));
+    std::ifstream in(dir / "frames" / file, std::ios::binary);
+    ASSERT_TRUE(in) << file;
+    EXPECT_TRUE(is_png(std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {})));
+  }
+  EXPECT_EQ(fields, (std::set<std::string>{"combined", "omega2", "tau_sfs"}));
+  // Frames may be dropped while the renderer is busy (newest wins), but the last one is drained.
+  EXPECT_TRUE(std::filesystem::exists(dir / "frames" / "omega2_t0.1000.png"));
+  EXPECT_TRUE(std::filesystem::exists(dir / "frames" / "tau_sfs_t0.1000.png"));
+  std::lock_guard lock(recorder->mutex);
+  ASSERT_FALSE(recorder->images.empty());
+  EXPECT_TRUE(is_png(*recorder->images.back().png));
+  const auto latest = run.latest_image("combined");
+  ASSERT_TRUE(latest.has_value());
+  EXPECT_NEAR(latest->time, 0.1, 1e-12);
+}
+
+TEST(RunControl, UnsavedImagesAreRenderedOnlyForViewersThatWantThem) {
+  json scene = tiny_scene(0.1, true);
+  scene["render"]["save"] = false;
+  {
+    const auto dir = fresh_directory("nobody");
+    control::Run run("r", parse_run_spec(scene), dir);
+    ASSERT_EQ(run.run_here(), RunState::Finished);
+    EXPECT_EQ(run.status().frames_rendered, 0u);
+    EXPECT_GT(run.status().frames_skipped, 0u);
+    EXPECT_FALSE(std::filesystem::exists(dir / "frames" / "index.csv"));
+  }
+  {
+    const auto dir = fresh_directory("viewer");
+    control::Run run("r", parse_run_spec(scene), dir);
+    auto viewer = std::make_shared<Recorder>(/*want_images=*/true);
+    run.add_observer(viewer);
+    ASSERT_EQ(run.run_here(), RunState::Finished);
+    EXPECT_GT(run.status().frames_rendered, 0u);
+    EXPECT_FALSE(std::filesystem::exists(dir / "frames" / "index.csv"));
+    std::lock_guard lock(viewer->mutex);
+    ASSERT_FALSE(viewer->images.empty());
+    EXPECT_TRUE(viewer->images.front().file.empty());
+  }
+}
+
+TEST(RenderConfig, RejectsFieldsTheAnalysisDoesNotCompute) {
+  json scene = tiny_scene(0.1, true);
+  scene["analysis"]["slice"]["fields"] = {"omega2"};
+  try {
+    parse_run_spec(scene);
+    ADD_FAILURE() << "accepted";
+  } catch (const sim::SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("'render.fields[1]'"), std::string::npos) << e.what();
+  }
+  scene = tiny_scene(0.1, true);
+  scene["render"]["colour"] = {{"omega2", {{"scale", "log"}, {"min", -1.0}}}};
+  EXPECT_THROW(parse_run_spec(scene), sim::SceneError);
+  scene["render"]["colour"] = {{"omega2", {{"scale", "linear"}, {"min", 2.0}, {"max", 1.0}}}};
+  EXPECT_THROW(parse_run_spec(scene), sim::SceneError);
+  scene["render"]["colour"] = {{"vorticity", json::object()}};
+  EXPECT_THROW(parse_run_spec(scene), sim::SceneError);
+  scene["render"] = {{"view3d", {{"enabled", true}}}};
+  EXPECT_THROW(parse_run_spec(scene), sim::SceneError);  // needs the particles product
+  // Round trip.
+  scene = tiny_scene(0.1, true);
+  scene["render"]["colour"] = {{"tau_sfs", {{"scale", "linear"}, {"min", 0.0}, {"max", 2.0}}}};
+  const RunSpec spec = parse_run_spec(scene);
+  EXPECT_EQ(run_spec_to_json(parse_run_spec(run_spec_to_json(spec))), run_spec_to_json(spec));
+}
+
+TEST(RunManager, QueuesBeyondTheSlotLimitAndRecoversRunsAfterARestart) {
+  const auto data = fresh_directory("manager");
+  std::string first_id, second_id, long_id;
+  {
+    RunManager manager(manager_options(data, 1));
+    CreateRequest request;
+    request.scene = tiny_scene(0.1);
+    first_id = manager.create(request)->id();
+    second_id = manager.create(request)->id();
+    EXPECT_NE(first_id, second_id);
+    const auto second = manager.get(second_id);
+    EXPECT_TRUE(second->status().state == RunState::Queued || is_terminal(second->status().state));
+    ASSERT_TRUE(eventually([&] { return second->status().state == RunState::Finished; }));
+    EXPECT_EQ(manager.get(first_id)->status().state, RunState::Finished);
+    EXPECT_THROW(manager.get("nope"), UnknownRunError);
+
+    CreateRequest long_request;
+    long_request.scene = tiny_scene(50.0);
+    long_request.name = "long one";
+    const auto long_run = manager.create(long_request);
+    long_id = long_run->id();
+    EXPECT_EQ(long_id.substr(4), "-long-one");
+    ASSERT_TRUE(eventually([&] { return long_run->status().step > 5; }));
+    manager.shutdown();  // checkpoints and stops it
+    EXPECT_EQ(long_run->status().state, RunState::Stopped);
+  }
+  RunManager again(manager_options(data, 1));
+  ASSERT_EQ(again.list().size(), 3u);
+  const auto long_run = again.get(long_id);
+  EXPECT_EQ(long_run->status().state, RunState::Stopped);
+  const double stopped_at = long_run->status().time;
+  EXPECT_GT(stopped_at, 0.0);
+  again.resume(long_id);
+  ASSERT_TRUE(eventually([&] { return long_run->status().time > stopped_at; }));
+  again.stop(long_id);
+  // A new run gets a number after the recovered ones.
+  CreateRequest request;
+  request.preset = "kolmogorov2d";
+  request.start = false;
+  EXPECT_EQ(again.create(request)->id().substr(0, 4), "0004");
+}
+
+TEST(RunManager, CreateRequestsAreValidatedBeforeAnythingIsCreated) {
+  const auto data = fresh_directory("requests");
+  RunManager manager(manager_options(data, 1));
+  const auto message = [&](const json& body) -> std::string {
+    try {
+      manager.create(parse_create_request(body));
+    } catch (const sim::SceneError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_NE(message({{"preset", "nope"}}).find("'preset'"), std::string::npos);
+  EXPECT_NE(message({{"preset", 3}}).find("'preset'"), std::string::npos);
+  EXPECT_NE(message({{"scene", tiny_scene(1.0)}, {"colour", 1}}).find("'colour'"),
+            std::string::npos);
+  EXPECT_NE(message(json::object()).find("exactly one"), std::string::npos);
+  json bad = tiny_scene(1.0);
+  bad["fluid"]["sound_speed"] = -1.0;
+  EXPECT_NE(message({{"scene", bad}}).find("'fluid.sound_speed'"), std::string::npos);
+  EXPECT_NE(message({{"scene", tiny_scene(1.0)}, {"patch", {{"kernel", {{"type", "box"}}}}}})
+                .find("'kernel.type'"),
+            std::string::npos);
+  EXPECT_TRUE(manager.list().empty());
+  EXPECT_FALSE(RunManager::presets().empty());
+}
+
+}  // namespace
+}  // namespace sphles::control
