@@ -13,7 +13,8 @@ inline constexpr int kExitOk = 0;
 inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
 
-/// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N]
+/// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N] [--overwrite]
+///   | --restart CHECKPOINT|RUN_DIR [--set ...] [--out DIR]
 int run_command(const std::vector<std::string>& args);
 
 /// sphles inspect FILE: validates a checkpoint and prints its contents (exit 2 if invalid).
@@ -25,6 +26,15 @@ int presets_command(const std::vector<std::string>& args);
 /// sphles calibrate SCENE.json|PRESET --target-urms U [--time T] [--average-from T0]
 ///   [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]
 int calibrate_command(const std::vector<std::string>& args);
+
+/// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
+///   [--max-running N] [--threads N] [--start-run PRESET|SCENE.json [--set key=value ...]]
+int serve_command(const std::vector<std::string>& args);
+
+/// The scene document of a scene file, or of a preset name when no such file exists, with --set
+/// overrides applied (not yet validated). Throws sim::SceneError.
+nlohmann::json load_scene_document(const std::string& scene_or_preset,
+                                   const std::vector<std::string>& overrides);
 
 /// A scene file, or a preset name when no such file exists, with --set overrides applied.
 /// Throws sim::SceneError.

@@ -160,6 +160,11 @@ int serve_command(const std::vector<std::string>& args) {
                  options.server.web_root.c_str());
   if (!options.server.token.empty())
     std::fprintf(stderr, "sphles serve: mutating calls need 'Authorization: Bearer <token>'\n");
+  else if (options.server.address != "127.0.0.1" && options.server.address != "::1")
+    std::fprintf(stderr,
+                 "sphles serve: warning: listening on %s without --token: anyone who can reach "
+                 "it can create, change and stop runs\n",
+                 options.server.address.c_str());
   std::printf("sphles serve: listening on %s\n", http.url().c_str());
   std::fflush(stdout);
 
