@@ -13,6 +13,9 @@ using sim::SceneError;
 
 namespace {
 
+/// Analysis frames over a run created without an analysis section (live defaults).
+constexpr double kLiveAnalysisFrames = 60.0;
+
 /// Longest run name kept in a directory name.
 constexpr std::size_t kMaxNameInId = 40;
 
@@ -43,6 +46,20 @@ bool occupies_slot(RunState s) {
 }
 
 }  // namespace
+
+json with_live_defaults(json document) {
+  if (!document.is_object() || document.contains("analysis") || document.contains("render"))
+    return document;
+  const sim::Scene scene = sim::parse_scene(document);  // throws naming the field
+  document["analysis"] = {
+      {"every", scene.end_time / kLiveAnalysisFrames},
+      {"products", {"energy", "spectrum", "vorticity", "slices", "sfs_stats"}},
+      {"slice",
+       {{"axis", "x"}, {"position", 3.141592653589793}, {"fields", {"omega2", "tau_sfs"}}}}};
+  if (scene.dimension() == 2) document["analysis"]["slice"].erase("axis");
+  document["render"] = {{"fields", {"omega2", "tau_sfs"}}};
+  return document;
+}
 
 CreateRequest parse_create_request(const json& body) {
   if (!body.is_object())
@@ -150,7 +167,8 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
   document.merge_patch(request.patch);
   for (const std::string& assignment : request.overrides) sim::apply_override(document, assignment);
   if (request.name) document["name"] = *request.name;
-  RunSpec spec = parse_run_spec(document);  // throws naming the field; nothing created yet
+  RunSpec spec =
+      parse_run_spec(with_live_defaults(document));  // throws naming the field; nothing created yet
 
   std::shared_ptr<Run> run;
   {
@@ -279,16 +297,17 @@ json RunManager::presets() {
   json list = json::array();
   for (const std::string& name : sim::preset_names()) {
     const sim::Scene s = sim::parse_scene({{"preset", name}});
-    json entry = {{"name", name},
-                  {"case", sim::case_name(s.case_type)},
-                  {"dimension", s.dimension()},
-                  {"particles_per_side", s.particles_per_side},
-                  {"kernel", sim::kernel_name(s.kernel)},
-                  {"kernel_diameter_over_spacing", s.kernel_diameter_over_spacing},
-                  {"subfilter_model", sim::subfilter_model_name(s.subfilter.model)},
-                  {"end_time", s.end_time},
-                  {"description", description(name, s)},
-                  {"scene", sim::preset_document(name)}};
+    json entry = {
+        {"name", name},
+        {"case", sim::case_name(s.case_type)},
+        {"dimension", s.dimension()},
+        {"particles_per_side", s.particles_per_side},
+        {"kernel", sim::kernel_name(s.kernel)},
+        {"kernel_diameter_over_spacing", s.kernel_diameter_over_spacing},
+        {"subfilter_model", sim::subfilter_model_name(s.subfilter.model)},
+        {"end_time", s.end_time},
+        {"description", description(name, s)},
+        {"scene", run_spec_to_json(parse_run_spec(with_live_defaults({{"preset", name}})))}};
     list.push_back(std::move(entry));
   }
   return list;

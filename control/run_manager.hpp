@@ -32,6 +32,11 @@ struct CreateRequest {
   bool start = true;
 };
 
+/// A scene document without "analysis" and "render" sections gets the live defaults: all
+/// products (energy, spectrum, vorticity, ω² and |τ_SFS| slices at x = π, sfs_stats) at 60
+/// frames over the run, and rendered images of both slices. Others are returned unchanged.
+nlohmann::json with_live_defaults(nlohmann::json document);
+
 /// Parses a create request body: {"preset"|"scene", "patch", "overrides", "name", "start"}.
 /// Throws sim::SceneError naming the field for unknown keys and wrong types.
 CreateRequest parse_create_request(const nlohmann::json& body);

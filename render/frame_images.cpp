@@ -2,6 +2,8 @@
 
 #include <chrono>
 
+#include "render/view3d.hpp"
+
 namespace sphles::render {
 
 namespace {
@@ -41,7 +43,26 @@ std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame
     image.milliseconds = elapsed_ms(start);
     images.push_back(std::move(image));
   }
-  (void)include_view3d;  // 3D view: see render/view3d.hpp
+  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->snapshot) {
+    const analysis::Snapshot& snapshot = *frame.particles->snapshot;
+    for (const analysis::ParticleFieldProduct& field : frame.particles->fields) {
+      if (field.field != config.view3d.field) continue;
+      const auto start = Clock::now();
+      const auto& x = snapshot.particles.position;
+      ParticleCloud cloud;
+      cloud.x = x[0];
+      cloud.y = x[1];
+      if (snapshot.dimension() == 3) cloud.z = x[2];
+      cloud.values = field.values;
+      cloud.box_length = snapshot.box.length[0];
+      cloud.field_name = std::string(analysis::slice_field_name(field.field));
+      cloud.units = field.units;
+      FrameImage image{"view3d", render_particles_png(cloud, config.view3d.colour, labels,
+                                                      config.view3d.width, config.view3d.height)};
+      image.milliseconds = elapsed_ms(start);
+      images.push_back(std::move(image));
+    }
+  }
   return images;
 }
 

@@ -357,12 +357,36 @@ constexpr ThesisCase kThesisCases[] = {
 
 std::vector<std::string> preset_names() {
   std::vector<std::string> names;
+  names.push_back("tgv2d");
+  names.push_back("tgv3d");
   for (const ThesisCase& c : kThesisCases) names.push_back("tgv3d-case" + std::to_string(c.number));
   names.push_back("kolmogorov2d");
   return names;
 }
 
 json preset_document(const std::string& name) {
+  // Small cases for a laptop or a live demo: 2D Taylor-Green at Re = 100 (SPEC §6.2, the
+  // validation setting of docs/validation.md at 64²) and the 3D vortex of SPEC §6.1 at 32³.
+  if (name == "tgv2d")
+    return {{"case", "tgv2d"},
+            {"particles_per_side", 64},
+            {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+            {"fluid",
+             {{"reference_density", 1.0},
+              {"dynamic_viscosity", 0.01},
+              {"sound_speed", 10.0},
+              {"reference_pressure", 1.0}}},
+            {"time", {{"end", 2.0}}}};
+  if (name == "tgv3d")
+    return {{"case", "tgv3d"},
+            {"particles_per_side", 32},
+            {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+            {"fluid",
+             {{"reference_density", 1.0},
+              {"dynamic_viscosity", 1e-4},
+              {"sound_speed", 5.0},
+              {"reference_pressure", 6.25}}},
+            {"time", {{"end", 15.0}}}};
   if (name == "kolmogorov2d") return {{"case", "kolmogorov2d"}, {"forcing", {{"amplitude", 1.8}}}};
   for (const ThesisCase& c : kThesisCases) {
     if (name != "tgv3d-case" + std::to_string(c.number)) continue;

@@ -90,7 +90,8 @@ struct Scene {
   std::size_t num_particles() const;
 };
 
-/// Names of the built-in presets: tgv3d-case1 ... tgv3d-case21 (SPEC Table 5.1), kolmogorov2d.
+/// Names of the built-in presets: tgv2d (64², Re = 100), tgv3d (32³), tgv3d-case1 ...
+/// tgv3d-case21 (SPEC Table 5.1), kolmogorov2d.
 std::vector<std::string> preset_names();
 
 /// The scene document of a preset; throws SceneError for an unknown name.

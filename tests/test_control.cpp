@@ -260,6 +260,25 @@ TEST(RunControl, RendersAndSavesTheImageSeriesWithAnIndex) {
   EXPECT_NEAR(latest->time, 0.1, 1e-12);
 }
 
+TEST(RunControl, RendersThe3dViewAtItsOwnCadence) {
+  json scene = tiny_scene(0.1, true);
+  scene["analysis"]["products"] = {"vorticity", "slices", "particles"};
+  scene["analysis"]["particle_fields"] = {"omega2"};
+  scene["render"]["view3d"] = {{"enabled", true}, {"every", 0.1}, {"width", 320}, {"height", 320}};
+  const auto dir = fresh_directory("view3d");
+  control::Run run("r", parse_run_spec(scene), dir);
+  ASSERT_EQ(run.run_here(), RunState::Finished) << run.status().reason;
+  const auto latest = run.latest_image("view3d");
+  ASSERT_TRUE(latest.has_value());
+  EXPECT_TRUE(is_png(*latest->png));
+  EXPECT_TRUE(std::filesystem::exists(dir / "frames" / latest->file));
+  int views = 0;
+  for (const std::string& row : lines_of(dir / "frames" / "index.csv"))
+    views += row.find(",view3d,") != std::string::npos;
+  EXPECT_GE(views, 1);
+  EXPECT_LE(views, 2);  // t = 0 and t = 0.1 at most, never the frame at 0.05
+}
+
 TEST(RunControl, UnsavedImagesAreRenderedOnlyForViewersThatWantThem) {
   json scene = tiny_scene(0.1, true);
   scene["render"]["save"] = false;

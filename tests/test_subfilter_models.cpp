@@ -328,7 +328,7 @@ TEST(Kolmogorov, LaminarStateMatchesAnalytic) {
 
 TEST(Presets, EveryPresetLoadsAndRunsFiveStepsAtReducedResolution) {
   const auto names = preset_names();
-  EXPECT_EQ(names.size(), 22u);
+  EXPECT_EQ(names.size(), 24u);
   for (const std::string& name : names) {
     const Scene full = parse_scene({{"preset", name}});
     EXPECT_EQ(full.name, name);
