@@ -55,7 +55,7 @@ def cell_text(r):
         f"rms {100 * r['max_rms_density_deviation']:.1f}%",
     ]
     if r["classification"] == "blown_up":
-        lines.append(f"t={r['time_reached']:.2g}")
+        lines.append(f"t={r['time_reached']:.3g}")
     elif r["energy_ratio"] > 0:
         lines.append(f"E/E* {r['energy_ratio']:.2f}")
     return "\n".join(lines)

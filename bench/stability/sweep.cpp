@@ -251,6 +251,11 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
     r.reason = reason.str();
     r.time_reached = e.time();
     r.steps = e.step();
+    if (e.quantity() == "kinetic energy") {  // the runaway value, not the last check's
+      r.final_energy = e.value();
+      const double expected = expected_energy(e.time());
+      r.energy_ratio = expected > 0.0 ? r.final_energy / expected : 0.0;
+    }
   }
   if (r.classification == sim::Classification::Stable && r.reason.empty())
     r.reason = "all checks within thresholds";
