@@ -180,6 +180,23 @@ TEST(RunControl, StopAndResumeGivesTheSameResultAsAnUninterruptedRun) {
   EXPECT_EQ(lines_of(dir / "timeseries.csv"), lines_of(straight_dir / "timeseries.csv"));
 }
 
+TEST(RunControl, ABlowUpFailsTheRunCleanlyAndKeepsTheLastValidCheckpoint) {
+  json scene = tiny_scene(5.0);
+  scene["time"]["fixed_step"] = 0.1;  // 2.5 x the acoustic limit: blows up within ~1.2 s
+  scene["checkpoint"] = {{"every", 0.2}};
+  const auto dir = fresh_directory("blowup");
+  control::Run run("r", parse_run_spec(scene), dir);
+  EXPECT_EQ(run.run_here(), RunState::Failed);
+  const RunStatus s = run.status();
+  EXPECT_NE(s.reason.find("blow-up"), std::string::npos) << s.reason;
+  EXPECT_NE(s.reason.find("last valid checkpoint: checkpoints/"), std::string::npos) << s.reason;
+  const auto files = io::list_checkpoints(dir / "checkpoints");
+  ASSERT_FALSE(files.empty());
+  const io::Checkpoint newest = io::read_checkpoint(files.front());  // validates, all finite
+  EXPECT_LT(newest.state.time, 5.0);
+  EXPECT_EQ(json::parse(std::ifstream(dir / "run.json")).at("state"), "failed");
+}
+
 TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {
   const auto dir = fresh_directory("changes");
   control::Run run("r", parse_run_spec(tiny_scene(50.0)), dir);
