@@ -122,39 +122,62 @@ QueueCounters ClientQueue::counters() const {
   return counters_;
 }
 
-// The observer must not throw into the run's threads: any failure (allocation) drops the item.
+void RunFanout::add(std::shared_ptr<ClientQueue> queue) {
+  std::lock_guard lock(mutex_);
+  queues_.push_back(std::move(queue));
+}
 
-void QueueObserver::on_metrics(std::span<const control::MetricsSample> batch) {
-  try {
-    queue_->push_metrics(batch);
-  } catch (...) {
+void RunFanout::remove(const ClientQueue* queue) {
+  std::lock_guard lock(mutex_);
+  std::erase_if(queues_, [&](const auto& q) { return q.get() == queue; });
+}
+
+std::size_t RunFanout::size() const {
+  std::lock_guard lock(mutex_);
+  return queues_.size();
+}
+
+// Called on the run's threads. Each push only copies under the queue's short lock (never the
+// other way round: no queue lock is held while this lock is taken), and nothing may throw into
+// the run: a failure (allocation) drops the item for that client.
+template <class F>
+void RunFanout::each(F&& f) const {
+  std::lock_guard lock(mutex_);
+  for (const auto& queue : queues_) {
+    try {
+      f(*queue);
+    } catch (...) {
+    }
   }
 }
 
-void QueueObserver::on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& frame) {
-  try {
-    queue_->push_frame(frame);
-  } catch (...) {
-  }
+void RunFanout::on_metrics(std::span<const control::MetricsSample> batch) {
+  each([&](ClientQueue& q) { q.push_metrics(batch); });
 }
 
-void QueueObserver::on_image(const control::ImageEvent& image) {
-  try {
-    queue_->push_image(image);
-  } catch (...) {
-  }
+void RunFanout::on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& frame) {
+  each([&](ClientQueue& q) { q.push_frame(frame); });
 }
 
-void QueueObserver::on_state(control::RunState state, const std::string& reason) {
-  try {
-    queue_->push_text(
-        dump({{"type", "state"}, {"state", control::run_state_name(state)}, {"reason", reason}}));
-  } catch (...) {
-  }
+void RunFanout::on_image(const control::ImageEvent& image) {
+  each([&](ClientQueue& q) { q.push_image(image); });
 }
 
-bool QueueObserver::wants_images() const {
-  return queue_->images_enabled() && !queue_->closed();
+void RunFanout::on_state(control::RunState state, const std::string& reason) {
+  std::string text;
+  try {
+    text = dump({{"type", "state"}, {"state", control::run_state_name(state)}, {"reason", reason}});
+  } catch (...) {
+    return;
+  }
+  each([&](ClientQueue& q) { q.push_text(text); });
+}
+
+bool RunFanout::wants_images() const {
+  std::lock_guard lock(mutex_);
+  for (const auto& queue : queues_)
+    if (queue->images_enabled() && !queue->closed()) return true;
+  return false;
 }
 
 }  // namespace sphles::server

@@ -102,10 +102,18 @@ class ClientQueue {
   std::atomic<bool> closed_flag_{false};
 };
 
-/// The RunObserver a WebSocket session registers with its run: forwards into its ClientQueue.
-class QueueObserver final : public control::RunObserver {
+/// The one RunObserver the server registers with a run: fans each product out to the queues of
+/// that run's WebSocket clients. Clients join and leave here, under this object's own lock, so
+/// the run's observer list changes once per run rather than with every connect and disconnect
+/// (adding or removing a run observer while the run's threads call observers is not safe in
+/// control/ as of 65d0327; see the report of issue 7). A fan-out outlives the server harmlessly:
+/// it holds only queues, which are closed when their sessions end.
+class RunFanout final : public control::RunObserver {
  public:
-  explicit QueueObserver(std::shared_ptr<ClientQueue> queue) : queue_(std::move(queue)) {}
+  void add(std::shared_ptr<ClientQueue> queue);
+  void remove(const ClientQueue* queue);
+  std::size_t size() const;
+
   void on_metrics(std::span<const control::MetricsSample> batch) override;
   void on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& frame) override;
   void on_image(const control::ImageEvent& image) override;
@@ -113,7 +121,10 @@ class QueueObserver final : public control::RunObserver {
   bool wants_images() const override;
 
  private:
-  std::shared_ptr<ClientQueue> queue_;
+  template <class F>
+  void each(F&& f) const;
+  mutable std::mutex mutex_;
+  std::vector<std::shared_ptr<ClientQueue>> queues_;
 };
 
 }  // namespace sphles::server

@@ -50,7 +50,7 @@ WebSocketSession::WebSocketSession(beast::tcp_stream&& stream, std::shared_ptr<c
 
 WebSocketSession::~WebSocketSession() {
   if (queue_) queue_->close();
-  if (observer_) run_->remove_observer(observer_.get());
+  if (fanout_) fanout_->remove(queue_.get());
   registry_.remove(*this);
 }
 
@@ -78,9 +78,9 @@ void WebSocketSession::on_accept(beast::error_code ec) {
       if (auto self = weak.lock()) self->on_wake();
     });
   });
-  observer_ = std::make_shared<QueueObserver>(queue_);
   registry_.add(shared_from_this());
-  run_->add_observer(observer_);  // from here on, items queue up behind the hello
+  fanout_ = registry_.fanout(run_);
+  fanout_->add(queue_);  // from here on, items queue up behind the hello
 
   nlohmann::json hello = {{"type", "hello"},
                           {"run", run_detail_json(*run_, registry_.counters(run_->id()))}};
@@ -243,11 +243,7 @@ void WebSocketSession::finish() {
   if (finished_) return;
   finished_ = true;
   if (queue_) queue_->close();
-  if (observer_) {
-    // Removing may wait for the run's current callback; do it off the I/O thread.
-    net::post(workers_,
-              [run = run_, observer = observer_] { run->remove_observer(observer.get()); });
-  }
+  if (fanout_) fanout_->remove(queue_.get());
   registry_.remove(*this);
 }
 
@@ -279,6 +275,18 @@ StreamCounters StreamRegistry::counters(const std::string& run_id) const {
   return c;
 }
 
+std::shared_ptr<RunFanout> StreamRegistry::fanout(const std::shared_ptr<control::Run>& run) {
+  std::shared_ptr<RunFanout> created;
+  {
+    std::lock_guard lock(mutex_);
+    auto& entry = fanouts_[run->id()];
+    if (entry) return entry;
+    entry = created = std::make_shared<RunFanout>();
+  }
+  run->add_observer(created);  // outside our lock: the run may call observers meanwhile
+  return created;
+}
+
 std::size_t StreamRegistry::size() const {
   std::lock_guard lock(mutex_);
   return live_.size();
@@ -293,10 +301,7 @@ void StreamRegistry::close_all() {
       if (auto s = entry.session.lock()) sessions.push_back(std::move(s));
     }
   }
-  for (const auto& s : sessions) {
-    s->run()->remove_observer(s->observer().get());
-    s->close();
-  }
+  for (const auto& s : sessions) s->close();
 }
 
 }  // namespace sphles::server

@@ -1,7 +1,7 @@
 // One WebSocket client of one run (/api/runs/{id}/stream), and the registry of live sessions.
 //
 // A session owns its socket and a ClientQueue (server/client_queue.hpp). The run's threads fill
-// the queue through a QueueObserver and wake the session with a post to its strand; the session
+// the queue through the run's RunFanout and wake the session with a post to its strand; the session
 // serialises and writes one message at a time on that strand, so a client that reads slowly only
 // ever holds one message in flight plus its bounded queue. Messages: docs/api.md.
 #pragma once
@@ -45,7 +45,6 @@ class WebSocketSession : public std::enable_shared_from_this<WebSocketSession> {
 
   const std::shared_ptr<control::Run>& run() const { return run_; }
   const std::shared_ptr<ClientQueue>& queue() const { return queue_; }
-  const std::shared_ptr<QueueObserver>& observer() const { return observer_; }
 
  private:
   void on_accept(boost::beast::error_code ec);
@@ -67,7 +66,7 @@ class WebSocketSession : public std::enable_shared_from_this<WebSocketSession> {
   StreamLimits limits_;
   bool authorised_;
   std::shared_ptr<ClientQueue> queue_;
-  std::shared_ptr<QueueObserver> observer_;
+  std::shared_ptr<RunFanout> fanout_;
 
   // Strand-only state.
   bool started_ = false;  // hello written; queued items may follow
@@ -87,8 +86,10 @@ class StreamRegistry {
   void remove(const WebSocketSession& session);
   StreamCounters counters(const std::string& run_id) const;
   std::size_t size() const;
-  /// Every session: queue closed (no producer posts any more), observer removed from its run,
-  /// close frame requested. Safe from any thread; call before the I/O context goes away.
+  /// The run's fan-out observer, registered with the run on first use (once per run).
+  std::shared_ptr<RunFanout> fanout(const std::shared_ptr<control::Run>& run);
+  /// Every session: queue closed (no producer posts any more), close frame requested. Safe from
+  /// any thread; call before the I/O context goes away.
   void close_all();
 
  private:
@@ -99,7 +100,8 @@ class StreamRegistry {
   };
   mutable std::mutex mutex_;
   std::map<const WebSocketSession*, Entry> live_;
-  std::map<std::string, std::uint64_t> closed_dropped_;  // per run id, of ended sessions
+  std::map<std::string, std::uint64_t> closed_dropped_;        // per run id, of ended sessions
+  std::map<std::string, std::shared_ptr<RunFanout>> fanouts_;  // per run id
 };
 
 }  // namespace sphles::server
