@@ -1,5 +1,6 @@
 #include "server/http_server.hpp"
 
+#include <pthread.h>
 #include <boost/asio/bind_executor.hpp>
 #include <boost/asio/dispatch.hpp>
 #include <boost/asio/executor_work_guard.hpp>
@@ -154,13 +155,32 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   void on_write(bool close, beast::error_code ec, std::size_t) {
     response_.reset();
-    if (ec || close) return shutdown();
+    if (ec) return shutdown();
+    if (close) return linger();
     do_read();
   }
 
   void shutdown() {
     beast::error_code ec;
     stream_.socket().shutdown(tcp::socket::shutdown_send, ec);
+  }
+
+  /// After a "Connection: close" response: half-close, then read and discard what the client is
+  /// still sending (say the rest of a body that drew a 413) for up to 2 s or 8 MiB. Closing with
+  /// unread data would send a reset, and the client could lose the response (lingering close).
+  void linger() {
+    shutdown();
+    stream_.expires_after(std::chrono::seconds(2));
+    drain(0);
+  }
+  void drain(std::size_t drained) {
+    constexpr std::size_t kMaxDrain = 8u << 20;
+    if (drained > kMaxDrain) return;
+    drain_buffer_.resize(64u << 10);
+    stream_.async_read_some(net::buffer(drain_buffer_), [self = shared_from_this(), drained](
+                                                            beast::error_code ec, std::size_t n) {
+      if (!ec) self->drain(drained + n);
+    });
   }
 
   beast::tcp_stream stream_;
@@ -170,6 +190,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   beast::flat_buffer buffer_;
   std::optional<http::request_parser<http::string_body>> parser_;
   std::optional<Response> response_;
+  std::vector<char> drain_buffer_;
 };
 
 void HttpServer::Impl::add(HttpSession* session, std::weak_ptr<HttpSession> weak) {
@@ -250,7 +271,11 @@ void HttpServer::start() {
   s.keep_running.emplace(s.ioc.get_executor());
   s.do_accept();
   const int n = std::max(1, s.options.io_threads);
-  for (int k = 0; k < n; ++k) s.threads.emplace_back([&s] { s.ioc.run(); });
+  for (int k = 0; k < n; ++k)
+    s.threads.emplace_back([&s] {
+      pthread_setname_np(pthread_self(), "sphles-io");  // for top -H and the benchmark
+      s.ioc.run();
+    });
 }
 
 unsigned short HttpServer::port() const {

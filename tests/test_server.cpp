@@ -955,10 +955,14 @@ TEST(Server, LimitsOnBodiesHeadersAndKeepAlive) {
                                  "application/json\r\nContent-Length: 99999999999\r\n\r\n");
   EXPECT_EQ(status_of(raw), 413) << raw;
   EXPECT_EQ(json::parse(body_of(raw))["error"]["status"], 413);
-  // An actual 2 MiB body.
-  const Reply big = send(server.port(), {http::verb::post, "/api/runs",
-                                         "{\"name\":\"" + std::string(2u << 20, 'a') + "\"}"});
-  EXPECT_EQ(big.status, 413);
+  // An actual 2 MiB body: the server answers after the header and reads the rest away, so the
+  // client gets the 413 rather than a reset.
+  const std::string big = "{\"name\":\"" + std::string(2u << 20, 'a') + "\"}";
+  raw = raw_exchange(server.port(),
+                     "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
+                     "Content-Length: " +
+                         std::to_string(big.size()) + "\r\n\r\n" + big);
+  EXPECT_EQ(status_of(raw), 413) << raw.substr(0, 200);
   // Chunked over the limit.
   std::string chunked =
       "POST /api/runs HTTP/1.1\r\nHost: x\r\nContent-Type: application/json\r\n"
