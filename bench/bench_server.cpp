@@ -9,6 +9,8 @@
 // `sphles serve`, and the clients on one extra thread (asynchronous Beast WebSocket reads that
 // parse each image header and discard the PNG). The run renders and saves its frames in every
 // phase, so the differences between phases are the cost of streaming alone.
+#include <pthread.h>
+#include <sys/resource.h>
 #include <unistd.h>
 #include <algorithm>
 #include <atomic>
@@ -23,6 +25,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -173,6 +176,39 @@ std::uint64_t dropped_images(unsigned short port, const std::string& id) {
   return json::parse(res.body())["stream"]["dropped"].get<std::uint64_t>();
 }
 
+/// User + system CPU time of this process (all threads) [s].
+double process_cpu_seconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  const auto seconds = [](const timeval& t) {
+    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
+  };
+  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
+/// CPU time [s] of this process's threads, summed by thread name (/proc/self/task/*/stat).
+std::map<std::string, double> thread_cpu_seconds() {
+  std::map<std::string, double> cpu;
+  const double tick = static_cast<double>(sysconf(_SC_CLK_TCK));
+  for (const auto& task : std::filesystem::directory_iterator("/proc/self/task")) {
+    std::ifstream in(task.path() / "stat");
+    std::string stat;
+    std::getline(in, stat);
+    const std::size_t open = stat.find('('), close = stat.rfind(')');
+    if (open == std::string::npos || close == std::string::npos) continue;
+    const std::string name = stat.substr(open + 1, close - open - 1);
+    std::istringstream rest(stat.substr(close + 2));
+    std::string field;
+    double utime = 0.0, stime = 0.0;
+    for (int k = 3; k <= 15 && rest >> field; ++k) {
+      if (k == 14) utime = std::stod(field);
+      if (k == 15) stime = std::stod(field);
+    }
+    cpu[name] += (utime + stime) / tick;
+  }
+  return cpu;
+}
+
 double percentile(std::vector<double> v, double q) {
   if (v.empty()) return 0.0;
   std::sort(v.begin(), v.end());
@@ -232,12 +268,18 @@ int main(int argc, char** argv) {
   Stats stats;
   net::io_context client_ioc;
   auto guard = net::make_work_guard(client_ioc);
-  std::thread client_thread([&] { client_ioc.run(); });
+  std::thread client_thread([&] {
+    pthread_setname_np(pthread_self(), "bench-clients");
+    client_ioc.run();
+  });
 
   // One phase: n clients connected, 2 s warm-up, then o.seconds measured.
   struct Phase {
     int clients = 0;
     double steps_per_second = 0.0, images_per_client = 0.0, kib_per_image = 0.0;
+    double cpu_cores = 0.0;     // CPU time of the whole process per wall second
+    double io_cores = 0.0;      // of the server's I/O threads ("sphles-io")
+    double client_cores = 0.0;  // of the benchmark's client thread
     std::uint64_t dropped = 0;
     std::vector<double> latency_ms;
   };
@@ -252,12 +294,23 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::seconds(2));
     stats.reset();
     const std::uint64_t dropped0 = dropped_images(server.port(), run->id());
+    const double cpu0 = process_cpu_seconds();
+    const auto threads0 = thread_cpu_seconds();
     auto [a, sa] = sample();
     std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
     auto [b, sb] = sample();
+    const double cpu1 = process_cpu_seconds();
+    const auto threads1 = thread_cpu_seconds();
     Phase p;
     p.clients = n;
     const double wall = std::chrono::duration<double>(b - a).count();
+    p.cpu_cores = (cpu1 - cpu0) / wall;
+    const auto by_name = [&](const std::string& name) {
+      const auto t0 = threads0.find(name), t1 = threads1.find(name);
+      return t1 == threads1.end() ? 0.0 : (t1->second - (t0 == threads0.end() ? 0.0 : t0->second));
+    };
+    p.io_cores = by_name("sphles-io") / wall;
+    p.client_cores = by_name("bench-clients") / wall;
     p.steps_per_second = static_cast<double>(sb.step - sa.step) / wall;
     p.dropped = dropped_images(server.port(), run->id()) - dropped0;
     {
@@ -271,47 +324,66 @@ int main(int argc, char** argv) {
     clients.clear();
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     std::printf(
-        "  phase: %2d clients  %6.1f steps/s  %5.2f images/s/client  latency median %.1f ms\n", n,
-        p.steps_per_second, p.images_per_client, percentile(p.latency_ms, 0.5));
+        "  phase: %2d clients  %6.1f steps/s  %5.2f images/s/client  latency median %5.1f ms  "
+        "CPU: process %.2f, server I/O %.3f, clients %.3f cores\n",
+        n, p.steps_per_second, p.images_per_client, percentile(p.latency_ms, 0.5), p.cpu_cores,
+        p.io_cores, p.client_cores);
     std::fflush(stdout);
     return p;
   };
 
-  // Interleaved with client-free phases, repeated, so that drifts of a shared machine's load
-  // hit every client count alike; each count is compared with the median of all 0 phases.
+  // Each client count is measured between two client-free phases and compared with their mean,
+  // so that the drifting load of a shared machine cancels; repeated, then the median is taken.
   std::map<int, std::vector<Phase>> phases;
+  std::map<int, std::vector<double>> ratio;  // vs the neighbouring 0-client phases
+  Phase before = measure(0);
+  phases[0].push_back(before);
   for (int r = 0; r < o.repeat; ++r)
     for (const int n : o.clients) {
       if (n == 0) continue;
-      phases[0].push_back(measure(0));
-      phases[n].push_back(measure(n));
+      const Phase with = measure(n);
+      const Phase after = measure(0);
+      phases[n].push_back(with);
+      phases[0].push_back(after);
+      const double base = 0.5 * (before.steps_per_second + after.steps_per_second);
+      ratio[n].push_back(with.steps_per_second / base);
+      before = after;
     }
-  phases[0].push_back(measure(0));
 
-  const auto median = [](std::vector<double> v) { return percentile(std::move(v), 0.5); };
-  std::vector<double> base;
-  for (const Phase& p : phases[0]) base.push_back(p.steps_per_second);
-  const double reference = median(base);
+  const auto median = [](std::vector<double> v) {
+    if (v.empty()) return 0.0;
+    std::sort(v.begin(), v.end());
+    const std::size_t m = v.size() / 2;
+    return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+  };
   std::printf(
-      "\nclients  steps/s (median)  vs 0 clients  images/s/client  KiB/image  "
-      "latency ms: median    p95    max  dropped\n");
+      "\nclients  steps/s  vs 0 clients (median, min..max)  images/s/client  KiB/image  "
+      "latency ms: median    p95    max  dropped  server I/O CPU (cores)  client CPU\n");
   for (const auto& [n, list] : phases) {
     std::vector<double> steps, latency;
     double images = 0.0, kib = 0.0;
     std::uint64_t dropped = 0;
+    std::vector<double> io, client;
     for (const Phase& p : list) {
+      io.push_back(p.io_cores);
+      client.push_back(p.client_cores);
       steps.push_back(p.steps_per_second);
       latency.insert(latency.end(), p.latency_ms.begin(), p.latency_ms.end());
       images += p.images_per_client / static_cast<double>(list.size());
       kib += p.kib_per_image / static_cast<double>(list.size());
       dropped += p.dropped;
     }
-    const double m = median(steps);
-    std::printf("%7d  %16.1f  %+11.1f%%  %15.2f  %9.1f  %17.1f  %5.1f  %5.1f  %7llu\n", n, m,
-                100.0 * (m / reference - 1.0), images, kib, percentile(latency, 0.5),
-                percentile(latency, 0.95),
-                latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end()),
-                static_cast<unsigned long long>(dropped));
+    const std::vector<double>& r = ratio[n];
+    const double change = n == 0 ? 0.0 : 100.0 * (median(r) - 1.0);
+    const double lo = r.empty() ? 0.0 : 100.0 * (*std::min_element(r.begin(), r.end()) - 1.0);
+    const double hi = r.empty() ? 0.0 : 100.0 * (*std::max_element(r.begin(), r.end()) - 1.0);
+    std::printf(
+        "%7d  %7.1f  %+8.1f%% (%+6.1f%% .. %+6.1f%%)  %15.2f  %9.1f  %17.1f  %5.1f  %5.1f  %7llu  "
+        "%22.4f  %10.4f\n",
+        n, median(steps), change, lo, hi, images, kib, percentile(latency, 0.5),
+        percentile(latency, 0.95),
+        latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end()),
+        static_cast<unsigned long long>(dropped), median(io), median(client));
   }
   guard.reset();
   client_ioc.stop();
