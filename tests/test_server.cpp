@@ -75,6 +75,20 @@ json rendered_scene(double end_time = 1000.0) {
 
 // --- scratch directories and servers ---------------------------------------------------------
 
+/// Scratch directories, removed when the test program ends (after every server has stopped).
+class ScratchDirectories : public ::testing::Environment {
+ public:
+  static std::vector<fs::path>& all() {
+    static std::vector<fs::path> directories;
+    return directories;
+  }
+  void TearDown() override {
+    std::error_code ec;
+    for (const fs::path& dir : all()) fs::remove_all(dir, ec);
+  }
+};
+const auto* const kScratchCleanup = ::testing::AddGlobalTestEnvironment(new ScratchDirectories);
+
 fs::path scratch(const std::string& name) {
   static int counter = 0;
   const fs::path dir =
@@ -82,6 +96,7 @@ fs::path scratch(const std::string& name) {
                                    std::to_string(counter++) + "-" + name);
   fs::remove_all(dir);
   fs::create_directories(dir);
+  ScratchDirectories::all().push_back(dir);
   return dir;
 }
 
