@@ -286,8 +286,16 @@ struct Run::Impl {
     std::lock_guard lock(observer_mutex);
     return observers;
   }
+  /// Calls f on every observer. The list is held by a local so that it outlives the loop (a
+  /// range-for over `*observer_list()` would destroy the temporary before the body runs).
+  template <class F>
+  void for_each_observer(F&& f) const {
+    const auto list = observer_list();
+    for (const auto& o : *list) f(*o);
+  }
   bool wants_images() const {
-    for (const auto& o : *observer_list())
+    const auto list = observer_list();
+    for (const auto& o : *list)
       if (o->wants_images()) return true;
     return false;
   }
@@ -319,7 +327,7 @@ struct Run::Impl {
     const std::string r = reason;
     changed.notify_all();
     lock.unlock();
-    for (const auto& o : *observer_list()) o->on_state(s, r);
+    for_each_observer([&](RunObserver& o) { o.on_state(s, r); });
     lock.lock();
   }
 
@@ -744,7 +752,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       std::lock_guard lock(mutex);
       latest = batch.back();
     }
-    for (const auto& o : *observer_list()) o->on_metrics(batch);
+    for_each_observer([&](RunObserver& o) { o.on_metrics(batch); });
     batch.clear();
     last_flush = Clock::now();
   };
@@ -794,7 +802,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       std::lock_guard lock(mutex);
       latest_images[image.field] = event;
     }
-    for (const auto& o : *observer_list()) o->on_image(event);
+    for_each_observer([&](RunObserver& o) { o.on_image(event); });
   };
   const auto ensure_consumers = [&] {
     if (current.render.enabled() && !renderer) {
@@ -816,7 +824,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                   latest_frame = shared;
                 }
                 if (RenderSink* target = render_target.load()) target->post(shared);
-                for (const auto& o : *observer_list()) o->on_analysis(shared);
+                for_each_observer([&](RunObserver& o) { o.on_analysis(shared); });
               }});
     }
   };
