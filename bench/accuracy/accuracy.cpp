@@ -1,0 +1,435 @@
+#include "bench/accuracy/accuracy.hpp"
+
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <iomanip>
+#include <limits>
+#include <ostream>
+#include <sstream>
+#include <stdexcept>
+
+#include "analysis/grid.hpp"
+#include "analysis/vorticity.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::accuracy {
+
+namespace {
+
+using nlohmann::json;
+
+constexpr double kMisfitEndTime = 12.0;  // the 3D comparison window t ∈ [0, 12]
+
+/// 2D Taylor-Green vortex (SPEC §6.2) as in the stability sweep: Ma = 0.1 (c_s = 10),
+/// p_ref = ρ v0² = 1; Re = v0 L / ν with L = 1, ρ = 1. t ∈ [0, 2].
+json tgv2d_scene(double reynolds, int n, const std::string& kernel, double dk) {
+  return {{"case", "tgv2d"},
+          {"particles_per_side", n},
+          {"kernel", {{"type", kernel}, {"diameter_over_spacing", dk}}},
+          {"fluid",
+           {{"reference_density", 1.0},
+            {"sound_speed", 10.0},
+            {"reference_pressure", 1.0},
+            {"dynamic_viscosity", 1.0 / reynolds}}},
+          {"time", {{"end", 2.0}}}};
+}
+
+/// 3D Taylor-Green vortex (SPEC §6.1: c_s = 5, p_ref = 6.25) at the DNS' Re = 5000
+/// (η = 2·10⁻⁴ with ρ_ref = 1), t ∈ [0, 12].
+json tgv3d_scene(int n, const std::string& kernel, double dk, const std::string& model) {
+  return {{"case", "tgv3d"},
+          {"particles_per_side", n},
+          {"kernel", {{"type", kernel}, {"diameter_over_spacing", dk}}},
+          {"fluid",
+           {{"reference_density", 1.0},
+            {"sound_speed", 5.0},
+            {"reference_pressure", 6.25},
+            {"dynamic_viscosity", 2e-4}}},
+          {"subfilter", {{"model", model}}},
+          {"time", {{"end", kMisfitEndTime}}}};
+}
+
+/// Kolmogorov flow (SPEC §6.3) reduced: the thesis fluid, friction, forcing χ = 1.8 m/s² and
+/// forcing wavenumber k_y = 1047.2 1/m (wavelength λ = 6 mm), but 2 forcing periods (L = 12 mm
+/// instead of 42 mm), WC4 with D_K = 8Δl, t ∈ [0, 1] s from rest. N = 24, 36, 48, 72 give
+/// λ/D_K = 2, 3, 4, 6; the thesis' Δl = 125 µm (λ/D_K = 6) would be N = 96.
+json kolmogorov_scene(int n) {
+  return {{"case", "kolmogorov2d"},
+          {"particles_per_side", n},
+          {"box_length", 0.012},
+          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+          {"forcing", {{"amplitude", 1.8}, {"periods", 2}}},
+          {"time", {{"end", 1.0}}}};
+}
+
+std::string number_label(double value) {
+  std::ostringstream s;
+  s << value;
+  return s.str();
+}
+
+RunSpec make_spec(std::string study, std::string config, json scene, double sample_interval) {
+  const int n = scene["particles_per_side"].get<int>();
+  RunSpec r;
+  r.study = std::move(study);
+  r.label = config + " N=" + std::to_string(n);
+  r.config = std::move(config);
+  r.scene = std::move(scene);
+  r.sample_interval = sample_interval;
+  return r;
+}
+
+double process_cpu_seconds() {
+  rusage usage{};
+  getrusage(RUSAGE_SELF, &usage);
+  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
+         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
+}
+
+/// Linear interpolation of (x, y) at t; x ascending; clamped at the ends.
+double interpolate(const std::vector<double>& x, const std::vector<double>& y, double t) {
+  if (t <= x.front()) return y.front();
+  if (t >= x.back()) return y.back();
+  const auto upper = std::upper_bound(x.begin(), x.end(), t);
+  const auto k = static_cast<std::size_t>(upper - x.begin());
+  const double w = (t - x[k - 1]) / (x[k] - x[k - 1]);
+  return (1.0 - w) * y[k - 1] + w * y[k];
+}
+
+/// Relative L2 velocity error of the 2D Taylor-Green vortex at the particles, mass weighted:
+/// sqrt(Σ M |v - v_a(x, t)|² / Σ M |v_a(x, t)|²), v_a = v0 e^(-2νt) (sin x cos y, -cos x sin y)
+/// (SPEC §6.2).
+double tgv2d_velocity_error(const sim::ParticleArrays& p, double v0, double nu, double time) {
+  const double amplitude = v0 * std::exp(-2.0 * nu * time);
+  double error = 0.0, norm = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const double x = p.position[0][i], y = p.position[1][i];
+    const double ux = amplitude * std::sin(x) * std::cos(y);
+    const double uy = -amplitude * std::cos(x) * std::sin(y);
+    const double dx = p.velocity[0][i] - ux, dy = p.velocity[1][i] - uy;
+    error += p.mass[i] * (dx * dx + dy * dy);
+    norm += p.mass[i] * (ux * ux + uy * uy);
+  }
+  return std::sqrt(error / norm);
+}
+
+/// ν⟨ω²⟩ (4.6) with ω from the nearest-particle grid of spacing Δl/2 (SPEC §5).
+double grid_viscous_dissipation(const sim::ParticleArrays& p, int particles_per_side,
+                                double box_length, double nu) {
+  analysis::Grid grid;
+  grid.dimension = 2;
+  grid.points_per_side = 2 * particles_per_side;
+  grid.length = box_length;
+  const analysis::NearestParticleMap map = analysis::nearest_particle_map(grid, p);
+  const analysis::VectorField velocity = analysis::sample_velocity(map, p, true);
+  return nu * analysis::mean_value(analysis::squared_magnitude(analysis::vorticity(velocity)));
+}
+
+/// Time average of field(sample) over samples with time >= start (trapezoidal rule).
+template <typename Field>
+double window_average(const std::vector<Sample>& history, double start, Field field) {
+  double integral = 0.0, length = 0.0;
+  for (std::size_t k = 1; k < history.size(); ++k) {
+    if (history[k - 1].time < start - 1e-12) continue;
+    const double dt = history[k].time - history[k - 1].time;
+    integral += 0.5 * dt * (field(history[k - 1]) + field(history[k]));
+    length += dt;
+  }
+  return length > 0.0 ? integral / length : std::numeric_limits<double>::quiet_NaN();
+}
+
+void finish_tgv2d(RunResult& r) {
+  double error = 0.0, norm = 0.0, velocity = 0.0;
+  for (const Sample& s : r.history) {
+    error += (s.kinetic_energy - s.reference_energy) * (s.kinetic_energy - s.reference_energy);
+    norm += s.reference_energy * s.reference_energy;
+    velocity += s.velocity_error * s.velocity_error;
+  }
+  r.energy_error = std::sqrt(error / norm);
+  r.velocity_error_rms = std::sqrt(velocity / static_cast<double>(r.history.size()));
+  r.velocity_error_end = r.history.back().velocity_error;
+}
+
+void finish_tgv3d(RunResult& r, const ReferenceHistory& dns) {
+  std::vector<Sample>& h = r.history;
+  const std::size_t n = h.size();
+  // ε = -de_v/dt (5.4) by centred differences of the recorded samples, one-sided at both ends.
+  for (std::size_t k = 0; k < n; ++k) {
+    const std::size_t lo = k == 0 ? 0 : k - 1, hi = k + 1 == n ? n - 1 : k + 1;
+    h[k].dissipation =
+        hi > lo ? -(h[hi].kinetic_energy - h[lo].kinetic_energy) / (h[hi].time - h[lo].time) : 0.0;
+  }
+  r.peak_dissipation = -1.0;
+  for (const Sample& s : h)
+    if (s.time <= kMisfitEndTime + 1e-9 && s.dissipation > r.peak_dissipation) {
+      r.peak_dissipation = s.dissipation;
+      r.peak_time = s.time;
+    }
+  if (r.status != "completed") {
+    r.energy_misfit = r.dissipation_misfit = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
+  std::vector<double> t(n), e(n), eps(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    t[k] = h[k].time;
+    e[k] = h[k].kinetic_energy;
+    eps[k] = h[k].dissipation;
+  }
+  // Relative L2 misfit on the DNS time grid (Δt = 0.02) over t ∈ [0, 12], the run's history
+  // interpolated linearly.
+  double de = 0.0, ne = 0.0, dd = 0.0, nd = 0.0;
+  for (std::size_t k = 0; k < dns.time.size(); ++k) {
+    if (dns.time[k] > kMisfitEndTime + 1e-9) break;
+    const double se = interpolate(t, e, dns.time[k]);
+    const double sd = interpolate(t, eps, dns.time[k]);
+    de += (se - dns.energy[k]) * (se - dns.energy[k]);
+    ne += dns.energy[k] * dns.energy[k];
+    dd += (sd - dns.dissipation[k]) * (sd - dns.dissipation[k]);
+    nd += dns.dissipation[k] * dns.dissipation[k];
+  }
+  r.energy_misfit = std::sqrt(de / ne);
+  r.dissipation_misfit = std::sqrt(dd / nd);
+}
+
+void finish_kolmogorov(RunResult& r) {
+  const std::vector<Sample>& h = r.history;
+  const double start = 0.5 * r.end_time;
+  r.mean_u_rms = window_average(h, start, [](const Sample& s) { return s.u_rms; });
+  r.mean_energy_injection =
+      window_average(h, start, [](const Sample& s) { return s.energy_injection; });
+  r.mean_viscous_dissipation =
+      window_average(h, start, [](const Sample& s) { return s.viscous_dissipation; });
+  r.mean_film_dissipation =
+      window_average(h, start, [](const Sample& s) { return s.film_dissipation; });
+  const auto first =
+      std::find_if(h.begin(), h.end(), [&](const Sample& s) { return s.time >= start - 1e-12; });
+  if (first == h.end() || first->time >= h.back().time) {  // stopped before the window
+    r.mean_energy_change = r.budget_imbalance = std::numeric_limits<double>::quiet_NaN();
+    return;
+  }
+  r.mean_energy_change =
+      (h.back().kinetic_energy - first->kinetic_energy) / (h.back().time - first->time);
+  // Budget (4.3) with the storage term: de_v/dt = ε_inj - ε_v - ε_film - ε_numerical.
+  r.budget_imbalance = (r.mean_energy_injection - r.mean_viscous_dissipation -
+                        r.mean_film_dissipation - r.mean_energy_change) /
+                       r.mean_energy_injection;
+}
+
+}  // namespace
+
+ReferenceHistory read_reference(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot read the DNS reference " + path);
+  ReferenceHistory h;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    double t = 0.0, e = 0.0, eps = 0.0;
+    if (!(s >> t >> e >> eps)) throw std::runtime_error("malformed line in " + path + ": " + line);
+    h.time.push_back(t);
+    h.energy.push_back(e);
+    h.dissipation.push_back(eps);
+  }
+  if (h.time.size() < 2) throw std::runtime_error("no data rows in " + path);
+  return h;
+}
+
+std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
+  std::vector<RunSpec> runs;
+  if (study == "2d") {
+    // Quick: Wendland C4 and the quintic spline, D_K/Δl = 4 and 8, N = 32 and 64.
+    const char* const kernels[] = {"wendland_c2", "wendland_c4", "wendland_c6", "quintic_spline"};
+    for (const double reynolds : {100.0, 1000.0})
+      for (const std::string kernel : kernels)
+        for (const double dk : {4.0, 6.0, 8.0})
+          for (const int n : {32, 64, 128}) {
+            if (quick &&
+                (kernel == "wendland_c2" || kernel == "wendland_c6" || dk == 6.0 || n == 128))
+              continue;
+            runs.push_back(make_spec("tgv2d_re" + number_label(reynolds),
+                                     kernel + " D_K/dl=" + number_label(dk),
+                                     tgv2d_scene(reynolds, n, kernel, dk), 0.05));
+          }
+  } else if (study == "3d") {
+    // WC4 with D_K = 8Δl and QS with D_K = 6Δl (SPEC Table 5.1), implicit and SMAG.
+    // Quick: the implicit runs at N = 24 only.
+    const char* const kernels[] = {"wendland_c4", "quintic_spline"};
+    const double diameters[] = {8.0, 6.0};
+    for (std::size_t c = 0; c < 2; ++c)
+      for (const std::string model : {"implicit", "smag"})
+        for (const int n : {24, 32}) {
+          if (quick && (model == "smag" || n == 32)) continue;
+          const std::string kernel = kernels[c];
+          runs.push_back(make_spec("tgv3d_re5000",
+                                   kernel + " D_K/dl=" + number_label(diameters[c]) + " " + model,
+                                   tgv3d_scene(n, kernel, diameters[c], model), 0.1));
+        }
+  } else if (study == "kolmogorov") {
+    for (const int n : {24, 36, 48, 72}) {
+      if (quick && n > 36) continue;
+      runs.push_back(make_spec("kolmogorov", "wendland_c4 D_K/dl=8", kolmogorov_scene(n), 0.02));
+    }
+  } else {
+    throw std::invalid_argument("unknown study '" + study + "' (2d, 3d, kolmogorov)");
+  }
+  return runs;
+}
+
+RunSpec with_resolution(const RunSpec& spec, int particles_per_side) {
+  RunSpec r = spec;
+  r.scene["particles_per_side"] = particles_per_side;
+  r.label = r.config + " N=" + std::to_string(particles_per_side);
+  return r;
+}
+
+RunResult run_one(const RunSpec& spec, const RunOptions& options,
+                  const ReferenceHistory* reference) {
+  const auto start = std::chrono::steady_clock::now();
+  auto wall = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  RunResult r;
+  r.spec = spec;
+  const sim::Scene scene = sim::parse_scene(spec.scene);
+  r.case_name = std::string(sim::case_name(scene.case_type));
+  r.particles_per_side = scene.particles_per_side;
+  r.particles = scene.num_particles();
+  r.kernel = std::string(sim::kernel_name(scene.kernel));
+  r.diameter_over_spacing = scene.kernel_diameter_over_spacing;
+  r.subfilter = std::string(sim::subfilter_model_name(scene.subfilter.model));
+  r.dynamic_viscosity = scene.fluid.dynamic_viscosity;
+  r.end_time = scene.end_time;
+  const bool tgv2d = scene.case_type == sim::CaseType::TaylorGreen2D;
+  const bool tgv3d = scene.case_type == sim::CaseType::TaylorGreen3D;
+  const bool kolmogorov = scene.case_type == sim::CaseType::Kolmogorov2D;
+  if (tgv3d && reference == nullptr)
+    throw std::invalid_argument("run_one: tgv3d needs the DNS reference");
+  const double nu = scene.fluid.kinematic_viscosity();
+
+  sim::RunSetup setup = sim::setup_run(scene);
+  auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+
+  auto sample = [&] {
+    Sample s;
+    s.time = simulation->time();
+    s.kinetic_energy = simulation->diagnostics().kinetic_energy;
+    const sim::ParticleArrays& p = simulation->particles();
+    if (tgv2d) {
+      s.reference_energy = sim::taylor_green_2d_energy(scene.velocity_amplitude, nu, s.time);
+      s.velocity_error = tgv2d_velocity_error(p, scene.velocity_amplitude, nu, s.time);
+    } else if (tgv3d) {
+      s.reference_energy = interpolate(reference->time, reference->energy, s.time);
+    } else if (kolmogorov) {
+      const std::vector<double> d = sim::case_diagnostics(scene, p);  // (4.3)
+      s.energy_injection = d[0];
+      s.film_dissipation = d[1];
+      s.u_rms = d[2];
+      s.viscous_dissipation =
+          grid_viscous_dissipation(p, scene.particles_per_side, scene.box_length(), nu);
+    }
+    if (options.trace)
+      std::fprintf(stderr, "%s | t=%.4g e_v=%.6g ref=%.6g verr=%.4g eps_v=%.4g wall=%.1f\n",
+                   spec.label.c_str(), s.time, s.kinetic_energy, s.reference_energy,
+                   s.velocity_error, s.viscous_dissipation, wall());
+    r.history.push_back(s);
+  };
+
+  const double tolerance = 1e-9 * r.end_time;
+  sample();
+  try {
+    double next_sample = spec.sample_interval;
+    while (simulation->time() < r.end_time - tolerance) {
+      if (wall() > options.wall_limit_seconds) {
+        r.status = "wall_limit";
+        break;
+      }
+      const double target = std::min(next_sample, r.end_time);
+      const auto step_start = std::chrono::steady_clock::now();
+      const double cpu_start = process_cpu_seconds();
+      simulation->step(target - simulation->time());
+      r.cpu_seconds += process_cpu_seconds() - cpu_start;
+      r.wall_seconds +=
+          std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
+      if (simulation->time() >= target - tolerance) {
+        sample();
+        // The next sample on the fixed grid k · interval (no drift from the landing error).
+        next_sample =
+            spec.sample_interval * (std::round(simulation->time() / spec.sample_interval) + 1.0);
+      }
+    }
+  } catch (const sim::BlowUpError& e) {
+    r.status = "blown_up";
+  }
+  r.time_reached = simulation->time();
+  r.steps = simulation->step_count();
+  r.final_energy = r.history.back().kinetic_energy;
+  if (tgv2d) finish_tgv2d(r);
+  if (tgv3d) finish_tgv3d(r, *reference);
+  if (kolmogorov) finish_kolmogorov(r);
+  r.total_wall_seconds = wall();
+  return r;
+}
+
+namespace {
+
+std::string optional_number(bool applies, double value) {
+  if (!applies) return "";
+  std::ostringstream s;
+  s << std::setprecision(6) << value;
+  return s.str();
+}
+
+}  // namespace
+
+void write_summary_header(std::ostream& out) {
+  out << "study,config,label,case,particles_per_side,particles,kernel,diameter_over_spacing,"
+         "subfilter,dynamic_viscosity,end_time,status,time_reached,steps,wall_seconds,"
+         "cpu_seconds,total_wall_seconds,energy_error,velocity_error_end,velocity_error_rms,"
+         "energy_misfit,dissipation_misfit,peak_dissipation,peak_time,final_energy,mean_u_rms,"
+         "mean_energy_injection,mean_viscous_dissipation,mean_film_dissipation,"
+         "mean_energy_change,budget_imbalance\n";
+}
+
+void write_summary_row(std::ostream& out, const RunResult& r) {
+  const bool t2 = r.case_name == "tgv2d", t3 = r.case_name == "tgv3d",
+             kf = r.case_name == "kolmogorov2d";
+  out << std::setprecision(6) << r.spec.study << ',' << r.spec.config << ',' << r.spec.label << ','
+      << r.case_name << ',' << r.particles_per_side << ',' << r.particles << ',' << r.kernel << ','
+      << r.diameter_over_spacing << ',' << r.subfilter << ',' << r.dynamic_viscosity << ','
+      << r.end_time << ',' << r.status << ',' << r.time_reached << ',' << r.steps << ','
+      << r.wall_seconds << ',' << r.cpu_seconds << ',' << r.total_wall_seconds << ','
+      << optional_number(t2, r.energy_error) << ',' << optional_number(t2, r.velocity_error_end)
+      << ',' << optional_number(t2, r.velocity_error_rms) << ','
+      << optional_number(t3, r.energy_misfit) << ',' << optional_number(t3, r.dissipation_misfit)
+      << ',' << optional_number(t3, r.peak_dissipation) << ',' << optional_number(t3, r.peak_time)
+      << ',' << r.final_energy << ',' << optional_number(kf, r.mean_u_rms) << ','
+      << optional_number(kf, r.mean_energy_injection) << ','
+      << optional_number(kf, r.mean_viscous_dissipation) << ','
+      << optional_number(kf, r.mean_film_dissipation) << ','
+      << optional_number(kf, r.mean_energy_change) << ',' << optional_number(kf, r.budget_imbalance)
+      << '\n';
+}
+
+void write_history_header(std::ostream& out) {
+  out << "study,label,time,kinetic_energy,reference_energy,velocity_error,dissipation,"
+         "energy_injection,viscous_dissipation,film_dissipation,u_rms\n";
+}
+
+void write_history_rows(std::ostream& out, const RunResult& r) {
+  out << std::setprecision(6);
+  for (const Sample& s : r.history)
+    out << r.spec.study << ',' << r.spec.label << ',' << s.time << ',' << s.kinetic_energy << ','
+        << s.reference_energy << ',' << s.velocity_error << ',' << s.dissipation << ','
+        << s.energy_injection << ',' << s.viscous_dissipation << ',' << s.film_dissipation << ','
+        << s.u_rms << '\n';
+}
+
+}  // namespace sphles::accuracy

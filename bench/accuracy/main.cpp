@@ -1,0 +1,229 @@
+// sphles_accuracy: run time against error (issue 8, docs/accuracy.md).
+//
+//   build/bench/sphles_accuracy [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR]
+//                               [--reference FILE] [--threads T] [--refine-2d K]
+//                               [--refine-2d-side N] [--refine-3d-sides N[,N...]]
+//                               [--wall-limit SECONDS] [--list] [--trace]
+//                               [--set dotted.key=value ...]
+//
+// Runs the configurations one after another, each on --threads OpenMP threads (default 1), and
+// writes per study DIR/accuracy_<study>.csv (one row per run: parameters, single-thread wall and
+// CPU seconds of the solver steps, errors), DIR/accuracy_history_<study>.csv (the recorded
+// samples) and DIR/accuracy_run_<study>.json (load averages at start and end, total wall time).
+// The CSV files are rewritten after every run, so an interrupted matrix keeps what finished.
+// After the base matrix, the best configurations are refined: for each 2D Reynolds number the K
+// configurations with the smallest end-time velocity error at the largest base N are run at
+// --refine-2d-side, and for 3D the configuration with the smallest dissipation misfit at the
+// largest base N is run at each of --refine-3d-sides.
+#include <omp.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench/accuracy/accuracy.hpp"
+#include "sim/scene.hpp"
+
+namespace {
+
+namespace ac = sphles::accuracy;
+
+int usage(const char* program) {
+  std::cerr << "usage: " << program
+            << " [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR] [--reference FILE]\n"
+               "       [--threads T] [--refine-2d K] [--refine-2d-side N]\n"
+               "       [--refine-3d-sides N[,N...]] [--wall-limit SECONDS] [--list] [--trace]\n"
+               "       [--set dotted.key=value ...]  (applied to every scene; for testing)\n";
+  return 2;
+}
+
+std::vector<std::string> split(const std::string& list) {
+  std::vector<std::string> items;
+  std::stringstream s(list);
+  std::string item;
+  while (std::getline(s, item, ','))
+    if (!item.empty()) items.push_back(item);
+  return items;
+}
+
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string one, five, fifteen;
+  in >> one >> five >> fifteen;
+  return one + " " + five + " " + fifteen;
+}
+
+/// Refinement runs: the `count` configurations per study with the smallest `error` among
+/// completed runs at the largest base resolution, at each of `sides`.
+std::vector<ac::RunSpec> refinements(const std::vector<ac::RunResult>& results,
+                                     double ac::RunResult::*error, std::size_t count,
+                                     const std::vector<int>& sides) {
+  std::map<std::string, std::vector<const ac::RunResult*>> by_study;
+  for (const ac::RunResult& r : results) by_study[r.spec.study].push_back(&r);
+  std::vector<ac::RunSpec> runs;
+  for (auto& [study, list] : by_study) {
+    int largest = 0;
+    for (const ac::RunResult* r : list) largest = std::max(largest, r->particles_per_side);
+    std::vector<const ac::RunResult*> candidates;
+    for (const ac::RunResult* r : list)
+      if (r->particles_per_side == largest && r->status == "completed" && std::isfinite(r->*error))
+        candidates.push_back(r);
+    std::sort(
+        candidates.begin(), candidates.end(),
+        [&](const ac::RunResult* a, const ac::RunResult* b) { return a->*error < b->*error; });
+    for (std::size_t k = 0; k < std::min(count, candidates.size()); ++k)
+      for (const int side : sides) runs.push_back(ac::with_resolution(candidates[k]->spec, side));
+  }
+  return runs;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  bool quick = false, list_only = false;
+  std::string only = "2d,kolmogorov,3d", out_dir = ".";
+  int threads = 1;
+  int refine_2d = -1;  // -1: 1 in full mode, 0 with --quick
+  int refine_2d_side = 256;
+  std::string refine_3d_sides;  // empty: "40" in full mode, none with --quick
+  bool refine_3d_set = false;
+  std::vector<std::string> overrides;  // "dotted.key=value", applied to every scene
+  ac::RunOptions options;
+  options.reference_path = "../shared/reference/tgv_re5000_incompact3d_1280_dairay2017.dat";
+  for (int k = 1; k < argc; ++k) {
+    const std::string arg = argv[k];
+    auto value = [&]() -> std::string {
+      if (k + 1 >= argc) {
+        std::cerr << arg << " needs a value\n";
+        std::exit(usage(argv[0]));
+      }
+      return argv[++k];
+    };
+    if (arg == "--quick") {
+      quick = true;
+    } else if (arg == "--only") {
+      only = value();
+    } else if (arg == "--out") {
+      out_dir = value();
+    } else if (arg == "--reference") {
+      options.reference_path = value();
+    } else if (arg == "--threads") {
+      threads = std::atoi(value().c_str());
+    } else if (arg == "--refine-2d") {
+      refine_2d = std::atoi(value().c_str());
+    } else if (arg == "--refine-2d-side") {
+      refine_2d_side = std::atoi(value().c_str());
+    } else if (arg == "--refine-3d-sides") {
+      refine_3d_sides = value();
+      refine_3d_set = true;
+    } else if (arg == "--wall-limit") {
+      options.wall_limit_seconds = std::atof(value().c_str());
+    } else if (arg == "--set") {
+      overrides.push_back(value());
+    } else if (arg == "--list") {
+      list_only = true;
+    } else if (arg == "--trace") {
+      options.trace = true;
+    } else {
+      return usage(argv[0]);
+    }
+  }
+  if (threads < 1) return usage(argv[0]);
+  if (refine_2d < 0) refine_2d = quick ? 0 : 1;
+  if (!refine_3d_set) refine_3d_sides = quick ? "" : "40";
+  std::vector<int> sides_3d;
+  for (const std::string& s : split(refine_3d_sides)) sides_3d.push_back(std::atoi(s.c_str()));
+  omp_set_num_threads(threads);
+
+  for (const std::string& study : split(only)) {
+    std::vector<ac::RunSpec> runs;
+    try {
+      runs = ac::make_matrix(study, quick);
+    } catch (const std::exception& e) {
+      std::cerr << e.what() << '\n';
+      return usage(argv[0]);
+    }
+    try {
+      for (ac::RunSpec& r : runs)
+        for (const std::string& assignment : overrides)
+          sphles::sim::apply_override(r.scene, assignment);
+    } catch (const std::exception& e) {
+      std::cerr << e.what() << '\n';
+      return 2;
+    }
+    if (list_only) {
+      for (const ac::RunSpec& r : runs)
+        std::cout << r.study << "  " << r.label << "  " << r.scene.dump() << '\n';
+      continue;
+    }
+    ac::ReferenceHistory reference;
+    if (study == "3d") {
+      try {
+        reference = ac::read_reference(options.reference_path);
+      } catch (const std::exception& e) {
+        std::cerr << e.what() << " (set --reference)\n";
+        return 1;
+      }
+    }
+    const std::string summary_path = out_dir + "/accuracy_" + study + ".csv";
+    const std::string history_path = out_dir + "/accuracy_history_" + study + ".csv";
+    const std::string run_path = out_dir + "/accuracy_run_" + study + ".json";
+    const std::string load_start = load_average();
+    const auto study_start = std::chrono::steady_clock::now();
+    std::vector<ac::RunResult> results;
+    auto write_files = [&] {
+      std::ofstream summary(summary_path), history(history_path);
+      ac::write_summary_header(summary);
+      ac::write_history_header(history);
+      for (const ac::RunResult& r : results) {
+        ac::write_summary_row(summary, r);
+        ac::write_history_rows(history, r);
+      }
+      if (!summary || !history) {
+        std::cerr << "could not write " << summary_path << " or " << history_path << '\n';
+        std::exit(1);
+      }
+    };
+    auto run_all = [&](const std::vector<ac::RunSpec>& list, const char* phase) {
+      for (std::size_t k = 0; k < list.size(); ++k) {
+        const ac::RunResult r = ac::run_one(list[k], options, &reference);
+        std::printf(
+            "[%s %s %zu/%zu] %-14s %-40s %-10s t=%-6.4g steps=%-6llu wall=%7.1f s cpu=%7.1f s"
+            "  e_v err=%.4g  v err=%.4g  eps misfit=%.4g  imbalance=%.4g  load %s\n",
+            study.c_str(), phase, k + 1, list.size(), r.spec.study.c_str(), r.spec.label.c_str(),
+            r.status.c_str(), r.time_reached, static_cast<unsigned long long>(r.steps),
+            r.wall_seconds, r.cpu_seconds,
+            r.case_name == "tgv3d" ? r.energy_misfit : r.energy_error, r.velocity_error_end,
+            r.dissipation_misfit, r.budget_imbalance, load_average().c_str());
+        std::fflush(stdout);
+        results.push_back(r);
+        write_files();
+      }
+    };
+    run_all(runs, "base");
+    if (study == "2d" && refine_2d > 0)
+      run_all(refinements(results, &ac::RunResult::velocity_error_end,
+                          static_cast<std::size_t>(refine_2d), {refine_2d_side}),
+              "refine");
+    if (study == "3d" && !sides_3d.empty())
+      run_all(refinements(results, &ac::RunResult::dissipation_misfit, 1, sides_3d), "refine");
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - study_start).count();
+    std::ofstream meta(run_path);
+    meta << "{\n  \"study\": \"" << study << "\",\n  \"quick\": " << (quick ? "true" : "false")
+         << ",\n  \"threads_per_run\": " << threads << ",\n  \"runs\": " << results.size()
+         << ",\n  \"total_wall_seconds\": " << seconds << ",\n  \"load_average_start\": \""
+         << load_start << "\",\n  \"load_average_end\": \"" << load_average() << "\"\n}\n";
+    std::cout << "wrote " << summary_path << ", " << history_path << " (" << results.size()
+              << " runs, " << seconds << " s wall)\n";
+  }
+  return 0;
+}
