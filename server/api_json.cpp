@@ -96,17 +96,21 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
 std::optional<nlohmann::json> spectrum_json(const analysis::AnalysisFrame& frame) {
   if (!frame.spectrum) return std::nullopt;
   const analysis::SpectrumProduct& p = *frame.spectrum;
-  return nlohmann::json{{"time", frame.time},
-                        {"step", frame.step},
-                        {"delta_k", p.spectrum.delta_k},
-                        {"k", p.spectrum.wavenumber},
-                        {"energy", p.spectrum.energy},
-                        {"kernel_wavenumber", p.kernel_wavenumber},
-                        {"resolution_wavenumber", p.resolution_wavenumber},
-                        {"dissipation", p.dissipation},
-                        {"dissipation_resolved", p.dissipation_resolved},
-                        {"kinetic_energy_grid", p.kinetic_energy_grid},
-                        {"length_scale", p.length_scale}};
+  nlohmann::json body{{"time", frame.time},
+                      {"step", frame.step},
+                      {"delta_k", p.spectrum.delta_k},
+                      {"k", p.spectrum.wavenumber},
+                      {"energy", p.spectrum.energy},
+                      {"kernel_wavenumber", p.kernel_wavenumber},
+                      {"resolution_wavenumber", p.resolution_wavenumber},
+                      {"dissipation", p.dissipation},
+                      {"dissipation_resolved", p.dissipation_resolved},
+                      {"kinetic_energy_grid", p.kinetic_energy_grid},
+                      {"length_scale", p.length_scale}};
+  // The second estimate of SPEC §5, ε_v = ν⟨ω²⟩ (4.6), when the scene computes vorticity.
+  body["dissipation_vorticity"] =
+      frame.vorticity ? nlohmann::json(frame.vorticity->dissipation) : nlohmann::json(nullptr);
+  return body;
 }
 
 std::optional<nlohmann::json> statistics_json(const analysis::AnalysisFrame& frame) {

@@ -67,7 +67,7 @@ json tiny_scene(double end_time = 1000.0, const std::string& name = "tiny") {
 json rendered_scene(double end_time = 1000.0) {
   json scene = tiny_scene(end_time, "rendered");
   scene["analysis"] = {{"every", 0.05},
-                       {"products", {"energy", "spectrum", "slices", "sfs_stats"}},
+                       {"products", {"energy", "spectrum", "vorticity", "slices", "sfs_stats"}},
                        {"slice", {{"fields", {"omega2", "tau_sfs"}}}}};
   scene["render"] = {{"fields", {"omega2"}}, {"width", 128}, {"height", 64}};
   return scene;
@@ -719,6 +719,9 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
           } else if (j["type"] == "spectrum") {
             EXPECT_EQ(j["k"].size(), j["energy"].size());
             EXPECT_GT(j["kernel_wavenumber"].get<double>(), 0.0);
+            // Both dissipation estimates of SPEC §5 (4.6) travel with the spectrum.
+            EXPECT_GT(j["dissipation"].get<double>(), 0.0);
+            EXPECT_GT(j["dissipation_vorticity"].get<double>(), 0.0);
             spectrum = true;
           } else if (j["type"] == "statistics") {
             EXPECT_TRUE(j.contains("joint") && j.contains("max_norm"));
