@@ -100,6 +100,7 @@ SolverConfig make_solver_config(const Scene& scene) {
   c.particle_spacing = scene.particle_spacing();
   c.fluid = scene.fluid;
   c.time_step = scene.time_step;
+  c.blow_up = scene.blow_up;
   c.neighbour_skin = scene.neighbour_skin;
   c.subfilter = scene.subfilter;
   if (scene.case_type == CaseType::Kolmogorov2D)

@@ -161,6 +161,16 @@ Scene parse_scene(const json& input) {
     t.reject_unknown();
   }
   {
+    ObjectReader b = top.object("blow_up");
+    b.number("energy_factor", s.blow_up.energy_factor, [](double x) -> std::optional<std::string> {
+      if (x > 1.0) return std::nullopt;
+      return "must be > 1";
+    });
+    b.number("reference_mach", s.blow_up.reference_mach, non_negative);
+    b.number("reference_energy", s.blow_up.reference_energy, non_negative);
+    b.reject_unknown();
+  }
+  {
     ObjectReader m = top.object("subfilter");
     std::string model = std::string(subfilter_model_name(s.subfilter.model));
     m.string("model", model);
@@ -293,6 +303,9 @@ json scene_to_json(const Scene& s) {
                {"cfl_viscous", s.time_step.cfl_viscous},
                {"cfl_force", s.time_step.cfl_force},
                {"fixed_step", s.time_step.fixed}};
+  j["blow_up"] = {{"energy_factor", s.blow_up.energy_factor},
+                  {"reference_mach", s.blow_up.reference_mach},
+                  {"reference_energy", s.blow_up.reference_energy}};
   j["neighbours"] = {{"skin", s.neighbour_skin}};
   j["packing"] = {{"enabled", s.packing.enabled},
                   {"cache", s.packing.cache},

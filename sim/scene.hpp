@@ -75,6 +75,7 @@ struct Scene {
   std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
   double end_time = 15.0;                                 // [s]
   TimeStepConfig time_step;
+  BlowUpThresholds blow_up;  // runaway-energy test after every step (docs/stability.md)
   SubfilterConfig subfilter;
   KolmogorovForcing forcing;     // kolmogorov2d only
   double neighbour_skin = 0.15;  // fraction of H

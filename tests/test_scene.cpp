@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::sim {
@@ -42,10 +43,16 @@ TEST(Scene, RoundTripThroughJson) {
               {"particles_per_side", 40},
               {"kernel", {{"type", "quintic_spline"}, {"diameter_over_spacing", 6}}},
               {"flow", {{"uniform_velocity", {0.5, -1.0}}}},
-              {"time", {{"fixed_step", 1e-3}}}};
+              {"time", {{"fixed_step", 1e-3}}},
+              {"blow_up", {{"energy_factor", 4}, {"reference_energy", 0.3}}}};
   const Scene s = parse_scene(doc);
   const json written = scene_to_json(s);
   EXPECT_EQ(scene_to_json(parse_scene(written)), written);
+  // The blow-up thresholds reach the solver unchanged (the rest keeps its default).
+  const SolverConfig solver = make_solver_config(s);
+  EXPECT_DOUBLE_EQ(solver.blow_up.energy_factor, 4.0);
+  EXPECT_DOUBLE_EQ(solver.blow_up.reference_energy, 0.3);
+  EXPECT_DOUBLE_EQ(solver.blow_up.reference_mach, BlowUpThresholds{}.reference_mach);
   EXPECT_EQ(written["kernel"]["type"], "quintic_spline");
   EXPECT_EQ(written["flow"]["uniform_velocity"], json({0.5, -1.0}));
   EXPECT_EQ(s.num_particles(), 1600u);
@@ -97,6 +104,10 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{{{"case", "channel"}},
                  "'case' must be one of tgv3d, tgv2d, kolmogorov2d, got 'channel'"},
         BadScene{{{"time", {{"cfl_acoustic", 3}}}}, "'time.cfl_acoustic' must be in (0, 2], got 3"},
+        BadScene{{{"blow_up", {{"energy_factor", 1}}}},
+                 "'blow_up.energy_factor' must be > 1, got 1"},
+        BadScene{{{"blow_up", {{"reference_mach", -0.1}}}},
+                 "'blow_up.reference_mach' must be >= 0, got -0.1"},
         BadScene{{{"packing", {{"enabled", 1}}}},
                  "'packing.enabled' must be true or false, got number"},
         BadScene{{{"case", "tgv2d"}, {"flow", {{"uniform_velocity", {1, 2, 3}}}}},
