@@ -12,7 +12,7 @@
 // samples) and DIR/accuracy_run_<study>.json (load averages at start and end, total wall time).
 // The CSV files are rewritten after every run, so an interrupted matrix keeps what finished.
 // After the base matrix, the best configurations are refined: for each 2D Reynolds number the K
-// configurations with the smallest end-time velocity error at the largest base N are run at
+// configurations with the smallest e_v error at the largest base N are run at
 // --refine-2d-side, and for 3D the configuration with the smallest dissipation misfit at the
 // largest base N is run at each of --refine-3d-sides.
 #include <omp.h>
@@ -210,7 +210,7 @@ int main(int argc, char** argv) {
     };
     run_all(runs, "base");
     if (study == "2d" && refine_2d > 0)
-      run_all(refinements(results, &ac::RunResult::velocity_error_end,
+      run_all(refinements(results, &ac::RunResult::energy_error,
                           static_cast<std::size_t>(refine_2d), {refine_2d_side}),
               "refine");
     if (study == "3d" && !sides_3d.empty())
