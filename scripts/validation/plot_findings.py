@@ -1,0 +1,528 @@
+#!/usr/bin/python3
+"""Figures and numbers of the SPEC §7 findings from the runs of run_findings.py.
+
+    python3 scripts/validation/plot_findings.py [--runs runs/validation] [--docs docs]
+
+Reads RUNS/NAME/{timeseries.csv, stats/, spectra/, slices/, wall.json} for every run that
+exists (missing runs are left out of the figures and listed), writes
+DOCS/figures/validation_*.png and DOCS/validation_findings.csv (columns run, quantity, value,
+note): every number docs/validation.md quotes. Needs python3, numpy and matplotlib only.
+"""
+
+import argparse
+import csv
+import json
+import math
+import os
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+REFERENCE = "/work/shared/reference/tgv_re5000_incompact3d_1280_dairay2017.dat"
+T_SPEC = 14.0
+NU = 1e-4
+
+# name: (label, N per side, kernel, D_K/Δl, model note)
+TGV_RUNS = {
+    "case8_n24": ("WC4 8Δl 24³", 24, "WC4", 8),
+    "case8_n32": ("WC4 8Δl 32³ (case 7/8)", 32, "WC4", 8),
+    "case8_n48": ("WC4 8Δl 48³", 48, "WC4", 8),
+    "case1_n24": ("QS 6Δl 24³", 24, "QS", 6),
+    "case1_n32": ("QS 6Δl 32³ (case 1)", 32, "QS", 6),
+    "case5_n32": ("WC4 4Δl 32³ (case 5)", 32, "WC4", 4),
+    "case6_n32": ("WC4 6Δl 32³ (case 6)", 32, "WC4", 6),
+    "case12_n32": ("SMAG 0.15 (case 12)", 32, "WC4", 8),
+    "case16_n32": ("SIGMA (case 16)", 32, "WC4", 8),
+    "case17_n32": ("SMAG-MCG (case 17)", 32, "WC4", 8),
+    "case18_n32": ("SMAG 0.075 (case 18)", 32, "WC4", 8),
+    "case19_n32": ("SMAG 0.3 (case 19)", 32, "WC4", 8),
+    "case20_n32": ("p_ref 68 (case 20)", 32, "WC4", 8),
+    "case21_n32": ("p_ref 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
+}
+GROUPS = [
+    ("kernel, D_K/Δl and N", ["case8_n24", "case8_n32", "case8_n48", "case1_n24", "case1_n32",
+                              "case5_n32", "case6_n32"]),
+    ("sub-filter models (32³, WC4 8Δl)", ["case8_n32", "case12_n32", "case16_n32", "case17_n32",
+                                          "case18_n32", "case19_n32"]),
+    ("background pressure (32³, WC4 8Δl)", ["case8_n32", "case20_n32", "case21_n32"]),
+]
+STYLE = {
+    "case8_n24": dict(color="tab:blue", ls=":"), "case8_n32": dict(color="tab:blue", ls="-"),
+    "case8_n48": dict(color="tab:blue", ls="--", lw=2),
+    "case1_n24": dict(color="tab:orange", ls=":"), "case1_n32": dict(color="tab:orange", ls="-"),
+    "case5_n32": dict(color="tab:red", ls="-"), "case6_n32": dict(color="tab:purple", ls="-"),
+    "case12_n32": dict(color="tab:green", ls="-"), "case16_n32": dict(color="tab:olive", ls="-"),
+    "case17_n32": dict(color="tab:cyan", ls="-"), "case18_n32": dict(color="tab:green", ls=":"),
+    "case19_n32": dict(color="tab:green", ls="--"),
+    "case20_n32": dict(color="tab:brown", ls="-"), "case21_n32": dict(color="tab:pink", ls="--"),
+}
+
+rows = []  # (run, quantity, value, note)
+
+
+def record(run, quantity, value, note=""):
+    rows.append((run, quantity, value, note))
+    return value
+
+
+def read_csv(path):
+    """Columns of a CSV with a header as a dict of numpy arrays (non-numeric columns as str)."""
+    with open(path) as f:
+        reader = csv.reader(f)
+        header = next(reader)
+        data = [r for r in reader if r]
+    out = {}
+    for i, h in enumerate(header):
+        col = [r[i] if i < len(r) else "" for r in data]
+        try:
+            out[h] = np.array([float(x) if x not in ("", "nan") else np.nan for x in col])
+        except ValueError:
+            out[h] = np.array(col)
+    return out
+
+
+def tag(t):
+    return f"{t:.4f}"
+
+
+def load_reference():
+    if not os.path.exists(REFERENCE):
+        return None
+    d = np.loadtxt(REFERENCE, comments="#")
+    return {"t": d[:, 0], "e_v": d[:, 1], "eps": d[:, 2], "eps_nu": d[:, 3]}
+
+
+def load_run(runs_dir, name):
+    d = os.path.join(runs_dir, name)
+    ts_file = os.path.join(d, "timeseries.csv")
+    if not os.path.exists(ts_file):
+        return None
+    r = {"dir": d, "name": name, "ts": read_csv(ts_file)}
+    wall = os.path.join(d, "wall.json")
+    r["wall"] = json.load(open(wall)) if os.path.exists(wall) else None
+    snap = os.path.join(d, "stats", "snapshots.csv")
+    r["snap"] = read_csv(snap) if os.path.exists(snap) else None
+    spec_index = os.path.join(d, "spectra", "index.csv")
+    r["spec_index"] = read_csv(spec_index) if os.path.exists(spec_index) else None
+    return r
+
+
+def value_at(t, y, t0):
+    """Linear interpolation of y at t0 (NaN outside the data)."""
+    if len(t) == 0 or t0 < t[0] - 1e-9 or t0 > t[-1] + 1e-9:
+        return math.nan
+    return float(np.interp(t0, t, y))
+
+
+def spectrum(run, t):
+    f = os.path.join(run["dir"], "spectra", f"E_t{tag(t)}.csv")
+    return read_csv(f) if os.path.exists(f) else None
+
+
+def spectrum_row(run, t):
+    si = run["spec_index"]
+    if si is None:
+        return None
+    i = np.where(np.abs(si["t"] - t) < 1e-6)[0]
+    return {k: si[k][i[0]] for k in si} if len(i) else None
+
+
+def local_maxima(t, y, lo, hi):
+    m = (t >= lo) & (t <= hi)
+    tt, yy = t[m], y[m]
+    return [(tt[i], yy[i]) for i in range(1, len(tt) - 1)
+            if yy[i] >= yy[i - 1] and yy[i] > yy[i + 1]]
+
+
+def tgv_numbers(run, ref):
+    name = run["name"]
+    ts = run["ts"]
+    t, ev, eps = ts["t"], ts["e_v"], ts["dissipation"]
+    t_end = float(t[-1])
+    if run["wall"]:
+        record(name, "wall_seconds", round(run["wall"]["wall_seconds"], 1),
+               f"sphles run, --threads {run['wall']['threads']}")
+        record(name, "exit_code", run["wall"]["exit_code"])
+    record(name, "t_end", round(t_end, 4))
+    record(name, "steps", int(ts["step"][-1]))
+    ev0 = float(ev[0])
+    record(name, "e_v(0)", ev0)
+    for tq in (5.0, 9.0, 14.0):
+        record(name, f"e_v({tq:g})", value_at(t, ev, tq))
+    record(name, "e_v(5)/e_v(0)", value_at(t, ev, 5.0) / ev0,
+           "laminar-phase energy kept")
+    record(name, "max_density_deviation_max", float(np.nanmax(ts["max_density_deviation"])))
+    record(name, "max_density_deviation(t=5)",
+           value_at(t, ts["max_density_deviation"], 5.0))
+    ok = np.isfinite(eps) & (t >= 1.0)
+    if ok.any():
+        i = np.argmax(np.where(ok, eps, -np.inf))
+        record(name, "eps_peak", float(eps[i]), "max of -de_v/dt (0.2 window), t >= 1")
+        record(name, "t_eps_peak", float(t[i]))
+        # A second peak: the largest local maximum of the (coarsely smoothed) ε in [t_peak+1, 13].
+        tt, ee = t[ok], eps[ok]
+        grid = np.arange(1.0, min(t_end, 15.0) + 1e-9, 0.25)
+        eg = np.interp(grid, tt, ee)
+        late = local_maxima(grid, eg, float(t[i]) + 1.0, 13.0)
+        if late:
+            tp, ep = max(late, key=lambda p: p[1])
+            record(name, "t_eps_second_peak", float(tp), "local max of ε on a 0.25 grid")
+            record(name, "eps_second_peak", float(ep))
+        else:
+            record(name, "t_eps_second_peak", math.nan, "no local maximum in [t_peak+1, 13]")
+        # Decay law after the peak, e_v ~ t^-a, fitted over [t_peak + 2, 15].
+        m = (t >= t[i] + 2.0) & (t <= 15.0) & (ev > 0)
+        if m.sum() > 10 and t_end >= 14.9:
+            a = -np.polyfit(np.log(t[m]), np.log(ev[m]), 1)[0]
+            record(name, "decay_exponent", float(a), f"fit e_v ~ t^-a over [{t[i] + 2:.2f}, 15]")
+    snap = run["snap"]
+    if snap is not None:
+        j = np.where(np.abs(snap["t"] - T_SPEC) < 1e-6)[0]
+        if len(j):
+            j = j[0]
+            record(name, "eps_vorticity(14)", float(snap["dissipation_vorticity"][j]),
+                   "nu <omega^2> on the grid")
+            record(name, "eps_spectral(14)", float(snap["dissipation_spectral"][j]),
+                   "2 nu sum k^2 E dk, all shells")
+            record(name, "eps_history(14)", value_at(t, eps, T_SPEC), "-de_v/dt")
+            record(name, "tau_sfs_mean(14)", float(snap["tau_sfs_mean"][j]))
+            record(name, "tau_sfs_max(14)", float(snap["tau_sfs_max"][j]))
+            record(name, "tau_sfs_mean/e_v(14)",
+                   float(snap["tau_sfs_mean"][j]) / value_at(t, ev, T_SPEC))
+        asec = snap["analysis_seconds"]
+        record(name, "analysis_seconds_total", round(float(np.nansum(asec)), 1))
+    sr = spectrum_row(run, T_SPEC)
+    sp = spectrum(run, T_SPEC)
+    if sr is not None and sp is not None:
+        k, e = sp["k"], sp["E"]
+        kk, kr = float(sr["k_kernel"]), float(sr["k_resolution"])
+        record(name, "eps_spectral_resolved(14)", float(sr["dissipation_spectral_resolved"]),
+               "2 nu sum k^2 E dk, k <= k_res")
+        record(name, "k_kernel", kk, "2π/D_K")
+        record(name, "k_resolution", kr, "π/Δl")
+        m = (k > 0) & (k <= kr)
+        kmin = float(k[m][np.argmin(e[m])])
+        record(name, "k_spectrum_minimum(14)", kmin, "start of the noise plateau, k <= k_res")
+        record(name, "k_spectrum_minimum/k_kernel", kmin / kk)
+        # Energy above the kernel wavenumber: share of e_v in k > k_kern / 2 (scales below 2 D_K).
+        dk = float(sr["delta_k"])
+        tot = float(np.sum(e) * dk)
+        record(name, "energy_fraction_k>k_kern/2(14)", float(np.sum(e[k > kk / 2]) * dk) / tot)
+        record(name, "energy_fraction_k>k_kern(14)", float(np.sum(e[k > kk]) * dk) / tot)
+        # log-log slope of E over [2, k_kern] (inertial or deficit range at this N)
+        m2 = (k >= 2) & (k <= kk + 1e-9)
+        if m2.sum() >= 2:
+            record(name, "spectral_slope_[2,k_kern](14)",
+                   float(np.polyfit(np.log(k[m2]), np.log(e[m2]), 1)[0]))
+        m3 = (k >= kk) & (k <= kr + 1e-9)
+        if m3.sum() >= 2:
+            record(name, "spectral_slope_[k_kern,k_res](14)",
+                   float(np.polyfit(np.log(k[m3]), np.log(e[m3]), 1)[0]))
+    # Correlation of |τ_SFS| and ω² on the slice x = π at t = 14.
+    sl = slice_pair(run, T_SPEC)
+    if sl is not None:
+        w2, tau = sl
+        record(name, "slice_corr_tau_omega2(14)", float(np.corrcoef(w2.ravel(), tau.ravel())[0, 1]),
+               "Pearson, grid plane x = π")
+    jt = joint(run, T_SPEC)
+    if jt is not None:
+        record(name, "joint_corr_tau_omega2(14)", joint_correlation(jt),
+               "Pearson over particles, from the (τ*, ω²*) histogram bin centres")
+
+
+def slice_pair(run, t):
+    d = os.path.join(run["dir"], "slices")
+    a, b = (os.path.join(d, f"{f}_t{tag(t)}.npy") for f in ("omega2", "tau_sfs"))
+    if not (os.path.exists(a) and os.path.exists(b)):
+        return None
+    return np.load(a), np.load(b)
+
+
+def joint(run, t):
+    f = os.path.join(run["dir"], "stats", f"joint_tau_omega2_t{tag(t)}.csv")
+    return read_csv(f) if os.path.exists(f) else None
+
+
+def joint_correlation(j):
+    x = 0.5 * (j["tau_lo"] + j["tau_hi"])
+    y = 0.5 * (j["omega2_lo"] + j["omega2_hi"])
+    w = j["count"]
+    mx, my = np.average(x, weights=w), np.average(y, weights=w)
+    cov = np.average((x - mx) * (y - my), weights=w)
+    return float(cov / math.sqrt(np.average((x - mx) ** 2, weights=w) *
+                                 np.average((y - my) ** 2, weights=w)))
+
+
+def save(fig, docs, name):
+    path = os.path.join(docs, "figures", name)
+    fig.savefig(path, dpi=90)
+    plt.close(fig)
+    print("wrote", os.path.relpath(path, ROOT), f"{os.path.getsize(path) // 1024} KB")
+
+
+def plot_energy(runs, ref, docs):
+    fig, axes = plt.subplots(2, 3, figsize=(15, 8.5))
+    for g, (title, names) in enumerate(GROUPS):
+        ax, bx = axes[0, g], axes[1, g]
+        if ref is not None:
+            ax.plot(ref["t"], ref["e_v"], color="k", lw=1, label="DNS Re 5000 (guide)")
+            bx.plot(ref["t"], ref["eps"], color="k", lw=1, label="DNS Re 5000 (guide)")
+        for n in names:
+            if n not in runs:
+                continue
+            r = runs[n]
+            st = STYLE[n]
+            ax.plot(r["ts"]["t"], r["ts"]["e_v"], label=TGV_RUNS[n][0], **st)
+            bx.plot(r["ts"]["t"], r["ts"]["dissipation"], label=TGV_RUNS[n][0] + " -de_v/dt",
+                    **st)
+            if r["snap"] is not None:
+                bx.plot(r["snap"]["t"], r["snap"]["dissipation_vorticity"], "o", ms=3,
+                        color=st["color"])
+        ax.set_title("e_v(t): " + title, fontsize=10)
+        bx.set_title("ε(t): lines -de_v/dt, dots ν⟨ω²⟩", fontsize=10)
+        ax.set_xlim(0, 15)
+        bx.set_xlim(0, 15)
+        ax.set_ylim(0, 0.13)
+        bx.set_ylim(0, 0.03)
+        ax.set_xlabel("t")
+        bx.set_xlabel("t")
+        ax.legend(fontsize=7)
+        bx.legend(fontsize=7)
+        ax.grid(alpha=0.3)
+        bx.grid(alpha=0.3)
+    fig.tight_layout()
+    save(fig, docs, "validation_energy_dissipation.png")
+
+
+def plot_decay(runs, ref, docs):
+    fig, ax = plt.subplots(figsize=(6.5, 4.5))
+    if ref is not None:
+        ax.loglog(ref["t"][1:], ref["e_v"][1:], color="k", lw=1, label="DNS Re 5000 (guide)")
+    for n in ("case8_n24", "case8_n32", "case8_n48", "case1_n32", "case12_n32", "case20_n32"):
+        if n in runs:
+            ax.loglog(runs[n]["ts"]["t"][1:], runs[n]["ts"]["e_v"][1:], label=TGV_RUNS[n][0],
+                      **STYLE[n])
+    tt = np.array([9.0, 15.0])
+    ax.loglog(tt, 0.06 * (tt / 9.0) ** -1.2, color="gray", ls="-.", label="t^-1.2 (thesis)")
+    ax.set_xlim(1, 16)
+    ax.set_ylim(5e-3, 0.2)
+    ax.set_xlabel("t")
+    ax.set_ylabel("e_v")
+    ax.legend(fontsize=7)
+    ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    save(fig, docs, "validation_decay_loglog.png")
+
+
+def plot_spectra(runs, docs):
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.8))
+    for g, (title, names) in enumerate(GROUPS):
+        ax = axes[g]
+        for n in names:
+            if n not in runs:
+                continue
+            sp = spectrum(runs[n], T_SPEC)
+            sr = spectrum_row(runs[n], T_SPEC)
+            if sp is None or sr is None:
+                continue
+            st = STYLE[n]
+            m = sp["k"] > 0
+            ax.loglog(sp["k_Lc"][m], sp["E_over_ev_Lc"][m], label=TGV_RUNS[n][0], **st)
+            lc = sr["L_c"]
+            ax.axvline(sr["k_kernel"] * lc, color=st["color"], ls=st["ls"], lw=0.7, alpha=0.6)
+        kk = np.array([3.0, 30.0])
+        ax.loglog(kk, 0.3 * (kk / 3) ** (-5 / 3), color="gray", ls="-.", label="k^-5/3")
+        ax.loglog(kk, 0.3 * (kk / 3) ** (-4.0), color="gray", ls=":", label="k^-4")
+        ax.set_ylim(1e-6, 3)
+        ax.set_xlabel("k L_c  (L_c = π)")
+        ax.set_ylabel("E(k) / (e_v L_c)")
+        ax.set_title(f"E(k) at t = {T_SPEC:g}: {title}\nthin vertical lines: k_kern = 2π/D_K",
+                     fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3, which="both")
+    fig.tight_layout()
+    save(fig, docs, "validation_spectra_t14.png")
+
+
+def plot_slices(runs, docs):
+    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case1_n32", "case12_n32",
+                         "case20_n32") if n in runs and slice_pair(runs[n], T_SPEC) is not None]
+    if not names:
+        return
+    fig, axes = plt.subplots(2, len(names), figsize=(2.7 * len(names), 5.6), squeeze=False)
+    for c, n in enumerate(names):
+        w2, tau = slice_pair(runs[n], T_SPEC)
+        for r, (f, lab) in enumerate(((w2, "ω²"), (tau, "|τ_SFS|"))):
+            ax = axes[r, c]
+            im = ax.imshow(f, origin="lower", extent=(0, 2 * math.pi, 0, 2 * math.pi),
+                           cmap="inferno", vmin=0, vmax=np.percentile(f, 99.5))
+            ax.set_title(f"{TGV_RUNS[n][0]}\n{lab}, max {f.max():.3g}", fontsize=7)
+            ax.set_xticks([])
+            ax.set_yticks([])
+            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02).ax.tick_params(labelsize=6)
+    fig.suptitle(f"Slices x = π at t = {T_SPEC:g} (axes y, z ∈ [0, 2π])", fontsize=9)
+    fig.tight_layout()
+    save(fig, docs, "validation_slices_t14.png")
+
+
+def plot_joint(runs, docs):
+    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case1_n32", "case12_n32")
+             if n in runs and joint(runs[n], T_SPEC) is not None]
+    if not names:
+        return
+    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2), squeeze=False)
+    for c, n in enumerate(names):
+        j = joint(runs[n], T_SPEC)
+        tb = np.unique(np.concatenate([j["tau_lo"], j["tau_hi"]]))
+        ob = np.unique(np.concatenate([j["omega2_lo"], j["omega2_hi"]]))
+        h = np.zeros((len(ob) - 1, len(tb) - 1))
+        for a, b, cnt in zip(j["tau_lo"], j["omega2_lo"], j["count"]):
+            h[np.searchsorted(ob, b), np.searchsorted(tb, a)] += cnt
+        ax = axes[0, c]
+        ax.pcolormesh(tb, ob, np.log10(np.where(h > 0, h, np.nan)), cmap="viridis")
+        ax.set_xlabel("τ_SFS / max", fontsize=8)
+        ax.set_ylabel("ω² / max", fontsize=8)
+        ax.set_title(f"{TGV_RUNS[n][0]}, t = {T_SPEC:g}\nlog10 count, r = {joint_correlation(j):.2f}",
+                     fontsize=8)
+    fig.tight_layout()
+    save(fig, docs, "validation_joint_tau_omega2_t14.png")
+
+
+def kolmogorov(runs_dir, docs):
+    name = "kolmogorov_n48"
+    r = load_run(runs_dir, name)
+    if r is None:
+        return
+    ts = r["ts"]
+    t = ts["t"]
+    if r["wall"]:
+        record(name, "wall_seconds", round(r["wall"]["wall_seconds"], 1))
+        record(name, "exit_code", r["wall"]["exit_code"])
+    t_end = float(t[-1])
+    record(name, "t_end", t_end)
+    record(name, "steps", int(ts["step"][-1]))
+    t0 = record(name, "average_from", round(t_end / 2, 3), "statistics over [t_end/2, t_end]")
+    m = t >= t0
+    cm = 1e4  # m²/s³ -> cm²/s³
+    inj = record(name, "eps_inj_cm2s3", float(np.mean(ts["energy_injection"][m])) * cm)
+    film = record(name, "eps_film_cm2s3", float(np.mean(ts["film_dissipation"][m])) * cm)
+    record(name, "u_rms", float(np.mean(ts["u_rms"][m])), "m/s, target 0.11")
+    snap = r["snap"]
+    ev = math.nan
+    if snap is not None:
+        s = snap["t"] >= t0
+        ev = record(name, "eps_v_cm2s3", float(np.mean(snap["dissipation_vorticity"][s])) * cm,
+                    "nu <omega^2> on the grid, snapshots")
+        record(name, "budget_residual_cm2s3", inj - ev - film, "eps_inj - eps_v - eps_film")
+    record(name, "max_density_deviation_max", float(np.nanmax(ts["max_density_deviation"])))
+    # principal-direction angle statistics, averaged over the snapshots in [t0, t_end]
+    d = os.path.join(r["dir"], "stats")
+    hist = None
+    for f in sorted(os.listdir(d)) if os.path.isdir(d) else []:
+        if f.startswith("alignment_t") and float(f[len("alignment_t"):-4]) >= t0:
+            a = read_csv(os.path.join(d, f))
+            hist = a if hist is None else {**hist, "count": hist["count"] + a["count"]}
+    fig, axes = plt.subplots(1, 3 if hist is not None else 2, figsize=(14, 4))
+    ax = axes[0]
+    ax.plot(t, ts["energy_injection"] * cm, label="ε_inj = ⟨χ sin(k_y y) v_x⟩")
+    ax.plot(t, ts["film_dissipation"] * cm, label="ε_film = μ⟨v²⟩")
+    if snap is not None:
+        ax.plot(snap["t"], snap["dissipation_vorticity"] * cm, "o-", label="ε_v = ν⟨ω²⟩")
+    for y, lab in ((140, "experiment ε_inj"), (288.6, "thesis ε_inj (336²)")):
+        ax.axhline(y, color="gray", ls=":", lw=1)
+        ax.text(0.02, y, lab, fontsize=7, va="bottom")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("cm²/s³")
+    ax.set_yscale("log")
+    ax.legend(fontsize=7)
+    ax.set_title("Kolmogorov flow, 48², L = 12 mm, D_K = 2 mm: energy budget", fontsize=9)
+    ax = axes[1]
+    for tq in sorted(set(float(x) for x in r["spec_index"]["t"] if x >= t0)) if r["spec_index"] is not None else []:
+        sp = spectrum(r, tq)
+        if sp is not None:
+            mm = sp["k"] > 0
+            ax.loglog(sp["k"][mm], sp["E"][mm], lw=0.8, label=f"t = {tq:g} s")
+    sr = spectrum_row(r, t_end) if r["spec_index"] is not None else None
+    if sr is not None:
+        ax.axvline(sr["k_kernel"], color="k", ls="--", lw=0.8, label="k_kern = 2π/D_K")
+        ax.axvline(sr["k_resolution"], color="k", ls=":", lw=0.8, label="k_res = π/Δl")
+        ax.axvline(2 * math.pi * 2 / (0.042 * 2 / 7), color="gray", ls="-.", lw=0.8,
+                   label="forcing k_y")
+    ax.set_xlabel("k [1/m]")
+    ax.set_ylabel("E(k) [m³/s²]")
+    ax.legend(fontsize=6)
+    ax.set_title("E(k)", fontsize=9)
+    if hist is not None:
+        frac = hist["count"] / hist["count"].sum()
+        lo, hi = hist["gamma_lo"], hist["gamma_hi"]
+        ax = axes[2]
+        ax.bar(np.degrees(lo), frac * 100, width=np.degrees(hi - lo), align="edge",
+               edgecolor="k")
+        ax.set_xlabel("γ [deg] between t_I and v")
+        ax.set_ylabel("% of particles with τ*/max > 0.1")
+        ax.set_title("principal-direction angle, snapshots t ≥ %.2f s" % t0, fontsize=9)
+        record(name, "gamma_first_bin_percent", float(frac[0] * 100),
+               f"γ in [0, {math.degrees(hi[0]):.0f}°]")
+        record(name, "gamma_last_bin_percent", float(frac[-1] * 100),
+               f"γ in [{math.degrees(lo[-1]):.0f}°, 90°]")
+        below = float(frac[hi <= math.pi / 4 + 1e-9].sum() * 100)
+        record(name, "gamma_cumulative_0_45_percent", below)
+        record(name, "gamma_cumulative_45_90_percent", 100 - below)
+    fig.tight_layout()
+    save(fig, docs, "validation_kolmogorov.png")
+
+
+def main():
+    global T_SPEC
+    p = argparse.ArgumentParser()
+    p.add_argument("--runs", default=os.path.join(ROOT, "runs", "validation"))
+    p.add_argument("--docs", default=os.path.join(ROOT, "docs"))
+    p.add_argument("--t-spectra", type=float, default=T_SPEC,
+                   help="time of spectra, slices and statistics (14; smaller only for tests)")
+    a = p.parse_args()
+    T_SPEC = a.t_spectra
+    os.makedirs(os.path.join(a.docs, "figures"), exist_ok=True)
+    ref = load_reference()
+    if ref is not None:
+        i = np.argmax(ref["eps"])
+        record("dns_re5000", "eps_peak", float(ref["eps"][i]), "Dairay et al. 2017, 1280³")
+        record("dns_re5000", "t_eps_peak", float(ref["t"][i]))
+        for tq in (5.0, 9.0, 14.0):
+            record("dns_re5000", f"e_v({tq:g})", value_at(ref["t"], ref["e_v"], tq))
+        record("dns_re5000", "e_v(5)/e_v(0)", value_at(ref["t"], ref["e_v"], 5.0) / ref["e_v"][0])
+        m = (ref["t"] >= ref["t"][i] + 2) & (ref["t"] <= 15)
+        record("dns_re5000", "decay_exponent",
+               float(-np.polyfit(np.log(ref["t"][m]), np.log(ref["e_v"][m]), 1)[0]),
+               f"fit over [{ref['t'][i] + 2:.2f}, 15]")
+    runs = {}
+    for n in TGV_RUNS:
+        r = load_run(a.runs, n)
+        if r is not None:
+            runs[n] = r
+            tgv_numbers(r, ref)
+    missing = [n for n in TGV_RUNS if n not in runs]
+    if missing:
+        print("not found (not run):", ", ".join(missing))
+    plot_energy(runs, ref, a.docs)
+    plot_decay(runs, ref, a.docs)
+    plot_spectra(runs, a.docs)
+    plot_slices(runs, a.docs)
+    plot_joint(runs, a.docs)
+    kolmogorov(a.runs, a.docs)
+    out = os.path.join(a.docs, "validation_findings.csv")
+    with open(out, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["run", "quantity", "value", "note"])
+        for run, q, v, note in rows:
+            w.writerow([run, q, f"{v:.6g}" if isinstance(v, float) else v, note])
+    print("wrote", os.path.relpath(out, ROOT), len(rows), "rows")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
