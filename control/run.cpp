@@ -267,6 +267,10 @@ struct Run::Impl {
   std::string stop_reason;
   std::optional<std::filesystem::path> start_checkpoint;  // explicit restart file
   bool continue_from_checkpoint = false;
+  bool retired = false;  // being deleted: every transition and change is refused
+  void refuse_if_retired(const std::string& run_id) const {
+    if (retired) throw StateError("run " + run_id + " has been deleted");
+  }
   std::thread thread;
   double time = 0.0, end_time = 0.0;
   std::uint64_t step = 0;
@@ -426,6 +430,7 @@ Run::~Run() {
 void Run::start() {
   std::unique_lock lock(impl_->mutex);
   Impl& r = *impl_;
+  r.refuse_if_retired(id_);
   switch (r.state) {
     case RunState::Running:
     case RunState::Paused:
@@ -455,6 +460,7 @@ void Run::start() {
 
 void Run::mark_queued() {
   std::unique_lock lock(impl_->mutex);
+  impl_->refuse_if_retired(id_);
   if (impl_->state != RunState::Created && !is_terminal(impl_->state))
     throw StateError("run " + id_ + " is " + std::string(run_state_name(impl_->state)) +
                      " and cannot be queued");
@@ -473,6 +479,7 @@ void Run::pause() {
 
 void Run::resume() {
   std::unique_lock lock(impl_->mutex);
+  impl_->refuse_if_retired(id_);
   if (impl_->state == RunState::Paused) {
     impl_->set_state(lock, RunState::Running);
     return;
@@ -507,6 +514,25 @@ void Run::stop(const std::string& reason) {
   }
 }
 
+void Run::retire() {
+  std::unique_lock lock(impl_->mutex);
+  Impl& r = *impl_;
+  if (r.state != RunState::Created && !is_terminal(r.state))
+    throw StateError("run " + id_ + " is " + std::string(run_state_name(r.state)) +
+                     "; stop it before deleting it");
+  r.retired = true;
+  // A finished solver thread may still be returning; nothing of it may outlive the directory.
+  if (r.thread.joinable() && r.thread.get_id() != std::this_thread::get_id()) {
+    lock.unlock();
+    r.thread.join();
+  }
+}
+
+void Run::reinstate() {
+  std::lock_guard lock(impl_->mutex);
+  impl_->retired = false;
+}
+
 void Run::wait() {
   std::unique_lock lock(impl_->mutex);
   impl_->changed.wait(lock, [&] {
@@ -518,6 +544,7 @@ void Run::wait() {
 RunState Run::run_here() {
   {
     std::unique_lock lock(impl_->mutex);
+    impl_->refuse_if_retired(id_);
     if (impl_->state == RunState::Running || impl_->state == RunState::Paused)
       throw StateError("run " + id_ + " is already running");
     if (is_terminal(impl_->state)) impl_->continue_from_checkpoint = true;
@@ -533,6 +560,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
                                     std::string(patch.type_name()));
   std::unique_lock lock(impl_->mutex);
   Impl& r = *impl_;
+  r.refuse_if_retired(id_);
   const RunSpec& base = r.pending ? *r.pending : r.spec;
   const json before = run_spec_to_json(base);
   json after = before;

@@ -151,6 +151,11 @@ class Run {
   void wait();
   /// Runs on the calling thread until the end (command line). Returns the final state.
   RunState run_here();
+  /// Created/finished/stopped/failed → retired: no transition or change is accepted afterwards
+  /// (StateError), so the run directory can be deleted. Throws StateError for an active run
+  /// (running, paused, queued). reinstate() undoes it when the deletion could not be done.
+  void retire();
+  void reinstate();
 
   /// Applies a JSON merge patch to the scene document. Validated in full first; fields the
   /// solver can change safely (docs/rendering.md, "Live changes") take effect at the next step,

@@ -127,6 +127,8 @@ RunManager::RunManager(ManagerOptions options)
                                 std::to_string(options_.max_running));
   const std::filesystem::path runs = options_.data_directory / "runs";
   std::filesystem::create_directories(runs);
+  std::error_code ignored;  // deletions a previous process did not finish (remove())
+  std::filesystem::remove_all(options_.data_directory / "trash", ignored);
   std::vector<std::filesystem::path> directories;
   for (const auto& entry : std::filesystem::directory_iterator(runs))
     if (entry.is_directory()) directories.push_back(entry.path());
@@ -241,6 +243,29 @@ void RunManager::stop(const std::string& id) {
     std::erase(queue_, id);
   }
   run->stop();
+}
+
+void RunManager::remove(const std::string& id) {
+  const std::shared_ptr<Run> run = get(id);
+  run->retire();  // throws StateError for an active run; no transition is accepted afterwards
+  const std::filesystem::path trash =
+      options_.data_directory / "trash" / run->directory().filename();
+  try {
+    std::filesystem::create_directories(trash.parent_path());
+    std::filesystem::remove_all(trash);
+    std::filesystem::rename(run->directory(), trash);
+  } catch (...) {
+    run->reinstate();
+    throw;
+  }
+  {
+    std::lock_guard lock(mutex_);
+    std::erase(runs_, run);
+    std::erase(queue_, id);
+  }
+  run->remove_observer(slot_observer_.get());
+  std::error_code ignored;
+  std::filesystem::remove_all(trash, ignored);  // a leftover is removed on the next start
 }
 
 void RunManager::start_queued_locked() {

@@ -70,6 +70,11 @@ class RunManager {
   void pause(const std::string& id);
   void resume(const std::string& id);  // paused → running; stopped → running or queued
   void stop(const std::string& id);
+  /// Deletes a run that is not active (created, finished, stopped, failed) with its directory;
+  /// throws UnknownRunError or StateError (active runs must be stopped first). The directory is
+  /// first moved to {data}/trash/ in one rename, so an interrupted delete never leaves a partial
+  /// run that a restart would list; leftovers in trash/ are removed on start.
+  void remove(const std::string& id);
 
   /// Stops every active run (each writes a checkpoint and is marked stopped). Idempotent.
   void shutdown();

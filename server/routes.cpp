@@ -145,6 +145,12 @@ Response transition(const Router::Services& s, const Context& c) {
   return json_response(c.request, run_summary_json(*find_run(s, id)));
 }
 
+Response delete_run(const Router::Services& s, const Context& c) {
+  const std::string& id = c.params[0];
+  s.manager.remove(id);  // 404 unknown, 409 active; the directory goes with it
+  return json_response(c.request, {{"deleted", id}});
+}
+
 Response change_parameters(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
   const nlohmann::json patch = json_body(c.request);
@@ -365,6 +371,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs", false}, list_runs},
       {{V::post, "/api/runs", true}, create_run, true},
       {{V::get, "/api/runs/{id}", false}, get_run},
+      {{V::delete_, "/api/runs/{id}", true}, delete_run},
       {{V::post, "/api/runs/{id}/start", true}, transition<&M::start>},
       {{V::post, "/api/runs/{id}/pause", true}, transition<&M::pause>},
       {{V::post, "/api/runs/{id}/resume", true}, transition<&M::resume>},

@@ -17,6 +17,7 @@ namespace {
 
 using nlohmann::json;
 using namespace std::chrono_literals;
+namespace fs = std::filesystem;
 
 std::filesystem::path fresh_directory(const std::string& name) {
   const std::filesystem::path dir = std::filesystem::temp_directory_path() /
@@ -386,6 +387,20 @@ TEST(RunManager, QueuesBeyondTheSlotLimitAndRecoversRunsAfterARestart) {
   request.preset = "kolmogorov2d";
   request.start = false;
   EXPECT_EQ(again.create(request)->id().substr(0, 4), "0004");
+
+  // Deleting: the run object refuses every transition afterwards, the directory is gone, and a
+  // restart neither lists it nor keeps a half-deleted leftover in trash/.
+  const fs::path long_directory = long_run->directory();
+  again.remove(long_id);
+  EXPECT_FALSE(fs::exists(long_directory));
+  EXPECT_THROW(again.get(long_id), UnknownRunError);
+  EXPECT_THROW(long_run->start(), StateError);
+  EXPECT_THROW(long_run->apply_changes({{"time", {{"end", 9.0}}}}), StateError);
+  fs::create_directories(data / "trash" / "0009-interrupted");
+  RunManager third(manager_options(data, 1));
+  EXPECT_EQ(third.list().size(), 3u);  // 2 recovered + the kolmogorov run, not the deleted one
+  EXPECT_FALSE(fs::exists(data / "trash" / "0009-interrupted"));
+  EXPECT_THROW(third.get(long_id), UnknownRunError);
 }
 
 TEST(RunManager, CreateRequestsAreValidatedBeforeAnythingIsCreated) {
