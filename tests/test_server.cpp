@@ -227,6 +227,9 @@ struct Api {
   Reply patch(const std::string& target, const json& body) const {
     return send(port, with_token({http::verb::patch, target, body.dump()}));
   }
+  Reply remove(const std::string& target) const {
+    return send(port, with_token({http::verb::delete_, target, ""}));
+  }
   json run(const std::string& id) const {
     const Reply r = get("/api/runs/" + id);
     EXPECT_EQ(r.status, 200) << r.body;
@@ -551,6 +554,26 @@ TEST(Server, EveryStateTransitionAndItsIllegalVariants) {
   // unknown run
   for (const char* name : {"start", "pause", "resume", "stop"})
     expect_error(action("0999-nothing", name), 404, "id");
+
+  // delete: refused while active, then the run and its directory are gone
+  const std::string doomed = api.create({{"scene", tiny_scene()}});
+  ASSERT_EQ(state(doomed), "running");
+  expect_error(api.remove("/api/runs/" + doomed), 409);
+  EXPECT_EQ(state(doomed), "running");  // the refused delete harmed nothing
+  ASSERT_EQ(action(doomed, "stop").status, 200);
+  const fs::path doomed_directory = server.data_directory / "runs" / doomed;
+  ASSERT_TRUE(fs::exists(doomed_directory / "run.json"));
+  const Reply deleted = api.remove("/api/runs/" + doomed);
+  ASSERT_EQ(deleted.status, 200) << deleted.body;
+  EXPECT_EQ(deleted.body_json()["deleted"], doomed);
+  EXPECT_FALSE(fs::exists(doomed_directory));
+  expect_error(api.get("/api/runs/" + doomed), 404, "id");
+  expect_error(api.remove("/api/runs/" + doomed), 404, "id");
+  ASSERT_EQ(api.remove("/api/runs/" + short_run).status, 200);  // finished runs go too
+  for (const auto& run : api.get("/api/runs").body_json()) {
+    EXPECT_NE(run["id"], doomed);
+    EXPECT_NE(run["id"], short_run);
+  }
 }
 
 TEST(Server, RunsQueueBeyondMaxRunning) {
@@ -743,6 +766,13 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   expect_error(api.get("/api/runs/" + id + "/images/omega2.png"), 400, "field");
   EXPECT_EQ(api.get("/api/runs/" + id + "/spectrum").status, 200);
   EXPECT_EQ(api.get("/api/runs/" + id + "/statistics").status, 200);
+  // The run detail says which products exist, so clients need not probe for 404s.
+  const json available = api.run(id)["available"];
+  EXPECT_TRUE(available["spectrum"].get<bool>());
+  EXPECT_TRUE(available["statistics"].get<bool>());
+  const auto& images = available["images"];
+  EXPECT_NE(std::find(images.begin(), images.end(), "omega2"), images.end()) << images;
+  EXPECT_EQ(std::find(images.begin(), images.end(), "view3d"), images.end()) << images;
   json frames;
   ASSERT_TRUE(wait_until([&] {
     frames = api.get("/api/runs/" + id + "/frames").body_json();
@@ -822,12 +852,15 @@ TEST(Server, TokenGuardsMutatingCalls) {
             401);
   const std::string id = owner.create({{"scene", tiny_scene()}, {"start", false}});
   ASSERT_FALSE(id.empty());
+  EXPECT_EQ(owner.run(id)["available"],
+            json({{"spectrum", false}, {"statistics", false}, {"images", json::array()}}));
   // Reading needs no token.
   EXPECT_EQ(anonymous.get("/api/runs").status, 200);
   EXPECT_EQ(anonymous.get("/api/runs/" + id).status, 200);
   for (const char* action : {"start", "pause", "resume", "stop"})
     expect_error(anonymous.post("/api/runs/" + id + "/" + action), 401);
   expect_error(anonymous.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 5.0}}}}), 401);
+  expect_error(anonymous.remove("/api/runs/" + id), 401);
   EXPECT_EQ(anonymous.run(id)["state"], "created");
   ASSERT_EQ(owner.post("/api/runs/" + id + "/start").status, 200);
 
