@@ -71,6 +71,7 @@ export const api = {
   run: (id) => request('GET', run(id)),
   create: (body) => request('POST', '/api/runs', body),
   action: (id, verb) => request('POST', `${run(id)}/${verb}`),
+  remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
   timeseries: (id) => request('GET', `${run(id)}/timeseries`),
   spectrum: (id) => request('GET', `${run(id)}/spectrum`),

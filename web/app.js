@@ -14,15 +14,15 @@ const REDRAW_MS = 250;
 const IMAGE_FIELDS = ['omega2', 'tau_sfs'];
 const ACTIVE = new Set(['created', 'queued', 'running', 'paused']);
 // Which buttons each state allows (control/run.hpp: created/stopped → start, running → pause,
-// paused → resume, anything not terminal → stop).
+// paused → resume, anything not terminal → stop; a run that is not active can be deleted).
 const ALLOWED = {
-  created: ['start', 'stop'],
+  created: ['start', 'stop', 'delete'],
   queued: ['stop'],
   running: ['pause', 'stop'],
   paused: ['resume', 'stop'],
-  stopped: ['start'],
-  finished: [],
-  failed: [],
+  stopped: ['start', 'delete'],
+  finished: ['delete'],
+  failed: ['delete'],
 };
 // Documented defaults of the 2D Taylor-Green scene (docs/scenes.md), offered when the server
 // has no 2D Taylor-Green preset.
@@ -123,6 +123,7 @@ async function pollRuns() {
     if (app.selectedId) {
       const s = app.runs.find((r) => r.id === app.selectedId);
       if (s) mergeSummary(s);
+      else deselectRun();  // deleted elsewhere
     } else if (app.runs.length) {
       const fromHash = new URLSearchParams(location.hash.slice(1)).get('run');
       const pick = app.runs.find((r) => r.id === fromHash) ??
@@ -348,14 +349,14 @@ async function backfill(id) {
     applyDetail(detail);
     if (series) addTimeseries(series);
     addFrames(frames);
-    const products = getPath(detail.scene, 'analysis.products') ?? [];
-    const published = getPath(detail, 'counters.analysis_published');
-    const analysed = published === undefined ? (detail.step ?? 0) > 0 : published > 0;
-    if (analysed && products.includes('spectrum')) {
+    // Only products the server says exist (a request for a missing one is a 404 that the
+    // browser logs as an error).
+    const available = detail.available ?? {};
+    if (available.spectrum) {
       const s = await api.spectrum(id).catch(() => null);
       if (s && id === app.selectedId) onSpectrum(s);
     }
-    if (analysed && products.includes('sfs_stats')) {
+    if (available.statistics) {
       const s = await api.statistics(id).catch(() => null);
       if (s && id === app.selectedId) onStatistics(s);
     }
@@ -409,10 +410,42 @@ function renderHeader() {
     b.disabled = app.busy || !allowed.includes(b.dataset.action);
 }
 
+function deselectRun() {
+  if (app.stream) app.stream.close();
+  app.stream = null;
+  app.selectedId = null;
+  app.summary = null;
+  history.replaceState(null, '', location.pathname);
+  $('run-detail').hidden = true;
+  $('no-run').hidden = false;
+  renderRunList();
+}
+
+async function deleteRun(id) {
+  if (!window.confirm(`Delete run ${id} and all its files (time series, spectra, frames, checkpoints)?`)) return;
+  app.busy = true;
+  renderHeader();
+  showStatus('control-status', 'delete…');
+  try {
+    await api.remove(id);
+    app.runs = app.runs.filter((r) => r.id !== id);
+    app.busy = false;
+    deselectRun();
+  } catch (e) {
+    app.busy = false;
+    showStatus('control-status', `delete refused: ${errorText(e)}`, 'error');
+    renderHeader();
+  }
+}
+
 async function onAction(event) {
   const verb = event.currentTarget.dataset.action;
   const id = app.selectedId;
   if (!id) return;
+  if (verb === 'delete') {
+    await deleteRun(id);
+    return;
+  }
   app.busy = true;
   renderHeader();
   showStatus('control-status', `${verb}…`);

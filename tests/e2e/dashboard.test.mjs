@@ -4,7 +4,8 @@
 // dashboard in Debian's chromium (headless, driven by playwright-core), creates a small 2D
 // Taylor-Green run from the form, and checks what a person would see: the e_v plot gets data, the
 // ω² slice image updates (two decoded images of different steps), pause stops the step count,
-// resume advances it again, stop ends the run; and the page logs no console error.
+// resume advances it again, stop ends the run, delete removes it; and the page logs no console
+// error.
 //
 //   node tests/e2e/dashboard.test.mjs --sphles build/app/sphles --web web \
 //        [--chromium /usr/bin/chromium] [--screenshot /tmp/dashboard.png]
@@ -156,6 +157,8 @@ async function run() {
   page = await browser.newPage({ viewport: { width: 1440, height: 1500 } });
   page.on('console', (m) => { if (m.type() === 'error') consoleErrors.push(`console: ${m.text()}`); });
   page.on('pageerror', (e) => consoleErrors.push(`uncaught: ${e.message}`));
+  // Name the URL of every failed request: the console message alone does not.
+  page.on('response', (r) => { if (r.status() >= 400) consoleErrors.push(`HTTP ${r.status()} ${r.request().method()} ${r.url()}`); });
 
   currentStep = 'opening the dashboard';
   await page.goto(base, { waitUntil: 'load' });
@@ -250,6 +253,18 @@ async function run() {
   await page.click('#btn-stop');
   await waitFor('state "stopped"', async () => (await text(page, '#run-state')) === 'stopped', 20_000);
   pass('stopped');
+
+  // Delete: after the confirmation the run leaves the list and the server.
+  currentStep = 'deleting';
+  const runs = await (await fetch(`${base}/api/runs`)).json();
+  const created = runs.find((r) => r.name === 'e2e-tgv2d');
+  if (!created) fail('the created run is not in GET /api/runs');
+  page.once('dialog', (d) => d.accept());
+  await page.click('#btn-delete');
+  await waitFor('the run detail to close after delete', async () => page.locator('#run-detail').isHidden(), 10_000);
+  const after = await (await fetch(`${base}/api/runs`)).json();
+  if (after.some((r) => r.id === created.id)) fail(`run ${created.id} is still listed after delete`);
+  pass(`deleted run ${created.id}: gone from the dashboard and GET /api/runs`);
 
   if (consoleErrors.length) fail(`the page logged errors:\n  ${consoleErrors.join('\n  ')}`);
   pass('no console errors or uncaught exceptions');
