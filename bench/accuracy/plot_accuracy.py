@@ -290,7 +290,7 @@ def plot_3d_history(history, rows, dns, path):
 
 
 def plot_kolmogorov(rows, history, path):
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5))
+    fig, axes = plt.subplots(1, 4, figsize=(21, 5))
     rows = sorted(rows, key=lambda r: r["particles_per_side"])
     wall = [r["wall_seconds"] for r in rows]
     ax = axes[0]
@@ -323,6 +323,27 @@ def plot_kolmogorov(rows, history, path):
     ax.legend(fontsize=8)
     ax.grid(True, which="both", alpha=0.3)
     ax = axes[2]
+    finest = rows[-1]
+    coarser = rows[:-1]
+    for key, label, colour in [
+        ("mean_u_rms", "⟨u_rms⟩", "k"),
+        ("mean_energy_injection", "ε_inj", "#e41a1c"),
+        ("mean_viscous_dissipation", "ε_v", "#377eb8"),
+    ]:
+        ax.plot([r["wall_seconds"] for r in coarser],
+                [abs(r[key] / finest[key] - 1.0) for r in coarser], "o-", color=colour,
+                label=f"{label}: |x / x(N = {int(finest['particles_per_side'])}²) - 1|")
+    ax.plot(wall, [abs(r["budget_imbalance"]) for r in rows], "s--", color="#999999",
+            label="|budget residual| / ε_inj")
+    draw_pareto(ax, [dict(r, err=abs(r["budget_imbalance"])) for r in rows], "err")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("single-thread wall time of the solver steps [s]")
+    ax.set_ylabel("relative difference")
+    ax.set_title("self-convergence and budget closure", fontsize=10)
+    ax.legend(fontsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    ax = axes[3]
     for r in rows:
         h = [s for s in history if s["label"] == r["label"]]
         ax.plot([s["time"] for s in h], [s["u_rms"] for s in h],
