@@ -32,6 +32,7 @@ TGV_RUNS = {
     "case8_n24": ("WC4 8Δl 24³", 24, "WC4", 8),
     "case8_n32": ("WC4 8Δl 32³ (case 7/8)", 32, "WC4", 8),
     "case8_n48": ("WC4 8Δl 48³", 48, "WC4", 8),
+    "case8_n48_t5": ("WC4 8Δl 48³ (to t = 5)", 48, "WC4", 8),
     "case1_n24": ("QS 6Δl 24³", 24, "QS", 6),
     "case1_n32": ("QS 6Δl 32³ (case 1)", 32, "QS", 6),
     "case5_n32": ("WC4 4Δl 32³ (case 5)", 32, "WC4", 4),
@@ -45,7 +46,7 @@ TGV_RUNS = {
     "case21_n32": ("p_ref 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
 }
 GROUPS = [
-    ("kernel, D_K/Δl and N", ["case8_n24", "case8_n32", "case8_n48", "case1_n24", "case1_n32",
+    ("kernel, D_K/Δl and N", ["case8_n24", "case8_n32", "case8_n48", "case8_n48_t5", "case1_n24", "case1_n32",
                               "case5_n32", "case6_n32"]),
     ("sub-filter models (32³, WC4 8Δl)", ["case8_n32", "case12_n32", "case16_n32", "case17_n32",
                                           "case18_n32", "case19_n32"]),
@@ -54,6 +55,7 @@ GROUPS = [
 STYLE = {
     "case8_n24": dict(color="tab:blue", ls=":"), "case8_n32": dict(color="tab:blue", ls="-"),
     "case8_n48": dict(color="tab:blue", ls="--", lw=2),
+    "case8_n48_t5": dict(color="navy", ls="--", lw=2),
     "case1_n24": dict(color="tab:orange", ls=":"), "case1_n32": dict(color="tab:orange", ls="-"),
     "case5_n32": dict(color="tab:red", ls="-"), "case6_n32": dict(color="tab:purple", ls="-"),
     "case12_n32": dict(color="tab:green", ls="-"), "case16_n32": dict(color="tab:olive", ls="-"),
@@ -132,6 +134,19 @@ def spectrum_row(run, t):
     return {k: si[k][i[0]] for k in si} if len(i) else None
 
 
+def smooth_dissipation(t, ev, window=1.0, step=0.1):
+    """-de_v/dt as the least-squares slope of e_v over a centred window (default 1.0), on a grid
+    of spacing `step`. The run's own column uses a trailing 0.2 window, which keeps the acoustic
+    oscillations of a coarse weakly compressible run; the wider window shows the trend."""
+    grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-9, step)
+    out = np.full(len(grid), np.nan)
+    for i, tc in enumerate(grid):
+        m = np.abs(t - tc) <= window / 2
+        if m.sum() >= 3:
+            out[i] = -np.polyfit(t[m], ev[m], 1)[0]
+    return grid, out
+
+
 def local_maxima(t, y, lo, hi):
     m = (t >= lo) & (t <= hi)
     tt, yy = t[m], y[m]
@@ -159,27 +174,28 @@ def tgv_numbers(run, ref):
     record(name, "max_density_deviation_max", float(np.nanmax(ts["max_density_deviation"])))
     record(name, "max_density_deviation(t=5)",
            value_at(t, ts["max_density_deviation"], 5.0))
-    ok = np.isfinite(eps) & (t >= 1.0)
-    if ok.any():
-        i = np.argmax(np.where(ok, eps, -np.inf))
-        record(name, "eps_peak", float(eps[i]), "max of -de_v/dt (0.2 window), t >= 1")
-        record(name, "t_eps_peak", float(t[i]))
-        # A second peak: the largest local maximum of the (coarsely smoothed) ε in [t_peak+1, 13].
-        tt, ee = t[ok], eps[ok]
-        grid = np.arange(1.0, min(t_end, 15.0) + 1e-9, 0.25)
-        eg = np.interp(grid, tt, ee)
-        late = local_maxima(grid, eg, float(t[i]) + 1.0, 13.0)
-        if late:
-            tp, ep = max(late, key=lambda p: p[1])
-            record(name, "t_eps_second_peak", float(tp), "local max of ε on a 0.25 grid")
-            record(name, "eps_second_peak", float(ep))
-        else:
-            record(name, "t_eps_second_peak", math.nan, "no local maximum in [t_peak+1, 13]")
-        # Decay law after the peak, e_v ~ t^-a, fitted over [t_peak + 2, 15].
-        m = (t >= t[i] + 2.0) & (t <= 15.0) & (ev > 0)
-        if m.sum() > 10 and t_end >= 14.9:
-            a = -np.polyfit(np.log(t[m]), np.log(ev[m]), 1)[0]
-            record(name, "decay_exponent", float(a), f"fit e_v ~ t^-a over [{t[i] + 2:.2f}, 15]")
+    if t_end >= 3.0:
+        g, eg = smooth_dissipation(t, ev)
+        run["eps_smooth"] = (g, eg)
+        m = (g >= 3.0) & np.isfinite(eg)
+        if m.any():
+            i = np.argmax(np.where(m, eg, -np.inf))
+            record(name, "eps_peak", float(eg[i]), "max of -de_v/dt (1.0 centred window), t >= 3")
+            record(name, "t_eps_peak", float(g[i]))
+            late = local_maxima(g, eg, float(g[i]) + 1.0, 14.0)
+            if late:
+                tp, ep = max(late, key=lambda p: p[1])
+                record(name, "t_eps_second_peak", float(tp), "largest local max after t_peak + 1")
+                record(name, "eps_second_peak", float(ep))
+        i0 = (g <= 3.0)
+        if i0.any():
+            record(name, "eps_early_max", float(np.nanmax(eg[i0])), "max of smoothed -de_v/dt, t <= 3")
+            record(name, "t_eps_early_max", float(g[i0][np.nanargmax(eg[i0])]))
+    # Decay law e_v ~ t^-a over [10, 15] (the thesis: a = 1.2 after the peak at t ≈ 9).
+    m = (t >= 10.0) & (t <= 15.0) & (ev > 0)
+    if m.sum() > 10 and t_end >= 14.9:
+        a = -np.polyfit(np.log(t[m]), np.log(ev[m]), 1)[0]
+        record(name, "decay_exponent", float(a), "fit e_v ~ t^-a over [10, 15]")
     snap = run["snap"]
     if snap is not None:
         j = np.where(np.abs(snap["t"] - T_SPEC) < 1e-6)[0]
@@ -196,6 +212,34 @@ def tgv_numbers(run, ref):
                    float(snap["tau_sfs_mean"][j]) / value_at(t, ev, T_SPEC))
         asec = snap["analysis_seconds"]
         record(name, "analysis_seconds_total", round(float(np.nansum(asec)), 1))
+    sr0 = spectrum_row(run, 0.0)
+    if sr0 is not None:
+        kk, kr = float(sr0["k_kernel"]), float(sr0["k_resolution"])
+        record(name, "k_kernel", kk, "2π/D_K")
+        record(name, "k_resolution", kr, "π/Δl")
+        ls = large_scale_energy(run)
+        for tq in (5.0, 9.0, T_SPEC):
+            i = np.where(np.abs(ls[:, 0] - tq) < 1e-6)[0] if ls is not None else []
+            if len(i):
+                record(name, f"energy_k<=2({tq:g})", float(ls[i[0], 1]),
+                       "energy of the TGV shell |k| = √3 and larger scales")
+        for tq in (0.0, 2.0, 5.0, 9.0, T_SPEC):
+            sq = spectrum(run, tq)
+            if sq is not None:
+                record(name, f"energy_fraction_k>k_kern({tq:g})",
+                       float(np.sum(sq["E"][sq["k"] > kk])) / float(np.sum(sq["E"])),
+                       "share of the gridded e_v below the kernel scale (noise)")
+                # k_SPH: where the kernel-scale noise overtakes the resolved signal, i.e. the
+                # minimum of E(k) between the large-scale peak (k <= max(k_kern/2, 2)) and k_res.
+                if tq >= 5.0:
+                    k, e = sq["k"], sq["E"]
+                    lo = (k > 0) & (k <= max(kk / 2, 2.0))
+                    kpeak = float(k[lo][np.argmax(e[lo])])
+                    m = (k >= kpeak) & (k <= kr)
+                    kmin = float(k[m][np.argmin(e[m])])
+                    record(name, f"k_SPH({tq:g})", kmin,
+                           "minimum of E(k) between the large-scale peak and k_res")
+                    record(name, f"k_SPH/k_kernel({tq:g})", kmin / kk)
     sr = spectrum_row(run, T_SPEC)
     sp = spectrum(run, T_SPEC)
     if sr is not None and sp is not None:
@@ -203,17 +247,6 @@ def tgv_numbers(run, ref):
         kk, kr = float(sr["k_kernel"]), float(sr["k_resolution"])
         record(name, "eps_spectral_resolved(14)", float(sr["dissipation_spectral_resolved"]),
                "2 nu sum k^2 E dk, k <= k_res")
-        record(name, "k_kernel", kk, "2π/D_K")
-        record(name, "k_resolution", kr, "π/Δl")
-        m = (k > 0) & (k <= kr)
-        kmin = float(k[m][np.argmin(e[m])])
-        record(name, "k_spectrum_minimum(14)", kmin, "start of the noise plateau, k <= k_res")
-        record(name, "k_spectrum_minimum/k_kernel", kmin / kk)
-        # Energy above the kernel wavenumber: share of e_v in k > k_kern / 2 (scales below 2 D_K).
-        dk = float(sr["delta_k"])
-        tot = float(np.sum(e) * dk)
-        record(name, "energy_fraction_k>k_kern/2(14)", float(np.sum(e[k > kk / 2]) * dk) / tot)
-        record(name, "energy_fraction_k>k_kern(14)", float(np.sum(e[k > kk]) * dk) / tot)
         # log-log slope of E over [2, k_kern] (inertial or deficit range at this N)
         m2 = (k >= 2) & (k <= kk + 1e-9)
         if m2.sum() >= 2:
@@ -224,15 +257,23 @@ def tgv_numbers(run, ref):
             record(name, "spectral_slope_[k_kern,k_res](14)",
                    float(np.polyfit(np.log(k[m3]), np.log(e[m3]), 1)[0]))
     # Correlation of |τ_SFS| and ω² on the slice x = π at t = 14.
-    sl = slice_pair(run, T_SPEC)
-    if sl is not None:
-        w2, tau = sl
-        record(name, "slice_corr_tau_omega2(14)", float(np.corrcoef(w2.ravel(), tau.ravel())[0, 1]),
-               "Pearson, grid plane x = π")
-    jt = joint(run, T_SPEC)
-    if jt is not None:
-        record(name, "joint_corr_tau_omega2(14)", joint_correlation(jt),
-               "Pearson over particles, from the (τ*, ω²*) histogram bin centres")
+    for tq in (5.0, T_SPEC):
+        sl = slice_pair(run, tq)
+        if sl is not None:
+            w2, tau = sl
+            record(name, f"slice_corr_tau_omega2({tq:g})",
+                   float(np.corrcoef(w2.ravel(), tau.ravel())[0, 1]), "Pearson, grid plane x = π")
+    for tq in (5.0, T_SPEC):
+        jt = joint(run, tq)
+        if jt is not None:
+            record(name, f"joint_corr_tau_omega2({tq:g})", joint_correlation(jt),
+                   "Pearson over particles, from the (τ*, ω²*) histogram bin centres")
+    if snap is not None:
+        for tq in (5.0,):
+            j = np.where(np.abs(snap["t"] - tq) < 1e-6)[0]
+            if len(j):
+                record(name, f"tau_sfs_mean/e_v({tq:g})",
+                       float(snap["tau_sfs_mean"][j[0]]) / value_at(t, ev, tq))
 
 
 def slice_pair(run, t):
@@ -258,10 +299,15 @@ def joint_correlation(j):
                                  np.average((y - my) ** 2, weights=w)))
 
 
-def save(fig, docs, name):
+def save(fig, docs, name, colors=128):
     path = os.path.join(docs, "figures", name)
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=80)
     plt.close(fig)
+    try:  # a 128-colour palette keeps the figures small enough for the repository
+        from PIL import Image
+        Image.open(path).convert("RGB").quantize(colors=colors).save(path, optimize=True)
+    except ImportError:
+        pass
     print("wrote", os.path.relpath(path, ROOT), f"{os.path.getsize(path) // 1024} KB")
 
 
@@ -278,13 +324,15 @@ def plot_energy(runs, ref, docs):
             r = runs[n]
             st = STYLE[n]
             ax.plot(r["ts"]["t"], r["ts"]["e_v"], label=TGV_RUNS[n][0], **st)
-            bx.plot(r["ts"]["t"], r["ts"]["dissipation"], label=TGV_RUNS[n][0] + " -de_v/dt",
-                    **st)
+            bx.plot(r["ts"]["t"], r["ts"]["dissipation"], color=st["color"], lw=0.5, alpha=0.35)
+            if "eps_smooth" in r:
+                bx.plot(*r["eps_smooth"], label=TGV_RUNS[n][0], **st)
             if r["snap"] is not None:
                 bx.plot(r["snap"]["t"], r["snap"]["dissipation_vorticity"], "o", ms=3,
                         color=st["color"])
         ax.set_title("e_v(t): " + title, fontsize=10)
-        bx.set_title("ε(t): lines -de_v/dt, dots ν⟨ω²⟩", fontsize=10)
+        bx.set_title("ε(t): -de_v/dt (thin: 0.2 trailing window, thick: 1.0 centred), dots ν⟨ω²⟩",
+                     fontsize=9)
         ax.set_xlim(0, 15)
         bx.set_xlim(0, 15)
         ax.set_ylim(0, 0.13)
@@ -349,48 +397,111 @@ def plot_spectra(runs, docs):
     save(fig, docs, "validation_spectra_t14.png")
 
 
-def plot_slices(runs, docs):
-    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case1_n32", "case12_n32",
-                         "case20_n32") if n in runs and slice_pair(runs[n], T_SPEC) is not None]
+def large_scale_energy(run):
+    """Energy of the shells k <= 2 (the TGV's initial shell, |k| = √3, and larger scales) at every
+    spectrum time: the same scales at every N."""
+    si = run["spec_index"]
+    if si is None:
+        return None
+    out = []
+    for tq, kk in zip(si["t"], si["k_kernel"]):
+        sp = spectrum(run, float(tq))
+        if sp is not None:
+            out.append((float(tq), float(np.sum(sp["E"][sp["k"] <= 2 + 1e-9]))))
+    return np.array(out) if out else None
+
+
+def plot_spectra_time(runs, ref, docs):
+    names = [n for n in ("case1_n32", "case8_n24", "case8_n32", "case8_n48", "case8_n48_t5")
+             if n in runs]
     if not names:
         return
-    fig, axes = plt.subplots(2, len(names), figsize=(2.7 * len(names), 5.6), squeeze=False)
+    fig, axes = plt.subplots(1, len(names) + 1, figsize=(4.2 * (len(names) + 1), 4))
     for c, n in enumerate(names):
-        w2, tau = slice_pair(runs[n], T_SPEC)
-        for r, (f, lab) in enumerate(((w2, "ω²"), (tau, "|τ_SFS|"))):
-            ax = axes[r, c]
-            im = ax.imshow(f, origin="lower", extent=(0, 2 * math.pi, 0, 2 * math.pi),
-                           cmap="inferno", vmin=0, vmax=np.percentile(f, 99.5))
-            ax.set_title(f"{TGV_RUNS[n][0]}\n{lab}, max {f.max():.3g}", fontsize=7)
-            ax.set_xticks([])
-            ax.set_yticks([])
-            fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02).ax.tick_params(labelsize=6)
-    fig.suptitle(f"Slices x = π at t = {T_SPEC:g} (axes y, z ∈ [0, 2π])", fontsize=9)
+        ax = axes[c]
+        for tq, col in zip((0, 2, 5, 9, 14), plt.cm.viridis(np.linspace(0, 0.9, 5))):
+            sp = spectrum(runs[n], tq)
+            if sp is not None:
+                m = sp["k"] > 0
+                ax.loglog(sp["k"][m], sp["E"][m], color=col, label=f"t = {tq}")
+        sr = spectrum_row(runs[n], 0.0)
+        if sr is not None:
+            ax.axvline(sr["k_kernel"], color="k", ls="--", lw=0.8, label="k_kern")
+            ax.axvline(sr["k_resolution"], color="k", ls=":", lw=0.8, label="k_res")
+        ax.set_ylim(1e-7, 0.2)
+        ax.set_xlabel("k")
+        ax.set_ylabel("E(k)")
+        ax.set_title(TGV_RUNS[n][0], fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(alpha=0.3, which="both")
+    ax = axes[-1]
+    if ref is not None:
+        ax.plot(ref["t"], ref["e_v"], color="k", lw=1, label="DNS Re 5000 e_v (all scales)")
+    for n in TGV_RUNS:
+        if n in runs:
+            ls = large_scale_energy(runs[n])
+            if ls is not None:
+                ax.plot(ls[:, 0], ls[:, 1], marker=".", label=TGV_RUNS[n][0], **STYLE[n])
+    ax.set_xlabel("t")
+    ax.set_title("energy of the shells k <= 2 (TGV mode |k| = √3 and larger)", fontsize=9)
+    ax.set_xlim(0, 15)
+    ax.set_ylim(0, 0.13)
+    ax.legend(fontsize=6)
+    ax.grid(alpha=0.3)
     fig.tight_layout()
-    save(fig, docs, "validation_slices_t14.png")
+    save(fig, docs, "validation_spectra_history.png")
+
+
+def plot_slices(runs, docs):
+    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case8_n48_t5", "case1_n32",
+                         "case12_n32") if n in runs and slice_pair(runs[n], 5.0) is not None]
+    if not names:
+        return
+    times = (5.0, T_SPEC)
+    fig, axes = plt.subplots(4, len(names), figsize=(2.2 * len(names), 8.8), squeeze=False)
+    for c, n in enumerate(names):
+        for b, tq in enumerate(times):
+            pair = slice_pair(runs[n], tq)
+            if pair is None:
+                continue
+            for r, (f, lab) in enumerate(((pair[0], "ω²"), (pair[1], "|τ_SFS|"))):
+                ax = axes[2 * b + r, c]
+                im = ax.imshow(f, origin="lower", extent=(0, 2 * math.pi, 0, 2 * math.pi),
+                               cmap="inferno", vmin=0, vmax=np.percentile(f, 99.5))
+                ax.set_title(f"{TGV_RUNS[n][0]}\nt = {tq:g}, {lab}, max {f.max():.3g}", fontsize=7)
+                ax.set_xticks([])
+                ax.set_yticks([])
+                fig.colorbar(im, ax=ax, fraction=0.046, pad=0.02).ax.tick_params(labelsize=6)
+    fig.suptitle("Slices x = π, axes y, z ∈ [0, 2π]\ncolours to the 99.5th percentile", fontsize=8)
+    fig.tight_layout()
+    save(fig, docs, "validation_slices.png", colors=48)
 
 
 def plot_joint(runs, docs):
-    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case1_n32", "case12_n32")
-             if n in runs and joint(runs[n], T_SPEC) is not None]
+    names = [n for n in ("case8_n24", "case8_n32", "case8_n48", "case8_n48_t5", "case1_n32",
+                         "case12_n32") if n in runs and joint(runs[n], 5.0) is not None]
     if not names:
         return
-    fig, axes = plt.subplots(1, len(names), figsize=(3.2 * len(names), 3.2), squeeze=False)
+    fig, axes = plt.subplots(2, len(names), figsize=(3.0 * len(names), 6.0), squeeze=False)
     for c, n in enumerate(names):
-        j = joint(runs[n], T_SPEC)
-        tb = np.unique(np.concatenate([j["tau_lo"], j["tau_hi"]]))
-        ob = np.unique(np.concatenate([j["omega2_lo"], j["omega2_hi"]]))
-        h = np.zeros((len(ob) - 1, len(tb) - 1))
-        for a, b, cnt in zip(j["tau_lo"], j["omega2_lo"], j["count"]):
-            h[np.searchsorted(ob, b), np.searchsorted(tb, a)] += cnt
-        ax = axes[0, c]
-        ax.pcolormesh(tb, ob, np.log10(np.where(h > 0, h, np.nan)), cmap="viridis")
-        ax.set_xlabel("τ_SFS / max", fontsize=8)
-        ax.set_ylabel("ω² / max", fontsize=8)
-        ax.set_title(f"{TGV_RUNS[n][0]}, t = {T_SPEC:g}\nlog10 count, r = {joint_correlation(j):.2f}",
-                     fontsize=8)
+        for r, tq in enumerate((5.0, T_SPEC)):
+            ax = axes[r, c]
+            j = joint(runs[n], tq)
+            if j is None:
+                ax.axis("off")
+                continue
+            tb = np.unique(np.concatenate([j["tau_lo"], j["tau_hi"]]))
+            ob = np.unique(np.concatenate([j["omega2_lo"], j["omega2_hi"]]))
+            h = np.zeros((len(ob) - 1, len(tb) - 1))
+            for a, b, cnt in zip(j["tau_lo"], j["omega2_lo"], j["count"]):
+                h[np.searchsorted(ob, b), np.searchsorted(tb, a)] += cnt
+            ax.pcolormesh(tb, ob, np.log10(np.where(h > 0, h, np.nan)), cmap="viridis")
+            ax.set_xlabel("τ_SFS / max", fontsize=8)
+            ax.set_ylabel("ω² / max", fontsize=8)
+            ax.set_title(f"{TGV_RUNS[n][0]}, t = {tq:g}\nlog10 count, r = {joint_correlation(j):.2f}",
+                         fontsize=8)
     fig.tight_layout()
-    save(fig, docs, "validation_joint_tau_omega2_t14.png")
+    save(fig, docs, "validation_joint_tau_omega2.png")
 
 
 def kolmogorov(runs_dir, docs):
@@ -477,6 +588,42 @@ def kolmogorov(runs_dir, docs):
     save(fig, docs, "validation_kolmogorov.png")
 
 
+TABLE = [("wall [s]", "wall_seconds", "{:.0f}"), ("steps", "steps", "{:d}"),
+         ("t reached", "t_end", "{:g}"),
+         ("e_v(5)/e_v(0)", "e_v(5)/e_v(0)", "{:.3f}"), ("e_v(14)", "e_v(14)", "{:.4f}"),
+         ("E(k<=2) at 5 / 9 / 14", ("energy_k<=2(5)", "energy_k<=2(9)", "energy_k<=2(14)"),
+          "{:.4f}"),
+         ("noise share k>k_kern at 5 / 14", ("energy_fraction_k>k_kern(5)",
+                                             "energy_fraction_k>k_kern(14)"), "{:.2f}"),
+         ("t of max ε (t>=3)", "t_eps_peak", "{:.1f}"), ("max ε (t>=3)", "eps_peak", "{:.4f}"),
+         ("k_SPH / k_kern at 5 / 14", ("k_SPH/k_kernel(5)", "k_SPH/k_kernel(14)"), "{:.2f}"),
+         ("max ρ dev", "max_density_deviation_max", "{:.3f}"),
+         ("r(τ,ω²) slice 5 / 14", ("slice_corr_tau_omega2(5)", "slice_corr_tau_omega2(14)"),
+          "{:.2f}"),
+         ("⟨τ⟩/e_v at 5 / 14", ("tau_sfs_mean/e_v(5)", "tau_sfs_mean/e_v(14)"), "{:.2f}")]
+
+
+def print_table(runs):
+    """The per-run numbers of the CSV as a markdown table (pasted into docs/validation.md)."""
+    look = {(r, q): v for r, q, v, _ in rows}
+
+    def fmt(run, key, f):
+        keys = key if isinstance(key, tuple) else (key,)
+        out = []
+        for k in keys:
+            v = look.get((run, k))
+            out.append("–" if v is None or (isinstance(v, float) and math.isnan(v))
+                       else f.format(int(v) if "d" in f else v))
+        return " / ".join(out)
+
+    print("| run | " + " | ".join(h for h, _, _ in TABLE) + " |")
+    print("|---" * (len(TABLE) + 1) + "|")
+    for n in list(TGV_RUNS) + ["dns_re5000"]:
+        if n in runs or n == "dns_re5000":
+            label = TGV_RUNS[n][0] if n in TGV_RUNS else "DNS Re 5000"
+            print(f"| {label} | " + " | ".join(fmt(n, k, f) for _, k, f in TABLE) + " |")
+
+
 def main():
     global T_SPEC
     p = argparse.ArgumentParser()
@@ -511,9 +658,11 @@ def main():
     plot_energy(runs, ref, a.docs)
     plot_decay(runs, ref, a.docs)
     plot_spectra(runs, a.docs)
+    plot_spectra_time(runs, ref, a.docs)
     plot_slices(runs, a.docs)
     plot_joint(runs, a.docs)
     kolmogorov(a.runs, a.docs)
+    print_table(runs)
     out = os.path.join(a.docs, "validation_findings.csv")
     with open(out, "w", newline="") as f:
         w = csv.writer(f)
