@@ -167,7 +167,7 @@ def plot_2d(rows, path):
         fontsize=9,
     )
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
@@ -237,7 +237,7 @@ def plot_3d(rows, history, path):
     ]
     fig.legend(handles=handles, loc="lower center", ncol=6, frameon=False)
     fig.tight_layout(rect=(0, 0.07, 1, 1))
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
@@ -285,7 +285,7 @@ def plot_3d_history(history, rows, dns, path):
     axes[1].legend(fontsize=7, ncol=2)
     fig.suptitle("3D Taylor-Green vortex, Re = 5000: every run against the DNS")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
@@ -354,7 +354,7 @@ def plot_kolmogorov(rows, history, path):
     ax.grid(True, alpha=0.3)
     fig.suptitle("Reduced Kolmogorov flow (χ = 1.8 m/s², k_y = 1047 1/m, L = 12 mm, WC4 8Δl)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    fig.savefig(path, dpi=90)
     plt.close(fig)
 
 
