@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Figures and numbers of the SPEC §7 findings from the runs of run_findings.py.
 
-    python3 scripts/validation/plot_findings.py [--runs runs/validation] [--docs docs]
+    /usr/bin/python3 scripts/validation/plot_findings.py [--runs runs/validation] [--docs docs]
 
 Reads RUNS/NAME/{timeseries.csv, stats/, spectra/, slices/, wall.json} for every run that
 exists (missing runs are left out of the figures and listed), writes
@@ -247,6 +247,10 @@ def tgv_numbers(run, ref):
     if sr is not None and sp is not None:
         k, e = sp["k"], sp["E"]
         kk, kr = float(sr["k_kernel"]), float(sr["k_resolution"])
+        ik = np.argmin(np.abs(k - kk))
+        record(name, "E(k_kern)(14)", float(e[ik]), f"E at the shell k = {k[ik]:g}")
+        record(name, "E(k_kern)/E(2)(14)", float(e[ik] / e[np.argmin(np.abs(k - 2))]),
+               "kernel-scale energy relative to the TGV shell")
         record(name, "eps_spectral_resolved(14)", float(sr["dissipation_spectral_resolved"]),
                "2 nu sum k^2 E dk, k <= k_res")
         # log-log slope of E over [2, k_kern] (inertial or deficit range at this N)
