@@ -10,7 +10,6 @@
 // parse each image header and discard the PNG). The run renders and saves its frames in every
 // phase, so the differences between phases are the cost of streaming alone.
 #include <pthread.h>
-#include <sys/resource.h>
 #include <unistd.h>
 #include <algorithm>
 #include <atomic>
@@ -35,6 +34,7 @@
 #include <thread>
 #include <vector>
 
+#include "bench/process_time.hpp"
 #include "control/run_manager.hpp"
 #include "server/http_server.hpp"
 
@@ -176,16 +176,6 @@ std::uint64_t dropped_images(unsigned short port, const std::string& id) {
   return json::parse(res.body())["stream"]["dropped"].get<std::uint64_t>();
 }
 
-/// User + system CPU time of this process (all threads) [s].
-double process_cpu_seconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  const auto seconds = [](const timeval& t) {
-    return static_cast<double>(t.tv_sec) + 1e-6 * static_cast<double>(t.tv_usec);
-  };
-  return seconds(usage.ru_utime) + seconds(usage.ru_stime);
-}
-
 /// CPU time [s] of this process's threads, summed by thread name (/proc/self/task/*/stat).
 std::map<std::string, double> thread_cpu_seconds() {
   std::map<std::string, double> cpu;
@@ -294,12 +284,12 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::seconds(2));
     stats.reset();
     const std::uint64_t dropped0 = dropped_images(server.port(), run->id());
-    const double cpu0 = process_cpu_seconds();
+    const double cpu0 = sphles::bench::process_cpu_seconds();
     const auto threads0 = thread_cpu_seconds();
     auto [a, sa] = sample();
     std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
     auto [b, sb] = sample();
-    const double cpu1 = process_cpu_seconds();
+    const double cpu1 = sphles::bench::process_cpu_seconds();
     const auto threads1 = thread_cpu_seconds();
     Phase p;
     p.clients = n;

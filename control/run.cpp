@@ -652,6 +652,14 @@ std::optional<ImageEvent> Run::latest_image(const std::string& field) const {
   return it->second;
 }
 
+std::vector<std::string> Run::image_fields() const {
+  std::lock_guard lock(impl_->mutex);
+  std::vector<std::string> fields;
+  for (const auto& [field, image] : impl_->latest_images)
+    if (image.png) fields.push_back(field);
+  return fields;
+}
+
 void Run::add_observer(std::shared_ptr<RunObserver> observer) {
   std::lock_guard lock(impl_->observer_mutex);
   auto list = std::make_shared<std::vector<std::shared_ptr<RunObserver>>>(*impl_->observers);

@@ -168,6 +168,8 @@ class Run {
   nlohmann::json document() const;  // the current scene document
   std::shared_ptr<const analysis::AnalysisFrame> latest_frame() const;
   std::optional<ImageEvent> latest_image(const std::string& field) const;
+  /// Fields whose latest image holds a PNG (what latest_image can serve now), sorted.
+  std::vector<std::string> image_fields() const;
 
   void add_observer(std::shared_ptr<RunObserver> observer);
   void remove_observer(const RunObserver* observer);

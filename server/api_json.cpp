@@ -93,12 +93,9 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
   // What GET spectrum / statistics / images/{field} would return now, so that a client asks
   // only for products that exist instead of collecting 404s.
   const auto frame = run.latest_frame();
-  nlohmann::json images = nlohmann::json::array();
-  for (const char* field : {"omega2", "tau_sfs", "nu_t", "combined", "view3d"})
-    if (run.latest_image(field)) images.push_back(field);
   detail["available"] = {{"spectrum", frame && frame->spectrum.has_value()},
                          {"statistics", frame && frame->subfilter.has_value()},
-                         {"images", std::move(images)}};
+                         {"images", run.image_fields()}};
   return detail;
 }
 

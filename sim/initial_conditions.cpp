@@ -31,11 +31,18 @@ void set_taylor_green_2d(const Scene& s, ParticleArrays& p) {
   const double cell_volume = std::pow(s.particle_spacing(), 2);
   for (std::size_t i = 0; i < p.size(); ++i) {
     const double x = p.position[0][i], y = p.position[1][i];
-    p.velocity[0][i] = v0 * std::sin(x) * std::cos(y) + s.uniform_velocity[0];
-    p.velocity[1][i] = -v0 * std::cos(x) * std::sin(y) + s.uniform_velocity[1];
+    const std::array<double, 2> v = taylor_green_2d_velocity(v0, 0.0, 0.0, x, y);
+    p.velocity[0][i] = v[0] + s.uniform_velocity[0];
+    p.velocity[1][i] = v[1] + s.uniform_velocity[1];
     const double p0_minus_ref = rho_ref * v0 * v0 / 4.0 * (std::cos(2.0 * x) + std::cos(2.0 * y));
     p.mass[i] = (rho_ref + p0_minus_ref / c2) * cell_volume;
   }
+}
+
+std::array<double, 2> taylor_green_2d_velocity(double v0, double kinematic_viscosity, double time,
+                                               double x, double y) {
+  const double amplitude = v0 * std::exp(-2.0 * kinematic_viscosity * time);  // §6.2
+  return {amplitude * std::sin(x) * std::cos(y), -amplitude * std::cos(x) * std::sin(y)};
 }
 
 double taylor_green_2d_energy(double v0, double kinematic_viscosity, double time) {

@@ -1,6 +1,8 @@
 // Initial states of the test cases (SPEC §6) and the translation of a Scene into solver input.
 #pragma once
 
+#include <array>
+
 #include "sim/packing.hpp"
 #include "sim/particles.hpp"
 #include "sim/scene.hpp"
@@ -15,6 +17,11 @@ void set_taylor_green_3d(const Scene& scene, ParticleArrays& particles);
 /// 2D Taylor-Green (SPEC §6.2): v = v0 (sin x cos y, -cos x sin y) (+ uniform velocity),
 /// p0 = p_ref + ρ_ref v0²/4 (cos 2x + cos 2y), ρ0 from the EOS, M0 = ρ0 Δl².
 void set_taylor_green_2d(const Scene& scene, ParticleArrays& particles);
+
+/// Analytic velocity of the decaying 2D Taylor-Green vortex at (x, y) and time t (SPEC §6.2):
+/// v = v0 e^(-2νt) (sin x cos y, -cos x sin y), without any uniform velocity.
+std::array<double, 2> taylor_green_2d_velocity(double v0, double kinematic_viscosity, double time,
+                                               double x, double y);
 
 /// Analytic kinetic energy e_v(t) = e_v(0) exp(-4 ν t) of the 2D Taylor-Green vortex with
 /// e_v(0) = v0²/4 (SPEC §6.2).

@@ -1,7 +1,5 @@
 #include "bench/accuracy/accuracy.hpp"
 
-#include <sys/resource.h>
-
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -15,6 +13,7 @@
 
 #include "analysis/grid.hpp"
 #include "analysis/vorticity.hpp"
+#include "bench/process_time.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -86,13 +85,6 @@ RunSpec make_spec(std::string study, std::string config, json scene, double samp
   return r;
 }
 
-double process_cpu_seconds() {
-  rusage usage{};
-  getrusage(RUSAGE_SELF, &usage);
-  return static_cast<double>(usage.ru_utime.tv_sec + usage.ru_stime.tv_sec) +
-         1e-6 * static_cast<double>(usage.ru_utime.tv_usec + usage.ru_stime.tv_usec);
-}
-
 /// Linear interpolation of (x, y) at t; x ascending; clamped at the ends.
 double interpolate(const std::vector<double>& x, const std::vector<double>& y, double t) {
   if (t <= x.front()) return y.front();
@@ -107,12 +99,10 @@ double interpolate(const std::vector<double>& x, const std::vector<double>& y, d
 /// sqrt(Σ M |v - v_a(x, t)|² / Σ M |v_a(x, t)|²), v_a = v0 e^(-2νt) (sin x cos y, -cos x sin y)
 /// (SPEC §6.2).
 double tgv2d_velocity_error(const sim::ParticleArrays& p, double v0, double nu, double time) {
-  const double amplitude = v0 * std::exp(-2.0 * nu * time);
   double error = 0.0, norm = 0.0;
   for (std::size_t i = 0; i < p.size(); ++i) {
-    const double x = p.position[0][i], y = p.position[1][i];
-    const double ux = amplitude * std::sin(x) * std::cos(y);
-    const double uy = -amplitude * std::cos(x) * std::sin(y);
+    const auto [ux, uy] =
+        sim::taylor_green_2d_velocity(v0, nu, time, p.position[0][i], p.position[1][i]);
     const double dx = p.velocity[0][i] - ux, dy = p.velocity[1][i] - uy;
     error += p.mass[i] * (dx * dx + dy * dy);
     norm += p.mass[i] * (ux * ux + uy * uy);
@@ -353,9 +343,9 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
       }
       const double target = std::min(next_sample, r.end_time);
       const auto step_start = std::chrono::steady_clock::now();
-      const double cpu_start = process_cpu_seconds();
+      const double cpu_start = bench::process_cpu_seconds();
       simulation->step(target - simulation->time());
-      r.cpu_seconds += process_cpu_seconds() - cpu_start;
+      r.cpu_seconds += bench::process_cpu_seconds() - cpu_start;
       r.wall_seconds +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
       if (simulation->time() >= target - tolerance) {
