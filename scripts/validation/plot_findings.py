@@ -23,7 +23,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-REFERENCE = "/work/shared/reference/tgv_re5000_incompact3d_1280_dairay2017.dat"
+REFERENCE = os.path.join(ROOT, "..", "shared", "reference",
+                         "tgv_re5000_incompact3d_1280_dairay2017.dat")
 T_SPEC = 14.0
 NU = 1e-4
 
