@@ -3,8 +3,8 @@
 //   build/bench/sphles_accuracy [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR]
 //                               [--reference FILE] [--threads T] [--refine-2d K]
 //                               [--refine-2d-side N] [--refine-3d-sides N[,N...]]
-//                               [--wall-limit SECONDS] [--list] [--trace]
-//                               [--set dotted.key=value ...]
+//                               [--wall-limit SECONDS] [--sides N[,N...]] [--config NAME[,...]]
+//                               [--merge] [--list] [--trace] [--set dotted.key=value ...]
 //
 // Runs the configurations one after another, each on --threads OpenMP threads (default 1), and
 // writes per study DIR/accuracy_<study>.csv (one row per run: parameters, single-thread wall and
@@ -15,7 +15,17 @@
 // configurations with the smallest e_v error at the largest base N are run at
 // --refine-2d-side, and for 3D the configuration with the smallest dissipation misfit at the
 // largest base N is run at each of --refine-3d-sides.
+//
+// Extending a finished matrix: --sides replaces the base resolutions, --config keeps only the
+// named configurations (as --list prints them), and --merge keeps the rows already in the output
+// files whose labels this invocation does not run, so that, for example,
+//   sphles_accuracy --only 3d --sides 64 --config "wendland_c4 D_K/dl=8 implicit" --merge
+// adds one run to docs/accuracy_3d.csv. Merging takes an exclusive lock on DIR/.accuracy.lock
+// and replaces each file by rename, so concurrent invocations into one DIR lose no rows.
+#include <fcntl.h>
 #include <omp.h>
+#include <sys/file.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
@@ -25,6 +35,7 @@
 #include <fstream>
 #include <iostream>
 #include <map>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -40,7 +51,8 @@ int usage(const char* program) {
   std::cerr << "usage: " << program
             << " [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR] [--reference FILE]\n"
                "       [--threads T] [--refine-2d K] [--refine-2d-side N]\n"
-               "       [--refine-3d-sides N[,N...]] [--wall-limit SECONDS] [--list] [--trace]\n"
+               "       [--refine-3d-sides N[,N...]] [--wall-limit SECONDS] [--sides N[,N...]]\n"
+               "       [--config NAME[,NAME...]] [--merge] [--list] [--trace]\n"
                "       [--set dotted.key=value ...]  (applied to every scene; for testing)\n";
   return 2;
 }
@@ -85,10 +97,94 @@ std::vector<ac::RunSpec> refinements(const std::vector<ac::RunResult>& results,
   return runs;
 }
 
+/// The rows after the header of the CSV file `path` whose key, "study|label" (the study in the
+/// first field, the label in field `label_column`), is not in `replaced`; none if the file does
+/// not exist. The files hold no quoted commas.
+std::vector<std::string> kept_rows(const std::string& path, std::size_t label_column,
+                                   const std::set<std::string>& replaced) {
+  std::vector<std::string> rows;
+  std::ifstream in(path);
+  std::string line;
+  if (!std::getline(in, line)) return rows;  // missing or empty: nothing to keep
+  while (std::getline(in, line)) {
+    std::stringstream fields(line);
+    std::string study, field;
+    std::getline(fields, study, ',');
+    for (std::size_t c = 1; c <= label_column && std::getline(fields, field, ','); ++c) {
+    }
+    if (!replaced.contains(study + "|" + field)) rows.push_back(line);
+  }
+  return rows;
+}
+
+/// Writes `text` to `path` by way of a temporary file and rename, so that no reader (and no
+/// interrupted write) ever leaves half a file.
+void replace_file(const std::string& path, const std::string& text) {
+  const std::string temporary = path + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    out << text;
+    out.close();
+    if (!out) {
+      std::cerr << "could not write " << temporary << '\n';
+      std::exit(1);
+    }
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    std::cerr << "could not rename " << temporary << " to " << path << '\n';
+    std::exit(1);
+  }
+}
+
+/// An exclusive flock on DIR/.accuracy.lock for the lifetime of the object (none when not
+/// `enabled`): merging invocations that share an output directory read and replace its files
+/// one at a time.
+class DirectoryLock {
+ public:
+  DirectoryLock(const std::string& dir, bool enabled) {
+    if (!enabled) return;
+    const std::string path = dir + "/.accuracy.lock";
+    fd_ = ::open(path.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    if (fd_ < 0 || ::flock(fd_, LOCK_EX) != 0) {
+      std::cerr << "could not lock " << path << '\n';
+      std::exit(1);
+    }
+  }
+  ~DirectoryLock() {
+    if (fd_ >= 0) ::close(fd_);  // closing releases the lock
+  }
+  DirectoryLock(const DirectoryLock&) = delete;
+  DirectoryLock& operator=(const DirectoryLock&) = delete;
+
+ private:
+  int fd_ = -1;
+};
+
+/// The matrix of one study with the base resolutions replaced by `sides` (each configuration
+/// once, at every side) and only the configurations named in `configs` kept (all if empty).
+std::vector<ac::RunSpec> select_runs(const std::vector<ac::RunSpec>& matrix,
+                                     const std::vector<int>& sides,
+                                     const std::vector<std::string>& configs) {
+  std::vector<ac::RunSpec> runs;
+  std::set<std::string> seen;
+  for (const ac::RunSpec& r : matrix) {
+    if (!configs.empty() && std::find(configs.begin(), configs.end(), r.config) == configs.end())
+      continue;
+    if (sides.empty()) {
+      runs.push_back(r);
+    } else if (seen.insert(r.study + "|" + r.config).second) {
+      for (const int side : sides) runs.push_back(ac::with_resolution(r, side));
+    }
+  }
+  return runs;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  bool quick = false, list_only = false;
+  bool quick = false, list_only = false, merge = false;
+  std::vector<int> base_sides;       // empty: the matrix' own resolutions
+  std::vector<std::string> configs;  // empty: every configuration
   std::string only = "2d,kolmogorov,3d", out_dir = ".";
   int threads = 1;
   int refine_2d = -1;  // -1: 1 in full mode, 0 with --quick
@@ -128,6 +224,18 @@ int main(int argc, char** argv) {
       options.wall_limit_seconds = std::atof(value().c_str());
     } else if (arg == "--set") {
       overrides.push_back(value());
+    } else if (arg == "--sides") {
+      for (const std::string& side : split(value())) {
+        base_sides.push_back(std::atoi(side.c_str()));
+        if (base_sides.back() < 2) {
+          std::cerr << "--sides: '" << side << "' is not a resolution of at least 2\n";
+          return usage(argv[0]);
+        }
+      }
+    } else if (arg == "--config") {
+      configs = split(value());
+    } else if (arg == "--merge") {
+      merge = true;
     } else if (arg == "--list") {
       list_only = true;
     } else if (arg == "--trace") {
@@ -146,10 +254,14 @@ int main(int argc, char** argv) {
   for (const std::string& study : split(only)) {
     std::vector<ac::RunSpec> runs;
     try {
-      runs = ac::make_matrix(study, quick);
+      runs = select_runs(ac::make_matrix(study, quick), base_sides, configs);
     } catch (const std::exception& e) {
       std::cerr << e.what() << '\n';
       return usage(argv[0]);
+    }
+    if (runs.empty()) {
+      std::cerr << "--config: no configuration of study '" << study << "' is named (see --list)\n";
+      return 2;
     }
     try {
       for (ac::RunSpec& r : runs)
@@ -179,18 +291,27 @@ int main(int argc, char** argv) {
     const std::string load_start = load_average();
     const auto study_start = std::chrono::steady_clock::now();
     std::vector<ac::RunResult> results;
+    // Rewritten after every run. With --merge, the rows of runs this invocation does not make
+    // stay (read under the directory lock, so concurrent invocations keep each other's rows).
     auto write_files = [&] {
-      std::ofstream summary(summary_path), history(history_path);
+      const DirectoryLock lock(out_dir, merge);
+      std::set<std::string> labels;
+      if (merge) {
+        for (const ac::RunResult& r : results) labels.insert(r.spec.study + "|" + r.spec.label);
+      }
+      std::ostringstream summary, history;
       ac::write_summary_header(summary);
       ac::write_history_header(history);
+      if (merge) {
+        for (const std::string& row : kept_rows(summary_path, 2, labels)) summary << row << '\n';
+        for (const std::string& row : kept_rows(history_path, 1, labels)) history << row << '\n';
+      }
       for (const ac::RunResult& r : results) {
         ac::write_summary_row(summary, r);
         ac::write_history_rows(history, r);
       }
-      if (!summary || !history) {
-        std::cerr << "could not write " << summary_path << " or " << history_path << '\n';
-        std::exit(1);
-      }
+      replace_file(summary_path, summary.str());
+      replace_file(history_path, history.str());
     };
     auto run_all = [&](const std::vector<ac::RunSpec>& list, const char* phase) {
       for (std::size_t k = 0; k < list.size(); ++k) {
@@ -217,11 +338,32 @@ int main(int argc, char** argv) {
       run_all(refinements(results, &ac::RunResult::dissipation_misfit, 1, sides_3d), "refine");
     const double seconds =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - study_start).count();
-    std::ofstream meta(run_path);
-    meta << "{\n  \"study\": \"" << study << "\",\n  \"quick\": " << (quick ? "true" : "false")
-         << ",\n  \"threads_per_run\": " << threads << ",\n  \"runs\": " << results.size()
-         << ",\n  \"total_wall_seconds\": " << seconds << ",\n  \"load_average_start\": \""
-         << load_start << "\",\n  \"load_average_end\": \"" << load_average() << "\"\n}\n";
+    nlohmann::json invocation = {{"study", study},
+                                 {"quick", quick},
+                                 {"threads_per_run", threads},
+                                 {"runs", results.size()},
+                                 {"labels", nlohmann::json::array()},
+                                 {"total_wall_seconds", seconds},
+                                 {"load_average_start", load_start},
+                                 {"load_average_end", load_average()}};
+    for (const ac::RunResult& r : results)
+      invocation["labels"].push_back(r.spec.study + " " + r.spec.label);
+    nlohmann::json meta = invocation;
+    const DirectoryLock lock(out_dir, merge);
+    if (merge) {
+      // One record per invocation that wrote into these files, the earlier ones first.
+      nlohmann::json previous;
+      std::ifstream in(run_path);
+      if (in) previous = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+      nlohmann::json records = nlohmann::json::array();
+      if (previous.is_object() && previous.contains("invocations"))
+        records = previous["invocations"];
+      else if (previous.is_object())
+        records.push_back(previous);
+      records.push_back(invocation);
+      meta = {{"study", study}, {"invocations", records}};
+    }
+    replace_file(run_path, meta.dump(2) + "\n");
     std::cout << "wrote " << summary_path << ", " << history_path << " (" << results.size()
               << " runs, " << seconds << " s wall)\n";
   }
