@@ -37,7 +37,7 @@ KERNEL_SHORT = {
     "wendland_c6": "WC6",
     "quintic_spline": "QS",
 }
-DK_MARKERS = {4.0: "v", 6.0: "s", 8.0: "o"}
+DK_MARKERS = {4.0: "v", 5.0: "x", 6.0: "s", 7.0: "D", 8.0: "o"}
 MODEL_MARKERS = {"implicit": "o", "smag": "^"}
 BUDGETS = [1, 3, 10, 30, 100, 300, 1000]  # single-thread wall seconds
 DNS_PEAK = (8.74, 0.0155441)  # t, -dE/dt of the reference file (its README, "Verified")
@@ -158,15 +158,15 @@ def plot_2d(rows, path):
         for dk, m in DK_MARKERS.items()
     ]
     handles.append(Line2D([], [], color="k", alpha=0.6, label="Pareto front (circled)"))
-    fig.legend(handles=handles, loc="lower center", ncol=8, frameon=False)
+    fig.legend(handles=handles, loc="lower center", ncol=5, frameon=False)
     fig.text(
         0.5,
-        0.045,
+        0.085,
         "marker size grows with N (32² to 256²); thin lines join the resolutions of a configuration",
         ha="center",
         fontsize=9,
     )
-    fig.tight_layout(rect=(0, 0.07, 1, 1))
+    fig.tight_layout(rect=(0, 0.1, 1, 1))
     fig.savefig(path, dpi=90)
     plt.close(fig)
 
