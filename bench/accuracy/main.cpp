@@ -97,9 +97,15 @@ std::vector<ac::RunSpec> refinements(const std::vector<ac::RunResult>& results,
   return runs;
 }
 
-/// The rows after the header of the CSV file `path` whose key, "study|label" (the study in the
-/// first field, the label in field `label_column`), is not in `replaced`; none if the file does
-/// not exist. The files hold no quoted commas.
+/// What identifies a row of the output files: labels repeat across studies (both 2D Reynolds
+/// numbers have "wendland_c2 D_K/dl=8 N=64").
+std::string row_key(const std::string& study, const std::string& label) {
+  return study + "|" + label;
+}
+
+/// The rows after the header of the CSV file `path` whose row_key (the study in the first field,
+/// the label in field `label_column`) is not in `replaced`; none if the file does not exist. The
+/// files hold no quoted commas.
 std::vector<std::string> kept_rows(const std::string& path, std::size_t label_column,
                                    const std::set<std::string>& replaced) {
   std::vector<std::string> rows;
@@ -112,7 +118,7 @@ std::vector<std::string> kept_rows(const std::string& path, std::size_t label_co
     std::getline(fields, study, ',');
     for (std::size_t c = 1; c <= label_column && std::getline(fields, field, ','); ++c) {
     }
-    if (!replaced.contains(study + "|" + field)) rows.push_back(line);
+    if (!replaced.contains(row_key(study, field))) rows.push_back(line);
   }
   return rows;
 }
@@ -295,16 +301,14 @@ int main(int argc, char** argv) {
     // stay (read under the directory lock, so concurrent invocations keep each other's rows).
     auto write_files = [&] {
       const DirectoryLock lock(out_dir, merge);
-      std::set<std::string> labels;
-      if (merge) {
-        for (const ac::RunResult& r : results) labels.insert(r.spec.study + "|" + r.spec.label);
-      }
       std::ostringstream summary, history;
       ac::write_summary_header(summary);
       ac::write_history_header(history);
       if (merge) {
-        for (const std::string& row : kept_rows(summary_path, 2, labels)) summary << row << '\n';
-        for (const std::string& row : kept_rows(history_path, 1, labels)) history << row << '\n';
+        std::set<std::string> rerun;
+        for (const ac::RunResult& r : results) rerun.insert(row_key(r.spec.study, r.spec.label));
+        for (const std::string& row : kept_rows(summary_path, 2, rerun)) summary << row << '\n';
+        for (const std::string& row : kept_rows(history_path, 1, rerun)) history << row << '\n';
       }
       for (const ac::RunResult& r : results) {
         ac::write_summary_row(summary, r);

@@ -262,11 +262,13 @@ def read_dns(directory):
 
 def plot_3d_history(history, rows, dns, path):
     fig, axes = plt.subplots(1, 2, figsize=(14, 5.2))
+    sides = [r["particles_per_side"] for r in rows]
+    smallest, span = min(sides), max(max(sides) - min(sides), 1.0)
     for r in rows:
         h = [s for s in history if s["label"] == r["label"]]
         style = "-" if r["subfilter"] == "implicit" else "--"
         lw = 0.6 + 0.03 * r["particles_per_side"]
-        alpha = min(1.0, 0.35 + 0.65 * (r["particles_per_side"] - 24) / 16)  # darker with N
+        alpha = 0.35 + 0.65 * (r["particles_per_side"] - smallest) / span  # darker with N
         axes[0].plot([s["time"] for s in h], [s["kinetic_energy"] for s in h], style,
                      color=colour_3d(r), lw=lw, alpha=alpha, label=short(r))
         axes[1].plot([s["time"] for s in h], [s["dissipation"] for s in h], style,
