@@ -115,10 +115,10 @@ SolverConfig make_solver_config(const Scene& scene) {
   return c;
 }
 
-RunSetup setup_run(const Scene& scene) {
+RunSetup setup_run(const Scene& scene, const SetupOptions& options) {
   RunSetup setup;
   setup.solver = make_solver_config(scene);
-  setup.particles = packed_positions(scene, &setup.packing);
+  setup.particles = packed_positions(scene, &setup.packing, options);
   switch (scene.case_type) {
     case CaseType::TaylorGreen3D:
       set_taylor_green_3d(scene, setup.particles);

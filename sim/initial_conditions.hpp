@@ -54,7 +54,7 @@ struct RunSetup {
 SolverConfig make_solver_config(const Scene& scene);
 
 /// Box, kernel, fluid and time stepping from the scene; positions from packed_positions();
-/// fields from the scene's case.
-RunSetup setup_run(const Scene& scene);
+/// fields from the scene's case. Throws SetupCancelled when options.cancelled says so.
+RunSetup setup_run(const Scene& scene, const SetupOptions& options = {});
 
 }  // namespace sphles::sim

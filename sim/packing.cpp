@@ -173,7 +173,7 @@ double packing_residual(const PeriodicBox& box, KernelType kernel, double suppor
 
 PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
                               KernelType kernel, double support_radius, double spacing,
-                              ParticleArrays& particles) {
+                              ParticleArrays& particles, const std::function<bool()>& cancelled) {
   PackingReport report;
   ParticleArrays& p = particles;
   fill_packing_arrays(p, spacing);
@@ -198,6 +198,9 @@ PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& bo
     const double dt = kStepOverSpacing * spacing;
     const std::size_t n = p.size();
     while (residual > config.tolerance && report.iterations < config.max_iterations) {
+      if (cancelled && cancelled())
+        throw SetupCancelled("packing cancelled after " + std::to_string(report.iterations) +
+                             " iterations");
       for (int d = 0; d < Dim; ++d) {
         double* v = p.velocity[d].data();
         double* x = p.position[d].data();
@@ -236,7 +239,8 @@ std::filesystem::path default_packing_cache_dir() {
   return std::filesystem::temp_directory_path() / "sphles-packing";
 }
 
-ParticleArrays packed_positions(const Scene& scene, PackingReport* report) {
+ParticleArrays packed_positions(const Scene& scene, PackingReport* report,
+                                const SetupOptions& options) {
   PeriodicBox box;
   box.dimension = scene.dimension();
   for (int d = 0; d < box.dimension; ++d) box.length[d] = scene.box_length();
@@ -249,9 +253,8 @@ ParticleArrays packed_positions(const Scene& scene, PackingReport* report) {
   const std::string key = cache_key(scene);
   std::filesystem::path file;
   if (scene.packing.cache) {
-    const std::filesystem::path dir = scene.packing.cache_dir.empty()
-                                          ? default_packing_cache_dir()
-                                          : std::filesystem::path(scene.packing.cache_dir);
+    const std::filesystem::path dir =
+        options.packing_cache_dir.empty() ? default_packing_cache_dir() : options.packing_cache_dir;
     std::ostringstream name;
     name << "pack_" << scene.dimension() << "d_n" << scene.particles_per_side << "_"
          << kernel_name(scene.kernel) << "_dk" << scene.kernel_diameter_over_spacing << "_"
@@ -265,7 +268,7 @@ ParticleArrays packed_positions(const Scene& scene, PackingReport* report) {
     }
   }
   r = relax_particles(scene.packing, box, scene.kernel, 0.5 * scene.kernel_diameter(),
-                      scene.particle_spacing(), p);
+                      scene.particle_spacing(), p, options.cancelled);
   r.cache_file = file.string();
   if (!file.empty()) write_cache(file, key, p);
   return p;

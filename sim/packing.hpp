@@ -11,7 +11,9 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
+#include <stdexcept>
 #include <string>
 
 #include "sim/kernels.hpp"
@@ -29,14 +31,32 @@ struct PackingReport {
   std::string cache_file;  // empty when the cache was not used
 };
 
+/// How a scene's initial state is built beyond the scene itself. Both are settings of the program
+/// that builds it, never of the scene: a scene sent by a client must not choose where the server
+/// writes files.
+struct SetupOptions {
+  std::filesystem::path packing_cache_dir = {};  // empty: default_packing_cache_dir()
+  /// Polled between packing iterations; when it returns true the set-up ends with SetupCancelled
+  /// (a stop request or a signal need not wait for a long packing to converge).
+  std::function<bool()> cancelled = {};
+};
+
+/// The set-up was abandoned because SetupOptions::cancelled said so; nothing was cached.
+class SetupCancelled : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// Particles on a regular lattice of `per_side` points per direction, spacing L/per_side, with
 /// the first point at Δl/2 (velocities zero, masses zero).
 ParticleArrays make_lattice(const PeriodicBox& box, int per_side);
 
-/// Perturbs and relaxes the positions in place.
+/// Perturbs and relaxes the positions in place. `cancelled` (may be empty) is polled once per
+/// iteration; throws SetupCancelled when it returns true.
 PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
                               KernelType kernel, double support_radius, double spacing,
-                              ParticleArrays& particles);
+                              ParticleArrays& particles,
+                              const std::function<bool()>& cancelled = {});
 
 /// Residual max_i |Σ_j ∇W_ij V_j| Δl of an arrangement (0 for a perfect lattice).
 double packing_residual(const PeriodicBox& box, KernelType kernel, double support_radius,
@@ -46,8 +66,10 @@ double packing_residual(const PeriodicBox& box, KernelType kernel, double suppor
 std::filesystem::path default_packing_cache_dir();
 
 /// Lattice + relaxation for a scene, reusing a cached result keyed by dimension, N, kernel,
-/// D_K/Δl and the packing parameters. Cache files are written atomically (temporary + rename)
-/// and carry a checksum; a damaged or mismatching file is ignored and rewritten.
-ParticleArrays packed_positions(const Scene& scene, PackingReport* report = nullptr);
+/// D_K/Δl and the packing parameters, in options.packing_cache_dir. Cache files are written
+/// atomically (temporary + rename) and carry a checksum; a damaged or mismatching file is ignored
+/// and rewritten. Throws SetupCancelled when options.cancelled says so.
+ParticleArrays packed_positions(const Scene& scene, PackingReport* report = nullptr,
+                                const SetupOptions& options = {});
 
 }  // namespace sphles::sim

@@ -202,7 +202,15 @@ Scene parse_scene(const json& input) {
     ObjectReader p = top.object("packing");
     p.boolean("enabled", s.packing.enabled);
     p.boolean("cache", s.packing.cache);
-    p.string("cache_dir", s.packing.cache_dir);
+    // The cache directory is a setting of the program (--packing-cache), not of the scene: a
+    // scene from a client must not choose where the server writes. Documents written before
+    // hold "cache_dir": "", which is accepted and ignored.
+    std::string cache_dir;
+    p.string("cache_dir", cache_dir);
+    if (!cache_dir.empty())
+      throw SceneError(
+          "scene: 'packing.cache_dir' is not a scene key: the packing cache directory is a "
+          "setting of the program (sphles run/serve --packing-cache DIR)");
     p.number("perturbation", s.packing.perturbation, in_range(0.0, 0.5, true));
     p.integer("max_iterations", s.packing.max_iterations, 0, 1000000);
     p.number("tolerance", s.packing.tolerance, positive);
@@ -307,13 +315,10 @@ json scene_to_json(const Scene& s) {
                   {"reference_mach", s.blow_up.reference_mach},
                   {"reference_energy", s.blow_up.reference_energy}};
   j["neighbours"] = {{"skin", s.neighbour_skin}};
-  j["packing"] = {{"enabled", s.packing.enabled},
-                  {"cache", s.packing.cache},
-                  {"cache_dir", s.packing.cache_dir},
-                  {"perturbation", s.packing.perturbation},
-                  {"max_iterations", s.packing.max_iterations},
-                  {"tolerance", s.packing.tolerance},
-                  {"seed", s.packing.seed}};
+  j["packing"] = {
+      {"enabled", s.packing.enabled},           {"cache", s.packing.cache},
+      {"perturbation", s.packing.perturbation}, {"max_iterations", s.packing.max_iterations},
+      {"tolerance", s.packing.tolerance},       {"seed", s.packing.seed}};
   j["checkpoint"] = {{"every", s.checkpoint.every},
                      {"every_seconds", s.checkpoint.every_seconds},
                      {"keep", s.checkpoint.keep},

@@ -33,7 +33,6 @@ int case_dimension(CaseType type);
 struct PackingConfig {
   bool enabled = true;
   bool cache = true;
-  std::string cache_dir;       // empty: $XDG_CACHE_HOME/sphles/packing or ~/.cache/sphles/packing
   double perturbation = 0.05;  // random lattice displacement before relaxation, in units of Δl
   int max_iterations = 400;
   double tolerance = 1e-3;  // stop when max_i |Σ_j ∇W_ij V_j| Δl falls below

@@ -25,10 +25,10 @@ class PackingTest : public ::testing::Test {
   Scene scene(int dim, int per_side) const {
     nlohmann::json doc = {{"case", dim == 3 ? "tgv3d" : "tgv2d"},
                           {"particles_per_side", per_side},
-                          {"kernel", {{"diameter_over_spacing", 6}}},
-                          {"packing", {{"cache_dir", cache_.string()}}}};
+                          {"kernel", {{"diameter_over_spacing", 6}}}};
     return parse_scene(doc);
   }
+  SetupOptions options() const { return {.packing_cache_dir = cache_}; }
   std::filesystem::path cache_;
 };
 
@@ -45,7 +45,7 @@ TEST_F(PackingTest, RelaxationReachesTolerance) {
   for (const int dim : {2, 3}) {
     const Scene s = scene(dim, dim == 3 ? 12 : 32);
     PackingReport report;
-    const ParticleArrays packed = packed_positions(s, &report);
+    const ParticleArrays packed = packed_positions(s, &report, options());
     EXPECT_TRUE(report.converged) << dim << "D";
     EXPECT_FALSE(report.from_cache);
     EXPECT_GT(report.initial_residual, 10.0 * s.packing.tolerance) << "perturbation too weak";
@@ -63,10 +63,10 @@ TEST_F(PackingTest, RelaxationReachesTolerance) {
 TEST_F(PackingTest, CacheRoundTripsBitForBitAndRecoversFromDamage) {
   const Scene s = scene(2, 24);
   PackingReport first, second, third;
-  const ParticleArrays a = packed_positions(s, &first);
+  const ParticleArrays a = packed_positions(s, &first, options());
   ASSERT_FALSE(first.from_cache);
   ASSERT_TRUE(std::filesystem::exists(first.cache_file)) << first.cache_file;
-  const ParticleArrays b = packed_positions(s, &second);
+  const ParticleArrays b = packed_positions(s, &second, options());
   EXPECT_TRUE(second.from_cache);
   for (int d = 0; d < 2; ++d)
     EXPECT_EQ(std::memcmp(a.position[d].data(), b.position[d].data(), a.size() * sizeof(double)),
@@ -79,7 +79,7 @@ TEST_F(PackingTest, CacheRoundTripsBitForBitAndRecoversFromDamage) {
     f.seekp(static_cast<std::streamoff>(std::filesystem::file_size(first.cache_file) / 2));
     f.put('\x5a');
   }
-  const ParticleArrays c = packed_positions(s, &third);
+  const ParticleArrays c = packed_positions(s, &third, options());
   EXPECT_FALSE(third.from_cache);
   for (int d = 0; d < 2; ++d)
     EXPECT_EQ(std::memcmp(a.position[d].data(), c.position[d].data(), a.size() * sizeof(double)),
@@ -87,19 +87,19 @@ TEST_F(PackingTest, CacheRoundTripsBitForBitAndRecoversFromDamage) {
   // Truncated file: also rejected.
   std::filesystem::resize_file(first.cache_file, 100);
   PackingReport fourth;
-  packed_positions(s, &fourth);
+  packed_positions(s, &fourth, options());
   EXPECT_FALSE(fourth.from_cache);
   PackingReport fifth;
-  packed_positions(s, &fifth);
+  packed_positions(s, &fifth, options());
   EXPECT_TRUE(fifth.from_cache);
 }
 
 TEST_F(PackingTest, DifferentParametersUseDifferentCacheFiles) {
   Scene s = scene(2, 16);
   PackingReport a, b;
-  packed_positions(s, &a);
+  packed_positions(s, &a, options());
   s.packing.seed = 2;
-  packed_positions(s, &b);
+  packed_positions(s, &b, options());
   EXPECT_NE(a.cache_file, b.cache_file);
   EXPECT_FALSE(b.from_cache);
 }
@@ -107,16 +107,46 @@ TEST_F(PackingTest, DifferentParametersUseDifferentCacheFiles) {
 TEST_F(PackingTest, DisabledPackingGivesTheLattice) {
   Scene s = scene(3, 10);
   s.packing.enabled = false;
-  const ParticleArrays p = packed_positions(s);
+  const ParticleArrays p = packed_positions(s, nullptr, options());
   EXPECT_DOUBLE_EQ(p.position[0][0], 0.5 * s.particle_spacing());
   EXPECT_DOUBLE_EQ(p.position[2][p.size() - 1], s.box_length() - 0.5 * s.particle_spacing());
   EXPECT_FALSE(std::filesystem::exists(cache_));
 }
 
+// A stop request or a signal must not wait for a packing that may run for minutes (issue 15,
+// finding 4): the set-up polls `cancelled` every iteration and leaves no cache file behind.
+TEST_F(PackingTest, CancelledPackingStopsWithinAnIterationAndCachesNothing) {
+  Scene s = scene(2, 32);
+  s.packing.tolerance = 1e-300;  // never converges: only the cancellation can end it
+  s.packing.max_iterations = 1000000;
+  int polls = 0;
+  SetupOptions o = options();
+  o.cancelled = [&] { return ++polls > 3; };
+  PackingReport report;
+  EXPECT_THROW(packed_positions(s, &report, o), SetupCancelled);
+  EXPECT_EQ(polls, 4);
+  EXPECT_FALSE(std::filesystem::exists(cache_) && !std::filesystem::is_empty(cache_));
+  EXPECT_THROW(setup_run(s, o), SetupCancelled);
+}
+
+// A scene sent to the server must not choose where the server writes (issue 15, finding 13).
+TEST(PackingCacheDirectory, IsAProgramSettingNotASceneKey) {
+  try {
+    parse_scene({{"case", "tgv2d"}, {"packing", {{"cache_dir", "/etc/sphles"}}}});
+    FAIL() << "a scene chose the packing cache directory";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("'packing.cache_dir'"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--packing-cache"), std::string::npos) << e.what();
+  }
+  // Documents written by earlier versions hold an empty cache_dir: still accepted.
+  EXPECT_NO_THROW(parse_scene({{"case", "tgv2d"}, {"packing", {{"cache_dir", ""}}}}));
+  EXPECT_FALSE(scene_to_json(parse_scene({{"case", "tgv2d"}}))["packing"].contains("cache_dir"));
+}
+
 TEST_F(PackingTest, TaylorGreen3DInitialState) {
   Scene s = scene(3, 16);
   s.packing.enabled = false;
-  const RunSetup setup = setup_run(s);
+  const RunSetup setup = setup_run(s, options());
   const ParticleArrays& p = setup.particles;
   // (5.1) at a lattice point and mass from (5.2) via the EOS: M0 = ρ0 Δl³.
   const std::size_t i = 123;

@@ -130,14 +130,12 @@ TEST(AnalysisConfig, ErrorsNameTheField) {
 /// A Taylor-Green state on a packed lattice (a perfect lattice puts grid nodes exactly between
 /// particles, where nearest-particle sampling has ties).
 SnapshotPtr small_tgv_snapshot(const std::string& case_name, int per_side, double time = 0.0) {
-  const json doc = {
-      {"case", case_name},
-      {"particles_per_side", per_side},
-      {"kernel", {{"diameter_over_spacing", 6}}},
-      {"packing",
-       {{"cache_dir", (std::filesystem::temp_directory_path() / "sphles_test_packing").string()}}}};
+  const json doc = {{"case", case_name},
+                    {"particles_per_side", per_side},
+                    {"kernel", {{"diameter_over_spacing", 6}}}};
   const sim::Scene scene = sim::parse_scene(doc);
-  sim::RunSetup setup = sim::setup_run(scene);
+  sim::RunSetup setup = sim::setup_run(
+      scene, {.packing_cache_dir = std::filesystem::temp_directory_path() / "sphles_test_packing"});
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   while (simulation->time() < time) simulation->step(time - simulation->time());
   return make_snapshot(*simulation);

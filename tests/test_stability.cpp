@@ -268,10 +268,9 @@ struct Outcome {
 /// scaled alike, as in bench/stability), health checks every 20 steps, worst classification.
 Outcome run_classified(nlohmann::json document, double cfl, const HealthThresholds& thresholds) {
   const SingleThread single_thread;
-  document["packing"]["cache_dir"] =
-      (std::filesystem::temp_directory_path() / "sphles_test_packing").string();
   const Scene scene = parse_scene(document);
-  RunSetup setup = setup_run(scene);
+  RunSetup setup = setup_run(
+      scene, {.packing_cache_dir = std::filesystem::temp_directory_path() / "sphles_test_packing"});
   TimeStepConfig& ts = setup.solver.time_step;
   const double ratio = cfl / ts.cfl_acoustic;
   ts.cfl_acoustic = cfl;

@@ -12,8 +12,9 @@
 namespace sphles::sim {
 namespace {
 
-std::string cache_dir() {
-  return (std::filesystem::temp_directory_path() / "sphles_validation_packing").string();
+SetupOptions packing_cache() {
+  return {.packing_cache_dir =
+              std::filesystem::temp_directory_path() / "sphles_validation_packing"};
 }
 
 /// Runs a 2D Taylor-Green vortex at Re = 100 to t = 2 and returns the largest relative error of
@@ -28,10 +29,9 @@ double taylor_green_2d_error(int per_side, double diameter_over_spacing) {
         {"dynamic_viscosity", 0.01},
         {"sound_speed", 10.0},
         {"reference_pressure", 1.0}}},
-      {"time", {{"end", 2.0}}},
-      {"packing", {{"cache_dir", cache_dir()}}}};
+      {"time", {{"end", 2.0}}}};
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene);
+  RunSetup setup = setup_run(scene, packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   const double nu = scene.fluid.kinematic_viscosity();
   const double e0 = sim->diagnostics().kinetic_energy;
@@ -70,12 +70,10 @@ TEST(TaylorGreen2D, EnergyDecayMatchesAnalyticAndConverges) {
 // 3D Taylor-Green at 20³ (WC4, D_K = 8Δl, SPEC §6.1 parameters): e_v(0) = 0.125 within 1 % and
 // e_v decays monotonically to t = 1.
 TEST(TaylorGreen3D, InitialEnergyAndMonotoneDecay) {
-  const nlohmann::json doc = {{"case", "tgv3d"},
-                              {"particles_per_side", 20},
-                              {"time", {{"end", 1.0}}},
-                              {"packing", {{"cache_dir", cache_dir()}}}};
+  const nlohmann::json doc = {
+      {"case", "tgv3d"}, {"particles_per_side", 20}, {"time", {{"end", 1.0}}}};
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene);
+  RunSetup setup = setup_run(scene, packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   EXPECT_NEAR(sim->diagnostics().kinetic_energy, 0.125, 0.125 * 0.01);
   double previous = sim->diagnostics().kinetic_energy;

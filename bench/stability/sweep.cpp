@@ -137,8 +137,6 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
   RunResult r;
   r.spec = spec;
   json document = spec.scene;
-  if (!options.packing_cache_dir.empty())
-    document["packing"]["cache_dir"] = options.packing_cache_dir;
   const sim::Scene scene = sim::parse_scene(document);
   r.case_name = std::string(sim::case_name(scene.case_type));
   r.particles_per_side = scene.particles_per_side;
@@ -151,7 +149,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
       scene.case_type == sim::CaseType::Kolmogorov2D ? scene.forcing.amplitude : 0.0;
   r.end_time = scene.end_time;
 
-  sim::RunSetup setup = sim::setup_run(scene);
+  sim::RunSetup setup = sim::setup_run(scene, {.packing_cache_dir = options.packing_cache_dir});
   sim::TimeStepConfig& ts = setup.solver.time_step;
   const double ratio = spec.cfl / ts.cfl_acoustic;
   ts.cfl_acoustic = spec.cfl;
