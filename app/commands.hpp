@@ -14,7 +14,7 @@ inline constexpr int kExitFailure = 1;
 inline constexpr int kExitUsage = 2;
 
 /// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N] [--overwrite]
-///   | --restart CHECKPOINT|RUN_DIR [--set ...] [--out DIR]
+///   [--packing-cache DIR] | --restart CHECKPOINT|RUN_DIR [--set ...] [--out DIR]
 int run_command(const std::vector<std::string>& args);
 
 /// sphles inspect FILE: validates a checkpoint and prints its contents (exit 2 if invalid).
@@ -28,7 +28,8 @@ int presets_command(const std::vector<std::string>& args);
 int calibrate_command(const std::vector<std::string>& args);
 
 /// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
-///   [--max-running N] [--threads N] [--start-run PRESET|SCENE.json [--set key=value ...]]
+///   [--max-running N] [--max-queued N] [--max-runs N] [--threads N] [--packing-cache DIR]
+///   [--start-run PRESET|SCENE.json [--set key=value ...]]
 int serve_command(const std::vector<std::string>& args);
 
 /// The scene document of a scene file, or of a preset name when no such file exists, with --set

@@ -20,6 +20,7 @@ struct RunOptions {
   std::vector<std::string> overrides;
   std::optional<std::string> out_dir;
   std::optional<std::string> restart;  // checkpoint file or run directory
+  std::string packing_cache;           // empty: the default cache directory
   int threads = 0;
   bool overwrite = false;
 };
@@ -45,6 +46,9 @@ RunOptions parse_run_options(const std::vector<std::string>& args) {
       o.overwrite = true;
     } else if (a == "--restart") {
       o.restart = value();
+    } else if (a == "--packing-cache") {
+      o.packing_cache = value();
+      if (o.packing_cache.empty()) throw UsageError("--packing-cache must not be empty");
     } else if (a == "--threads") {
       const std::string& v = value();
       std::size_t used = 0;
@@ -80,10 +84,12 @@ std::atomic<control::Run*> g_interruptible_run{nullptr};
 int run_command(const std::vector<std::string>& args) {
   RunOptions options;
   std::unique_ptr<control::Run> run;
-  control::RunOptions run_options{.threads = options.threads, .log_progress = true};
+  control::RunOptions run_options;
+  run_options.log_progress = true;
   try {
     options = parse_run_options(args);
     run_options.threads = options.threads;
+    run_options.packing_cache_dir = options.packing_cache;
     if (options.restart) {
       std::filesystem::path checkpoint_file = *options.restart;
       if (std::filesystem::is_directory(checkpoint_file)) {
@@ -103,9 +109,11 @@ int run_command(const std::vector<std::string>& args) {
     } else {
       nlohmann::json document = load_scene_document(options.scene_file, options.overrides);
       control::RunSpec spec = control::parse_run_spec(document);
+      // The scene's name becomes one path component under runs/, never a path of its own.
       const std::filesystem::path out_dir =
-          options.out_dir ? std::filesystem::path(*options.out_dir)
-                          : std::filesystem::path("runs") / spec.run.scene.name;
+          options.out_dir
+              ? std::filesystem::path(*options.out_dir)
+              : std::filesystem::path("runs") / control::directory_name(spec.run.scene.name);
       // A fresh run never silently replaces the checkpoints of an earlier one.
       if (std::filesystem::exists(out_dir / "run.json") ||
           std::filesystem::exists(out_dir / "checkpoints")) {
@@ -149,10 +157,20 @@ int run_command(const std::vector<std::string>& args) {
       }
     }
   });
-  const control::RunState final_state = run->run_here();
+  control::RunState final_state = control::RunState::Failed;
+  std::optional<std::string> refused;
+  try {
+    final_state = run->run_here();
+  } catch (const control::StateError& e) {
+    refused = e.what();  // e.g. a restart of a run that has reached time.end
+  }
   g_interruptible_run = nullptr;
   pthread_kill(signal_waiter.native_handle(), SIGINT);  // wake the waiter; the run is done
   signal_waiter.join();
+  if (refused) {
+    std::fprintf(stderr, "sphles run: %s\n", refused->c_str());
+    return kExitUsage;
+  }
   const control::RunStatus status = run->status();
   if (final_state == control::RunState::Failed) {
     std::fprintf(stderr, "sphles run: %s\n", status.reason.c_str());

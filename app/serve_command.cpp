@@ -66,7 +66,15 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
       o.server.web_root = value();
     else if (a == "--max-running")
       o.manager.max_running = parse_int(a, value(), 1, 1024);
-    else if (a == "--threads")
+    else if (a == "--max-queued")
+      o.manager.max_queued = parse_int(a, value(), 0, 100000);
+    else if (a == "--max-runs")
+      o.manager.max_runs = parse_int(a, value(), 1, 100000);
+    else if (a == "--packing-cache") {
+      o.manager.run_options.packing_cache_dir = value();
+      if (o.manager.run_options.packing_cache_dir.empty())
+        throw UsageError("--packing-cache must not be empty");
+    } else if (a == "--threads")
       o.manager.run_options.threads = parse_int(a, value(), 0, 1024);
     else if (a == "--start-run")
       o.start_run = value();
@@ -106,7 +114,8 @@ int serve_command(const std::vector<std::string>& args) {
   } catch (const UsageError& e) {
     std::fprintf(stderr,
                  "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
-                 "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--threads N] "
+                 "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--max-queued N] "
+                 "[--max-runs N] [--threads N] [--packing-cache DIR] "
                  "[--start-run PRESET|SCENE.json [--set key=value ...]]\n",
                  e.what());
     return kExitUsage;

@@ -2,6 +2,7 @@
 
 #include <omp.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cmath>
 #include <cstdio>
@@ -9,12 +10,14 @@
 #include <ctime>
 #include <fstream>
 #include <limits>
-#include <set>
+
+#include <sys/stat.h>
 
 #include "analysis/pipeline.hpp"
 #include "analysis/snapshot.hpp"
 #include "analysis/timeseries.hpp"
 #include "analysis/writer.hpp"
+#include "control/live_changes.hpp"
 #include "control/render_sink.hpp"
 #include "io/checkpoint.hpp"
 #include "sim/initial_conditions.hpp"
@@ -91,6 +94,12 @@ RunState run_state_from_name(const std::string& name) {
   throw std::runtime_error("run.json: unknown state '" + name + "'");
 }
 
+/// The whole content of a text file; empty if it cannot be read.
+std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
 void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
   const std::filesystem::path temporary = path.string() + ".tmp";
   {
@@ -139,6 +148,13 @@ void seed_dissipation(const std::filesystem::path& path, double time,
   }
 }
 
+/// Device and inode of a directory; nullopt if it does not exist.
+std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0 || !S_ISDIR(info.st_mode)) return std::nullopt;
+  return std::pair{info.st_dev, info.st_ino};
+}
+
 std::string utc_now() {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -148,101 +164,22 @@ std::string utc_now() {
   return text;
 }
 
-// Live changes (docs/rendering.md): fields the run may change between two steps, and why the
-// others may not. A path is allowed if an entry equals it or is a prefix of it.
-const std::vector<std::string> kChangeable = {
-    "name",
-    "time.end",
-    "time.cfl_acoustic",
-    "time.cfl_viscous",
-    "time.cfl_force",
-    "time.fixed_step",
-    "fluid.reference_pressure",
-    "fluid.dynamic_viscosity",
-    "subfilter.smagorinsky_constant",
-    "subfilter.sigma_constant",
-    "subfilter.filter_width",
-    "forcing.amplitude",
-    "forcing.friction",
-    "analysis.every",
-    "analysis.products",
-    "analysis.slice",
-    "analysis.particle_fields",
-    "analysis.grid_points_per_spacing",
-    "analysis.histogram_bins",
-    "analysis.angle_bins",
-    "analysis.angle_threshold",
-    "analysis.spectrum_length_scale",
-    "render",
-    "checkpoint",
-    "output.timeseries_every",
-    "output.progress_every_seconds",
-};
-
-const std::vector<std::pair<std::string, std::string>> kFixedReasons = {
-    {"case", "fixes the flow being simulated; create a new run"},
-    {"preset", "fixes the flow being simulated; create a new run"},
-    {"particles_per_side", "fixes the particle set; create a new run"},
-    {"box_length", "fixes the particle set; create a new run"},
-    {"kernel", "fixes the interaction stencil and the neighbour list; create a new run"},
-    {"fluid.sound_speed",
-     "sets the equation of state: changing it mid-run sends pressure waves through the flow; "
-     "create a new run"},
-    {"fluid.reference_density", "sets the particle masses; create a new run"},
-    {"subfilter.model",
-     "switching the sub-filter model mid-run is not supported; create a new run"},
-    {"flow", "applies to the initial condition only"},
-    {"packing", "applies to the initial condition only"},
-    {"neighbours", "fixes the neighbour list that a bitwise restart relies on"},
-    {"analysis.dissipation_window", "is fixed for the run's dissipation estimate"},
-};
-
-bool has_prefix(const std::string& path, const std::string& prefix) {
-  return path == prefix ||
-         (path.size() > prefix.size() && path.compare(0, prefix.size(), prefix) == 0 &&
-          path[prefix.size()] == '.');
-}
-
-/// Dotted field of a JSON-pointer path from json::diff, cut at array indices ("/a/b/2" → "a.b").
-std::string dotted_field(const std::string& pointer) {
-  std::string field;
-  std::size_t start = 1;
-  while (start <= pointer.size()) {
-    std::size_t end = pointer.find('/', start);
-    if (end == std::string::npos) end = pointer.size();
-    const std::string token = pointer.substr(start, end - start);
-    if (!token.empty() && token.find_first_not_of("0123456789") == std::string::npos) break;
-    field += (field.empty() ? "" : ".") + token;
-    start = end + 1;
-  }
-  return field;
-}
-
-/// Which parts of a run a change touches.
-struct ChangeScope {
-  bool solver = false, analysis = false, render = false, other = false;
-};
-
-ChangeScope scope_of(const std::vector<std::string>& fields) {
-  ChangeScope s;
-  for (const std::string& f : fields) {
-    if (has_prefix(f, "analysis"))
-      s.analysis = true;
-    else if (has_prefix(f, "render"))
-      s.render = true;
-    else if (has_prefix(f, "time") || has_prefix(f, "fluid") || has_prefix(f, "subfilter") ||
-             has_prefix(f, "forcing"))
-      s.solver = true;
-    else
-      s.other = true;
-  }
-  return s;
-}
-
 }  // namespace
 
 const std::vector<std::string>& Run::changeable_fields() {
-  return kChangeable;
+  return control::changeable_fields();
+}
+
+std::string directory_name(const std::string& name) {
+  std::string out;
+  for (const char c : name) {
+    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
+                       c == '-' || c == '_' || c == '.';
+    out += plain ? c : '-';
+    if (out.size() >= kMaxDirectoryName) break;
+  }
+  while (!out.empty() && out.front() == '.') out.erase(out.begin());
+  return out.empty() ? "run" : out;
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -252,6 +189,11 @@ struct Run::Impl {
   std::string id;
   std::filesystem::path directory;
   RunOptions options;
+
+  // Serialises the transitions that spawn or join the solver thread (start, stop, mark_queued,
+  // retire, destruction), so that exactly one caller ever joins it and a second request finds
+  // the state the first one left. Taken before `mutex`, never by the solver thread.
+  std::mutex transition_mutex;
 
   mutable std::mutex mutex;  // guards everything below up to "solver thread only"
   std::condition_variable changed;
@@ -268,10 +210,11 @@ struct Run::Impl {
   std::optional<std::filesystem::path> start_checkpoint;  // explicit restart file
   bool continue_from_checkpoint = false;
   bool retired = false;  // being deleted: every transition and change is refused
-  void refuse_if_retired(const std::string& run_id) const {
-    if (retired) throw StateError("run " + run_id + " has been deleted");
+  void refuse_if_retired() const {
+    if (retired) throw StateError("run " + id + " has been deleted");
   }
   std::thread thread;
+  std::string last_checkpoint;  // file name under checkpoints/ of the newest one written
   double time = 0.0, end_time = 0.0;
   std::uint64_t step = 0;
   double wall_seconds = 0.0, steps_per_second = 0.0;
@@ -312,8 +255,18 @@ struct Run::Impl {
                     {"created", created},
                     {"updated", utc_now()},
                     {"time", time},
-                    {"step", step}};
+                    {"step", step},
+                    {"checkpoint", last_checkpoint}};
     write_text_atomically(directory / "run.json", j.dump(2) + "\n");
+  }
+  /// run.json, where a failure to write it must not change what happens (the state in memory is
+  /// right; the file catches up at the next write).
+  void try_write_run_file_locked() const {
+    try {
+      write_run_file_locked();
+    } catch (const std::exception& e) {
+      std::fprintf(stderr, "run %s: %s\n", id.c_str(), e.what());
+    }
   }
   void write_scene_file_locked() const {
     write_text_atomically(directory / "scene.json", run_spec_to_json(spec).dump(2) + "\n");
@@ -323,17 +276,19 @@ struct Run::Impl {
   void set_state(std::unique_lock<std::mutex>& lock, RunState s, std::string why = {}) {
     state = s;
     reason = std::move(why);
-    try {
-      write_run_file_locked();
-    } catch (const std::exception& e) {
-      std::fprintf(stderr, "run %s: %s\n", id.c_str(), e.what());
-    }
+    try_write_run_file_locked();
     const std::string r = reason;
     changed.notify_all();
     lock.unlock();
     for_each_observer([&](RunObserver& o) { o.on_state(s, r); });
     lock.lock();
   }
+
+  // Transitions; the caller holds transition_mutex (and not `mutex`).
+  void prepare_start_locked();  // checks a start or queueing is allowed; caller holds `mutex`
+  void start_locked();
+  void stop_locked(const std::string& why);
+  void join_solver();
 
   void execute();
   void solve(std::unique_ptr<sim::Simulation>& simulation, std::string& packing_provenance,
@@ -368,9 +323,15 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
                                std::optional<std::filesystem::path> checkpoint) {
   auto impl = std::make_unique<Impl>();
   json document;
+  std::string source;  // where the stored document came from, for error messages
   if (checkpoint) {
     const io::Checkpoint c = io::read_checkpoint(*checkpoint);
-    document = json::parse(c.metadata.scene_json);
+    source = "checkpoint '" + checkpoint->string() + "'";
+    try {
+      document = json::parse(c.metadata.scene_json);
+    } catch (const json::exception& e) {
+      throw std::runtime_error(source + ": attribute 'scene' is not a JSON document: " + e.what());
+    }
     impl->start_checkpoint = checkpoint;
     impl->time = c.state.time;
     impl->step = c.state.step;
@@ -379,30 +340,55 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     if (!std::filesystem::exists(scene))
       throw std::runtime_error("'" + directory.string() +
                                "' is not a run directory (no scene.json)");
+    source = "'" + scene.string() + "'";
     document = sim::read_scene_file(scene.string());
   }
-  for (const std::string& assignment : overrides) sim::apply_override(document, assignment);
-  impl->spec = parse_run_spec(document);
+  // Documents written before the packing cache became a program setting name it; it applied to
+  // the initial condition only, so a stored run ignores it.
+  if (document.is_object() && document.contains("packing") && document["packing"].is_object())
+    document["packing"].erase("cache_dir");
+  RunSpec stored;
+  try {
+    stored = parse_run_spec(document);
+  } catch (const sim::SceneError& e) {
+    throw sim::SceneError(source + ": " + e.what());
+  }
+  if (overrides.empty()) {
+    impl->spec = std::move(stored);
+  } else {
+    // A restart continues the stored particles: it accepts exactly what a live change accepts,
+    // and refuses the rest with the same message (the particle set, kernel, case, ...).
+    const json before = run_spec_to_json(stored);
+    json after = before;
+    for (const std::string& assignment : overrides) sim::apply_override(after, assignment);
+    impl->spec = check_change(before, after).spec;
+  }
   impl->end_time = impl->spec.run.scene.end_time;
   impl->continue_from_checkpoint = true;
   impl->state = RunState::Stopped;
   impl->created = utc_now();
+  bool record_changed = true;  // run.json must be (re)written
   if (std::ifstream in(directory / "run.json"); in) {
     try {
       const json run = json::parse(in);
       impl->created = run.value("created", impl->created);
       impl->reason = run.value("reason", std::string());
       impl->state = run_state_from_name(run.value("state", std::string("stopped")));
+      impl->last_checkpoint = run.value("checkpoint", std::string());
       if (!checkpoint) {
+        // Written at every state change and after every checkpoint: after a crash it holds the
+        // time of the newest checkpoint, where a resume continues.
         impl->time = run.value("time", 0.0);
         impl->step = run.value("step", std::uint64_t{0});
       }
+      record_changed = checkpoint.has_value();
     } catch (const std::exception& e) {
       impl->reason = std::string("run.json unreadable: ") + e.what();
     }
   }
   if (impl->state == RunState::Created || impl->state == RunState::Queued) {
     // Never started: it starts afresh.
+    record_changed = record_changed || impl->state == RunState::Queued;
     impl->state = RunState::Created;
     impl->continue_from_checkpoint = false;
   } else if (!is_terminal(impl->state)) {
@@ -410,66 +396,110 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
                    std::string(run_state_name(impl->state)) +
                    "; resume continues from the newest checkpoint";
     impl->state = RunState::Stopped;
+    record_changed = true;
   }
   std::unique_ptr<Run> run(new Run(std::move(id), directory, options, std::move(impl)));
-  std::unique_lock lock(run->impl_->mutex);
-  run->impl_->write_scene_file_locked();
-  run->impl_->write_run_file_locked();
+  Impl& r = *run->impl_;
+  std::unique_lock lock(r.mutex);
+  // Opening writes only what changed, so that a read-only data directory still lists its runs.
+  // A restart with a checkpoint or overrides must record its scene; a listing need not.
+  const std::string scene_text = run_spec_to_json(r.spec).dump(2) + "\n";
+  const bool must_write = checkpoint.has_value() || !overrides.empty();
+  try {
+    if (must_write || read_text(directory / "scene.json") != scene_text)
+      write_text_atomically(directory / "scene.json", scene_text);
+    if (record_changed) r.write_run_file_locked();
+  } catch (const std::exception& e) {
+    if (must_write) throw;
+    std::fprintf(stderr, "run %s: %s (listed as it is; it cannot run until this is fixed)\n",
+                 r.id.c_str(), e.what());
+  }
   return run;
 }
 
 Run::~Run() {
+  std::lock_guard transition(impl_->transition_mutex);
   try {
     const RunState s = status().state;
-    if (s == RunState::Running || s == RunState::Paused) stop("the run object was destroyed");
+    if (s == RunState::Running || s == RunState::Paused)
+      impl_->stop_locked("the run object was destroyed");
   } catch (...) {
   }
-  if (impl_->thread.joinable()) impl_->thread.join();
+  impl_->join_solver();
+}
+
+void Run::Impl::join_solver() {
+  if (thread.joinable() && thread.get_id() != std::this_thread::get_id()) thread.join();
+}
+
+void Run::Impl::prepare_start_locked() {
+  refuse_if_retired();
+  switch (state) {
+    case RunState::Running:
+    case RunState::Paused:
+    case RunState::Queued:
+      throw StateError("run " + id + " is already " + std::string(run_state_name(state)));
+    case RunState::Stopped:
+    case RunState::Failed:
+    case RunState::Finished: {
+      if (time >= spec.run.scene.end_time * (1.0 - 1e-12))
+        throw StateError("run " + id +
+                         " has reached time.end = " + sim::format_number(spec.run.scene.end_time) +
+                         "; raise 'time.end' to continue it");
+      // A run that has stepped continues from a checkpoint and never silently starts again at
+      // t = 0 (that would overwrite its time series and frames); one that never stepped (stopped
+      // while created, queued or packing) starts afresh.
+      const bool has_checkpoint =
+          start_checkpoint || !io::list_checkpoints(directory / "checkpoints").empty();
+      if (step > 0 && !has_checkpoint)
+        throw StateError("run " + id + " stepped to t = " + sim::format_number(time) +
+                         " but has no checkpoint to continue from (its scene writes none); "
+                         "create a new run");
+      continue_from_checkpoint = step > 0 || has_checkpoint;
+      break;
+    }
+    case RunState::Created:
+      break;
+  }
+}
+
+void Run::Impl::start_locked() {
+  std::unique_lock lock(mutex);
+  if (state != RunState::Queued) prepare_start_locked();
+  refuse_if_retired();
+  lock.unlock();
+  join_solver();  // the previous solver thread has ended (terminal state); reap it
+  lock.lock();
+  stop_requested = false;
+  set_state(lock, RunState::Running);
+  thread = std::thread([this] { execute(); });
 }
 
 void Run::start() {
-  std::unique_lock lock(impl_->mutex);
-  Impl& r = *impl_;
-  r.refuse_if_retired(id_);
-  switch (r.state) {
-    case RunState::Running:
-    case RunState::Paused:
-      throw StateError("run " + id_ + " is already " + std::string(run_state_name(r.state)));
-    case RunState::Stopped:
-    case RunState::Failed:
-    case RunState::Finished:
-      if (r.time >= r.spec.run.scene.end_time * (1.0 - 1e-12))
-        throw StateError("run " + id_ + " has reached time.end = " +
-                         sim::format_number(r.spec.run.scene.end_time) +
-                         "; raise 'time.end' to continue it");
-      r.continue_from_checkpoint = true;
-      break;
-    case RunState::Created:
-    case RunState::Queued:
-      break;
+  std::lock_guard transition(impl_->transition_mutex);
+  impl_->start_locked();
+}
+
+bool Run::start_if_queued() {
+  std::lock_guard transition(impl_->transition_mutex);
+  {
+    std::lock_guard lock(impl_->mutex);
+    if (impl_->state != RunState::Queued || impl_->retired) return false;
   }
-  if (r.thread.joinable()) {
-    lock.unlock();
-    r.thread.join();
-    lock.lock();
-  }
-  r.stop_requested = false;
-  r.set_state(lock, RunState::Running);
-  r.thread = std::thread([&r] { r.execute(); });
+  impl_->start_locked();
+  return true;
 }
 
 void Run::mark_queued() {
+  std::lock_guard transition(impl_->transition_mutex);
   std::unique_lock lock(impl_->mutex);
-  impl_->refuse_if_retired(id_);
-  if (impl_->state != RunState::Created && !is_terminal(impl_->state))
-    throw StateError("run " + id_ + " is " + std::string(run_state_name(impl_->state)) +
-                     " and cannot be queued");
-  if (is_terminal(impl_->state)) impl_->continue_from_checkpoint = true;
+  impl_->prepare_start_locked();
   impl_->set_state(lock, RunState::Queued);
 }
 
 void Run::pause() {
   std::unique_lock lock(impl_->mutex);
+  impl_->refuse_if_retired();
   if (impl_->state != RunState::Running)
     throw StateError("run " + id_ + " is " + std::string(run_state_name(impl_->state)) +
                      "; only a running run can be paused");
@@ -478,57 +508,60 @@ void Run::pause() {
 }
 
 void Run::resume() {
-  std::unique_lock lock(impl_->mutex);
-  impl_->refuse_if_retired(id_);
-  if (impl_->state == RunState::Paused) {
-    impl_->set_state(lock, RunState::Running);
+  {
+    std::unique_lock lock(impl_->mutex);
+    impl_->refuse_if_retired();
+    if (impl_->state == RunState::Paused) {
+      impl_->set_state(lock, RunState::Running);
+      return;
+    }
+    if (!is_terminal(impl_->state))
+      throw StateError("run " + id_ + " is " + std::string(run_state_name(impl_->state)) +
+                       "; only a paused or stopped run can be resumed");
+  }
+  start();  // re-checks the state under the transition lock
+}
+
+void Run::Impl::stop_locked(const std::string& why) {
+  std::unique_lock lock(mutex);
+  refuse_if_retired();
+  if (is_terminal(state))
+    throw StateError("run " + id + " is already " + std::string(run_state_name(state)));
+  if (state == RunState::Created || state == RunState::Queued) {
+    set_state(lock, RunState::Stopped, why);
     return;
   }
-  if (impl_->state == RunState::Stopped || impl_->state == RunState::Failed ||
-      impl_->state == RunState::Finished) {
-    lock.unlock();
-    start();
-    return;
-  }
-  throw StateError("run " + id_ + " is " + std::string(run_state_name(impl_->state)) +
-                   "; only a paused or stopped run can be resumed");
+  stop_requested = true;
+  stop_reason = why;
+  attention = true;
+  changed.notify_all();
+  changed.wait(lock, [&] { return is_terminal(state); });
+  lock.unlock();
+  join_solver();
 }
 
 void Run::stop(const std::string& reason) {
-  std::unique_lock lock(impl_->mutex);
-  Impl& r = *impl_;
-  if (is_terminal(r.state))
-    throw StateError("run " + id_ + " is already " + std::string(run_state_name(r.state)));
-  if (r.state == RunState::Created || r.state == RunState::Queued) {
-    r.set_state(lock, RunState::Stopped, reason);
-    return;
-  }
-  r.stop_requested = true;
-  r.stop_reason = reason;
-  r.attention = true;
-  r.changed.notify_all();
-  r.changed.wait(lock, [&] { return is_terminal(r.state); });
-  if (r.thread.joinable() && r.thread.get_id() != std::this_thread::get_id()) {
-    lock.unlock();
-    r.thread.join();
-  }
+  std::lock_guard transition(impl_->transition_mutex);
+  impl_->stop_locked(reason);
 }
 
 void Run::retire() {
-  std::unique_lock lock(impl_->mutex);
-  Impl& r = *impl_;
-  if (r.state != RunState::Created && !is_terminal(r.state))
-    throw StateError("run " + id_ + " is " + std::string(run_state_name(r.state)) +
-                     "; stop it before deleting it");
-  r.retired = true;
-  // A finished solver thread may still be returning; nothing of it may outlive the directory.
-  if (r.thread.joinable() && r.thread.get_id() != std::this_thread::get_id()) {
-    lock.unlock();
-    r.thread.join();
+  std::lock_guard transition(impl_->transition_mutex);
+  {
+    std::lock_guard lock(impl_->mutex);
+    Impl& r = *impl_;
+    r.refuse_if_retired();
+    if (r.state != RunState::Created && !is_terminal(r.state))
+      throw StateError("run " + id_ + " is " + std::string(run_state_name(r.state)) +
+                       "; stop it before deleting it");
+    r.retired = true;
   }
+  // A finished solver thread may still be returning; nothing of it may outlive the directory.
+  impl_->join_solver();
 }
 
 void Run::reinstate() {
+  std::lock_guard transition(impl_->transition_mutex);
   std::lock_guard lock(impl_->mutex);
   impl_->retired = false;
 }
@@ -543,11 +576,12 @@ void Run::wait() {
 
 RunState Run::run_here() {
   {
+    // The transition lock covers the check only: the run then executes on this thread, and a
+    // stop from another thread (a signal) must get through while it does.
+    std::lock_guard transition(impl_->transition_mutex);
     std::unique_lock lock(impl_->mutex);
-    impl_->refuse_if_retired(id_);
-    if (impl_->state == RunState::Running || impl_->state == RunState::Paused)
-      throw StateError("run " + id_ + " is already running");
-    if (is_terminal(impl_->state)) impl_->continue_from_checkpoint = true;
+    impl_->prepare_start_locked();
+    impl_->stop_requested = false;
     impl_->set_state(lock, RunState::Running);
   }
   impl_->execute();
@@ -560,59 +594,31 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
                                     std::string(patch.type_name()));
   std::unique_lock lock(impl_->mutex);
   Impl& r = *impl_;
-  r.refuse_if_retired(id_);
-  const RunSpec& base = r.pending ? *r.pending : r.spec;
-  const json before = run_spec_to_json(base);
+  r.refuse_if_retired();
+  const json before = run_spec_to_json(r.pending ? *r.pending : r.spec);
   json after = before;
   after.merge_patch(patch);
-  RunSpec next;
-  try {
-    next = parse_run_spec(after);
-  } catch (const sim::SceneError& e) {
-    // "scene: 'a.b' must ..." → field a.b.
-    std::string message = e.what();
-    std::string field = "(body)";
-    if (const auto open = message.find('\''); open != std::string::npos)
-      if (const auto close = message.find('\'', open + 1); close != std::string::npos)
-        field = message.substr(open + 1, close - open - 1);
-    const std::string prefix = "scene: '" + field + "' ";
-    throw ChangeError(field,
-                      message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message);
-  }
-  const json normalised = run_spec_to_json(next);
-  std::set<std::string> fields;
-  for (const json& op : json::diff(before, normalised))
-    fields.insert(dotted_field(op.at("path").get<std::string>()));
-  for (const std::string& field : fields) {
-    bool allowed = false;
-    for (const std::string& c : kChangeable) allowed = allowed || has_prefix(field, c);
-    if (allowed) continue;
-    for (const auto& [prefix, why] : kFixedReasons)
-      if (has_prefix(field, prefix))
-        throw ChangeError(field, "cannot change while a run exists: " + why);
-    throw ChangeError(field, "cannot change while a run exists");
-  }
-  if (fields.contains("time.end") && next.run.scene.end_time <= r.time)
+  CheckedChange change = check_change(before, after);
+  if (change.fields.empty()) return {};
+  if (std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end() &&
+      change.spec.run.scene.end_time <= r.time)
     throw ChangeError("time.end", "must be after the current time " + sim::format_number(r.time));
-  std::vector<std::string> list(fields.begin(), fields.end());
-  if (list.empty()) return list;
+  // Persist first: a change that cannot be written would be lost at a restart, so it is not made
+  // (the write error is thrown and nothing changes). scene.json shows the document the solver
+  // thread applies at its next step.
+  write_text_atomically(r.directory / "scene.json", run_spec_to_json(change.spec).dump(2) + "\n");
   const bool active = r.state == RunState::Running || r.state == RunState::Paused;
   if (active) {
-    r.pending = std::move(next);
-    r.pending_fields.insert(r.pending_fields.end(), list.begin(), list.end());
+    r.pending = std::move(change.spec);
+    r.pending_fields.insert(r.pending_fields.end(), change.fields.begin(), change.fields.end());
     r.attention = true;
   } else {
-    r.spec = std::move(next);
+    r.spec = std::move(change.spec);
     r.end_time = r.spec.run.scene.end_time;
     ++r.revision;
+    r.try_write_run_file_locked();  // the name may have changed
   }
-  r.write_scene_file_locked();
-  if (!active) r.write_run_file_locked();
-  if (active) {
-    // scene.json shows the pending document: the solver thread applies it at the next step.
-    write_text_atomically(r.directory / "scene.json", run_spec_to_json(*r.pending).dump(2) + "\n");
-  }
-  return list;
+  return change.fields;
 }
 
 RunStatus Run::status() const {
@@ -689,13 +695,23 @@ void Run::Impl::execute() {
   }
   try {
     solve(simulation, packing, resumed);
+  } catch (const sim::SetupCancelled& e) {
+    // A stop during the set-up: nothing was stepped, so a later start begins afresh.
+    std::unique_lock lock(mutex);
+    if (options.log_progress) std::fprintf(stderr, "run %s: %s\n", id.c_str(), e.what());
+    continue_from_checkpoint = false;
+    set_state(lock, RunState::Stopped, stop_reason + " (" + e.what() + ", before the first step)");
   } catch (const std::exception& e) {
     std::unique_lock lock(mutex);
     std::string why = e.what();
-    const auto files = io::list_checkpoints(directory / "checkpoints");
-    why += files.empty()
-               ? "; no checkpoint was written"
-               : "; last valid checkpoint: checkpoints/" + files.front().filename().string();
+    try {
+      const auto files = io::list_checkpoints(directory / "checkpoints");
+      why += files.empty()
+                 ? "; no checkpoint was written"
+                 : "; last valid checkpoint: checkpoints/" + files.front().filename().string();
+    } catch (const std::exception& listing) {
+      why += std::string("; the checkpoints cannot be listed: ") + listing.what();
+    }
     if (options.log_progress) std::fprintf(stderr, "run %s failed: %s\n", id.c_str(), why.c_str());
     set_state(lock, RunState::Failed, why);
   }
@@ -726,7 +742,11 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
       for (const std::string& why : rejected) std::fprintf(stderr, "skipped: %s\n", why.c_str());
     }
-    if (!file.empty()) {
+    if (file.empty())
+      throw std::runtime_error(
+          "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
+          "again from t = 0)");
+    {
       checkpoint = io::read_checkpoint(file);
       if (options.log_progress)
         std::fprintf(stderr, "restart: %s at t = %.17g, step %llu\n", file.c_str(),
@@ -752,7 +772,13 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     std::filesystem::remove(directory / "timeseries.csv", ignored);
     std::filesystem::remove(frames_dir / "index.csv", ignored);
     const auto setup_start = Clock::now();
-    sim::RunSetup setup = sim::setup_run(scene0);
+    sim::SetupOptions setup_options;
+    setup_options.packing_cache_dir = options.packing_cache_dir;
+    setup_options.cancelled = [this] {
+      std::lock_guard lock(mutex);
+      return stop_requested;
+    };
+    sim::RunSetup setup = sim::setup_run(scene0, setup_options);
     const double setup_seconds = std::chrono::duration<double>(Clock::now() - setup_start).count();
     char text[512];
     std::snprintf(text, sizeof text,
@@ -774,6 +800,20 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   }
 
+  // Every output goes to the run directory: if it is deleted or replaced while the run goes on,
+  // further writes would vanish into unlinked files, so the run fails instead, saying why.
+  const auto identity = directory_identity(directory);
+  auto last_directory_check = Clock::now();
+  const auto check_directory = [&] {
+    if (std::chrono::duration<double>(Clock::now() - last_directory_check).count() <
+        options.directory_check_seconds)
+      return;
+    last_directory_check = Clock::now();
+    if (directory_identity(directory) != identity)
+      throw std::runtime_error("the run directory '" + directory.string() +
+                               "' was deleted or replaced while the run was running; its "
+                               "outputs could no longer be written");
+  };
   analysis::TimeSeriesWriter timeseries(directory / "timeseries.csv",
                                         sim::case_diagnostic_names(scene0), checkpoint.has_value());
   analysis::DissipationEstimator dissipation(current.run.analysis.dissipation_window);
@@ -824,6 +864,12 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       std::filesystem::remove(files[k]);
     last_checkpoint_wall = Clock::now();
     last_checkpoint_step = simulation->step_count();
+    // run.json follows the checkpoints: after a crash it says where a resume continues.
+    std::lock_guard lock(mutex);
+    time = simulation->time();
+    step = simulation->step_count();
+    last_checkpoint = io::checkpoint_file_name(simulation->step_count());
+    try_write_run_file_locked();
   };
 
   // Consumers on their own threads, created when the scene first needs them.
@@ -986,6 +1032,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       wall_seconds += std::chrono::duration<double>(Clock::now() - step_start).count();
     }
     publish_progress(false);
+    check_directory();
     if (std::chrono::duration<double>(Clock::now() - last_flush).count() >=
         options.metrics_batch_seconds)
       flush_metrics();
@@ -996,7 +1043,9 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   if (options.log_progress)
     std::fprintf(stderr, "%s\n", progress->update(simulation->diagnostics(), true).c_str());
   flush_metrics();
-  if (stopped || current.run.scene.checkpoint.enabled()) save_checkpoint();
+  // Every run ends with a checkpoint, stopped or finished, so that it can be continued (raise
+  // time.end) and never has to start again from t = 0.
+  save_checkpoint();
   if (pipeline) {
     pipeline->close(/*drain=*/!stopped);
     if (options.log_progress) {

@@ -113,10 +113,19 @@ class RunObserver {
 };
 
 struct RunOptions {
-  int threads = 0;                     // OpenMP threads of the solver; 0 = default
-  bool log_progress = false;           // progress lines on stderr (command line)
-  double metrics_batch_seconds = 0.1;  // observers get metrics at most this often (wall time)
+  int threads = 0;                          // OpenMP threads of the solver; 0 = default
+  bool log_progress = false;                // progress lines on stderr (command line)
+  double metrics_batch_seconds = 0.1;       // observers get metrics at most this often (wall time)
+  std::filesystem::path packing_cache_dir;  // empty: sim::default_packing_cache_dir()
+  /// How often (wall time) the solver thread checks that its run directory still exists.
+  double directory_check_seconds = 1.0;
 };
+
+/// A run name as a single path component: letters, digits, '-', '_' and '.' (others become '-'),
+/// no leading '.', at most kMaxDirectoryName characters, "run" if nothing is left. Names from
+/// scenes and clients become directory names only through this.
+inline constexpr std::size_t kMaxDirectoryName = 40;
+std::string directory_name(const std::string& name);
 
 /// One simulation with everything it writes. All methods are thread-safe.
 class Run {
@@ -138,14 +147,20 @@ class Run {
   const std::string& id() const { return id_; }
   const std::filesystem::path& directory() const { return directory_; }
 
-  /// created/queued → running; stopped → running (from the newest checkpoint). Returns at once;
-  /// the solver thread does the set-up.
+  /// created/queued → running; stopped/finished/failed → running, continuing from the newest
+  /// checkpoint if the run has stepped (StateError if it has none, or if time.end is reached).
+  /// Returns at once; the solver thread does the set-up.
   void start();
-  void mark_queued();  // created → queued (the run manager has no free slot)
-  void pause();        // running → paused (takes effect between steps)
-  void resume();       // paused → running
-  /// running/paused/queued/created → stopped: the solver thread finishes its step, writes a
-  /// checkpoint (if checkpoints are on or the run has stepped) and exits. Blocks until it has.
+  /// Starts the run if it is (still) queued; false if it is not (stopped or deleted meanwhile).
+  bool start_if_queued();
+  /// created/stopped/finished/failed → queued (the run manager has no free slot); the same
+  /// checks as start().
+  void mark_queued();
+  void pause();   // running → paused (takes effect between steps)
+  void resume();  // paused → running
+  /// running/paused/queued/created → stopped: the solver thread finishes its step (or abandons
+  /// the packing of its initial state), writes a checkpoint and exits. Blocks until it has.
+  /// Transitions are serialised: a second stop waits for the first, then finds the run stopped.
   void stop(const std::string& reason = "stopped by request");
   /// Blocks until the run is finished, stopped or failed (or was never started).
   void wait();
@@ -159,7 +174,9 @@ class Run {
 
   /// Applies a JSON merge patch to the scene document. Validated in full first; fields the
   /// solver can change safely (docs/rendering.md, "Live changes") take effect at the next step,
-  /// the others throw ChangeError naming the field and the reason. Returns the changed fields.
+  /// the others throw ChangeError naming the field and the reason. The new document is written
+  /// to scene.json before it takes effect: if that fails, nothing changes (the error is thrown).
+  /// Returns the changed fields.
   std::vector<std::string> apply_changes(const nlohmann::json& patch);
   /// Dotted names of the fields apply_changes accepts.
   static const std::vector<std::string>& changeable_fields();

@@ -16,21 +16,6 @@ namespace {
 /// Analysis frames over a run created without an analysis section (live defaults).
 constexpr double kLiveAnalysisFrames = 60.0;
 
-/// Longest run name kept in a directory name.
-constexpr std::size_t kMaxNameInId = 40;
-
-std::string sanitised(const std::string& name) {
-  std::string out;
-  for (const char c : name) {
-    const bool plain = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') ||
-                       c == '-' || c == '_' || c == '.';
-    out += plain ? c : '-';
-    if (out.size() >= kMaxNameInId) break;
-  }
-  while (!out.empty() && out.front() == '.') out.erase(out.begin());
-  return out.empty() ? "run" : out;
-}
-
 std::string description(const std::string& name, const sim::Scene& s) {
   char text[256];
   std::snprintf(text, sizeof text, "%s: %s, %d^%d particles, %s D_K/dl = %g, %s model",
@@ -108,12 +93,12 @@ CreateRequest parse_create_request(const json& body) {
   return request;
 }
 
-/// Starts queued runs when a run leaves its slot.
+/// Wakes the scheduler when a run leaves its slot (called on the run's threads).
 class RunManager::SlotObserver : public RunObserver {
  public:
   explicit SlotObserver(RunManager* manager) : manager_(manager) {}
   void on_state(RunState state, const std::string&) override {
-    if (!occupies_slot(state) && state != RunState::Queued) manager_->start_queued_locked();
+    if (!occupies_slot(state) && state != RunState::Queued) manager_->slot_freed();
   }
 
  private:
@@ -125,6 +110,8 @@ RunManager::RunManager(ManagerOptions options)
   if (options_.max_running < 1)
     throw std::invalid_argument("max_running must be >= 1, got " +
                                 std::to_string(options_.max_running));
+  if (options_.max_queued < 0 || options_.max_runs < 1)
+    throw std::invalid_argument("max_queued must be >= 0 and max_runs >= 1");
   const std::filesystem::path runs = options_.data_directory / "runs";
   std::filesystem::create_directories(runs);
   std::error_code ignored;  // deletions a previous process did not finish (remove())
@@ -145,11 +132,40 @@ RunManager::RunManager(ManagerOptions options)
     next_number_ =
         std::max<std::uint64_t>(next_number_, std::strtoull(id.c_str(), nullptr, 10) + 1);
   }
+  scheduler_ = std::thread([this] { schedule_loop(); });
 }
 
 RunManager::~RunManager() {
   shutdown();
   for (const auto& run : runs_) run->remove_observer(slot_observer_.get());
+}
+
+void RunManager::slot_freed() {
+  {
+    std::lock_guard lock(wake_mutex_);
+    wake_ = true;
+  }
+  wake_condition_.notify_one();
+}
+
+void RunManager::schedule_loop() {
+  for (;;) {
+    {
+      std::unique_lock lock(wake_mutex_);
+      wake_condition_.wait(lock, [&] { return wake_ || stop_scheduler_; });
+      if (stop_scheduler_) return;
+      wake_ = false;
+    }
+    start_queued();
+  }
+}
+
+int RunManager::active_runs() const {
+  std::lock_guard lock(mutex_);
+  int active = 0;
+  for (const auto& r : runs_)
+    if (occupies_slot(r->status().state)) ++active;
+  return active;
 }
 
 std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
@@ -176,9 +192,13 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
   {
     std::lock_guard lock(mutex_);
     if (shut_down_) throw StateError("the server is shutting down");
+    if (runs_.size() >= static_cast<std::size_t>(options_.max_runs))
+      throw CapacityError("the server holds " + std::to_string(runs_.size()) +
+                          " runs, its limit (--max-runs " + std::to_string(options_.max_runs) +
+                          "); delete some first");
     char number[32];
     std::snprintf(number, sizeof number, "%04llu", static_cast<unsigned long long>(next_number_++));
-    const std::string id = std::string(number) + "-" + sanitised(spec.run.scene.name);
+    const std::string id = std::string(number) + "-" + directory_name(spec.run.scene.name);
     run = std::make_shared<Run>(id, std::move(spec), options_.data_directory / "runs" / id,
                                 options_.run_options);
     run->add_observer(slot_observer_);
@@ -202,24 +222,27 @@ std::shared_ptr<Run> RunManager::get(const std::string& id) const {
 
 void RunManager::start(const std::string& id) {
   const std::shared_ptr<Run> run = get(id);
-  bool queue = false;
+  std::lock_guard schedule(schedule_mutex_);
   {
     std::lock_guard lock(mutex_);
     if (shut_down_) throw StateError("the server is shutting down");
-    int active = 0;
-    for (const auto& r : runs_)
-      if (r != run && occupies_slot(r->status().state)) ++active;
-    queue = active >= options_.max_running;
-    if (queue) {
-      run->mark_queued();  // throws StateError if the run is active
-      if (std::find(queue_.begin(), queue_.end(), id) == queue_.end()) queue_.push_back(id);
-    }
   }
-  if (!queue) {
-    run->start();
+  if (active_runs() < options_.max_running) {
+    run->start();  // throws StateError naming the state
     std::lock_guard lock(mutex_);
     std::erase(queue_, id);
+    return;
   }
+  std::lock_guard lock(mutex_);
+  if (std::find(queue_.begin(), queue_.end(), id) != queue_.end())
+    throw StateError("run " + id + " is already queued");
+  if (queue_.size() >= static_cast<std::size_t>(options_.max_queued))
+    throw CapacityError("all " + std::to_string(options_.max_running) + " run slots are busy and " +
+                        std::to_string(queue_.size()) +
+                        " runs wait for one, the limit (--max-queued " +
+                        std::to_string(options_.max_queued) + "); try again later");
+  run->mark_queued();  // throws StateError if the run cannot start
+  queue_.push_back(id);
 }
 
 void RunManager::pause(const std::string& id) {
@@ -268,30 +291,25 @@ void RunManager::remove(const std::string& id) {
   std::filesystem::remove_all(trash, ignored);  // a leftover is removed on the next start
 }
 
-void RunManager::start_queued_locked() {
-  // Called from a run's thread when it leaves its slot: start the oldest queued runs that fit.
-  std::vector<std::shared_ptr<Run>> starting;
-  {
-    std::lock_guard lock(mutex_);
-    if (shut_down_) return;
-    int active = 0;
-    for (const auto& r : runs_)
-      if (occupies_slot(r->status().state)) ++active;
-    while (active < options_.max_running && !queue_.empty()) {
+void RunManager::start_queued() {
+  // On the scheduler thread, after a run left its slot: the oldest queued runs that fit start.
+  std::lock_guard schedule(schedule_mutex_);
+  int active = active_runs();
+  while (active < options_.max_running) {
+    std::shared_ptr<Run> next;
+    {
+      std::lock_guard lock(mutex_);
+      if (shut_down_ || queue_.empty()) return;
       const std::string id = queue_.front();
       queue_.erase(queue_.begin());
       for (const auto& r : runs_)
-        if (r->id() == id && r->status().state == RunState::Queued) {
-          starting.push_back(r);
-          ++active;
-        }
+        if (r->id() == id) next = r;
     }
-  }
-  for (const auto& run : starting) {
+    if (!next) continue;
     try {
-      run->start();
+      if (next->start_if_queued()) ++active;  // false: stopped or deleted since it queued
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles: could not start queued run %s: %s\n", run->id().c_str(),
+      std::fprintf(stderr, "sphles: could not start queued run %s: %s\n", next->id().c_str(),
                    e.what());
     }
   }
@@ -300,12 +318,19 @@ void RunManager::start_queued_locked() {
 void RunManager::shutdown() {
   std::vector<std::shared_ptr<Run>> runs;
   {
+    std::lock_guard schedule(schedule_mutex_);  // no start is half-done while the list is taken
     std::lock_guard lock(mutex_);
     if (shut_down_) return;
     shut_down_ = true;
     queue_.clear();
     runs = runs_;
   }
+  {
+    std::lock_guard lock(wake_mutex_);
+    stop_scheduler_ = true;
+  }
+  wake_condition_.notify_one();
+  if (scheduler_.joinable()) scheduler_.join();
   for (const auto& run : runs) {
     const RunState s = run->status().state;
     if (s == RunState::Running || s == RunState::Paused || s == RunState::Queued) {

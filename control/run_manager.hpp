@@ -3,12 +3,14 @@
 //   {data}/runs/{id}/   one run directory each (see control/run.hpp)
 #pragma once
 
+#include <condition_variable>
 #include <filesystem>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "control/run.hpp"
@@ -18,6 +20,8 @@ namespace sphles::control {
 struct ManagerOptions {
   std::filesystem::path data_directory = "sphles-data";
   int max_running = 1;  // runs stepping at once; further starts queue
+  int max_queued = 16;  // runs waiting for a slot; a start beyond is refused (CapacityError)
+  int max_runs = 256;   // runs in the data directory; creating more is refused (CapacityError)
   RunOptions run_options;
 };
 
@@ -47,6 +51,12 @@ class UnknownRunError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The server is at a configured capacity (runs, queue): try again later (HTTP 429).
+class CapacityError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 class RunManager {
  public:
   /// Creates the data directory if needed and opens every run directory found in it (runs that
@@ -65,7 +75,9 @@ class RunManager {
   /// Throws UnknownRunError.
   std::shared_ptr<Run> get(const std::string& id) const;
 
-  /// State transitions with queueing; throw UnknownRunError or StateError.
+  /// State transitions with queueing; throw UnknownRunError or StateError (CapacityError when a
+  /// start would queue and the queue is full). Slots are counted and taken atomically, so
+  /// concurrent starts never run more than max_running runs.
   void start(const std::string& id);  // created/stopped → running or queued
   void pause(const std::string& id);
   void resume(const std::string& id);  // paused → running; stopped → running or queued
@@ -76,7 +88,8 @@ class RunManager {
   /// run that a restart would list; leftovers in trash/ are removed on start.
   void remove(const std::string& id);
 
-  /// Stops every active run (each writes a checkpoint and is marked stopped). Idempotent.
+  /// Stops every active run (each writes a checkpoint and is marked stopped) and the scheduler.
+  /// Idempotent.
   void shutdown();
 
   const ManagerOptions& options() const { return options_; }
@@ -86,16 +99,26 @@ class RunManager {
   static nlohmann::json presets();
 
  private:
-  void start_queued_locked();
   class SlotObserver;
+  int active_runs() const;  // running or paused; caller holds schedule_mutex_
+  void start_queued();      // starts the oldest queued runs that fit; holds schedule_mutex_
+  void slot_freed();        // from a run's thread: wakes the scheduler, never blocks on a run
+  void schedule_loop();     // the scheduler thread
 
   ManagerOptions options_;
   std::shared_ptr<SlotObserver> slot_observer_;
-  mutable std::mutex mutex_;
+  // Lock order: schedule_mutex_, then mutex_, then a run's own locks. A run's threads take
+  // neither: they only signal the scheduler (wake_mutex_), so no run waits for another.
+  std::mutex schedule_mutex_;  // serialises start decisions: slots are counted and taken at once
+  mutable std::mutex mutex_;   // guards runs_, queue_, next_number_, shut_down_
   std::vector<std::shared_ptr<Run>> runs_;
   std::vector<std::string> queue_;  // ids waiting for a slot, oldest first
   std::uint64_t next_number_ = 1;
   bool shut_down_ = false;
+  std::mutex wake_mutex_;  // guards wake_ and stop_scheduler_
+  std::condition_variable wake_condition_;
+  bool wake_ = false, stop_scheduler_ = false;
+  std::thread scheduler_;  // starts queued runs when a slot frees (last member: starts last)
 };
 
 }  // namespace sphles::control

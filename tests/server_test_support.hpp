@@ -4,9 +4,13 @@
 // Nothing is mocked: every helper speaks to a real sphles::server::HttpServer over TCP.
 #pragma once
 
+#include <fcntl.h>
 #include <gtest/gtest.h>
+#include <poll.h>
+#include <signal.h>
 #include <sys/socket.h>
 #include <sys/time.h>
+#include <sys/wait.h>
 #include <unistd.h>
 #include <array>
 #include <boost/asio/connect.hpp>
@@ -365,5 +369,125 @@ inline void expect_error(const Reply& r, int status, const std::optional<std::st
     EXPECT_EQ(body["error"]["field"], *field) << r.body;
   }
 }
+
+// --- the real program as a child process -------------------------------------------------------
+
+/// Output of a finished child: exit code (or -signal) and what it wrote.
+struct ProcessResult {
+  int code = 0;  // exit status, or minus the signal that ended it
+  std::string out, err;
+};
+
+/// Runs the sphles binary with `args` in `directory` (cwd), stdout and stderr captured, and
+/// waits for it (killed after `timeout`, then code = -SIGKILL).
+inline ProcessResult run_sphles(const std::vector<std::string>& args,
+                                const fs::path& directory = fs::current_path(),
+                                std::chrono::seconds timeout = 120s) {
+  const fs::path out_file = directory / ".sphles-test-stdout";
+  const fs::path err_file = directory / ".sphles-test-stderr";
+  // Everything the child needs is prepared before fork: only async-signal-safe calls after it.
+  std::vector<char*> argv{const_cast<char*>(SPHLES_BINARY)};
+  for (const std::string& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+  argv.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::chdir(directory.c_str()) != 0) ::_exit(127);
+    const int out = ::open(out_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    const int err = ::open(err_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    ::dup2(out, 1);
+    ::dup2(err, 2);
+    ::execv(SPHLES_BINARY, argv.data());
+    ::_exit(127);
+  }
+  ProcessResult result;
+  int status = 0;
+  const auto deadline = std::chrono::steady_clock::now() + timeout;
+  while (::waitpid(pid, &status, WNOHANG) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) {
+      ::kill(pid, SIGKILL);
+      ::waitpid(pid, &status, 0);
+      break;
+    }
+    std::this_thread::sleep_for(10ms);
+  }
+  result.code = WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+  std::ifstream o(out_file), e(err_file);
+  result.out.assign(std::istreambuf_iterator<char>(o), std::istreambuf_iterator<char>());
+  result.err.assign(std::istreambuf_iterator<char>(e), std::istreambuf_iterator<char>());
+  fs::remove(out_file);
+  fs::remove(err_file);
+  return result;
+}
+
+/// `sphles serve --port 0 ARGS...` as a child process: started, its port read from the one line
+/// it prints on stdout, signalled and reaped by the test. Killed if the test forgets it.
+class ServeProcess {
+ public:
+  explicit ServeProcess(const std::vector<std::string>& args, const fs::path& stderr_file) {
+    int pipe_fds[2];
+    if (::pipe(pipe_fds) != 0) throw std::runtime_error("pipe failed");
+    std::vector<std::string> all{SPHLES_BINARY, "serve", "--port", "0"};
+    all.insert(all.end(), args.begin(), args.end());
+    std::vector<char*> argv;
+    for (std::string& a : all) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::close(pipe_fds[0]);
+      ::dup2(pipe_fds[1], 1);
+      const int err = ::open(stderr_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+      ::dup2(err, 2);
+      ::execv(SPHLES_BINARY, argv.data());
+      ::_exit(127);
+    }
+    ::close(pipe_fds[1]);
+    stdout_ = pipe_fds[0];
+    // "sphles serve: listening on http://127.0.0.1:PORT/"
+    std::string line;
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    while (line.find('\n') == std::string::npos && std::chrono::steady_clock::now() < deadline) {
+      pollfd p{stdout_, POLLIN, 0};
+      if (::poll(&p, 1, 100) <= 0) continue;
+      char c = 0;
+      if (::read(stdout_, &c, 1) != 1) break;
+      line += c;
+    }
+    const std::size_t colon = line.rfind(':');
+    if (line.find("listening on http://") == std::string::npos || colon == std::string::npos)
+      throw std::runtime_error("sphles serve did not start: '" + line + "'");
+    port_ = static_cast<unsigned short>(std::atoi(line.c_str() + colon + 1));
+  }
+  ~ServeProcess() {
+    if (pid_ > 0 && !exited_) {
+      ::kill(pid_, SIGKILL);
+      ::waitpid(pid_, nullptr, 0);
+    }
+    if (stdout_ >= 0) ::close(stdout_);
+  }
+  ServeProcess(const ServeProcess&) = delete;
+  ServeProcess& operator=(const ServeProcess&) = delete;
+
+  unsigned short port() const { return port_; }
+  void signal(int number) const { ::kill(pid_, number); }
+  /// Exit status (or -signal) once the process has ended, nullopt if it has not within `limit`.
+  std::optional<int> wait_exit(std::chrono::milliseconds limit) {
+    const auto deadline = std::chrono::steady_clock::now() + limit;
+    int status = 0;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (::waitpid(pid_, &status, WNOHANG) == pid_) {
+        exited_ = true;
+        return WIFEXITED(status) ? WEXITSTATUS(status) : -WTERMSIG(status);
+      }
+      std::this_thread::sleep_for(20ms);
+    }
+    return std::nullopt;
+  }
+
+ private:
+  pid_t pid_ = -1;
+  int stdout_ = -1;
+  unsigned short port_ = 0;
+  bool exited_ = false;
+};
 
 }  // namespace sphles_server_test

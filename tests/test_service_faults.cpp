@@ -1,0 +1,411 @@
+// Faults of the run-control layer that ordinary use of the service provoked (issue 15): duplicate
+// and concurrent transitions, stops during a long set-up, finished runs restarted, changes that
+// cannot be saved, unwritable or vanishing run directories, crashes, restarts with inconsistent
+// overrides and paths chosen by clients. Each test drives a real server (or the real binary)
+// over real sockets and reproduces the finding first.
+#include <atomic>
+#include <future>
+
+#include "io/checkpoint.hpp"
+#include "server_test_support.hpp"
+
+namespace {
+
+using namespace sphles_server_test;
+
+/// A tiny run that goes on until stopped (16², lattice, thousands of steps per second).
+json long_scene(const std::string& name = "long") {
+  return tiny_scene(1e6, name);
+}
+
+/// A run whose packing never converges (the residual never reaches 1e-300): only a stop or a
+/// signal ends its set-up.
+json endless_packing_scene(const std::string& name = "packing") {
+  json scene = tiny_scene(1e6, name);
+  scene["particles_per_side"] = 32;
+  scene["packing"] = {
+      {"enabled", true}, {"cache", false}, {"tolerance", 1e-300}, {"max_iterations", 1000000}};
+  return scene;
+}
+
+/// Sends the same request from `count` threads at once; returns the statuses (0: no answer
+/// within the client's timeout).
+std::vector<int> concurrently(int count, const std::function<Reply()>& request) {
+  std::vector<std::future<int>> answers;
+  for (int k = 0; k < count; ++k)
+    answers.push_back(std::async(std::launch::async, [&] {
+      try {
+        return request().status;
+      } catch (const std::exception&) {
+        return 0;  // timed out or reset
+      }
+    }));
+  std::vector<int> statuses;
+  for (auto& a : answers) statuses.push_back(a.get());
+  std::sort(statuses.begin(), statuses.end());
+  return statuses;
+}
+
+bool running_with_steps(const Api& api, const std::string& id, std::uint64_t steps) {
+  const json run = api.run(id);
+  return run["state"] == "running" && run["step"].get<std::uint64_t>() > steps;
+}
+
+std::vector<std::string> csv_lines(const fs::path& file) {
+  std::ifstream in(file);
+  std::vector<std::string> lines;
+  for (std::string line; std::getline(in, line);) lines.push_back(line);
+  return lines;
+}
+
+// Finding 1: two or more POST /stop on one run hung the API for good (each duplicate joined the
+// same solver thread, blocking one I/O worker forever; SIGTERM then never exited).
+TEST(ServiceFaults, DuplicateStopsOfOneRunAllAnswer) {
+  TestServer server(scratch("double-stop") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", long_scene()}});
+  ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 20); }));
+  const std::vector<int> statuses =
+      concurrently(3, [&] { return api.post("/api/runs/" + id + "/stop"); });
+  EXPECT_EQ(statuses, (std::vector<int>{200, 409, 409})) << "0 means no answer within 30 s";
+  EXPECT_EQ(api.run(id)["state"], "stopped");
+  EXPECT_EQ(api.get("/api/health").status, 200);
+  // And the run can be resumed and stopped again (the thread was joined exactly once).
+  ASSERT_EQ(api.post("/api/runs/" + id + "/resume").status, 200);
+  ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 40); }));
+  EXPECT_EQ(concurrently(4, [&] { return api.post("/api/runs/" + id + "/stop"); }),
+            (std::vector<int>{200, 409, 409, 409}));
+}
+
+// Finding 2: two concurrent starts of a finished run (time.end raised) answered 500 "No such
+// process" or killed the server with std::system_error from a noexcept path.
+TEST(ServiceFaults, ConcurrentStartsOfAFinishedRunStartItOnce) {
+  TestServer server(scratch("double-start") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", tiny_scene(0.05, "short")}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  ASSERT_EQ(api.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 1e6}}}}).status, 200);
+  EXPECT_EQ(concurrently(4, [&] { return api.post("/api/runs/" + id + "/start"); }),
+            (std::vector<int>{200, 409, 409, 409}));
+  EXPECT_EQ(api.run(id)["state"], "running");
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > 0.05; }));
+  // Mixed: resume and start at once on a stopped run.
+  ASSERT_EQ(api.post("/api/runs/" + id + "/stop").status, 200);
+  const std::vector<int> mixed = concurrently(4, [&, k = std::make_shared<std::atomic<int>>(0)] {
+    return api.post("/api/runs/" + id + ((*k)++ % 2 ? "/start" : "/resume"));
+  });
+  EXPECT_EQ(mixed, (std::vector<int>{200, 409, 409, 409}));
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// Finding 2 (second part): stop and pause did not check that DELETE had retired the run, and
+// wrote run.json into a directory being deleted. A deleted run accepts nothing.
+TEST(ServiceFaults, NothingReachesARunOnceItIsDeleted) {
+  TestServer server(scratch("retired") / "data");
+  sphles::control::CreateRequest request;
+  request.scene = tiny_scene();
+  request.start = false;
+  const std::shared_ptr<sphles::control::Run> run = server.manager->create(request);
+  run->retire();  // the first half of DELETE: no transition or change from here on
+  for (const auto& action : std::vector<std::function<void()>>{
+           [&] { run->start(); }, [&] { run->stop(); }, [&] { run->pause(); },
+           [&] { run->resume(); }, [&] { run->mark_queued(); },
+           [&] {
+             run->apply_changes({{"time", {{"end", 5.0}}}});
+           }})
+    EXPECT_THROW(action(), sphles::control::StateError);
+  EXPECT_FALSE(run->start_if_queued());
+  run->reinstate();  // the deletion failed: the run is usable again
+  EXPECT_NO_THROW(run->stop());
+}
+
+// Finding 4: stop and SIGTERM could not interrupt a run's set-up; three stops during packing
+// blocked every worker (even /api/health timed out) and SIGTERM did not exit within 20 s.
+TEST(ServiceFaults, StopsDuringPackingAnswerAndTheRunCanStartAgain) {
+  TestServer server(scratch("packing-stop") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", endless_packing_scene()}});
+  std::this_thread::sleep_for(500ms);  // well inside the packing
+  ASSERT_EQ(api.run(id)["step"], 0u);
+  const std::vector<int> statuses =
+      concurrently(3, [&] { return api.post("/api/runs/" + id + "/stop"); });
+  EXPECT_EQ(statuses, (std::vector<int>{200, 409, 409})) << "0 means no answer within 30 s";
+  const json run = api.run(id);
+  EXPECT_EQ(run["state"], "stopped");
+  EXPECT_NE(run["reason"].get<std::string>().find("packing cancelled"), std::string::npos) << run;
+  EXPECT_EQ(api.get("/api/health").status, 200);
+  // Nothing was stepped, so it starts afresh (packing again), and stops again.
+  ASSERT_EQ(api.post("/api/runs/" + id + "/start").status, 200);
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(api.post("/api/runs/" + id + "/stop").status, 200);
+}
+
+TEST(ServiceFaults, SigtermDuringPackingExitsPromptly) {
+  const fs::path base = scratch("packing-sigterm");
+  ServeProcess serve({"--data", (base / "data").string(), "--threads", "1"}, base / "stderr.log");
+  const Api api{serve.port()};
+  const std::string id = api.create({{"scene", endless_packing_scene()}});
+  std::this_thread::sleep_for(500ms);
+  ASSERT_EQ(api.run(id)["state"], "running");
+  serve.signal(SIGTERM);
+  const std::optional<int> code = serve.wait_exit(20s);
+  ASSERT_TRUE(code.has_value()) << "sphles serve did not exit within 20 s of SIGTERM";
+  EXPECT_EQ(*code, 0);
+  std::ifstream record(base / "data" / "runs" / id / "run.json");
+  EXPECT_EQ(json::parse(record)["state"], "stopped");
+}
+
+// Finding 8: start on a finished run while the slot was busy answered "queued"; when the slot
+// freed, a run without checkpoints restarted from t = 0 and overwrote its time series.
+TEST(ServiceFaults, AFinishedRunQueuedBehindABusySlotContinuesWhereItEnded) {
+  TestServer server(scratch("queued-finished") / "data", "", /*max_running=*/1);
+  const Api api{server.port()};
+  const std::string done = api.create({{"scene", tiny_scene(0.1, "done")}});
+  ASSERT_TRUE(wait_until([&] { return api.run(done)["state"] == "finished"; }));
+  const fs::path series = server.data_directory / "runs" / done / "timeseries.csv";
+  const std::vector<std::string> before = csv_lines(series);
+  const std::uint64_t last_step = api.run(done)["step"];
+  ASSERT_GT(before.size(), 3u);
+
+  const std::string busy = api.create({{"scene", long_scene("busy")}});
+  ASSERT_EQ(api.run(busy)["state"], "running");
+  ASSERT_EQ(api.patch("/api/runs/" + done + "/parameters", {{"time", {{"end", 0.2}}}}).status, 200);
+  const Reply queued = api.post("/api/runs/" + done + "/start");
+  ASSERT_EQ(queued.status, 200) << queued.body;
+  EXPECT_EQ(queued.body_json()["state"], "queued");
+  ASSERT_EQ(api.post("/api/runs/" + busy + "/stop").status, 200);
+  ASSERT_TRUE(wait_until([&] { return api.run(done)["state"] == "finished"; }));
+  EXPECT_DOUBLE_EQ(api.run(done)["time"], 0.2);
+  const std::vector<std::string> after = csv_lines(series);
+  ASSERT_GT(after.size(), before.size());
+  for (std::size_t k = 0; k < before.size(); ++k)
+    ASSERT_EQ(after[k], before[k]) << "row " << k << " of the first segment was rewritten";
+  const std::string& next = after[before.size()];
+  EXPECT_GT(std::stoull(next.substr(next.find(',') + 1)), last_step) << next;
+}
+
+// Finding 8 (the refusal): a run that stepped but has no checkpoint (every run ends with one;
+// here it was deleted) cannot continue; it says so at once instead of starting again at t = 0
+// when a slot frees.
+TEST(ServiceFaults, ARunWithoutACheckpointRefusesToContinue) {
+  const fs::path dir = scratch("no-checkpoint") / "run";
+  sphles::control::Run run("r", sphles::control::parse_run_spec(tiny_scene(0.05)), dir);
+  ASSERT_EQ(run.run_here(), sphles::control::RunState::Finished);
+  ASSERT_EQ(sphles::io::list_checkpoints(dir / "checkpoints").size(), 1u);
+  fs::remove_all(dir / "checkpoints");
+  run.apply_changes({{"time", {{"end", 1.0}}}});
+  try {
+    run.start();
+    FAIL() << "a run without checkpoints started again";
+  } catch (const sphles::control::StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("no checkpoint to continue from"), std::string::npos)
+        << e.what();
+  }
+  EXPECT_THROW(run.mark_queued(), sphles::control::StateError);
+  EXPECT_EQ(run.status().state, sphles::control::RunState::Finished);
+}
+
+// Finding 9: a PATCH whose scene.json write failed answered 500 but kept the change in memory,
+// to be lost at the next restart. Writes fail here because a directory sits where the temporary
+// file goes (as root, permissions do not stop writes).
+TEST(ServiceFaults, AChangeThatCannotBeSavedIsNotMade) {
+  const fs::path data = scratch("unsaved-change") / "data";
+  std::string idle, live;
+  {
+    TestServer server(data);
+    const Api api{server.port()};
+    idle = api.create({{"scene", tiny_scene(1e6, "idle")}, {"start", false}});
+    live = api.create({{"scene", tiny_scene(1e6, "live")}});
+    for (const std::string& id : {idle, live}) {
+      const fs::path blocker = data / "runs" / id / "scene.json.tmp";
+      fs::create_directories(blocker / "x");
+      const Reply r = api.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 77.0}}}});
+      EXPECT_EQ(r.status, 500) << r.body;
+      EXPECT_NE(r.body.find("scene.json"), std::string::npos) << r.body;
+      EXPECT_DOUBLE_EQ(api.run(id)["end_time"], 1e6) << "a change that was not saved was made";
+      EXPECT_DOUBLE_EQ(api.run(id)["scene"]["time"]["end"], 1e6);
+      fs::remove_all(blocker);
+    }
+    std::this_thread::sleep_for(100ms);
+    EXPECT_DOUBLE_EQ(api.run(live)["end_time"], 1e6);
+    // Once the disk takes it again, the change is made and saved.
+    ASSERT_EQ(api.patch("/api/runs/" + idle + "/parameters", {{"time", {{"end", 55.0}}}}).status,
+              200);
+  }
+  TestServer again(data);
+  const Api api{again.port()};
+  EXPECT_DOUBLE_EQ(api.run(idle)["end_time"], 55.0);
+  EXPECT_DOUBLE_EQ(api.run(live)["end_time"], 1e6);
+}
+
+// Finding 11: opening a run rewrote its files, so a data directory that could not be written
+// listed no runs.
+TEST(ServiceFaults, RunsThatCannotBeWrittenAreStillListed) {
+  const fs::path data = scratch("unwritable") / "data";
+  std::string stopped, crashed;
+  {
+    TestServer server(data);
+    const Api api{server.port()};
+    stopped = api.create({{"scene", tiny_scene(1e6, "stopped")}, {"start", false}});
+    crashed = api.create({{"scene", tiny_scene(1e6, "crashed")}, {"start", false}});
+  }
+  // The second one looks like a run the process was running when it died: opening it must
+  // record it as stopped, and cannot.
+  {
+    const fs::path record = data / "runs" / crashed / "run.json";
+    std::ifstream in(record);
+    json j = json::parse(in);
+    in.close();
+    j["state"] = "running";
+    std::ofstream(record) << j.dump(2);
+  }
+  for (const std::string& id : {stopped, crashed})
+    for (const char* file : {"run.json.tmp", "scene.json.tmp"})
+      fs::create_directories(data / "runs" / id / file / "x");
+  TestServer server(data);
+  const Api api{server.port()};
+  const json runs = api.get("/api/runs").body_json();
+  ASSERT_EQ(runs.size(), 2u) << runs;
+  EXPECT_EQ(api.run(stopped)["state"], "created");
+  EXPECT_EQ(api.run(crashed)["state"], "stopped");
+  // They still run (their other files can be written); run.json catches up when it can.
+  ASSERT_EQ(api.post("/api/runs/" + crashed + "/start").status, 200);
+  ASSERT_TRUE(wait_until([&] { return running_with_steps(api, crashed, 20); }));
+  ASSERT_EQ(api.post("/api/runs/" + crashed + "/stop").status, 200);
+  EXPECT_EQ(api.run(crashed)["state"], "stopped");
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// Finding 11: deleting the run directory during a run went unnoticed (the time series went on
+// into an unlinked file).
+TEST(ServiceFaults, DeletingTheRunDirectoryFailsTheRunSayingWhy) {
+  TestServer server(scratch("vanished") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", long_scene()}});
+  ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 20); }));
+  fs::remove_all(server.data_directory / "runs" / id);
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "failed"; }, 20s));
+  const std::string reason = api.run(id)["reason"];
+  EXPECT_NE(reason.find("was deleted or replaced"), std::string::npos) << reason;
+  EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// Finding 11: after a crash runs were listed at time 0 although checkpoints existed at later
+// times. run.json now follows the checkpoints.
+TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
+  const fs::path base = scratch("crash");
+  const fs::path data = base / "data";
+  std::string id;
+  {
+    ServeProcess serve({"--data", data.string(), "--threads", "1"}, base / "stderr.log");
+    const Api api{serve.port()};
+    json scene = long_scene("crashing");
+    scene["checkpoint"] = {{"every", 0.05}};
+    id = api.create({{"scene", scene}});
+    ASSERT_TRUE(wait_until([&] {
+      return sphles::io::list_checkpoints(data / "runs" / id / "checkpoints").size() >= 3;
+    }));
+    serve.signal(SIGKILL);
+    ASSERT_TRUE(serve.wait_exit(10s).has_value());
+  }
+  const fs::path newest = sphles::io::newest_valid_checkpoint(data / "runs" / id / "checkpoints");
+  const sphles::io::Checkpoint c = sphles::io::read_checkpoint(newest);
+  TestServer server(data);
+  const Api api{server.port()};
+  const json run = api.run(id);
+  EXPECT_EQ(run["state"], "stopped");
+  EXPECT_GT(c.state.time, 0.0);
+  // The newest checkpoint, or (if the kill fell between the file's rename and run.json) the one
+  // before it: never time 0.
+  EXPECT_GE(run["time"].get<double>(), c.state.time - 0.05 - 1e-9) << run;
+  EXPECT_LE(run["time"].get<double>(), c.state.time + 1e-12) << run;
+  ASSERT_EQ(api.post("/api/runs/" + id + "/resume").status, 200);
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > c.state.time; }));
+}
+
+// Finding 12: `sphles run --restart CKPT --set particles_per_side=48` exited 0 and continued the
+// stored particles under an inconsistent scene. A restart accepts what a live change accepts and
+// refuses the rest with the same message.
+TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
+  const fs::path base = scratch("restart-set");
+  json scene = tiny_scene(0.05, "restartable");
+  scene["checkpoint"] = {{"every", 0.05}};
+  std::ofstream(base / "scene.json") << scene.dump();
+  const fs::path out = base / "out";
+  ProcessResult first = run_sphles({"run", "scene.json", "--out", out.string()}, base);
+  ASSERT_EQ(first.code, 0) << first.err;
+
+  TestServer server(scratch("restart-set-live") / "data");
+  const Api api{server.port()};
+  const std::string live = api.create({{"scene", scene}, {"start", false}});
+  const std::vector<std::pair<std::string, json>> refused = {
+      {"particles_per_side=48", {{"particles_per_side", 48}}},
+      {"case=kolmogorov2d", {{"case", "kolmogorov2d"}}},
+      {"kernel.type=quintic_spline", {{"kernel", {{"type", "quintic_spline"}}}}},
+      {"fluid.sound_speed=20", {{"fluid", {{"sound_speed", 20}}}}},
+      {"subfilter.model=smagorinsky", {{"subfilter", {{"model", "smagorinsky"}}}}}};
+  for (const auto& [assignment, patch] : refused) {
+    const Reply change = api.patch("/api/runs/" + live + "/parameters", patch);
+    ASSERT_EQ(change.status, 400) << change.body;
+    const std::string message = change.body_json()["error"]["message"];
+    const ProcessResult r = run_sphles(
+        {"run", "--restart", out.string(), "--set", assignment, "--set", "time.end=0.1"}, base);
+    EXPECT_EQ(r.code, 2) << assignment << ": " << r.err;
+    EXPECT_NE(r.err.find(message), std::string::npos)
+        << assignment << ": expected the live-change message '" << message << "' in: " << r.err;
+  }
+  // What a live change may change, a restart may too.
+  const ProcessResult ok = run_sphles({"run", "--restart", out.string(), "--set", "time.end=0.1",
+                                       "--set", "fluid.dynamic_viscosity=0.02"},
+                                      base);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  std::ifstream record(out / "run.json");
+  EXPECT_DOUBLE_EQ(json::parse(record)["time"].get<double>(), 0.1);
+}
+
+// Finding 13: a scene's packing.cache_dir made the server create directories and write files
+// wherever it could; in the command line a scene name of ../../x wrote outside runs/.
+TEST(ServiceFaults, ClientsChooseNoPaths) {
+  TestServer server(scratch("paths") / "data");
+  const Api api{server.port()};
+  json scene = tiny_scene(0.05);
+  scene["packing"] = {{"cache_dir", (server.data_directory / "elsewhere").string()}};
+  expect_error(api.post("/api/runs", {{"scene", scene}}), 400, "packing.cache_dir");
+  EXPECT_FALSE(fs::exists(server.data_directory / "elsewhere"));
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u);
+
+  const fs::path base = scratch("cli-name");
+  fs::create_directories(base / "deep" / "work");
+  json named = tiny_scene(0.02, "../../escaped");
+  std::ofstream(base / "deep" / "work" / "scene.json") << named.dump();
+  const ProcessResult r = run_sphles({"run", "scene.json"}, base / "deep" / "work");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_FALSE(fs::exists(base / "escaped"));
+  EXPECT_FALSE(fs::exists(base / "deep" / "escaped"));
+  std::size_t inside = 0;
+  for (const auto& entry : fs::directory_iterator(base / "deep" / "work" / "runs")) {
+    EXPECT_TRUE(fs::exists(entry.path() / "timeseries.csv")) << entry.path();
+    ++inside;
+  }
+  EXPECT_EQ(inside, 1u);
+}
+
+// Finding 13: the packing cache is the program's setting.
+TEST(ServiceFaults, ThePackingCacheIsTheServersSetting) {
+  const fs::path base = scratch("packing-cache");
+  const fs::path cache = base / "cache";
+  ServeProcess serve(
+      {"--data", (base / "data").string(), "--threads", "1", "--packing-cache", cache.string()},
+      base / "stderr.log");
+  const Api api{serve.port()};
+  json scene = tiny_scene(0.02, "packed");
+  scene["packing"] = {{"enabled", true}};
+  const std::string id = api.create({{"scene", scene}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  ASSERT_TRUE(fs::is_directory(cache));
+  EXPECT_FALSE(fs::is_empty(cache));
+  serve.signal(SIGTERM);
+  EXPECT_EQ(serve.wait_exit(20s), std::optional<int>(0));
+}
+
+}  // namespace
