@@ -1,8 +1,6 @@
 #include "io/checkpoint.hpp"
 
-#include <fcntl.h>
 #include <hdf5.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
@@ -12,87 +10,69 @@
 #include <mutex>
 #include <sstream>
 
+#include "io/hdf5_file.hpp"
+
 namespace sphles::io {
 
 namespace {
 
-/// Owns an HDF5 identifier and closes it with the matching function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-/// HDF5 prints its own error stack by default; sphles reports errors itself.
-void silence_hdf5() {
-  static std::once_flag once;
-  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
-}
+using detail::Handle;
 
 const char* kAxis[] = {"x", "y", "z"};
 
 // --- writing ---------------------------------------------------------------------------
 
 void write_string_attribute(hid_t object, const char* name, const std::string& value,
-                            const std::string& file) {
-  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1));
-  H5Tset_strpad(type.get(), H5T_STR_NULLPAD);
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                   H5Aclose);
+                            const std::string& label) {
+  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!type.valid() || !space.valid() ||
+      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0 ||
+      H5Tset_strpad(type.get(), H5T_STR_NULLPAD) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
+  const Handle attribute(
+      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
   const std::string padded = value.empty() ? std::string(1, '\0') : value;
   if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
-    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 template <class T>
 void write_scalar_attribute(hid_t object, const char* name, hid_t type, T value,
-                            const std::string& file) {
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+                            const std::string& label) {
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  const Handle attribute(
+      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
+      H5Aclose);
   if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
-    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
-                   const CheckpointWriteOptions& options, const std::string& file) {
+                   const CheckpointWriteOptions& options, const std::string& label) {
+  const auto failed = [&] {
+    return CheckpointError(label + ": cannot write dataset 'particles/" + name + "'");
+  };
   const hsize_t size = data.size();
-  Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
-  Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  const Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
+  const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!space.valid() || !properties.valid()) throw failed();
   if (size > 0) {
     const hsize_t chunk = std::min<hsize_t>(size, hsize_t{1} << 16);
-    H5Pset_chunk(properties.get(), 1, &chunk);
-    H5Pset_fletcher32(properties.get());
-    if (options.gzip_level > 0) {
-      H5Pset_shuffle(properties.get());
-      H5Pset_deflate(properties.get(), static_cast<unsigned>(options.gzip_level));
-    }
+    if (H5Pset_chunk(properties.get(), 1, &chunk) < 0 || H5Pset_fletcher32(properties.get()) < 0)
+      throw failed();
+    if (options.gzip_level > 0 &&
+        (H5Pset_shuffle(properties.get()) < 0 ||
+         H5Pset_deflate(properties.get(), static_cast<unsigned>(options.gzip_level)) < 0))
+      throw failed();
   }
-  Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(),
-                            H5P_DEFAULT),
-                 H5Dclose);
+  const Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT,
+                                  properties.get(), H5P_DEFAULT),
+                       H5Dclose);
   if (!dataset.valid() ||
       (size > 0 && H5Dwrite(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0))
-    throw CheckpointError("checkpoint '" + file + "': cannot write dataset '" + name + "'");
-}
-
-void fsync_path(const std::filesystem::path& path, bool directory) {
-  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
+    throw failed();
 }
 
 // --- reading ---------------------------------------------------------------------------
@@ -100,8 +80,8 @@ void fsync_path(const std::filesystem::path& path, bool directory) {
 std::string read_string_attribute(hid_t object, const char* name, const std::string& file) {
   if (H5Aexists(object, name) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
-  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
-  Handle type(H5Aget_type(attribute.get()), H5Tclose);
+  const Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  const Handle type(H5Aget_type(attribute.get()), H5Tclose);
   if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) > 0)
     throw CheckpointError("checkpoint '" + file + "': attribute '" + name + "' is not a string");
   const std::size_t size = H5Tget_size(type.get());
@@ -116,7 +96,7 @@ template <class T>
 T read_scalar_attribute(hid_t object, const char* name, hid_t type, const std::string& file) {
   if (H5Aexists(object, name) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
-  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  const Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
   T value{};
   if (H5Aread(attribute.get(), type, &value) < 0)
     throw CheckpointError("checkpoint '" + file + "': cannot read attribute '" + name + "'");
@@ -128,8 +108,8 @@ std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, st
                             const std::string& file) {
   if (H5Lexists(group, name.c_str(), H5P_DEFAULT) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing dataset 'particles/" + name + "'");
-  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
-  Handle space(H5Dget_space(dataset.get()), H5Sclose);
+  const Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
+  const Handle space(H5Dget_space(dataset.get()), H5Sclose);
   if (H5Sget_simple_extent_ndims(space.get()) != 1)
     throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
                           "' is not one-dimensional");
@@ -171,72 +151,61 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
                       const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
   if (options.gzip_level < 0 || options.gzip_level > 9)
     throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
-  const std::lock_guard lock(hdf5_library_mutex());
-  silence_hdf5();
-  const std::string file = path.string();
-  const std::filesystem::path temporary =
-      path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+  const std::string label = "checkpoint '" + path.string() + "'";
   const sim::ParticleArrays& p = state.particles;
   const int dim = p.dimension;
-  try {
+  detail::FileImage image;
+  {
+    const std::lock_guard lock(hdf5_library_mutex());
+    detail::MemoryFile h5(path, label);
+    const hid_t root = h5.get();
+    write_string_attribute(root, "schema", kCheckpointSchema, label);
+    write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion, label);
+    write_string_attribute(root, "code_version", metadata.code_version, label);
+    write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, label);
+    write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
+                           static_cast<std::uint64_t>(p.size()), label);
+    write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, label);
+    write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, label);
+    write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
+                           label);
+    write_string_attribute(root, "scene", metadata.scene_json, label);
+    write_string_attribute(root, "packing", metadata.packing, label);
+    write_string_attribute(root, "units",
+                           "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
+                           "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
+                           label);
     {
-      Handle h5(H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-      if (!h5.valid())
-        throw CheckpointError("checkpoint: cannot create '" + temporary.string() + "'");
-      const hid_t root = h5.get();
-      write_string_attribute(root, "schema", kCheckpointSchema, file);
-      write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion,
-                             file);
-      write_string_attribute(root, "code_version", metadata.code_version, file);
-      write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, file);
-      write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
-                             static_cast<std::uint64_t>(p.size()), file);
-      write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, file);
-      write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, file);
-      write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
-                             file);
-      write_string_attribute(root, "scene", metadata.scene_json, file);
-      write_string_attribute(root, "packing", metadata.packing, file);
-      write_string_attribute(root, "units",
-                             "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
-                             "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
-                             file);
-      Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
+      const Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                         H5Gclose);
+      if (!group.valid()) throw CheckpointError(label + ": cannot create group 'particles'");
+      const hid_t g = group.get();
       for (int d = 0; d < dim; ++d) {
         const std::string axis = kAxis[d];
-        write_dataset(group.get(), "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options,
-                      file);
-        write_dataset(group.get(), "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options,
-                      file);
-        write_dataset(group.get(), "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d],
-                      options, file);
-        write_dataset(group.get(), "list_reference_" + axis, H5T_NATIVE_DOUBLE,
-                      state.list_reference_positions[d], options, file);
+        write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options, label);
+        write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options, label);
+        write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], options,
+                      label);
+        write_dataset(g, "list_reference_" + axis, H5T_NATIVE_DOUBLE,
+                      state.list_reference_positions[d], options, label);
       }
-      write_dataset(group.get(), "mass", H5T_NATIVE_DOUBLE, p.mass, options, file);
-      write_dataset(group.get(), "volume", H5T_NATIVE_DOUBLE, p.volume, options, file);
-      write_dataset(group.get(), "density", H5T_NATIVE_DOUBLE, p.density, options, file);
-      write_dataset(group.get(), "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, file);
-      write_dataset(group.get(), "id", H5T_NATIVE_UINT64, p.id, options, file);
+      write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, options, label);
+      write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, options, label);
+      write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, options, label);
+      write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, label);
+      write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, options, label);
       if (!p.eddy_viscosity.empty())
-        write_dataset(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options,
-                      file);
-      if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0)
-        throw CheckpointError("checkpoint: cannot flush '" + temporary.string() + "'");
+        write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options, label);
     }
-    fsync_path(temporary, false);
-    std::filesystem::rename(temporary, path);
-    fsync_path(path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path(), true);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(temporary, ec);
-    throw;
+    image = h5.finish();
   }
+  // The disk write needs no HDF5 call, so it runs outside the library lock.
+  detail::write_file_atomically(path, image, label);
 }
 
 Checkpoint read_checkpoint(const std::filesystem::path& path) {
   const std::lock_guard lock(hdf5_library_mutex());
-  silence_hdf5();
+  detail::silence_hdf5();
   const std::string file = path.string();
   if (!std::filesystem::exists(path))
     throw CheckpointError("checkpoint '" + file + "': file does not exist");

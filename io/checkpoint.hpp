@@ -38,9 +38,11 @@ struct CheckpointWriteOptions {
   int gzip_level = 0;  // 0 = no compression; 1-9 = gzip with byte shuffle
 };
 
-/// Writes `path` atomically: a temporary file in the same directory, flushed and fsync'ed, then
-/// renamed over `path`. A crash at any point leaves either the old file or the new complete one.
-/// Datasets carry Fletcher-32 checksums. Throws CheckpointError.
+/// Writes `path` atomically: the file is assembled in memory, written to a temporary file in the
+/// same directory, fsync'ed, then renamed over `path`. A crash at any point leaves either the old
+/// file or the new complete one. A failed write (full disk, file-size limit, unwritable
+/// directory) throws CheckpointError naming the file and the reason, removes the temporary,
+/// leaves `path` as it was and leaves no HDF5 object open. Datasets carry Fletcher-32 checksums.
 void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
                       const CheckpointMetadata& metadata,
                       const CheckpointWriteOptions& options = {});
