@@ -3,14 +3,19 @@
 #include <hdf5.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
+#include <tuple>
 
 #include "io/hdf5_file.hpp"
+#include "sim/scene.hpp"
 
 namespace sphles::io {
 
@@ -126,12 +131,241 @@ std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, st
   return data;
 }
 
+// --- content validation ----------------------------------------------------------------
+
+/// Shortest text that reads back as the same double (1e+300, -1, 6.283185307179586).
+std::string number(double value) {
+  char text[32];
+  const auto result = std::to_chars(text, text + sizeof text, value);
+  return std::string(text, result.ptr);
+}
+
 void require_finite(const std::vector<double>& values, const std::string& name,
                     const std::string& file) {
   for (std::size_t i = 0; i < values.size(); ++i)
     if (!std::isfinite(values[i]))
       throw CheckpointError("checkpoint '" + file + "': non-finite value in 'particles/" + name +
                             "' at index " + std::to_string(i));
+}
+
+void require_positive(const std::vector<double>& values, const std::string& name,
+                      const std::string& file) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!(values[i] > 0.0))
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
+                            "' has a non-positive value " + number(values[i]) + " at index " +
+                            std::to_string(i));
+}
+
+/// Positions are wrapped into [0, L) after every drift (sim::wrap_periodic).
+void require_inside_box(const std::vector<double>& values, const std::string& name, double length,
+                        const std::string& file) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!(values[i] >= 0.0 && values[i] < length))
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name + "' has " +
+                            number(values[i]) + " at index " + std::to_string(i) +
+                            ", outside the periodic box [0, " + number(length) + ") m");
+}
+
+/// Particle ids are a permutation of 0..N-1 (sim::make_lattice numbers them; the solver only
+/// reorders). One pass; a second one only to name the first copy of a duplicate.
+void require_permutation(const std::vector<std::uint64_t>& ids, const std::string& file) {
+  const std::size_t n = ids.size();
+  std::vector<char> seen(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t id = ids[i];
+    if (id >= n)
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/id' has " +
+                            std::to_string(id) + " at index " + std::to_string(i) +
+                            ", outside 0.." + std::to_string(n - 1) +
+                            " (ids are a permutation of 0..N-1)");
+    if (seen[id]) {
+      const auto first =
+          static_cast<std::size_t>(std::find(ids.begin(), ids.end(), id) - ids.begin());
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/id' repeats " +
+                            std::to_string(id) + " at index " + std::to_string(i) +
+                            " (first at index " + std::to_string(first) +
+                            "; ids are a permutation of 0..N-1)");
+    }
+    seen[id] = 1;
+  }
+}
+
+/// The stored run configuration: a JSON object.
+nlohmann::json parse_scene_attribute(const std::string& text, const std::string& file) {
+  nlohmann::json scene;
+  try {
+    scene = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw CheckpointError("checkpoint '" + file + "': attribute 'scene' is not JSON (byte " +
+                          std::to_string(e.byte) + " of " + std::to_string(text.size()) +
+                          "): " + e.what());
+  }
+  if (!scene.is_object())
+    throw CheckpointError("checkpoint '" + file +
+                          "': attribute 'scene' is JSON but not an object (" +
+                          std::string(scene.type_name()) + ")");
+  return scene;
+}
+
+/// What the stored scene says about the particle set: box, dimension, particle count.
+struct SceneGeometry {
+  std::optional<sim::Scene> scene;  // set when the scene names a case this sphles knows
+  std::string unknown;              // otherwise why not
+};
+
+bool is_known_preset(const nlohmann::json& value) {
+  if (!value.is_string()) return false;
+  const auto presets = sim::preset_names();
+  return std::find(presets.begin(), presets.end(), value.get<std::string>()) != presets.end();
+}
+
+/// The geometry keys of the scene (case or preset, particles_per_side, box_length) resolved by
+/// sim::parse_scene, which owns their defaults and limits. A scene that names no case this
+/// sphles knows (not one sphles wrote) determines nothing; one that names a known case must
+/// determine the box, or the file is rejected.
+SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& file) {
+  SceneGeometry g;
+  const auto case_it = scene.find("case");
+  const auto preset_it = scene.find("preset");
+  if (case_it != scene.end()) {
+    bool known = false;
+    if (case_it->is_string()) {
+      try {
+        sim::parse_scene({{"case", *case_it}});
+        known = true;
+      } catch (const sim::SceneError&) {
+      }
+    }
+    if (!known) {
+      g.unknown = "the scene's 'case' " + case_it->dump() + " is not a known case";
+      return g;
+    }
+  } else if (preset_it == scene.end()) {
+    g.unknown = "the scene names no case";
+    return g;
+  } else if (!is_known_preset(*preset_it)) {
+    g.unknown = "the scene's 'preset' " + preset_it->dump() + " is not a known preset";
+    return g;
+  }
+  nlohmann::json geometry = nlohmann::json::object();
+  for (const char* key : {"case", "particles_per_side", "box_length"})
+    if (const auto it = scene.find(key); it != scene.end()) geometry[key] = *it;
+  // A preset supplies the defaults the explicit keys override; one this sphles no longer has
+  // must not hide an explicit case.
+  if (preset_it != scene.end() && is_known_preset(*preset_it)) geometry["preset"] = *preset_it;
+  try {
+    g.scene = sim::parse_scene(geometry);
+  } catch (const sim::SceneError& e) {
+    throw CheckpointError("checkpoint '" + file +
+                          "': attribute 'scene' does not determine the periodic box: " + e.what());
+  }
+  return g;
+}
+
+Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* geometry_out) {
+  const std::string file = path.string();
+  if (!std::filesystem::exists(path))
+    throw CheckpointError("checkpoint '" + file + "': file does not exist");
+  const std::lock_guard lock(hdf5_library_mutex());
+  detail::silence_hdf5();
+  if (H5Fis_hdf5(file.c_str()) <= 0)
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  const Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (!h5.valid())
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  const hid_t root = h5.get();
+  const std::string schema = read_string_attribute(root, "schema", file);
+  if (schema != kCheckpointSchema)
+    throw CheckpointError("checkpoint '" + file + "': wrong schema '" + schema + "' (expected '" +
+                          kCheckpointSchema + "')");
+  const int version = read_scalar_attribute<int>(root, "schema_version", H5T_NATIVE_INT, file);
+  if (version != kCheckpointSchemaVersion)
+    throw CheckpointError("checkpoint '" + file + "': schema version " + std::to_string(version) +
+                          " is not supported (this sphles reads version " +
+                          std::to_string(kCheckpointSchemaVersion) + ")");
+  const int dim = read_scalar_attribute<int>(root, "dimension", H5T_NATIVE_INT, file);
+  if (dim != 2 && dim != 3)
+    throw CheckpointError("checkpoint '" + file + "': dimension " + std::to_string(dim) +
+                          " (expected 2 or 3)");
+  const auto count =
+      read_scalar_attribute<std::uint64_t>(root, "num_particles", H5T_NATIVE_UINT64, file);
+  Checkpoint c;
+  c.state.time = read_scalar_attribute<double>(root, "time", H5T_NATIVE_DOUBLE, file);
+  c.state.step = read_scalar_attribute<std::uint64_t>(root, "step", H5T_NATIVE_UINT64, file);
+  c.state.neighbour_builds =
+      read_scalar_attribute<std::uint64_t>(root, "neighbour_builds", H5T_NATIVE_UINT64, file);
+  if (!std::isfinite(c.state.time))
+    throw CheckpointError("checkpoint '" + file + "': non-finite time");
+  if (c.state.time < 0.0)
+    throw CheckpointError("checkpoint '" + file + "': attribute 'time' is " + number(c.state.time) +
+                          " (must be >= 0)");
+  if (c.state.step > 0 && !(c.state.time > 0.0))
+    throw CheckpointError("checkpoint '" + file + "': attribute 'step' is " +
+                          std::to_string(c.state.step) +
+                          " but 'time' is 0 (every step advances the time)");
+  // The Verlet list is built once when the solver starts and at most once per step.
+  if (c.state.neighbour_builds < 1 || c.state.neighbour_builds - 1 > c.state.step)
+    throw CheckpointError("checkpoint '" + file + "': attribute 'neighbour_builds' is " +
+                          std::to_string(c.state.neighbour_builds) +
+                          ", expected 1 to step + 1 = " + std::to_string(c.state.step + 1) +
+                          " (one build at the start, at most one per step)");
+  c.metadata.scene_json = read_string_attribute(root, "scene", file);
+  c.metadata.code_version = read_string_attribute(root, "code_version", file);
+  c.metadata.packing = read_string_attribute(root, "packing", file);
+  const SceneGeometry geometry =
+      scene_geometry(parse_scene_attribute(c.metadata.scene_json, file), file);
+  if (geometry.scene) {
+    const sim::Scene& s = *geometry.scene;
+    if (s.dimension() != dim)
+      throw CheckpointError("checkpoint '" + file + "': attribute 'dimension' is " +
+                            std::to_string(dim) + " but the scene's case '" +
+                            std::string(sim::case_name(s.case_type)) + "' is " +
+                            std::to_string(s.dimension()) + "D");
+    if (s.num_particles() != count)
+      throw CheckpointError(
+          "checkpoint '" + file + "': attribute 'num_particles' is " + std::to_string(count) +
+          " but the scene has " + std::to_string(s.num_particles()) + " (particles_per_side " +
+          std::to_string(s.particles_per_side) + " in " + std::to_string(dim) + "D)");
+  }
+  if (H5Lexists(root, "particles", H5P_DEFAULT) <= 0)
+    throw CheckpointError("checkpoint '" + file + "': missing group 'particles'");
+  const Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
+  sim::ParticleArrays& p = c.state.particles;
+  p.dimension = dim;
+  const auto n = static_cast<std::size_t>(count);
+  const auto read = [&](const std::string& name) {
+    auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
+    require_finite(values, name, file);
+    return values;
+  };
+  for (int d = 0; d < dim; ++d) {
+    const std::string axis = kAxis[d];
+    p.position[d] = read("position_" + axis);
+    p.velocity[d] = read("velocity_" + axis);
+    p.acceleration[d] = read("acceleration_" + axis);
+    c.state.list_reference_positions[d] = read("list_reference_" + axis);
+    if (geometry.scene) {
+      const double length = geometry.scene->box_length();
+      require_inside_box(p.position[d], "position_" + axis, length, file);
+      require_inside_box(c.state.list_reference_positions[d], "list_reference_" + axis, length,
+                         file);
+    }
+  }
+  for (auto [name, target, positive] :
+       {std::tuple{"mass", &p.mass, true}, std::tuple{"volume", &p.volume, true},
+        std::tuple{"density", &p.density, true}, std::tuple{"pressure", &p.pressure, false}}) {
+    *target = read(name);
+    if (positive) require_positive(*target, name, file);
+  }
+  p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, file);
+  require_permutation(p.id, file);
+  if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0)
+    p.eddy_viscosity = read("eddy_viscosity");
+  if (geometry_out) *geometry_out = geometry;
+  return c;
 }
 
 }  // namespace
@@ -204,75 +438,7 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
 }
 
 Checkpoint read_checkpoint(const std::filesystem::path& path) {
-  const std::lock_guard lock(hdf5_library_mutex());
-  detail::silence_hdf5();
-  const std::string file = path.string();
-  if (!std::filesystem::exists(path))
-    throw CheckpointError("checkpoint '" + file + "': file does not exist");
-  if (H5Fis_hdf5(file.c_str()) <= 0)
-    throw CheckpointError("checkpoint '" + file +
-                          "': not a readable HDF5 file (truncated or corrupted)");
-  Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!h5.valid())
-    throw CheckpointError("checkpoint '" + file +
-                          "': not a readable HDF5 file (truncated or corrupted)");
-  const hid_t root = h5.get();
-  const std::string schema = read_string_attribute(root, "schema", file);
-  if (schema != kCheckpointSchema)
-    throw CheckpointError("checkpoint '" + file + "': wrong schema '" + schema + "' (expected '" +
-                          kCheckpointSchema + "')");
-  const int version = read_scalar_attribute<int>(root, "schema_version", H5T_NATIVE_INT, file);
-  if (version != kCheckpointSchemaVersion)
-    throw CheckpointError("checkpoint '" + file + "': schema version " + std::to_string(version) +
-                          " is not supported (this sphles reads version " +
-                          std::to_string(kCheckpointSchemaVersion) + ")");
-  const int dim = read_scalar_attribute<int>(root, "dimension", H5T_NATIVE_INT, file);
-  if (dim != 2 && dim != 3)
-    throw CheckpointError("checkpoint '" + file + "': dimension " + std::to_string(dim) +
-                          " (expected 2 or 3)");
-  const auto count =
-      read_scalar_attribute<std::uint64_t>(root, "num_particles", H5T_NATIVE_UINT64, file);
-  Checkpoint c;
-  c.state.time = read_scalar_attribute<double>(root, "time", H5T_NATIVE_DOUBLE, file);
-  c.state.step = read_scalar_attribute<std::uint64_t>(root, "step", H5T_NATIVE_UINT64, file);
-  c.state.neighbour_builds =
-      read_scalar_attribute<std::uint64_t>(root, "neighbour_builds", H5T_NATIVE_UINT64, file);
-  if (!std::isfinite(c.state.time))
-    throw CheckpointError("checkpoint '" + file + "': non-finite time");
-  c.metadata.scene_json = read_string_attribute(root, "scene", file);
-  c.metadata.code_version = read_string_attribute(root, "code_version", file);
-  c.metadata.packing = read_string_attribute(root, "packing", file);
-  if (H5Lexists(root, "particles", H5P_DEFAULT) <= 0)
-    throw CheckpointError("checkpoint '" + file + "': missing group 'particles'");
-  Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
-  sim::ParticleArrays& p = c.state.particles;
-  p.dimension = dim;
-  const auto n = static_cast<std::size_t>(count);
-  for (int d = 0; d < dim; ++d) {
-    const std::string axis = kAxis[d];
-    const auto read = [&](const std::string& name) {
-      auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
-      require_finite(values, name, file);
-      return values;
-    };
-    p.position[d] = read("position_" + axis);
-    p.velocity[d] = read("velocity_" + axis);
-    p.acceleration[d] = read("acceleration_" + axis);
-    c.state.list_reference_positions[d] = read("list_reference_" + axis);
-  }
-  for (auto [name, target] :
-       {std::pair{"mass", &p.mass}, std::pair{"volume", &p.volume},
-        std::pair{"density", &p.density}, std::pair{"pressure", &p.pressure}}) {
-    *target = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
-    require_finite(*target, name, file);
-  }
-  p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, file);
-  if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0) {
-    p.eddy_viscosity =
-        read_dataset<double>(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, n, file);
-    require_finite(p.eddy_viscosity, "eddy_viscosity", file);
-  }
-  return c;
+  return read_and_validate(path, nullptr);
 }
 
 std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory) {
@@ -304,7 +470,8 @@ std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& direc
 }
 
 std::string describe_checkpoint(const std::filesystem::path& path) {
-  const Checkpoint c = read_checkpoint(path);
+  SceneGeometry geometry;
+  const Checkpoint c = read_and_validate(path, &geometry);
   const sim::ParticleArrays& p = c.state.particles;
   std::ostringstream out;
   out.precision(17);
@@ -319,7 +486,14 @@ std::string describe_checkpoint(const std::filesystem::path& path) {
       << "step:             " << c.state.step << "\n"
       << "neighbour builds: " << c.state.neighbour_builds << "\n"
       << "packing:          " << c.metadata.packing << "\n"
-      << "datasets:         particles/{position,velocity,acceleration,list_reference}_{"
+      << "periodic box:     ";
+  if (geometry.scene)
+    out << "L = " << number(geometry.scene->box_length()) << " m (case "
+        << sim::case_name(geometry.scene->case_type) << ", " << geometry.scene->particles_per_side
+        << "^" << p.dimension << " particles); positions checked against it\n";
+  else
+    out << "not determined (" << geometry.unknown << "); positions checked for finiteness only\n";
+  out << "datasets:         particles/{position,velocity,acceleration,list_reference}_{"
       << (p.dimension == 3 ? "x,y,z" : "x,y") << "}, mass, volume, density, pressure, id"
       << (p.eddy_viscosity.empty() ? "" : ", eddy_viscosity") << " (" << p.size()
       << " entries each)\n";

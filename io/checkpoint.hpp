@@ -47,8 +47,13 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
                       const CheckpointMetadata& metadata,
                       const CheckpointWriteOptions& options = {});
 
-/// Reads and validates: existence, HDF5 readability, schema name and version, dimension,
-/// particle count and array lengths, checksums, finiteness. Throws CheckpointError.
+/// Reads and validates. Structure: existence, HDF5 readability, schema name and version,
+/// dimension, particle count and array lengths, checksums. Content: the `scene` attribute is a
+/// JSON object; time finite and >= 0; step and neighbour_builds consistent with it; every value
+/// finite; when the scene names a case this sphles knows, dimension and particle count match it
+/// and positions lie in its periodic box [0, L); mass, volume and density > 0; ids a permutation
+/// of 0..N-1. Linear in the particle count. Throws CheckpointError naming the file, the attribute
+/// or dataset and the reason.
 Checkpoint read_checkpoint(const std::filesystem::path& path);
 
 /// Checkpoint files of a run directory (checkpoints/ckpt_*.h5), newest step first.

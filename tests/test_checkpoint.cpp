@@ -1,5 +1,5 @@
-// HDF5 checkpoints: exact round trip, bitwise restart, rejection of damaged files, failed
-// writes (file-size limit, unwritable directory, HDF5 errors) that leave nothing
+// HDF5 checkpoints: exact round trip, bitwise restart, rejection of damaged and implausible
+// files, failed writes (file-size limit, unwritable directory, HDF5 errors) that leave nothing
 // open and nothing half-written, and crash safety of the atomic write under SIGKILL of a real
 // sphles process; `sphles run`, `serve` and `inspect` are run as real processes.
 #include <fcntl.h>
@@ -648,5 +648,152 @@ TEST_F(CheckpointTest, ServeExitsCleanlyOnSigtermAfterAFailedCheckpointWrite) {
   EXPECT_EQ(err.find("infinite loop closing library"), std::string::npos) << err;
 }
 
+// --- implausible content ----------------------------------------------------------------------
+
+/// Replaces a fixed-length string attribute (the writer's layout) with `value`.
+void replace_string_attribute(const std::filesystem::path& file, const char* name,
+                              const std::string& value) {
+  const hid_t h5 = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(h5, 0);
+  ASSERT_GE(H5Adelete(h5, name), 0);
+  const hid_t type = H5Tcopy(H5T_C_S1);
+  H5Tset_size(type, value.size());
+  H5Tset_strpad(type, H5T_STR_NULLPAD);
+  const hid_t space = H5Screate(H5S_SCALAR);
+  const hid_t attribute = H5Acreate2(h5, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
+  ASSERT_GE(attribute, 0);
+  ASSERT_GE(H5Awrite(attribute, type, value.data()), 0);
+  H5Aclose(attribute);
+  H5Sclose(space);
+  H5Tclose(type);
+  H5Fclose(h5);
+}
+
+/// Overwrites one element of a particle dataset in place (its checksum is recomputed).
+template <class T>
+void overwrite_element(const std::filesystem::path& file, const std::string& dataset, hsize_t index,
+                       hid_t type, T value) {
+  const hid_t h5 = H5Fopen(file.c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+  ASSERT_GE(h5, 0);
+  const hid_t set = H5Dopen2(h5, ("particles/" + dataset).c_str(), H5P_DEFAULT);
+  ASSERT_GE(set, 0);
+  const hid_t space = H5Dget_space(set);
+  const hsize_t count = 1;
+  ASSERT_GE(H5Sselect_hyperslab(space, H5S_SELECT_SET, &index, nullptr, &count, nullptr), 0);
+  const hid_t memory = H5Screate_simple(1, &count, nullptr);
+  ASSERT_GE(H5Dwrite(set, type, memory, space, H5P_DEFAULT, &value), 0);
+  H5Sclose(memory);
+  H5Sclose(space);
+  H5Dclose(set);
+  H5Fclose(h5);
+}
+
+/// Finding 14 (issue 15): files whose structure is sound but whose content is not are rejected,
+/// by read_checkpoint (restart) and by `sphles inspect` (exit code 2), naming the file, the
+/// attribute or dataset and the reason.
+TEST_F(CheckpointTest, ImplausibleContentIsRejectedNamingTheField) {
+  TinyRun run = tiny_run(5);
+  const sim::SolverState state = run.simulation->state();
+  const CheckpointMetadata meta = run.metadata();
+  const auto good = dir_ / "good.h5";
+  write_checkpoint(good, state, meta);
+  ASSERT_EQ(error_reading(good), "");
+  const Finished inspected = run_sphles({"inspect", good.string()}, dir_);
+  EXPECT_EQ(inspected.end.code, 0) << inspected.err;
+  EXPECT_NE(inspected.out.find("periodic box:     L = 6.283185307179586 m (case tgv2d, 16^2"),
+            std::string::npos)
+      << inspected.out;
+
+  const std::uint64_t n = state.particles.size();
+  const double box = run.scene.box_length();
+  const std::uint64_t id3 = state.particles.id[3];
+  const std::string step = std::to_string(state.step);
+  json boxed = json::parse(meta.scene_json);
+  boxed["box_length"] = 1.0;
+  struct Case {
+    std::string name;
+    std::function<void(const std::filesystem::path&)> corrupt;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"scene_not_json",
+       [](const auto& f) { replace_string_attribute(f, "scene", R"({"case": tgv2d})"); },
+       "attribute 'scene' is not JSON (byte 11 of 15)"},
+      {"scene_not_object", [](const auto& f) { replace_string_attribute(f, "scene", "[1, 2]"); },
+       "attribute 'scene' is JSON but not an object (array)"},
+      {"scene_without_box",
+       [&](const auto& f) { replace_string_attribute(f, "scene", boxed.dump()); },
+       "attribute 'scene' does not determine the periodic box: scene: 'box_length' is fixed"},
+      {"negative_time",
+       [](const auto& f) { overwrite_attribute(f, "time", H5T_NATIVE_DOUBLE, -1.0); },
+       "attribute 'time' is -1 (must be >= 0)"},
+      {"steps_without_time",
+       [](const auto& f) { overwrite_attribute(f, "time", H5T_NATIVE_DOUBLE, 0.0); },
+       "attribute 'step' is " + step + " but 'time' is 0"},
+      {"neighbour_builds",
+       [&](const auto& f) {
+         overwrite_attribute(f, "neighbour_builds", H5T_NATIVE_UINT64, state.step + 2);
+       },
+       "attribute 'neighbour_builds' is " + std::to_string(state.step + 2) +
+           ", expected 1 to step + 1 = " + std::to_string(state.step + 1)},
+      {"dimension_against_scene",
+       [](const auto& f) { overwrite_attribute(f, "dimension", H5T_NATIVE_INT, 3); },
+       "attribute 'dimension' is 3 but the scene's case 'tgv2d' is 2D"},
+      {"count_against_scene",
+       [&](const auto& f) { overwrite_attribute(f, "num_particles", H5T_NATIVE_UINT64, n + 1); },
+       "attribute 'num_particles' is 257 but the scene has 256 (particles_per_side 16 in 2D)"},
+      {"position_far_away",
+       [](const auto& f) { overwrite_element(f, "position_x", 17, H5T_NATIVE_DOUBLE, 1e300); },
+       "dataset 'particles/position_x' has 1e+300 at index 17, outside the periodic box [0, "
+       "6.283185307179586) m"},
+      {"position_negative",
+       [](const auto& f) { overwrite_element(f, "position_y", 4, H5T_NATIVE_DOUBLE, -0.5); },
+       "dataset 'particles/position_y' has -0.5 at index 4, outside the periodic box"},
+      {"reference_on_the_boundary",
+       [&](const auto& f) { overwrite_element(f, "list_reference_x", 9, H5T_NATIVE_DOUBLE, box); },
+       "dataset 'particles/list_reference_x' has 6.283185307179586 at index 9, outside"},
+      {"negative_mass",
+       [](const auto& f) { overwrite_element(f, "mass", 17, H5T_NATIVE_DOUBLE, -1.0); },
+       "dataset 'particles/mass' has a non-positive value -1 at index 17"},
+      {"zero_volume",
+       [](const auto& f) { overwrite_element(f, "volume", 0, H5T_NATIVE_DOUBLE, 0.0); },
+       "dataset 'particles/volume' has a non-positive value 0 at index 0"},
+      {"negative_density",
+       [](const auto& f) { overwrite_element(f, "density", 255, H5T_NATIVE_DOUBLE, -1000.0); },
+       "dataset 'particles/density' has a non-positive value -1000 at index 255"},
+      {"duplicate_id",
+       [&](const auto& f) { overwrite_element(f, "id", 40, H5T_NATIVE_UINT64, id3); },
+       "dataset 'particles/id' repeats " + std::to_string(id3) + " at index 40 (first at index 3"},
+      {"id_out_of_range",
+       [&](const auto& f) { overwrite_element(f, "id", 7, H5T_NATIVE_UINT64, n); },
+       "dataset 'particles/id' has 256 at index 7, outside 0..255"},
+  };
+  for (const Case& c : cases) {
+    const auto file = dir_ / (c.name + ".h5");
+    std::filesystem::copy_file(good, file);
+    c.corrupt(file);
+    const std::string error = error_reading(file);
+    EXPECT_NE(error.find("checkpoint '" + file.string() + "': " + c.expected), std::string::npos)
+        << c.name << ": " << error;
+    const Finished inspect = run_sphles({"inspect", file.string()}, dir_);
+    EXPECT_TRUE(inspect.end.exited && inspect.end.code == 2)
+        << c.name << ": " << inspect.end.describe() << "\n"
+        << inspect.out;
+    EXPECT_NE(inspect.err.find("checkpoint '" + file.string() + "': " + c.expected),
+              std::string::npos)
+        << c.name << ": " << inspect.err;
+  }
+
+  // A restart from a file whose scene is not JSON names the file and the attribute (it used to
+  // fail with a bare "[json.exception.parse_error.101]").
+  const Finished restart = run_sphles({"run", "--restart", (dir_ / "scene_not_json.h5").string(),
+                                       "--out", (dir_ / "restarted").string()},
+                                      dir_);
+  EXPECT_EQ(restart.end.code, 2) << restart.end.describe();
+  EXPECT_NE(restart.err.find("checkpoint '" + (dir_ / "scene_not_json.h5").string() +
+                             "': attribute 'scene' is not JSON"),
+            std::string::npos)
+      << restart.err;
+}
 }  // namespace
 }  // namespace sphles::io
