@@ -1,98 +1,83 @@
 #include "io/checkpoint.hpp"
 
-#include <fcntl.h>
 #include <hdf5.h>
-#include <unistd.h>
 
 #include <algorithm>
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <functional>
 #include <mutex>
+#include <nlohmann/json.hpp>
+#include <optional>
 #include <sstream>
+#include <tuple>
+
+#include "io/hdf5_file.hpp"
+#include "sim/scene.hpp"
 
 namespace sphles::io {
 
 namespace {
 
-/// Owns an HDF5 identifier and closes it with the matching function.
-class Handle {
- public:
-  Handle(hid_t id, herr_t (*close)(hid_t)) : id_(id), close_(close) {}
-  ~Handle() {
-    if (id_ >= 0) close_(id_);
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-
- private:
-  hid_t id_;
-  herr_t (*close_)(hid_t);
-};
-
-/// HDF5 prints its own error stack by default; sphles reports errors itself.
-void silence_hdf5() {
-  static std::once_flag once;
-  std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
-}
+using detail::Handle;
 
 const char* kAxis[] = {"x", "y", "z"};
 
 // --- writing ---------------------------------------------------------------------------
 
 void write_string_attribute(hid_t object, const char* name, const std::string& value,
-                            const std::string& file) {
-  Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1));
-  H5Tset_strpad(type.get(), H5T_STR_NULLPAD);
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT),
-                   H5Aclose);
+                            const std::string& label) {
+  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!type.valid() || !space.valid() ||
+      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0 ||
+      H5Tset_strpad(type.get(), H5T_STR_NULLPAD) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
+  const Handle attribute(
+      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
   const std::string padded = value.empty() ? std::string(1, '\0') : value;
   if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
-    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 template <class T>
 void write_scalar_attribute(hid_t object, const char* name, hid_t type, T value,
-                            const std::string& file) {
-  Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  Handle attribute(H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+                            const std::string& label) {
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  const Handle attribute(
+      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
+      H5Aclose);
   if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
-    throw CheckpointError("checkpoint '" + file + "': cannot write attribute '" + name + "'");
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
-                   const CheckpointWriteOptions& options, const std::string& file) {
+                   const CheckpointWriteOptions& options, const std::string& label) {
+  const auto failed = [&] {
+    return CheckpointError(label + ": cannot write dataset 'particles/" + name + "'");
+  };
   const hsize_t size = data.size();
-  Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
-  Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  const Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
+  const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (!space.valid() || !properties.valid()) throw failed();
   if (size > 0) {
     const hsize_t chunk = std::min<hsize_t>(size, hsize_t{1} << 16);
-    H5Pset_chunk(properties.get(), 1, &chunk);
-    H5Pset_fletcher32(properties.get());
-    if (options.gzip_level > 0) {
-      H5Pset_shuffle(properties.get());
-      H5Pset_deflate(properties.get(), static_cast<unsigned>(options.gzip_level));
-    }
+    if (H5Pset_chunk(properties.get(), 1, &chunk) < 0 || H5Pset_fletcher32(properties.get()) < 0)
+      throw failed();
+    if (options.gzip_level > 0 &&
+        (H5Pset_shuffle(properties.get()) < 0 ||
+         H5Pset_deflate(properties.get(), static_cast<unsigned>(options.gzip_level)) < 0))
+      throw failed();
   }
-  Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT, properties.get(),
-                            H5P_DEFAULT),
-                 H5Dclose);
+  const Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT,
+                                  properties.get(), H5P_DEFAULT),
+                       H5Dclose);
   if (!dataset.valid() ||
       (size > 0 && H5Dwrite(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0))
-    throw CheckpointError("checkpoint '" + file + "': cannot write dataset '" + name + "'");
-}
-
-void fsync_path(const std::filesystem::path& path, bool directory) {
-  const int fd = ::open(path.c_str(), directory ? O_RDONLY | O_DIRECTORY : O_RDONLY);
-  if (fd < 0) return;
-  ::fsync(fd);
-  ::close(fd);
+    throw failed();
 }
 
 // --- reading ---------------------------------------------------------------------------
@@ -100,8 +85,8 @@ void fsync_path(const std::filesystem::path& path, bool directory) {
 std::string read_string_attribute(hid_t object, const char* name, const std::string& file) {
   if (H5Aexists(object, name) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
-  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
-  Handle type(H5Aget_type(attribute.get()), H5Tclose);
+  const Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  const Handle type(H5Aget_type(attribute.get()), H5Tclose);
   if (H5Tget_class(type.get()) != H5T_STRING || H5Tis_variable_str(type.get()) > 0)
     throw CheckpointError("checkpoint '" + file + "': attribute '" + name + "' is not a string");
   const std::size_t size = H5Tget_size(type.get());
@@ -116,7 +101,7 @@ template <class T>
 T read_scalar_attribute(hid_t object, const char* name, hid_t type, const std::string& file) {
   if (H5Aexists(object, name) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing attribute '" + name + "'");
-  Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
+  const Handle attribute(H5Aopen(object, name, H5P_DEFAULT), H5Aclose);
   T value{};
   if (H5Aread(attribute.get(), type, &value) < 0)
     throw CheckpointError("checkpoint '" + file + "': cannot read attribute '" + name + "'");
@@ -128,8 +113,8 @@ std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, st
                             const std::string& file) {
   if (H5Lexists(group, name.c_str(), H5P_DEFAULT) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing dataset 'particles/" + name + "'");
-  Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
-  Handle space(H5Dget_space(dataset.get()), H5Sclose);
+  const Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
+  const Handle space(H5Dget_space(dataset.get()), H5Sclose);
   if (H5Sget_simple_extent_ndims(space.get()) != 1)
     throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
                           "' is not one-dimensional");
@@ -146,6 +131,15 @@ std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, st
   return data;
 }
 
+// --- content validation ----------------------------------------------------------------
+
+/// Shortest text that reads back as the same double (1e+300, -1, 6.283185307179586).
+std::string number(double value) {
+  char text[32];
+  const auto result = std::to_chars(text, text + sizeof text, value);
+  return std::string(text, result.ptr);
+}
+
 void require_finite(const std::vector<double>& values, const std::string& name,
                     const std::string& file) {
   for (std::size_t i = 0; i < values.size(); ++i)
@@ -154,96 +148,131 @@ void require_finite(const std::vector<double>& values, const std::string& name,
                             "' at index " + std::to_string(i));
 }
 
-}  // namespace
-
-std::mutex& hdf5_library_mutex() {
-  static std::mutex m;
-  return m;
+void require_positive(const std::vector<double>& values, const std::string& name,
+                      const std::string& file) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!(values[i] > 0.0))
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
+                            "' has a non-positive value " + number(values[i]) + " at index " +
+                            std::to_string(i));
 }
 
-std::string checkpoint_file_name(std::uint64_t step) {
-  char name[64];
-  std::snprintf(name, sizeof name, "ckpt_%010llu.h5", static_cast<unsigned long long>(step));
-  return name;
+/// Positions are wrapped into [0, L) after every drift (sim::wrap_periodic).
+void require_inside_box(const std::vector<double>& values, const std::string& name, double length,
+                        const std::string& file) {
+  for (std::size_t i = 0; i < values.size(); ++i)
+    if (!(values[i] >= 0.0 && values[i] < length))
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name + "' has " +
+                            number(values[i]) + " at index " + std::to_string(i) +
+                            ", outside the periodic box [0, " + number(length) + ") m");
 }
 
-void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
-                      const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
-  if (options.gzip_level < 0 || options.gzip_level > 9)
-    throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
-  const std::lock_guard lock(hdf5_library_mutex());
-  silence_hdf5();
-  const std::string file = path.string();
-  const std::filesystem::path temporary =
-      path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
-  const sim::ParticleArrays& p = state.particles;
-  const int dim = p.dimension;
-  try {
-    {
-      Handle h5(H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose);
-      if (!h5.valid())
-        throw CheckpointError("checkpoint: cannot create '" + temporary.string() + "'");
-      const hid_t root = h5.get();
-      write_string_attribute(root, "schema", kCheckpointSchema, file);
-      write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion,
-                             file);
-      write_string_attribute(root, "code_version", metadata.code_version, file);
-      write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, file);
-      write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
-                             static_cast<std::uint64_t>(p.size()), file);
-      write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, file);
-      write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, file);
-      write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
-                             file);
-      write_string_attribute(root, "scene", metadata.scene_json, file);
-      write_string_attribute(root, "packing", metadata.packing, file);
-      write_string_attribute(root, "units",
-                             "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
-                             "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
-                             file);
-      Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), H5Gclose);
-      for (int d = 0; d < dim; ++d) {
-        const std::string axis = kAxis[d];
-        write_dataset(group.get(), "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options,
-                      file);
-        write_dataset(group.get(), "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options,
-                      file);
-        write_dataset(group.get(), "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d],
-                      options, file);
-        write_dataset(group.get(), "list_reference_" + axis, H5T_NATIVE_DOUBLE,
-                      state.list_reference_positions[d], options, file);
-      }
-      write_dataset(group.get(), "mass", H5T_NATIVE_DOUBLE, p.mass, options, file);
-      write_dataset(group.get(), "volume", H5T_NATIVE_DOUBLE, p.volume, options, file);
-      write_dataset(group.get(), "density", H5T_NATIVE_DOUBLE, p.density, options, file);
-      write_dataset(group.get(), "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, file);
-      write_dataset(group.get(), "id", H5T_NATIVE_UINT64, p.id, options, file);
-      if (!p.eddy_viscosity.empty())
-        write_dataset(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options,
-                      file);
-      if (H5Fflush(root, H5F_SCOPE_GLOBAL) < 0)
-        throw CheckpointError("checkpoint: cannot flush '" + temporary.string() + "'");
+/// Particle ids are a permutation of 0..N-1 (sim::make_lattice numbers them; the solver only
+/// reorders). One pass; a second one only to name the first copy of a duplicate.
+void require_permutation(const std::vector<std::uint64_t>& ids, const std::string& file) {
+  const std::size_t n = ids.size();
+  std::vector<char> seen(n, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint64_t id = ids[i];
+    if (id >= n)
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/id' has " +
+                            std::to_string(id) + " at index " + std::to_string(i) +
+                            ", outside 0.." + std::to_string(n - 1) +
+                            " (ids are a permutation of 0..N-1)");
+    if (seen[id]) {
+      const auto first =
+          static_cast<std::size_t>(std::find(ids.begin(), ids.end(), id) - ids.begin());
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/id' repeats " +
+                            std::to_string(id) + " at index " + std::to_string(i) +
+                            " (first at index " + std::to_string(first) +
+                            "; ids are a permutation of 0..N-1)");
     }
-    fsync_path(temporary, false);
-    std::filesystem::rename(temporary, path);
-    fsync_path(path.parent_path().empty() ? std::filesystem::path(".") : path.parent_path(), true);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(temporary, ec);
-    throw;
+    seen[id] = 1;
   }
 }
 
-Checkpoint read_checkpoint(const std::filesystem::path& path) {
-  const std::lock_guard lock(hdf5_library_mutex());
-  silence_hdf5();
+/// The stored run configuration: a JSON object.
+nlohmann::json parse_scene_attribute(const std::string& text, const std::string& file) {
+  nlohmann::json scene;
+  try {
+    scene = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw CheckpointError("checkpoint '" + file + "': attribute 'scene' is not JSON (byte " +
+                          std::to_string(e.byte) + " of " + std::to_string(text.size()) +
+                          "): " + e.what());
+  }
+  if (!scene.is_object())
+    throw CheckpointError("checkpoint '" + file +
+                          "': attribute 'scene' is JSON but not an object (" +
+                          std::string(scene.type_name()) + ")");
+  return scene;
+}
+
+/// What the stored scene says about the particle set: box, dimension, particle count.
+struct SceneGeometry {
+  std::optional<sim::Scene> scene;  // set when the scene names a case this sphles knows
+  std::string unknown;              // otherwise why not
+};
+
+bool is_known_preset(const nlohmann::json& value) {
+  if (!value.is_string()) return false;
+  const auto presets = sim::preset_names();
+  return std::find(presets.begin(), presets.end(), value.get<std::string>()) != presets.end();
+}
+
+/// The geometry keys of the scene (case or preset, particles_per_side, box_length) resolved by
+/// sim::parse_scene, which owns their defaults and limits. A scene that names no case this
+/// sphles knows (not one sphles wrote) determines nothing; one that names a known case must
+/// determine the box, or the file is rejected.
+SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& file) {
+  SceneGeometry g;
+  const auto case_it = scene.find("case");
+  const auto preset_it = scene.find("preset");
+  if (case_it != scene.end()) {
+    bool known = false;
+    if (case_it->is_string()) {
+      try {
+        sim::parse_scene({{"case", *case_it}});
+        known = true;
+      } catch (const sim::SceneError&) {
+      }
+    }
+    if (!known) {
+      g.unknown = "the scene's 'case' " + case_it->dump() + " is not a known case";
+      return g;
+    }
+  } else if (preset_it == scene.end()) {
+    g.unknown = "the scene names no case";
+    return g;
+  } else if (!is_known_preset(*preset_it)) {
+    g.unknown = "the scene's 'preset' " + preset_it->dump() + " is not a known preset";
+    return g;
+  }
+  nlohmann::json geometry = nlohmann::json::object();
+  for (const char* key : {"case", "particles_per_side", "box_length"})
+    if (const auto it = scene.find(key); it != scene.end()) geometry[key] = *it;
+  // A preset supplies the defaults the explicit keys override; one this sphles no longer has
+  // must not hide an explicit case.
+  if (preset_it != scene.end() && is_known_preset(*preset_it)) geometry["preset"] = *preset_it;
+  try {
+    g.scene = sim::parse_scene(geometry);
+  } catch (const sim::SceneError& e) {
+    throw CheckpointError("checkpoint '" + file +
+                          "': attribute 'scene' does not determine the periodic box: " + e.what());
+  }
+  return g;
+}
+
+Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* geometry_out) {
   const std::string file = path.string();
   if (!std::filesystem::exists(path))
     throw CheckpointError("checkpoint '" + file + "': file does not exist");
+  const std::lock_guard lock(hdf5_library_mutex());
+  detail::silence_hdf5();
   if (H5Fis_hdf5(file.c_str()) <= 0)
     throw CheckpointError("checkpoint '" + file +
                           "': not a readable HDF5 file (truncated or corrupted)");
-  Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  const Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
   if (!h5.valid())
     throw CheckpointError("checkpoint '" + file +
                           "': not a readable HDF5 file (truncated or corrupted)");
@@ -270,40 +299,146 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
       read_scalar_attribute<std::uint64_t>(root, "neighbour_builds", H5T_NATIVE_UINT64, file);
   if (!std::isfinite(c.state.time))
     throw CheckpointError("checkpoint '" + file + "': non-finite time");
+  if (c.state.time < 0.0)
+    throw CheckpointError("checkpoint '" + file + "': attribute 'time' is " + number(c.state.time) +
+                          " (must be >= 0)");
+  if (c.state.step > 0 && !(c.state.time > 0.0))
+    throw CheckpointError("checkpoint '" + file + "': attribute 'step' is " +
+                          std::to_string(c.state.step) +
+                          " but 'time' is 0 (every step advances the time)");
+  // The Verlet list is built once when the solver starts and at most once per step.
+  if (c.state.neighbour_builds < 1 || c.state.neighbour_builds - 1 > c.state.step)
+    throw CheckpointError("checkpoint '" + file + "': attribute 'neighbour_builds' is " +
+                          std::to_string(c.state.neighbour_builds) +
+                          ", expected 1 to step + 1 = " + std::to_string(c.state.step + 1) +
+                          " (one build at the start, at most one per step)");
   c.metadata.scene_json = read_string_attribute(root, "scene", file);
   c.metadata.code_version = read_string_attribute(root, "code_version", file);
   c.metadata.packing = read_string_attribute(root, "packing", file);
+  const SceneGeometry geometry =
+      scene_geometry(parse_scene_attribute(c.metadata.scene_json, file), file);
+  if (geometry.scene) {
+    const sim::Scene& s = *geometry.scene;
+    if (s.dimension() != dim)
+      throw CheckpointError("checkpoint '" + file + "': attribute 'dimension' is " +
+                            std::to_string(dim) + " but the scene's case '" +
+                            std::string(sim::case_name(s.case_type)) + "' is " +
+                            std::to_string(s.dimension()) + "D");
+    if (s.num_particles() != count)
+      throw CheckpointError(
+          "checkpoint '" + file + "': attribute 'num_particles' is " + std::to_string(count) +
+          " but the scene has " + std::to_string(s.num_particles()) + " (particles_per_side " +
+          std::to_string(s.particles_per_side) + " in " + std::to_string(dim) + "D)");
+  }
   if (H5Lexists(root, "particles", H5P_DEFAULT) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing group 'particles'");
-  Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
+  const Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
   sim::ParticleArrays& p = c.state.particles;
   p.dimension = dim;
   const auto n = static_cast<std::size_t>(count);
+  const auto read = [&](const std::string& name) {
+    auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
+    require_finite(values, name, file);
+    return values;
+  };
   for (int d = 0; d < dim; ++d) {
     const std::string axis = kAxis[d];
-    const auto read = [&](const std::string& name) {
-      auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
-      require_finite(values, name, file);
-      return values;
-    };
     p.position[d] = read("position_" + axis);
     p.velocity[d] = read("velocity_" + axis);
     p.acceleration[d] = read("acceleration_" + axis);
     c.state.list_reference_positions[d] = read("list_reference_" + axis);
+    if (geometry.scene) {
+      const double length = geometry.scene->box_length();
+      require_inside_box(p.position[d], "position_" + axis, length, file);
+      require_inside_box(c.state.list_reference_positions[d], "list_reference_" + axis, length,
+                         file);
+    }
   }
-  for (auto [name, target] :
-       {std::pair{"mass", &p.mass}, std::pair{"volume", &p.volume},
-        std::pair{"density", &p.density}, std::pair{"pressure", &p.pressure}}) {
-    *target = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
-    require_finite(*target, name, file);
+  for (auto [name, target, positive] :
+       {std::tuple{"mass", &p.mass, true}, std::tuple{"volume", &p.volume, true},
+        std::tuple{"density", &p.density, true}, std::tuple{"pressure", &p.pressure, false}}) {
+    *target = read(name);
+    if (positive) require_positive(*target, name, file);
   }
   p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, file);
-  if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0) {
-    p.eddy_viscosity =
-        read_dataset<double>(group.get(), "eddy_viscosity", H5T_NATIVE_DOUBLE, n, file);
-    require_finite(p.eddy_viscosity, "eddy_viscosity", file);
-  }
+  require_permutation(p.id, file);
+  if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0)
+    p.eddy_viscosity = read("eddy_viscosity");
+  if (geometry_out) *geometry_out = geometry;
   return c;
+}
+
+}  // namespace
+
+std::mutex& hdf5_library_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+std::string checkpoint_file_name(std::uint64_t step) {
+  char name[64];
+  std::snprintf(name, sizeof name, "ckpt_%010llu.h5", static_cast<unsigned long long>(step));
+  return name;
+}
+
+void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
+                      const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
+  if (options.gzip_level < 0 || options.gzip_level > 9)
+    throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
+  const std::string label = "checkpoint '" + path.string() + "'";
+  const sim::ParticleArrays& p = state.particles;
+  const int dim = p.dimension;
+  detail::FileImage image;
+  {
+    const std::lock_guard lock(hdf5_library_mutex());
+    detail::MemoryFile h5(path, label);
+    const hid_t root = h5.get();
+    write_string_attribute(root, "schema", kCheckpointSchema, label);
+    write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion, label);
+    write_string_attribute(root, "code_version", metadata.code_version, label);
+    write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, label);
+    write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
+                           static_cast<std::uint64_t>(p.size()), label);
+    write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, label);
+    write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, label);
+    write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
+                           label);
+    write_string_attribute(root, "scene", metadata.scene_json, label);
+    write_string_attribute(root, "packing", metadata.packing, label);
+    write_string_attribute(root, "units",
+                           "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
+                           "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
+                           label);
+    {
+      const Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                         H5Gclose);
+      if (!group.valid()) throw CheckpointError(label + ": cannot create group 'particles'");
+      const hid_t g = group.get();
+      for (int d = 0; d < dim; ++d) {
+        const std::string axis = kAxis[d];
+        write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options, label);
+        write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options, label);
+        write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], options,
+                      label);
+        write_dataset(g, "list_reference_" + axis, H5T_NATIVE_DOUBLE,
+                      state.list_reference_positions[d], options, label);
+      }
+      write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, options, label);
+      write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, options, label);
+      write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, options, label);
+      write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, label);
+      write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, options, label);
+      if (!p.eddy_viscosity.empty())
+        write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options, label);
+    }
+    image = h5.finish();
+  }
+  // The disk write needs no HDF5 call, so it runs outside the library lock.
+  detail::write_file_atomically(path, image, label);
+}
+
+Checkpoint read_checkpoint(const std::filesystem::path& path) {
+  return read_and_validate(path, nullptr);
 }
 
 std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory) {
@@ -335,7 +470,8 @@ std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& direc
 }
 
 std::string describe_checkpoint(const std::filesystem::path& path) {
-  const Checkpoint c = read_checkpoint(path);
+  SceneGeometry geometry;
+  const Checkpoint c = read_and_validate(path, &geometry);
   const sim::ParticleArrays& p = c.state.particles;
   std::ostringstream out;
   out.precision(17);
@@ -350,7 +486,14 @@ std::string describe_checkpoint(const std::filesystem::path& path) {
       << "step:             " << c.state.step << "\n"
       << "neighbour builds: " << c.state.neighbour_builds << "\n"
       << "packing:          " << c.metadata.packing << "\n"
-      << "datasets:         particles/{position,velocity,acceleration,list_reference}_{"
+      << "periodic box:     ";
+  if (geometry.scene)
+    out << "L = " << number(geometry.scene->box_length()) << " m (case "
+        << sim::case_name(geometry.scene->case_type) << ", " << geometry.scene->particles_per_side
+        << "^" << p.dimension << " particles); positions checked against it\n";
+  else
+    out << "not determined (" << geometry.unknown << "); positions checked for finiteness only\n";
+  out << "datasets:         particles/{position,velocity,acceleration,list_reference}_{"
       << (p.dimension == 3 ? "x,y,z" : "x,y") << "}, mass, volume, density, pressure, id"
       << (p.eddy_viscosity.empty() ? "" : ", eddy_viscosity") << " (" << p.size()
       << " entries each)\n";

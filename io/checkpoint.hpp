@@ -38,15 +38,22 @@ struct CheckpointWriteOptions {
   int gzip_level = 0;  // 0 = no compression; 1-9 = gzip with byte shuffle
 };
 
-/// Writes `path` atomically: a temporary file in the same directory, flushed and fsync'ed, then
-/// renamed over `path`. A crash at any point leaves either the old file or the new complete one.
-/// Datasets carry Fletcher-32 checksums. Throws CheckpointError.
+/// Writes `path` atomically: the file is assembled in memory, written to a temporary file in the
+/// same directory, fsync'ed, then renamed over `path`. A crash at any point leaves either the old
+/// file or the new complete one. A failed write (full disk, file-size limit, unwritable
+/// directory) throws CheckpointError naming the file and the reason, removes the temporary,
+/// leaves `path` as it was and leaves no HDF5 object open. Datasets carry Fletcher-32 checksums.
 void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
                       const CheckpointMetadata& metadata,
                       const CheckpointWriteOptions& options = {});
 
-/// Reads and validates: existence, HDF5 readability, schema name and version, dimension,
-/// particle count and array lengths, checksums, finiteness. Throws CheckpointError.
+/// Reads and validates. Structure: existence, HDF5 readability, schema name and version,
+/// dimension, particle count and array lengths, checksums. Content: the `scene` attribute is a
+/// JSON object; time finite and >= 0; step and neighbour_builds consistent with it; every value
+/// finite; when the scene names a case this sphles knows, dimension and particle count match it
+/// and positions lie in its periodic box [0, L); mass, volume and density > 0; ids a permutation
+/// of 0..N-1. Linear in the particle count. Throws CheckpointError naming the file, the attribute
+/// or dataset and the reason.
 Checkpoint read_checkpoint(const std::filesystem::path& path);
 
 /// Checkpoint files of a run directory (checkpoints/ckpt_*.h5), newest step first.

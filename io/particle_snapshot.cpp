@@ -1,63 +1,58 @@
 #include "io/particle_snapshot.hpp"
 
 #include <hdf5.h>
-#include <unistd.h>
 
-#include <fstream>
+#include <algorithm>
 #include <mutex>
 #include <sstream>
 #include <stdexcept>
 
 #include "io/checkpoint.hpp"
+#include "io/hdf5_file.hpp"
 
 namespace sphles::io {
 
 namespace {
 
-struct Closer {
-  hid_t id;
-  herr_t (*close)(hid_t);
-  ~Closer() {
-    if (id >= 0) close(id);
-  }
-};
+using detail::Handle;
 
-void string_attribute(hid_t object, const char* name, const std::string& value) {
-  const hid_t type = H5Tcopy(H5T_C_S1);
-  H5Tset_size(type, std::max<std::size_t>(value.size(), 1));
-  const hid_t space = H5Screate(H5S_SCALAR);
-  const hid_t attribute = H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
+void string_attribute(hid_t object, const char* name, const std::string& value,
+                      const std::string& label) {
+  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!type.valid() || !space.valid() ||
+      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
+  const Handle attribute(
+      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
   const std::string padded = value.empty() ? std::string(1, '\0') : value;
-  const herr_t status = H5Awrite(attribute, type, padded.data());
-  H5Aclose(attribute);
-  H5Sclose(space);
-  H5Tclose(type);
-  if (status < 0) throw CheckpointError(std::string("snapshot: cannot write attribute ") + name);
+  if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 template <class T>
-void scalar_attribute(hid_t object, const char* name, hid_t type, T value) {
-  const hid_t space = H5Screate(H5S_SCALAR);
-  const hid_t attribute = H5Acreate2(object, name, type, space, H5P_DEFAULT, H5P_DEFAULT);
-  const herr_t status = H5Awrite(attribute, type, &value);
-  H5Aclose(attribute);
-  H5Sclose(space);
-  if (status < 0) throw CheckpointError(std::string("snapshot: cannot write attribute ") + name);
+void scalar_attribute(hid_t object, const char* name, hid_t type, T value,
+                      const std::string& label) {
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  const Handle attribute(
+      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
+      H5Aclose);
+  if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 void dataset(hid_t file, const std::string& name, const std::vector<double>& data, hsize_t rows,
-             hsize_t columns, const std::string& units) {
+             hsize_t columns, const std::string& units, const std::string& label) {
   const hsize_t dims[2] = {rows, columns};
-  const hid_t space = H5Screate_simple(columns == 1 ? 1 : 2, dims, nullptr);
-  const hid_t set = H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space, H5P_DEFAULT,
-                               H5P_DEFAULT, H5P_DEFAULT);
-  herr_t status = set < 0 ? -1 : 0;
-  if (status == 0 && rows > 0)
-    status = H5Dwrite(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data());
-  if (status == 0) string_attribute(set, "units", units);
-  if (set >= 0) H5Dclose(set);
-  H5Sclose(space);
-  if (status < 0) throw CheckpointError("snapshot: cannot write dataset '" + name + "'");
+  const Handle space(H5Screate_simple(columns == 1 ? 1 : 2, dims, nullptr), H5Sclose);
+  const Handle set(space.valid() ? H5Dcreate2(file, name.c_str(), H5T_NATIVE_DOUBLE, space.get(),
+                                              H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)
+                                 : -1,
+                   H5Dclose);
+  if (!set.valid() || (rows > 0 && H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
+                                            H5P_DEFAULT, data.data()) < 0))
+    throw CheckpointError(label + ": cannot write dataset '" + name + "'");
+  string_attribute(set.get(), "units", units, label);
 }
 
 }  // namespace
@@ -66,46 +61,37 @@ void write_particle_snapshot(const std::filesystem::path& path, const sim::Parti
                              double time, std::uint64_t step,
                              const std::vector<ParticleField>& extra,
                              const std::string& scene_json) {
-  const std::lock_guard lock(hdf5_library_mutex());
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const std::string label = "snapshot '" + path.string() + "'";
   const std::size_t n = p.size();
-  const std::filesystem::path temporary =
-      path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
-  try {
-    {
-      Closer file{H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT), H5Fclose};
-      if (file.id < 0)
-        throw CheckpointError("snapshot: cannot create '" + temporary.string() + "'");
-      scalar_attribute(file.id, "time", H5T_NATIVE_DOUBLE, time);
-      scalar_attribute(file.id, "step", H5T_NATIVE_UINT64, step);
-      scalar_attribute(file.id, "dimension", H5T_NATIVE_INT, p.dimension);
-      string_attribute(file.id, "scene", scene_json);
-      std::vector<double> xyz(3 * n, 0.0), uvw(3 * n, 0.0);
-      for (std::size_t i = 0; i < n; ++i)
-        for (int d = 0; d < p.dimension; ++d) {
-          xyz[3 * i + static_cast<std::size_t>(d)] = p.position[d][i];
-          uvw[3 * i + static_cast<std::size_t>(d)] = p.velocity[d][i];
-        }
-      dataset(file.id, "position", xyz, n, 3, "m");
-      dataset(file.id, "velocity", uvw, n, 3, "m/s");
-      dataset(file.id, "mass", p.mass, n, 1, p.dimension == 3 ? "kg" : "kg/m");
-      dataset(file.id, "density", p.density, n, 1, p.dimension == 3 ? "kg/m^3" : "kg/m^2");
-      dataset(file.id, "pressure", p.pressure, n, 1, "Pa");
-      for (const ParticleField& f : extra) {
-        if (f.values.size() != n)
-          throw CheckpointError("snapshot: field '" + f.name + "' has " +
-                                std::to_string(f.values.size()) + " values for " +
-                                std::to_string(n) + " particles");
-        dataset(file.id, f.name, f.values, n, 1, f.units);
-      }
-      H5Fflush(file.id, H5F_SCOPE_GLOBAL);
+  for (const ParticleField& f : extra)
+    if (f.values.size() != n)
+      throw CheckpointError(label + ": field '" + f.name + "' has " +
+                            std::to_string(f.values.size()) + " values for " + std::to_string(n) +
+                            " particles");
+  std::vector<double> xyz(3 * n, 0.0), uvw(3 * n, 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int d = 0; d < p.dimension; ++d) {
+      xyz[3 * i + static_cast<std::size_t>(d)] = p.position[d][i];
+      uvw[3 * i + static_cast<std::size_t>(d)] = p.velocity[d][i];
     }
-    std::filesystem::rename(temporary, path);
-  } catch (...) {
-    std::error_code ec;
-    std::filesystem::remove(temporary, ec);
-    throw;
+  detail::FileImage image;
+  {
+    const std::lock_guard lock(hdf5_library_mutex());
+    detail::MemoryFile file(path, label);
+    const hid_t root = file.get();
+    scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, time, label);
+    scalar_attribute(root, "step", H5T_NATIVE_UINT64, step, label);
+    scalar_attribute(root, "dimension", H5T_NATIVE_INT, p.dimension, label);
+    string_attribute(root, "scene", scene_json, label);
+    dataset(root, "position", xyz, n, 3, "m", label);
+    dataset(root, "velocity", uvw, n, 3, "m/s", label);
+    dataset(root, "mass", p.mass, n, 1, p.dimension == 3 ? "kg" : "kg/m", label);
+    dataset(root, "density", p.density, n, 1, p.dimension == 3 ? "kg/m^3" : "kg/m^2", label);
+    dataset(root, "pressure", p.pressure, n, 1, "Pa", label);
+    for (const ParticleField& f : extra) dataset(root, f.name, f.values, n, 1, f.units, label);
+    image = file.finish();
   }
+  detail::write_file_atomically(path, image, label);
 }
 
 void write_xdmf_series(const std::filesystem::path& path,
@@ -138,14 +124,7 @@ void write_xdmf_series(const std::filesystem::path& path,
     x << "      </Grid>\n";
   }
   x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
-  const std::filesystem::path temporary = path.string() + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::trunc);
-    out << x.str();
-    out.flush();
-    if (!out) throw CheckpointError("snapshot: cannot write '" + temporary.string() + "'");
-  }
-  std::filesystem::rename(temporary, path);
+  detail::write_file_atomically(path, x.str(), "snapshot series '" + path.string() + "'");
 }
 
 }  // namespace sphles::io
