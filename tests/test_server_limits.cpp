@@ -469,6 +469,7 @@ TEST(ServerLimits, LongTimeSeriesArePagedAndDecimatedNeverEmpty) {
     r = api.get(next);
     ASSERT_EQ(r.status, 200) << r.body.substr(0, 300);
     const json page = r.body_json();
+    ASSERT_EQ(page["data"].size(), 7u) << r.body.substr(0, 300);
     ASSERT_EQ(page["columns"][1], "step");
     for (const json& s : page["data"][1]) steps.push_back(s.get<std::uint64_t>());
     for (const json& e : page["data"][3]) energies.push_back(e.get<double>());
@@ -487,6 +488,7 @@ TEST(ServerLimits, LongTimeSeriesArePagedAndDecimatedNeverEmpty) {
 
   // Decimated for a plot: at most max_points rows, the first and the last among them.
   const json plot = api.get(base + "?max_points=100").body_json();
+  ASSERT_EQ(plot["data"].size(), 7u) << plot;
   const json& s = plot["data"][1];
   EXPECT_LE(s.size(), 100u);
   EXPECT_GE(s.size(), 50u);
@@ -496,6 +498,7 @@ TEST(ServerLimits, LongTimeSeriesArePagedAndDecimatedNeverEmpty) {
   EXPECT_GT(plot["stride"].get<std::uint64_t>(), 1u);
   // The tail since a step, as the dashboard appends it.
   const json tail = api.get(base + "?since_step=29990").body_json();
+  ASSERT_EQ(tail["data"].size(), 7u) << tail;
   EXPECT_EQ(tail["data"][1].size(), 9u);
   EXPECT_FALSE(tail["more"].get<bool>());
   EXPECT_EQ(tail["next_since_step"], kRows - 1);
@@ -511,12 +514,14 @@ TEST(ServerLimits, TimeSeriesPast64MiBIsServedWhole) {
   const Reply r = api.get("/api/runs/" + id + "/timeseries");
   ASSERT_EQ(r.status, 200) << r.body.substr(0, 300);
   const json series = r.body_json();
+  ASSERT_EQ(series["data"].size(), 7u) << r.body.substr(0, 300);
   ASSERT_EQ(series["data"][1].size(), rows);
   EXPECT_EQ(series["data"][1].front(), 0);
   EXPECT_EQ(series["data"][1].back(), rows - 1);
   EXPECT_FALSE(series["more"].get<bool>());
   const json tail =
       api.get("/api/runs/" + id + "/timeseries?since_step=" + std::to_string(rows - 3)).body_json();
+  ASSERT_EQ(tail["data"].size(), 7u) << tail;
   EXPECT_EQ(tail["data"][1].size(), 2u);
 }
 
