@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <array>
 #include <chrono>
+#include <new>
 
 #include "control/run_manager.hpp"
 #include "sim/scene.hpp"
@@ -31,14 +32,6 @@ nlohmann::json value_or_null(const nlohmann::json& document, const char* key) {
   const auto it = document.find(key);
   if (it == document.end()) return nullptr;
   return *it;
-}
-
-nlohmann::json histogram_json(const analysis::Histogram2D& h) {
-  return {{"bins_x", h.bins_x}, {"bins_y", h.bins_y}, {"counts", h.counts}, {"total", h.total}};
-}
-
-nlohmann::json angle_json(const analysis::AngleHistogram& h) {
-  return {{"bins", h.bins}, {"threshold", h.threshold}, {"counts", h.counts}, {"total", h.total}};
 }
 
 }  // namespace
@@ -99,38 +92,6 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
   return detail;
 }
 
-std::optional<nlohmann::json> spectrum_json(const analysis::AnalysisFrame& frame) {
-  if (!frame.spectrum) return std::nullopt;
-  const analysis::SpectrumProduct& p = *frame.spectrum;
-  nlohmann::json body{{"time", frame.time},
-                      {"step", frame.step},
-                      {"delta_k", p.spectrum.delta_k},
-                      {"k", p.spectrum.wavenumber},
-                      {"energy", p.spectrum.energy},
-                      {"kernel_wavenumber", p.kernel_wavenumber},
-                      {"resolution_wavenumber", p.resolution_wavenumber},
-                      {"dissipation", p.dissipation},
-                      {"dissipation_resolved", p.dissipation_resolved},
-                      {"kinetic_energy_grid", p.kinetic_energy_grid},
-                      {"length_scale", p.length_scale}};
-  // The second estimate of SPEC §5, ε_v = ν⟨ω²⟩ (4.6), when the scene computes vorticity.
-  body["dissipation_vorticity"] =
-      frame.vorticity ? nlohmann::json(frame.vorticity->dissipation) : nlohmann::json(nullptr);
-  return body;
-}
-
-std::optional<nlohmann::json> statistics_json(const analysis::AnalysisFrame& frame) {
-  if (!frame.subfilter) return std::nullopt;
-  const analysis::SubfilterStatisticsProduct& p = *frame.subfilter;
-  return nlohmann::json{
-      {"time", frame.time},
-      {"step", frame.step},
-      {"max_norm", p.max_norm},
-      {"mean_norm", p.mean_norm},
-      {"joint", histogram_json(p.joint)},
-      {"alignment", p.alignment ? angle_json(*p.alignment) : nlohmann::json(nullptr)}};
-}
-
 nlohmann::json image_header_json(const std::string& run_id, const control::ImageEvent& image) {
   const std::string base = "/api/runs/" + run_id;
   const auto created_ns =
@@ -170,6 +131,8 @@ ApiError to_api_error(const std::exception& error) {
     return ApiError(400, e->what(), e->field());
   if (dynamic_cast<const sim::SceneError*>(&error))
     return ApiError(400, error.what(), field_in_message(error.what()));
+  if (dynamic_cast<const std::bad_alloc*>(&error))
+    return ApiError(503, "out of memory while answering; try again later");
   return ApiError(500, std::string("internal error: ") + error.what());
 }
 

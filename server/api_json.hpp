@@ -29,10 +29,7 @@ nlohmann::json run_summary_json(const control::Run& run, const control::RunStatu
 /// Summary + {"scene","latest","changeable","counters","stream"}.
 nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& stream);
 
-/// Spectrum body of GET /api/runs/{id}/spectrum; nullopt if the frame has none.
-std::optional<nlohmann::json> spectrum_json(const analysis::AnalysisFrame& frame);
-/// Statistics body of GET /api/runs/{id}/statistics; nullopt if the frame has none.
-std::optional<nlohmann::json> statistics_json(const analysis::AnalysisFrame& frame);
+// The spectrum and statistics bodies: server/product_cache.hpp (serialised once per frame).
 
 /// The JSON header of a binary image message (without the 4-byte length prefix).
 nlohmann::json image_header_json(const std::string& run_id, const control::ImageEvent& image);
@@ -56,7 +53,8 @@ class ApiError : public std::runtime_error {
 nlohmann::json error_json(const ApiError& error);
 
 /// What an exception from run control means for a client: UnknownRunError 404, StateError 409,
-/// ChangeError and sim::SceneError 400 (with the field they name), anything else 500.
+/// ChangeError and sim::SceneError 400 (with the field they name), std::bad_alloc 503 (out of
+/// memory: try again), anything else 500.
 ApiError to_api_error(const std::exception& error);
 
 /// The dotted field a scene error message names ("scene: 'a.b[2]' must be ..." → "a.b[2]").

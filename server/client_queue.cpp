@@ -11,8 +11,8 @@ ClientQueue::ClientQueue(StreamLimits limits, std::function<void()> wake)
 
 void ClientQueue::wake_locked() {
   if (wake_pending_ || !wake_) return;
+  wake_();  // may throw (no memory for the post): then the next push tries again
   wake_pending_ = true;
-  wake_();
 }
 
 void ClientQueue::push_text(std::string text) {

@@ -22,14 +22,18 @@ namespace fs = std::filesystem;
 struct Router::Services {
   control::RunManager& manager;
   StreamRegistry& streams;
+  ProductCache& products;
   RouterOptions options;
   StaticFiles web;
   std::string presets;  // RunManager::presets(), serialised once
+  mutable SeriesIndexCache series;
 };
 
 namespace {
 
-constexpr std::size_t kMaxFileBytes = 64u << 20;  // static files, frames, time series
+constexpr unsigned kStatusUnavailable = 503;
+constexpr const char* kRetryAfterSeconds = "1";
+constexpr const char* kWebSocketVersion = "13";
 
 struct Context {
   const Request& request;
@@ -64,10 +68,23 @@ Response json_response(const Request& request, const nlohmann::json& body,
   return res;
 }
 
-std::optional<std::string> read_file(const fs::path& file) {
+/// 200 with JSON text written by JsonWriter.
+Response make_json_text(const Request& request, std::string text) {
+  Response res = make_response(request, http::status::ok, std::move(text), "application/json");
+  res.set(http::field::cache_control, "no-store");
+  return res;
+}
+
+/// A whole file (static files, saved frames): nullopt if it cannot be read, ApiError 507 if it is
+/// larger than one response may be.
+std::optional<std::string> read_file(const fs::path& file, std::size_t max_bytes) {
   std::error_code ec;
   const auto size = fs::file_size(file, ec);
-  if (ec || size > kMaxFileBytes) return std::nullopt;
+  if (ec) return std::nullopt;
+  if (size > max_bytes)
+    throw ApiError(507, file.filename().string() + " has " + std::to_string(size) +
+                            " bytes, more than the server's response limit of " +
+                            std::to_string(max_bytes) + " bytes");
   std::ifstream in(file, std::ios::binary);
   if (!in) return std::nullopt;
   std::string content(static_cast<std::size_t>(size), '\0');
@@ -158,60 +175,6 @@ Response change_parameters(const Router::Services& s, const Context& c) {
   return json_response(c.request, {{"changed", changed}, {"effective", "next step"}});
 }
 
-std::vector<std::string_view> split(std::string_view line, char separator) {
-  std::vector<std::string_view> fields;
-  std::size_t start = 0;
-  while (true) {
-    const std::size_t end = line.find(separator, start);
-    fields.push_back(line.substr(start, end == std::string_view::npos ? end : end - start));
-    if (end == std::string_view::npos) break;
-    start = end + 1;
-  }
-  return fields;
-}
-
-std::optional<double> parse_number(std::string_view text) {
-  while (!text.empty() && (text.back() == '\r' || text.back() == ' ')) text.remove_suffix(1);
-  if (text == "nan" || text == "-nan" || text == "NaN") return std::nan("");
-  double value = 0.0;
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size()) return std::nullopt;
-  return value;
-}
-
-/// A CSV file with a header row: column names and rows of numbers (rows that do not parse, such
-/// as a half-written last line, are skipped).
-struct Csv {
-  std::vector<std::string> columns;
-  std::vector<std::vector<std::string_view>> rows;
-  std::string text;
-};
-
-std::optional<Csv> read_csv(const fs::path& file) {
-  std::optional<std::string> text = read_file(file);
-  if (!text) return std::nullopt;
-  Csv csv;
-  csv.text = std::move(*text);
-  std::string_view rest = csv.text;
-  bool header = true;
-  while (!rest.empty()) {
-    const std::size_t newline = rest.find('\n');
-    if (newline == std::string_view::npos) break;  // no newline yet: still being written
-    std::string_view line = rest.substr(0, newline);
-    rest.remove_prefix(newline + 1);
-    if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
-    if (line.empty()) continue;
-    std::vector<std::string_view> fields = split(line, ',');
-    if (header) {
-      for (const auto f : fields) csv.columns.emplace_back(f);
-      header = false;
-    } else if (fields.size() == csv.columns.size()) {
-      csv.rows.push_back(std::move(fields));
-    }
-  }
-  return csv;
-}
-
 std::uint64_t query_unsigned(const Context& c, const std::string& name, std::uint64_t fallback) {
   const auto it = c.query.find(name);
   if (it == c.query.end()) return fallback;
@@ -223,63 +186,57 @@ std::uint64_t query_unsigned(const Context& c, const std::string& name, std::uin
   return value;
 }
 
+/// since_step, limit and (time series only) max_points of a history request; `limit` and
+/// `max_points` at most the server's row limit.
+HistoryQuery history_query(const Router::Services& s, const Context& c, bool decimation) {
+  HistoryQuery q;
+  if (c.query.contains("since_step")) q.since_step = query_unsigned(c, "since_step", 0);
+  const std::uint64_t max_rows = s.options.limits.max_rows;
+  const auto bounded = [&](const std::string& name, std::uint64_t min) -> std::size_t {
+    const std::uint64_t v = query_unsigned(c, name, 0);
+    if (v < min || v > max_rows)
+      throw ApiError(400,
+                     "'" + name + "' must be an integer in [" + std::to_string(min) + ", " +
+                         std::to_string(max_rows) + "] (the server's rows per answer)",
+                     name);
+    return static_cast<std::size_t>(v);
+  };
+  if (c.query.contains("limit")) q.limit = bounded("limit", 1);
+  if (decimation && c.query.contains("max_points")) {
+    constexpr std::uint64_t kMinPoints = 2;  // the first row and the last
+    q.max_points = bounded("max_points", kMinPoints);
+    if (q.limit)
+      throw ApiError(400, "give either 'limit' (a page) or 'max_points' (decimated), not both",
+                     "max_points");
+  }
+  return q;
+}
+
 Response timeseries(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  const std::uint64_t since = query_unsigned(c, "since_step", 0);
-  const bool has_since = c.query.contains("since_step");
-  nlohmann::json columns = nlohmann::json::array();
-  nlohmann::json data = nlohmann::json::array();
-  const std::optional<Csv> csv = read_csv(run->directory() / "timeseries.csv");
-  if (csv && !csv->columns.empty()) {
-    const std::map<std::string, std::string> renamed = {{"t", "time"}, {"e_v", "kinetic_energy"}};
-    std::size_t step_column = csv->columns.size();
-    for (std::size_t k = 0; k < csv->columns.size(); ++k) {
-      const auto it = renamed.find(csv->columns[k]);
-      columns.push_back(it == renamed.end() ? csv->columns[k] : it->second);
-      if (csv->columns[k] == "step") step_column = k;
-    }
-    // Parse rows; a restart without a final checkpoint repeats steps: the later rows win.
-    std::vector<std::vector<double>> rows;
-    for (const auto& fields : csv->rows) {
-      std::vector<double> row;
-      row.reserve(fields.size());
-      for (const auto f : fields) {
-        const std::optional<double> v = parse_number(f);
-        if (!v) break;
-        row.push_back(*v);
-      }
-      if (row.size() != fields.size()) continue;
-      if (step_column < row.size())
-        while (!rows.empty() && rows.back()[step_column] >= row[step_column]) rows.pop_back();
-      rows.push_back(std::move(row));
-    }
-    for (std::size_t k = 0; k < csv->columns.size(); ++k) data.push_back(nlohmann::json::array());
-    for (const auto& row : rows) {
-      if (has_since && step_column < row.size() && !(row[step_column] > static_cast<double>(since)))
-        continue;
-      for (std::size_t k = 0; k < row.size(); ++k) {
-        if (k == step_column)
-          data[k].push_back(static_cast<std::uint64_t>(row[k]));
-        else
-          data[k].push_back(row[k]);  // NaN is written as null
-      }
-    }
-  }
-  return json_response(c.request, {{"columns", columns}, {"data", data}});
+  const HistoryQuery query = history_query(s, c, true);
+  return make_json_text(c.request, timeseries_answer(run->directory() / "timeseries.csv", query,
+                                                     s.options.limits, s.series));
+}
+
+/// A product of the run's latest frame as the frame's one shared text.
+Response product(const Router::Services& s, const Context& c, Product which, const char* what) {
+  const auto run = find_run(s, c.params[0]);
+  const std::shared_ptr<const std::string> text = s.products.get(run->latest_frame(), which);
+  if (!text) throw ApiError(404, "run '" + run->id() + "' has no " + what + " yet");
+  Response res = make_response(c.request, http::status::ok, std::string(), "application/json");
+  res.set(http::field::cache_control, "no-store");
+  res.body().share(text);
+  res.prepare_payload();
+  return res;
 }
 
 Response spectrum(const Router::Services& s, const Context& c) {
-  const auto frame = find_run(s, c.params[0])->latest_frame();
-  std::optional<nlohmann::json> body = frame ? spectrum_json(*frame) : std::nullopt;
-  if (!body) throw ApiError(404, "run '" + c.params[0] + "' has no spectrum yet");
-  return json_response(c.request, *body);
+  return product(s, c, Product::spectrum, "spectrum");
 }
 
 Response statistics(const Router::Services& s, const Context& c) {
-  const auto frame = find_run(s, c.params[0])->latest_frame();
-  std::optional<nlohmann::json> body = frame ? statistics_json(*frame) : std::nullopt;
-  if (!body) throw ApiError(404, "run '" + c.params[0] + "' has no sub-filter statistics yet");
-  return json_response(c.request, *body);
+  return product(s, c, Product::statistics, "sub-filter statistics");
 }
 
 bool is_plain_name(std::string_view name, std::size_t max_size) {
@@ -312,27 +269,14 @@ Response latest_image(const Router::Services& s, const Context& c) {
 
 Response list_frames(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  nlohmann::json frames = nlohmann::json::array();
-  const std::optional<Csv> csv = read_csv(run->directory() / "frames" / "index.csv");
-  if (csv) {
-    for (const auto& row : csv->rows) {
-      nlohmann::json frame = nlohmann::json::object();
-      for (std::size_t k = 0; k < csv->columns.size(); ++k) {
-        const std::string& column = csv->columns[k];
-        const std::optional<double> number = parse_number(row[k]);
-        if (column == "step" && number)
-          frame[column] = static_cast<std::uint64_t>(*number);
-        else if (column == "time" && number)
-          frame[column] = *number;
-        else
-          frame[column] = std::string(row[k]);
-      }
-      if (frame.contains("file") && frame["file"].is_string())
-        frame["url"] = "/api/runs/" + run->id() + "/frames/" + frame["file"].get<std::string>();
-      frames.push_back(std::move(frame));
-    }
-  }
-  return json_response(c.request, frames);
+  FramesPage page = frames_answer(run->directory() / "frames" / "index.csv",
+                                  "/api/runs/" + run->id() + "/frames/", history_query(s, c, false),
+                                  s.options.limits);
+  Response res = make_json_text(c.request, std::move(page.body));
+  // The body stays an array; paging travels in the header.
+  res.set("X-Sphles-More", page.more ? "true" : "false");
+  if (page.last_step) res.set("X-Sphles-Next-Since-Step", std::to_string(*page.last_step));
+  return res;
 }
 
 Response get_frame(const Router::Services& s, const Context& c) {
@@ -347,7 +291,7 @@ Response get_frame(const Router::Services& s, const Context& c) {
   const fs::path file = fs::canonical(directory / name, ec);
   if (ec || !is_within(directory, file) || !fs::is_regular_file(file, ec))
     throw ApiError(404, "no frame '" + name + "' in run '" + run->id() + "'", "file");
-  std::optional<std::string> content = read_file(file);
+  std::optional<std::string> content = read_file(file, s.options.limits.max_bytes);
   if (!content) throw ApiError(404, "frame '" + name + "' cannot be read", "file");
   return png_response(c.request, std::move(*content));
 }
@@ -432,7 +376,7 @@ Response serve_static(const Router::Services& s, const Request& request, std::st
   }
   const StaticLookup found = s.web.lookup(path);
   if (found.status != 200) throw ApiError(found.status, found.message, "path");
-  std::optional<std::string> content = read_file(found.file);
+  std::optional<std::string> content = read_file(found.file, s.options.limits.max_bytes);
   if (!content) throw ApiError(404, "path: cannot read the file", "path");
   return make_response(request, http::status::ok, std::move(*content), mime_type(found.file));
 }
@@ -486,15 +430,18 @@ Response error_response(const ApiError& error, unsigned version, bool keep_alive
   res.set(http::field::server, "sphles/" SPHLES_VERSION);
   res.set(http::field::content_type, "application/json");
   res.set(http::field::cache_control, "no-store");
+  // A 503 is a passing condition (memory, a full server): say when to ask again.
+  if (error.status() == kStatusUnavailable) res.set(http::field::retry_after, kRetryAfterSeconds);
   res.keep_alive(keep_alive);
   res.body() = dump(error_json(error));
   res.prepare_payload();
   return res;
 }
 
-Router::Router(control::RunManager& manager, StreamRegistry& streams, RouterOptions options)
-    : services_(std::make_shared<Services>(
-          Services{manager, streams, options, StaticFiles(options.web_root), {}})) {
+Router::Router(control::RunManager& manager, StreamRegistry& streams, ProductCache& products,
+               RouterOptions options)
+    : services_(new Services{
+          manager, streams, products, options, StaticFiles(options.web_root), {}, {}}) {
   try {
     services_->presets = dump(control::RunManager::presets());
   } catch (const std::exception&) {
@@ -516,6 +463,7 @@ Response Router::handle(const Request& request) const {
   try {
     res = dispatch(*services_, request);
   } catch (const std::exception& e) {
+    // Out of memory here throws on (std::bad_alloc): the caller closes the connection.
     res = error_response(to_api_error(e), request.version(), request.keep_alive());
   }
   if (request.method() == http::verb::head) {
@@ -527,12 +475,56 @@ Response Router::handle(const Request& request) const {
   return res;
 }
 
+namespace {
+
+/// What Beast's accept would decline, as the documented JSON error (Beast answers in plain
+/// text): RFC 6455 §4.2.1. The caller has checked is_upgrade (GET, HTTP/1.1, Connection: Upgrade,
+/// Upgrade: websocket).
+std::optional<ApiError> handshake_error(const Request& request, bool& wrong_version) {
+  wrong_version = false;
+  if (request[http::field::host].empty())
+    return ApiError(400, "WebSocket handshake: the Host header is missing", "Host");
+  const std::string_view key = request[http::field::sec_websocket_key];
+  if (key.empty())
+    return ApiError(400, "WebSocket handshake: the Sec-WebSocket-Key header is missing",
+                    "Sec-WebSocket-Key");
+  // base64 of a 16-byte nonce: 22 base64 characters and "==".
+  constexpr std::size_t kKeyLength = 24, kKeyCharacters = 22;
+  const auto base64 = [](unsigned char ch) { return std::isalnum(ch) || ch == '+' || ch == '/'; };
+  if (key.size() != kKeyLength || key.substr(kKeyCharacters) != "==" ||
+      !std::all_of(key.begin(), key.begin() + kKeyCharacters, base64))
+    return ApiError(400,
+                    "WebSocket handshake: Sec-WebSocket-Key must be the base64 of 16 bytes "
+                    "(24 characters ending in '==')",
+                    "Sec-WebSocket-Key");
+  const std::string_view version = request[http::field::sec_websocket_version];
+  if (version.empty())
+    return ApiError(400, "WebSocket handshake: the Sec-WebSocket-Version header is missing (13)",
+                    "Sec-WebSocket-Version");
+  if (version != kWebSocketVersion) {
+    wrong_version = true;
+    return ApiError(426,
+                    "WebSocket handshake: protocol version '" + std::string(version) +
+                        "' is not supported; this server speaks " + kWebSocketVersion,
+                    "Sec-WebSocket-Version");
+  }
+  return std::nullopt;
+}
+
+}  // namespace
+
 Router::StreamTarget Router::stream_target(const Request& request) const {
   StreamTarget t;
   const auto fail = [&](const ApiError& e) {
     t.error = error_response(e, request.version(), false);
     return t;
   };
+  bool wrong_version = false;
+  if (const std::optional<ApiError> bad = handshake_error(request, wrong_version)) {
+    fail(*bad);
+    if (wrong_version) t.error->set(http::field::sec_websocket_version, kWebSocketVersion);
+    return t;
+  }
   const std::optional<Target> target = split_target(request.target());
   const auto segments = target ? path_segments(target->path) : std::nullopt;
   std::vector<std::string> params;
@@ -547,8 +539,10 @@ Router::StreamTarget Router::stream_target(const Request& request) const {
   }
   std::optional<std::string_view> query_token;
   if (const auto it = query->find("token"); it != query->end()) query_token = it->second;
-  t.authorised = authorised(services_->options.token,
-                            bearer_token(request[http::field::authorization]), query_token);
+  const std::optional<std::string_view> header_token =
+      bearer_token(request[http::field::authorization]);
+  t.authorised = authorised(services_->options.token, header_token, query_token);
+  t.token_holder = !services_->options.token.empty() && t.authorised;
   return t;
 }
 

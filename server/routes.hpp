@@ -19,14 +19,18 @@
 
 #include "control/run_manager.hpp"
 #include "server/api_json.hpp"
+#include "server/history.hpp"
+#include "server/product_cache.hpp"
 #include "server/static_files.hpp"
+#include "server/text_body.hpp"
 
 namespace sphles::server {
 
 class StreamRegistry;
 
 using Request = boost::beast::http::request<boost::beast::http::string_body>;
-using Response = boost::beast::http::response<boost::beast::http::string_body>;
+/// Owned text, or a product's text shared with other responses (server/text_body.hpp).
+using Response = boost::beast::http::response<TextBody>;
 
 struct RouteInfo {
   boost::beast::http::verb method;
@@ -37,11 +41,14 @@ struct RouteInfo {
 struct RouterOptions {
   std::string token;  // empty: no token needed
   std::filesystem::path web_root;
+  ResponseLimits limits;  // bytes of one answer, rows of one history page
 };
 
 class Router {
  public:
-  Router(control::RunManager& manager, StreamRegistry& streams, RouterOptions options);
+  /// `products` serialises spectra and statistics once per frame (shared with the streams).
+  Router(control::RunManager& manager, StreamRegistry& streams, ProductCache& products,
+         RouterOptions options);
 
   /// One complete request → one response (keep-alive and HTTP version as the request's).
   /// Never throws: failures of run control become JSON errors, anything else a 500.
@@ -51,10 +58,14 @@ class Router {
   static const std::vector<RouteInfo>& routes();
 
   /// A WebSocket upgrade to /api/runs/{id}/stream: the run, whether the connection may send
-  /// parameter changes (token in ?token= or the Authorization header), or the error to send.
+  /// parameter changes (token in ?token= or the Authorization header), whether it presented the
+  /// server's token (false when none is configured: such streams are "public" for admission),
+  /// or the error to send: a malformed handshake (400; 426 with Sec-WebSocket-Version: 13 for
+  /// another protocol version) before the path and run (404).
   struct StreamTarget {
     std::shared_ptr<control::Run> run;
     bool authorised = false;
+    bool token_holder = false;
     std::optional<Response> error;
   };
   StreamTarget stream_target(const Request& request) const;

@@ -8,6 +8,7 @@
 #include <boost/beast/version.hpp>
 #include <boost/beast/websocket.hpp>
 #include <type_traits>
+#include <utility>
 
 namespace sphles::server {
 
@@ -39,14 +40,17 @@ std::string binary_head(const std::string& header) {
 }  // namespace
 
 WebSocketSession::WebSocketSession(beast::tcp_stream&& stream, std::shared_ptr<control::Run> run,
-                                   StreamRegistry& registry, net::any_io_executor workers,
-                                   StreamLimits limits, bool authorised)
+                                   StreamRegistry& registry, ProductCache& products,
+                                   net::any_io_executor workers, StreamLimits limits,
+                                   bool authorised, StreamTicket ticket)
     : ws_(std::move(stream)),
       run_(std::move(run)),
       registry_(registry),
+      products_(products),
       workers_(std::move(workers)),
       limits_(limits),
-      authorised_(authorised) {}
+      authorised_(authorised),
+      ticket_(std::move(ticket)) {}
 
 WebSocketSession::~WebSocketSession() {
   if (queue_) queue_->close();
@@ -86,15 +90,22 @@ void WebSocketSession::on_accept(beast::error_code ec) {
                           {"run", run_detail_json(*run_, registry_.counters(run_->id()))}};
   out_head_ = dump(hello);
   out_png_.reset();
+  out_shared_.reset();
   writing_ = true;
   ws_.text(true);
-  ws_.async_write(net::buffer(out_head_),
-                  beast::bind_front_handler(&WebSocketSession::on_write, shared_from_this()));
+  write_out();
   do_read();
 }
 
 void WebSocketSession::on_wake() {
   if (started_ && !writing_ && !closing_) send_next();
+}
+
+void WebSocketSession::set_product(const std::shared_ptr<const analysis::AnalysisFrame>& frame,
+                                   Product product, const char* type) {
+  // {"type":"spectrum", + the shared body after its '{': no copy of the body per client.
+  out_shared_ = products_.get(frame, product);
+  out_head_ = std::string("{\"type\":\"") + type + "\",";
 }
 
 void WebSocketSession::send_next() {
@@ -105,46 +116,65 @@ void WebSocketSession::send_next() {
   }
   writing_ = true;
   out_png_.reset();
+  out_shared_.reset();
   bool binary = false;
   try {
-    std::visit(Overloaded{
-                   [&](QueuedText& t) { out_head_ = std::move(t.text); },
-                   [&](QueuedMetrics& m) {
-                     nlohmann::json samples = nlohmann::json::array();
-                     for (const control::MetricsSample& s : m.samples)
-                       samples.push_back(metrics_json(s));
-                     out_head_ = dump({{"type", "metrics"}, {"samples", std::move(samples)}});
-                   },
-                   [&](QueuedSpectrum& s) {
-                     nlohmann::json body = *spectrum_json(*s.frame);
-                     body["type"] = "spectrum";
-                     out_head_ = dump(body);
-                   },
-                   [&](QueuedStatistics& s) {
-                     nlohmann::json body = *statistics_json(*s.frame);
-                     body["type"] = "statistics";
-                     out_head_ = dump(body);
-                   },
-                   [&](control::ImageEvent& image) {
-                     out_head_ = binary_head(dump(image_header_json(run_->id(), image)));
-                     out_png_ = std::move(image.png);
-                     binary = true;
-                   },
-               },
-               *item);
+    std::visit(
+        Overloaded{
+            [&](QueuedText& t) { out_head_ = std::move(t.text); },
+            [&](QueuedMetrics& m) {
+              nlohmann::json samples = nlohmann::json::array();
+              for (const control::MetricsSample& s : m.samples) samples.push_back(metrics_json(s));
+              out_head_ = dump({{"type", "metrics"}, {"samples", std::move(samples)}});
+            },
+            [&](QueuedSpectrum& s) { set_product(s.frame, Product::spectrum, "spectrum"); },
+            [&](QueuedStatistics& s) { set_product(s.frame, Product::statistics, "statistics"); },
+            [&](control::ImageEvent& image) {
+              out_head_ = binary_head(dump(image_header_json(run_->id(), image)));
+              out_png_ = std::move(image.png);
+              binary = true;
+            },
+        },
+        *item);
   } catch (const std::exception& e) {
-    out_head_ = dump({{"type", "error"}, {"error", error_json(ApiError(500, e.what()))["error"]}});
+    // A product too large for the server's limit (507) or no memory for it (503): the client
+    // gets the error in its place and the stream goes on.
+    out_png_.reset();
+    out_shared_.reset();
     binary = false;
+    try {
+      out_head_ = dump({{"type", "error"}, {"error", error_json(to_api_error(e))["error"]}});
+    } catch (const std::exception&) {
+      return abort();
+    }
   }
   ws_.binary(binary);
-  const std::array<net::const_buffer, 2> buffers{
-      net::buffer(out_head_), out_png_ ? net::buffer(*out_png_) : net::const_buffer()};
-  ws_.async_write(buffers,
-                  beast::bind_front_handler(&WebSocketSession::on_write, shared_from_this()));
+  write_out();
+}
+
+void WebSocketSession::write_out() {
+  net::const_buffer tail;
+  if (out_png_) tail = net::buffer(*out_png_);
+  if (out_shared_ && !out_shared_->empty())
+    tail = net::buffer(out_shared_->data() + 1, out_shared_->size() - 1);
+  const std::array<net::const_buffer, 2> buffers{net::buffer(out_head_), tail};
+  try {
+    ws_.async_write(buffers,
+                    beast::bind_front_handler(&WebSocketSession::on_write, shared_from_this()));
+  } catch (const std::exception&) {
+    abort();
+  }
+}
+
+void WebSocketSession::abort() {
+  finish();
+  beast::error_code ec;
+  beast::get_lowest_layer(ws_).socket().close(ec);
 }
 
 void WebSocketSession::on_write(beast::error_code ec, std::size_t) {
   out_png_.reset();
+  out_shared_.reset();
   if (ec) return finish();
   started_ = true;
   if (closing_) {
@@ -249,6 +279,56 @@ void WebSocketSession::finish() {
 
 // ---------------------------------------------------------------------------------------------
 
+StreamTicket& StreamTicket::operator=(StreamTicket&& other) noexcept {
+  if (this != &other) {
+    release();
+    registry_ = std::exchange(other.registry_, nullptr);
+    address_ = std::move(other.address_);
+    public_ = other.public_;
+  }
+  return *this;
+}
+
+void StreamTicket::release() noexcept {
+  if (registry_) std::exchange(registry_, nullptr)->release(address_, public_);
+}
+
+StreamTicket StreamRegistry::admit(const std::string& address, bool public_stream) {
+  std::lock_guard lock(mutex_);
+  if (public_stream) {
+    if (public_ >= quota_.max_public)
+      throw ApiError(503,
+                     "too many WebSocket streams without the token: " + std::to_string(public_) +
+                         " open, the server's limit " + std::to_string(quota_.max_public) +
+                         " (the rest is kept for the token holder); try again later");
+    const auto it = public_by_address_.find(address);
+    const std::size_t mine = it == public_by_address_.end() ? 0 : it->second;
+    if (mine >= quota_.max_public_per_address)
+      throw ApiError(503, "too many WebSocket streams from " + address + ": " +
+                              std::to_string(mine) +
+                              " open without the token, the limit per "
+                              "address; close one first");
+    ++public_by_address_[address];
+    ++public_;
+  }
+  ++admitted_;
+  return StreamTicket(this, address, public_stream);
+}
+
+void StreamRegistry::release(const std::string& address, bool public_stream) noexcept {
+  std::lock_guard lock(mutex_);
+  --admitted_;
+  if (!public_stream) return;
+  --public_;
+  const auto it = public_by_address_.find(address);
+  if (it != public_by_address_.end() && --it->second == 0) public_by_address_.erase(it);
+}
+
+std::size_t StreamRegistry::admitted() const {
+  std::lock_guard lock(mutex_);
+  return admitted_;
+}
+
 void StreamRegistry::add(const std::shared_ptr<WebSocketSession>& session) {
   std::lock_guard lock(mutex_);
   live_[session.get()] = Entry{session->run()->id(), session, session->queue()};
@@ -258,7 +338,10 @@ void StreamRegistry::remove(const WebSocketSession& session) {
   std::lock_guard lock(mutex_);
   const auto it = live_.find(&session);
   if (it == live_.end()) return;
-  closed_dropped_[it->second.run_id] += it->second.queue->images_dropped();
+  try {  // called from a destructor: a failed insertion loses a count, never the process
+    closed_dropped_[it->second.run_id] += it->second.queue->images_dropped();
+  } catch (const std::exception&) {
+  }
   live_.erase(it);
 }
 

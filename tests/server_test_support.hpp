@@ -122,7 +122,9 @@ inline fs::path make_web_root(const fs::path& base) {
 }
 
 struct TestServer {
-  explicit TestServer(fs::path data, std::string token = "", int max_running = 2)
+  /// `configure` may change the server's limits before it starts (tests of server/ limits).
+  explicit TestServer(fs::path data, std::string token = "", int max_running = 2,
+                      const std::function<void(ServerOptions&)>& configure = {})
       : data_directory(std::move(data)) {
     sphles::control::ManagerOptions m;
     m.data_directory = data_directory;
@@ -136,6 +138,7 @@ struct TestServer {
     o.token = std::move(token);
     o.web_root = make_web_root(data_directory.parent_path() /
                                (data_directory.filename().string() + "-site"));
+    if (configure) configure(o);
     http = std::make_unique<HttpServer>(*manager, o);
     http->start();
   }
@@ -216,6 +219,15 @@ inline Reply send(unsigned short port, const Request& r) {
   }
   reply.body = res.body();
   return reply;
+}
+
+/// send(), or nullopt when the server closes or resets the connection instead of answering.
+inline std::optional<Reply> try_send(unsigned short port, const Request& r) {
+  try {
+    return send(port, r);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
 }
 
 struct Api {
