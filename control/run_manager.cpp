@@ -233,15 +233,20 @@ void RunManager::start(const std::string& id) {
     std::erase(queue_, id);
     return;
   }
-  std::lock_guard lock(mutex_);
-  if (std::find(queue_.begin(), queue_.end(), id) != queue_.end())
-    throw StateError("run " + id + " is already queued");
-  if (queue_.size() >= static_cast<std::size_t>(options_.max_queued))
-    throw CapacityError("all " + std::to_string(options_.max_running) + " run slots are busy and " +
-                        std::to_string(queue_.size()) +
-                        " runs wait for one, the limit (--max-queued " +
-                        std::to_string(options_.max_queued) + "); try again later");
+  {
+    std::lock_guard lock(mutex_);
+    if (std::find(queue_.begin(), queue_.end(), id) != queue_.end())
+      throw StateError("run " + id + " is already queued");
+    if (queue_.size() >= static_cast<std::size_t>(options_.max_queued))
+      throw CapacityError("all " + std::to_string(options_.max_running) +
+                          " run slots are busy and " + std::to_string(queue_.size()) +
+                          " runs wait for one, the limit (--max-queued " +
+                          std::to_string(options_.max_queued) + "); try again later");
+  }
+  // Not under mutex_: marking may wait for a transition of this run in progress (a stop), and
+  // listing runs must not. schedule_mutex_ keeps other starts out meanwhile.
   run->mark_queued();  // throws StateError if the run cannot start
+  std::lock_guard lock(mutex_);
   queue_.push_back(id);
 }
 

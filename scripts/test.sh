@@ -2,7 +2,8 @@
 # Sets up, builds and runs every test. Exits non-zero if any step or test fails.
 #  1. Release build (-Werror), all GoogleTest suites through CTest.
 #  2. ThreadSanitizer build of the solver/analysis hand-over tests (label "concurrency") and of
-#     run control (label "control": solver, analysis and render threads, pause/stop/changes).
+#     run control (label "control": solver, analysis and render threads, pause/stop/changes, and
+#     the service soak: random transitions from six clients over real sockets).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
@@ -18,7 +19,7 @@ echo "== ThreadSanitizer: concurrency tests =="
 cmake -S . -B build-tsan -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DSPHLES_TSAN=ON \
   -DSPHLES_BUILD_BENCH=OFF -DSPHLES_WERROR=ON > build-tsan.configure.log 2>&1 ||
   { cat build-tsan.configure.log; exit 1; }
-cmake --build build-tsan --parallel "$(nproc)" --target pipeline_tests control_tests
+cmake --build build-tsan --parallel "$(nproc)" --target pipeline_tests control_tests soak_tests
 (cd build-tsan && OMP_NUM_THREADS=1 \
   TSAN_OPTIONS="halt_on_error=1 second_deadlock_stack=1 suppressions=$PWD/../tests/tsan.supp" \
   ctest --output-on-failure --parallel "$(nproc)" -L "concurrency|control" --no-tests=error \

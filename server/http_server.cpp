@@ -99,9 +99,12 @@ struct HttpServer::Impl {
   std::condition_variable sessions_changed;
   std::map<HttpSession*, Entry> sessions;
   std::atomic<std::size_t> pending_response_bytes{0};
-  // Run-control calls (some block: stop writes a checkpoint), on their own threads.
+  // Request handlers, off the I/O threads: reads on `work`, run control (which may block: a stop
+  // writes a checkpoint) on `control`, so that reads never queue behind it.
   net::io_context work;
+  net::io_context control;
   std::optional<net::executor_work_guard<net::io_context::executor_type>> keep_working;
+  std::optional<net::executor_work_guard<net::io_context::executor_type>> keep_controlling;
   std::vector<std::thread> worker_threads;
   net::io_context ioc;
   // Keeps the I/O threads running while nothing is pending (e.g. after stop_accepting).
@@ -222,10 +225,13 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     Request request = parser_->release();
     if (beast::websocket::is_upgrade(request)) return upgrade(std::move(request));
 
-    // Run control may block (stop writes a checkpoint): handle on the worker pool, write here.
-    // Nothing may escape (it would end a worker thread's handler): if even an error response
-    // cannot be made, the connection closes as the last owner of the session goes.
-    net::post(server_.work, [self = shared_from_this(), request = std::move(request)] {
+    // Run control may block (stop writes a checkpoint): handle on a worker pool, write here.
+    // Reads and run control have pools of their own. Nothing may escape (it would end a worker
+    // thread's handler): if even an error response cannot be made, the connection closes as the
+    // last owner of the session goes.
+    const bool read = request.method() == http::verb::get || request.method() == http::verb::head;
+    net::post(read ? server_.work : server_.control, [self = shared_from_this(),
+                                                      request = std::move(request)] {
       try {
         auto response = std::make_shared<Response>(self->server_.router.handle(request));
         std::size_t bytes = response->body().owned_bytes();
@@ -260,7 +266,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     upgraded_ = true;
     auto session = std::make_shared<WebSocketSession>(
         std::move(stream_), std::move(target.run), server_.streams, server_.products,
-        server_.work.get_executor(), server_.options.stream, target.authorised, std::move(ticket));
+        server_.control.get_executor(), server_.options.stream, target.authorised,
+        std::move(ticket));
     session->start(std::move(request));
     // This HttpSession ends here; the connection belongs to the WebSocket session now.
   }
@@ -500,6 +507,7 @@ void HttpServer::start() {
   s.accepting = true;
   s.keep_running.emplace(s.ioc.get_executor());
   s.keep_working.emplace(s.work.get_executor());
+  s.keep_controlling.emplace(s.control.get_executor());
   s.do_accept();
   const int n = std::max(1, s.options.io_threads);
   for (int k = 0; k < n; ++k)
@@ -511,6 +519,11 @@ void HttpServer::start() {
     s.worker_threads.emplace_back([&s] {
       pthread_setname_np(pthread_self(), "sphles-worker");
       run_context(s.work, "worker thread");
+    });
+  for (int k = 0; k < std::max(1, s.options.control_threads); ++k)
+    s.worker_threads.emplace_back([&s] {
+      pthread_setname_np(pthread_self(), "sphles-control");
+      run_context(s.control, "control thread");
     });
 }
 
@@ -564,6 +577,7 @@ void HttpServer::stop() {
   }
   // Requests in progress finish (their responses are dropped below).
   s.keep_working.reset();
+  s.keep_controlling.reset();
   for (std::thread& t : s.worker_threads) t.join();
   s.worker_threads.clear();
   s.keep_running.reset();

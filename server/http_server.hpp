@@ -33,7 +33,12 @@ struct ServerOptions {
   std::string token;                  // non-empty: mutating calls need it
   std::filesystem::path web_root;     // static files; need not exist
   int io_threads = 2;
+  /// Requests are handled off the I/O threads: reads (GET, HEAD) on `worker_threads`, everything
+  /// else on `control_threads`. Run-control calls may block for a while (a stop waits for the
+  /// step and the checkpoint; transitions of one run wait for each other), and reads never wait
+  /// behind them.
   int worker_threads = 3;
+  int control_threads = 3;
   std::size_t body_limit = 1u << 20;     // request bodies above: 413
   std::size_t header_limit = 16u << 10;  // request headers above: 431
   /// A request's header must be complete this long after the connection was ready for it

@@ -5,6 +5,7 @@
 // over real sockets and reproduces the finding first.
 #include <atomic>
 #include <future>
+#include <latch>
 
 #include "io/checkpoint.hpp"
 #include "server_test_support.hpp"
@@ -89,13 +90,62 @@ TEST(ServiceFaults, ConcurrentStartsOfAFinishedRunStartItOnce) {
             (std::vector<int>{200, 409, 409, 409}));
   EXPECT_EQ(api.run(id)["state"], "running");
   ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > 0.05; }));
-  // Mixed: resume and start at once on a stopped run.
-  ASSERT_EQ(api.post("/api/runs/" + id + "/stop").status, 200);
-  const std::vector<int> mixed = concurrently(4, [&, k = std::make_shared<std::atomic<int>>(0)] {
-    return api.post("/api/runs/" + id + ((*k)++ % 2 ? "/start" : "/resume"));
-  });
-  EXPECT_EQ(mixed, (std::vector<int>{200, 409, 409, 409}));
+  // The race window (reaping the previous solver thread) is short: try it many times, with
+  // start and resume mixed.
+  constexpr int kRounds = 15;
+  for (int round = 0; round < kRounds; ++round) {
+    ASSERT_EQ(api.post("/api/runs/" + id + "/stop").status, 200);
+    const std::vector<int> mixed = concurrently(4, [&, k = std::make_shared<std::atomic<int>>(0)] {
+      return api.post("/api/runs/" + id + ((*k)++ % 2 ? "/start" : "/resume"));
+    });
+    ASSERT_EQ(mixed, (std::vector<int>{200, 409, 409, 409})) << "round " << round;
+    ASSERT_EQ(api.run(id)["state"], "running");
+  }
   EXPECT_EQ(api.get("/api/health").status, 200);
+}
+
+// Finding 2, without sockets in between: eight threads released at once on a run that has just
+// finished (its solver thread ended by itself, not reaped by a stop), many times. Exactly one
+// start wins; the others are refused with StateError, never another error.
+TEST(ServiceFaults, StartsReleasedAtOnceStartTheRunExactlyOnce) {
+  TestServer server(scratch("start-latch") / "data");
+  constexpr double kSegment = 0.01;  // simulated time per round: a few steps
+  sphles::control::CreateRequest request;
+  request.scene = tiny_scene(kSegment, "latch");
+  const std::shared_ptr<sphles::control::Run> run = server.manager->create(request);
+  constexpr int kThreads = 8, kRounds = 30;
+  for (int round = 0; round < kRounds; ++round) {
+    ASSERT_TRUE(wait_until([&] {
+      return run->status().state == sphles::control::RunState::Finished;
+    })) << "round "
+        << round;
+    run->apply_changes({{"time", {{"end", kSegment * (round + 2)}}}});
+    std::latch go(kThreads);
+    std::atomic<int> started{0}, refused{0};
+    std::vector<std::string> other;
+    std::mutex other_mutex;
+    std::vector<std::thread> threads;
+    for (int k = 0; k < kThreads; ++k)
+      threads.emplace_back([&, k] {
+        go.arrive_and_wait();
+        try {
+          if (k % 2)
+            server.manager->start(run->id());
+          else
+            server.manager->resume(run->id());
+          ++started;
+        } catch (const sphles::control::StateError&) {
+          ++refused;
+        } catch (const std::exception& e) {
+          std::lock_guard lock(other_mutex);
+          other.push_back(e.what());
+        }
+      });
+    for (std::thread& t : threads) t.join();
+    ASSERT_TRUE(other.empty()) << "round " << round << ": " << other.front();
+    ASSERT_EQ(started, 1) << "round " << round;
+    ASSERT_EQ(refused, kThreads - 1) << "round " << round;
+  }
 }
 
 // Finding 2 (second part): stop and pause did not check that DELETE had retired the run, and
@@ -169,7 +219,11 @@ TEST(ServiceFaults, AFinishedRunQueuedBehindABusySlotContinuesWhereItEnded) {
 
   const std::string busy = api.create({{"scene", long_scene("busy")}});
   ASSERT_EQ(api.run(busy)["state"], "running");
-  ASSERT_EQ(api.patch("/api/runs/" + done + "/parameters", {{"time", {{"end", 0.2}}}}).status, 200);
+  // A changed viscosity shows whether the first segment is computed again: it must not be.
+  ASSERT_EQ(api.patch("/api/runs/" + done + "/parameters",
+                      {{"time", {{"end", 0.2}}}, {"fluid", {{"dynamic_viscosity", 0.05}}}})
+                .status,
+            200);
   const Reply queued = api.post("/api/runs/" + done + "/start");
   ASSERT_EQ(queued.status, 200) << queued.body;
   EXPECT_EQ(queued.body_json()["state"], "queued");
