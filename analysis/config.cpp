@@ -100,8 +100,8 @@ AnalysisConfig parse_analysis_config(const json* section) {
     }
   }
   r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
-  r.integer("histogram_bins", c.histogram_bins, 1, 10000);
-  r.integer("angle_bins", c.angle_bins, 1, 10000);
+  r.integer("histogram_bins", c.histogram_bins, 1, kMaxHistogramBins);
+  r.integer("angle_bins", c.angle_bins, 1, kMaxAngleBins);
   r.number("angle_threshold", c.angle_threshold, sim::in_range(0.0, 1.0, true));
   r.number("dissipation_window", c.dissipation_window, sim::positive);
   r.number("spectrum_length_scale", c.spectrum_length_scale, sim::positive);
@@ -152,6 +152,9 @@ RunConfig parse_run_config(const json& document) {
   RunConfig config;
   config.scene = sim::parse_scene(solver_part);
   config.analysis = parse_analysis_config(analysis);
+  // Snapshots are taken (and every step cut short to land on them) only while products are on.
+  if (config.analysis.enabled())
+    sim::check_cadence(config.scene, "analysis.every", config.analysis.every);
   const bool implicit = config.scene.subfilter.model == sim::SubfilterModel::Implicit;
   if (implicit && config.analysis.wants(Product::Slices) &&
       config.analysis.slice.fields.contains(SliceField::EddyViscosity))

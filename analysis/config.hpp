@@ -26,6 +26,14 @@ struct SliceConfig {
   std::set<SliceField> fields{SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
 };
 
+/// Bounds of the histogram resolutions (docs/scenes.md, "Limits"). The joint histogram travels
+/// dense in every analysis frame (memory, the frame's JSON on the API and WebSocket, which the
+/// dashboard spreads into one Math.max call): 256² = 65 536 counts are 512 KiB per copy and at
+/// most about 0.5 MB of JSON, five times the thesis's 50 bins per axis. The polar histogram of
+/// γ ∈ [0, π/2] at 360 bins has 0.25° bins, finer than any statistic of a run's particles needs.
+inline constexpr int kMaxHistogramBins = 256;
+inline constexpr int kMaxAngleBins = 360;
+
 struct AnalysisConfig {
   double every = 0.0;  // simulated time between snapshots; 0 = no snapshot analysis
   std::set<Product> products;

@@ -27,6 +27,10 @@ int presets_command(const std::vector<std::string>& args);
 ///   [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]
 int calibrate_command(const std::vector<std::string>& args);
 
+/// sphles estimate SCENE.json|PRESET [--set key=value ...] [--json]: memory, disk and steps a
+/// run would need (control/resources.hpp), without running it.
+int estimate_command(const std::vector<std::string>& args);
+
 /// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
 ///   [--max-running N] [--max-queued N] [--max-runs N] [--threads N] [--packing-cache DIR]
 ///   [--start-run PRESET|SCENE.json [--set key=value ...]]

@@ -26,6 +26,9 @@ constexpr const char* kUsage =
     "  calibrate SCENE.json|PRESET --target-urms U [--time T] [--average-from T0]\n"
     "            [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]\n"
     "      find the Kolmogorov forcing amplitude chi giving <u_rms> = U by secant iterations\n"
+    "  estimate SCENE.json|PRESET [--set key=value ...] [--json]\n"
+    "      estimate the peak memory, checkpoint and analysis disk, initial time step and steps\n"
+    "      of a run without running it\n"
     "  serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]\n"
     "        [--max-running N] [--max-queued N] [--max-runs N] [--threads N]\n"
     "        [--packing-cache DIR] [--start-run PRESET|SCENE.json [--set key=value ...]]\n"
@@ -51,6 +54,7 @@ int main(int argc, char** argv) {
   if (command == "presets") return sphles::app::presets_command(args);
   if (command == "inspect") return sphles::app::inspect_command(args);
   if (command == "calibrate") return sphles::app::calibrate_command(args);
+  if (command == "estimate") return sphles::app::estimate_command(args);
   if (command == "serve") return sphles::app::serve_command(args);
   if (command == "version" || command == "--version") {
     std::puts("sphles " SPHLES_VERSION);

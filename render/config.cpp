@@ -9,9 +9,6 @@ using sim::SceneError;
 
 namespace {
 
-constexpr int kMinImageSide = 64;
-constexpr int kMaxImageSide = 8192;
-
 ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
   std::string scale = mapping.log_scale ? "log" : "linear";
   r.string("scale", scale);

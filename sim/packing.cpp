@@ -20,7 +20,6 @@ namespace {
 constexpr double kBackgroundPressureOverDensity = 1.0;  // p_b / ρ [m²/s²]
 constexpr double kStepOverSpacing = 0.2;                // dt = 0.2 Δl / (1 m/s)
 constexpr double kDampingPerStep = 0.1;                 // β dt
-constexpr double kSearchSkin = 0.1;                     // Verlet skin as a fraction of H
 
 /// Fluid whose pressure is the constant background p_b (no EOS term, no viscosity).
 FluidParameters background_fluid() {
@@ -187,7 +186,7 @@ PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& bo
   }
   with_kernel(kernel, box.dimension, support_radius, [&](const auto& k) {
     constexpr int Dim = std::decay_t<decltype(k)>::dimension;
-    VerletNeighbourSearch search(box, support_radius, kSearchSkin * support_radius);
+    VerletNeighbourSearch search(box, support_radius, kPackingSkin * support_radius);
     const auto rebuild = [&] {
       p.reorder(search.locality_order(view_positions(p)));
       search.build(view_positions(p));

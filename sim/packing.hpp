@@ -22,6 +22,9 @@
 
 namespace sphles::sim {
 
+/// Verlet skin of the packing's neighbour search, as a fraction of H.
+inline constexpr double kPackingSkin = 0.1;
+
 struct PackingReport {
   int iterations = 0;
   double initial_residual = 0.0;

@@ -2,6 +2,7 @@
 
 #include "sim/json_reader.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <functional>
@@ -60,6 +61,54 @@ Scene case_defaults(CaseType type) {
     s.end_time = 2.0;
   }
   return s;
+}
+
+/// Largest |∇p0| / (ρ_ref v0²) of the initial pressures. 3D (5.2): |∇p0|² / (ρ_ref v0²/8)² =
+/// (2 + cos 2z)² (sin² 2x + sin² 2y) + sin² 2z (cos 2x + cos 2y)², at most 2 · 3² = 18 (z = 0,
+/// |sin 2x| = |sin 2y| = 1). 2D: (ρ_ref v0²/2) (sin 2x, sin 2y), at most √2 / 2.
+const double kTaylorGreen3dPressureGradient = std::sqrt(18.0) / 8.0;
+const double kTaylorGreen2dPressureGradient = std::sqrt(2.0) / 2.0;
+
+/// The keys a time-step limit depends on, for messages: "'a', 'b' and 'c'".
+std::string limit_keys(const Scene& s, std::string_view limit) {
+  std::vector<std::string> keys;
+  if (limit == "fixed") {
+    keys = {"time.fixed_step"};
+  } else {
+    if (s.case_type == CaseType::Kolmogorov2D) keys.push_back("box_length");
+    keys.push_back("particles_per_side");
+    if (limit == "acoustic") {
+      keys.insert(keys.end(), {"fluid.sound_speed", "flow.velocity_amplitude",
+                               "flow.uniform_velocity", "time.cfl_acoustic"});
+    } else if (limit == "viscous") {
+      keys.insert(keys.end(),
+                  {"fluid.dynamic_viscosity", "fluid.reference_density", "time.cfl_viscous"});
+    } else if (s.case_type == CaseType::Kolmogorov2D) {
+      keys.insert(keys.end(), {"forcing.amplitude", "forcing.friction", "time.cfl_force"});
+    } else {
+      keys.insert(keys.end(), {"flow.velocity_amplitude", "time.cfl_force"});
+    }
+  }
+  std::string text;
+  for (std::size_t k = 0; k < keys.size(); ++k)
+    text += (k == 0 ? "" : k + 1 == keys.size() ? " and " : ", ") + ("'" + keys[k] + "'");
+  return text;
+}
+
+/// A step below kMinTimeStepOverEndTime x time.end cannot advance the time meaningfully. The
+/// message starts with the keys that set the step (a live change reports the first as its
+/// field).
+void check_time_resolution(const Scene& s) {
+  const TimeStepEstimate e = estimate_initial_time_step(s);
+  const double minimum = kMinTimeStepOverEndTime * s.end_time;
+  if (e.step() >= minimum) return;
+  const std::string_view limit = e.limits.binding();
+  throw SceneError("scene: " + limit_keys(s, limit) + " give an estimated initial time step of " +
+                   format_number(e.step()) + " s (" + std::string(limit) + " limit, spacing " +
+                   format_number(s.particle_spacing()) + " m), below 'time.end' x " +
+                   format_number(kMinTimeStepOverEndTime) + " = " + format_number(minimum) +
+                   " s: t + dt would not advance meaningfully, and the run would need over " +
+                   format_number(1.0 / kMinTimeStepOverEndTime) + " steps");
 }
 
 }  // namespace
@@ -134,7 +183,8 @@ Scene parse_scene(const json& input) {
     } catch (const std::invalid_argument& e) {
       throw SceneError("scene: 'kernel.type': " + std::string(e.what()));
     }
-    k.number("diameter_over_spacing", s.kernel_diameter_over_spacing, positive);
+    k.number("diameter_over_spacing", s.kernel_diameter_over_spacing,
+             in_range(kMinDiameterOverSpacing, kMaxDiameterOverSpacing));
     k.reject_unknown();
   }
   {
@@ -221,7 +271,7 @@ Scene parse_scene(const json& input) {
     ObjectReader c = top.object("checkpoint");
     c.number("every", s.checkpoint.every, non_negative);
     c.number("every_seconds", s.checkpoint.every_seconds, non_negative);
-    c.integer("keep", s.checkpoint.keep, 1, 1000);
+    c.integer("keep", s.checkpoint.keep, 1, kMaxCheckpointsKept);
     c.integer("compression", s.checkpoint.compression, 0, 9);
     c.reject_unknown();
   }
@@ -241,7 +291,58 @@ Scene parse_scene(const json& input) {
         " x spacing " + format_number(s.particle_spacing()) +
         " m with 'particles_per_side' = " + std::to_string(s.particles_per_side) + ")");
   }
+  check_time_resolution(s);
+  check_cadence(s, "output.timeseries_every", s.output.timeseries_every);
+  check_cadence(s, "checkpoint.every", s.checkpoint.every);
   return s;
+}
+
+TimeStepEstimate estimate_initial_time_step(const Scene& s) {
+  TimeStepEstimate e;
+  const double v0 = std::abs(s.velocity_amplitude);
+  double uniform2 = 0.0;
+  for (int d = 0; d < s.dimension(); ++d) uniform2 += s.uniform_velocity[d] * s.uniform_velocity[d];
+  const double uniform = std::sqrt(uniform2);
+  const double nu = s.fluid.kinematic_viscosity();
+  e.max_speed = v0 + uniform;
+  switch (s.case_type) {
+    case CaseType::TaylorGreen3D:
+      // max |∇p0| = ρ_ref v0² √18 / 8 for (5.2); ν∇²v = -3ν v (the modes have |k|² = 3).
+      e.max_acceleration = kTaylorGreen3dPressureGradient * v0 * v0 + 3.0 * nu * v0;
+      break;
+    case CaseType::TaylorGreen2D:
+      // p0 = p_ref + ρ_ref v0²/4 (cos 2x + cos 2y): max |∇p0| = ρ_ref v0² √2 / 2; |k|² = 2.
+      e.max_acceleration = kTaylorGreen2dPressureGradient * v0 * v0 + 2.0 * nu * v0;
+      break;
+    case CaseType::Kolmogorov2D:
+      // At rest (plus the uniform velocity): a = χ sin(k_y y) e_x - μ U.
+      e.max_acceleration = std::abs(s.forcing.amplitude) + s.forcing.friction * uniform;
+      break;
+  }
+  e.limits =
+      time_step_limits(s.time_step, s.particle_spacing(), s.fluid, e.max_speed, e.max_acceleration);
+  return e;
+}
+
+double min_cadence(const Scene& s) {
+  return std::min(kMinCadenceOverTimeStep * estimate_initial_time_step(s).step(),
+                  s.end_time / kMaxShortCadencePoints);
+}
+
+void check_cadence(const Scene& s, const std::string& field, double every) {
+  if (!(every > 0.0)) return;
+  const double minimum = min_cadence(s);
+  if (every >= minimum) return;
+  const TimeStepEstimate e = estimate_initial_time_step(s);
+  throw SceneError("scene: '" + field + "' = " + format_number(every) +
+                   " s is below the smallest accepted cadence " + format_number(minimum) +
+                   " s, the smaller of " + format_number(kMinCadenceOverTimeStep) +
+                   " x the estimated initial time step " + format_number(e.step()) + " s (" +
+                   std::string(e.limits.binding()) + " limit) and 'time.end' / " +
+                   format_number(kMaxShortCadencePoints) +
+                   ": every step would be cut short to land on the next of its " +
+                   format_number(std::floor(s.end_time / every)) +
+                   " points; use 0 (every step) or at least " + format_number(minimum) + " s");
 }
 
 json read_scene_file(const std::filesystem::path& path) {

@@ -90,6 +90,50 @@ struct Scene {
   std::size_t num_particles() const;
 };
 
+/// Bounds of scene keys whose extremes only cost memory or time (docs/scenes.md, "Limits").
+/// D_K/Δl: at 2 the support H = Δl holds no lattice neighbour, at 3 it holds the 8 (2D) or 18
+/// (3D) nearest ones; the presets, the thesis and docs/accuracy.md use 4 to 12. At 16 a 3D
+/// particle has about 3300 list neighbours (8 times the memory and work of D_K = 8Δl).
+inline constexpr double kMinDiameterOverSpacing = 3.0;
+inline constexpr double kMaxDiameterOverSpacing = 16.0;
+/// Newest checkpoints kept: bounds a run's checkpoint directory to this many state files.
+inline constexpr int kMaxCheckpointsKept = 100;
+/// A non-zero cadence (output.timeseries_every, checkpoint.every, analysis.every) shorter than
+/// a step cuts every step short to land on the next cadence point, so the run takes one step per
+/// point: a cadence of 1e-9 s stalls it. A cadence is accepted when it is at least this fraction
+/// of the estimated initial time step (the margin below 1 covers the estimate's error: exact
+/// for the acoustic and viscous limits, approximate for the force limit), or when it has at
+/// most kMaxShortCadencePoints points up to time.end (at most that many extra steps; the run
+/// manager's live analysis default of 60 frames per run is one such cadence).
+inline constexpr double kMinCadenceOverTimeStep = 0.5;
+inline constexpr double kMaxShortCadencePoints = 1000.0;
+/// The estimated initial time step must be at least this fraction of time.end: below it,
+/// t + dt near the end time keeps fewer than 12 of dt's 53 significant bits (double precision),
+/// and the run needs more than 2^40 steps.
+inline constexpr double kMinTimeStepOverEndTime = 0x1p-40;
+
+/// The solver's time-step limits (time_step_limits) at t = 0 for the scene's initial field,
+/// without building it: |v|max <= |v0| + |U|; |a|max from the initial pressure gradient (5.2)
+/// and viscous term of the Taylor-Green fields, or the forcing amplitude and the friction of
+/// the uniform velocity (Kolmogorov flow, which starts at rest). The acoustic and viscous
+/// limits are the solver's to round-off; the force limit leaves out the discretisation error of
+/// the SPH sums.
+struct TimeStepEstimate {
+  TimeStepLimits limits;
+  double max_speed = 0.0;         // [m/s]
+  double max_acceleration = 0.0;  // [m/s²]
+  double step() const { return limits.step(); }
+};
+TimeStepEstimate estimate_initial_time_step(const Scene& scene);
+
+/// The smallest non-zero cadence accepted: the smaller of kMinCadenceOverTimeStep x the
+/// estimated initial step and time.end / kMaxShortCadencePoints.
+double min_cadence(const Scene& scene);
+
+/// Throws SceneError naming `field` when 0 < every < min_cadence(scene) (0 keeps its meaning:
+/// every step, or off).
+void check_cadence(const Scene& scene, const std::string& field, double every);
+
 /// Names of the built-in presets: tgv2d (64², Re = 100), tgv3d (32³), tgv3d-case1 ...
 /// tgv3d-case21 (SPEC Table 5.1), kolmogorov2d.
 std::vector<std::string> preset_names();

@@ -155,15 +155,9 @@ class SphSolver final : public Simulation {
   }
 
   double stable_time_step() const override {
-    const TimeStepConfig& ts = config_.time_step;
-    if (ts.fixed > 0.0) return ts.fixed;
-    const double spacing = config_.particle_spacing;
-    double dt = ts.cfl_acoustic * spacing / (config_.fluid.sound_speed + diagnostics_.max_speed);
-    const double nu = config_.fluid.kinematic_viscosity();
-    if (nu > 0.0) dt = std::min(dt, ts.cfl_viscous * spacing * spacing / nu);
-    if (max_acceleration_ > 0.0)
-      dt = std::min(dt, ts.cfl_force * std::sqrt(spacing / max_acceleration_));
-    return dt;
+    return time_step_limits(config_.time_step, config_.particle_spacing, config_.fluid,
+                            diagnostics_.max_speed, max_acceleration_)
+        .step();
   }
 
  private:
@@ -319,6 +313,29 @@ class SphSolver final : public Simulation {
 };
 
 }  // namespace
+
+TimeStepLimits time_step_limits(const TimeStepConfig& ts, double spacing,
+                                const FluidParameters& fluid, double max_speed,
+                                double max_acceleration) {
+  TimeStepLimits limits;
+  limits.fixed = ts.fixed;
+  limits.acoustic = ts.cfl_acoustic * spacing / (fluid.sound_speed + max_speed);
+  const double nu = fluid.kinematic_viscosity();
+  if (nu > 0.0) limits.viscous = ts.cfl_viscous * spacing * spacing / nu;
+  if (max_acceleration > 0.0) limits.force = ts.cfl_force * std::sqrt(spacing / max_acceleration);
+  return limits;
+}
+
+double TimeStepLimits::step() const {
+  if (fixed > 0.0) return fixed;
+  return std::min(acoustic, std::min(viscous, force));
+}
+
+std::string_view TimeStepLimits::binding() const {
+  if (fixed > 0.0) return "fixed";
+  if (acoustic <= viscous && acoustic <= force) return "acoustic";
+  return viscous <= force ? "viscous" : "force";
+}
 
 std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state) {
   validate(config, state.particles);

@@ -15,6 +15,7 @@
 #include <memory>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 
 #include "sim/health.hpp"
@@ -37,6 +38,26 @@ struct TimeStepConfig {
   double cfl_force = 0.25;
   double fixed = 0.0;
 };
+
+/// The three limits of TimeStepConfig for a state with the given maxima (a limit that does not
+/// apply, such as the viscous one for ν = 0, is infinite), and the fixed step if one is set.
+struct TimeStepLimits {
+  double acoustic = std::numeric_limits<double>::infinity();
+  double viscous = std::numeric_limits<double>::infinity();
+  double force = std::numeric_limits<double>::infinity();
+  double fixed = 0.0;
+
+  /// The step the solver takes: the fixed step when set, else the smallest limit.
+  double step() const;
+  /// Which of them sets step(): "fixed", "acoustic", "viscous" or "force".
+  std::string_view binding() const;
+};
+
+/// The solver's own formulas (Simulation::stable_time_step() is
+/// time_step_limits(...).step() for its current state), usable before a solver exists.
+TimeStepLimits time_step_limits(const TimeStepConfig& config, double particle_spacing,
+                                const FluidParameters& fluid, double max_speed,
+                                double max_acceleration);
 
 /// Adds an external acceleration a_ext (3.25) to every particle; called once per force
 /// evaluation, after the pair forces, with the velocity at which forces are evaluated.

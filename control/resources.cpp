@@ -1,0 +1,550 @@
+// The resource model follows what the code allocates (sizes from the types it stores):
+//   solver        sim/solver.cpp, sim/particles.hpp, sim/neighbour_search.cpp
+//   set-up        sim/packing.cpp (lattice, relaxation with its own Verlet list)
+//   checkpoints   control/run.cpp (a SolverState copy), io/checkpoint.cpp (the datasets)
+//   analysis      analysis/pipeline.cpp, snapshot.cpp, products.cpp, grid.cpp, spectrum.cpp,
+//                 subfilter_stress.cpp, statistics.cpp, writer.cpp
+//   rendering     control/render_sink.cpp, render/ (measured per pixel, see below)
+// docs/scenes.md ("Resource estimate") lists what is counted and how the estimate compares with
+// the peak RSS of real runs (tests/test_resources.cpp).
+#include "control/resources.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <sstream>
+
+#include "analysis/config.hpp"
+#include "sim/neighbour_search.hpp"
+#include "sim/packing.hpp"
+#include "sim/subfilter.hpp"
+
+namespace sphles::control {
+
+namespace {
+
+using analysis::Product;
+using analysis::SliceField;
+
+constexpr double kDouble = sizeof(double);
+constexpr double kIndex = sizeof(std::uint32_t);  // NeighbourList::indices, grid maps
+constexpr double kSize = sizeof(std::size_t);     // NeighbourList::offsets, cell starts
+constexpr double kId = sizeof(std::uint64_t);
+
+/// A Verlet build (sim/neighbour_search.cpp) fills one buffer per thread that doubles when it
+/// runs short, so at the end it holds between 1 and 2 times its share of the list, and the last
+/// doubling briefly holds the old and the new buffer (up to 3 times); the list's own indices
+/// exist beside them. glibc keeps most freed buffers resident for the next build, so the peak
+/// RSS of a run settles at about the list plus 3 times the list (measured: tests/
+/// test_resources.cpp).
+constexpr double kBuildBuffersOverList = 3.0;
+
+/// Up to this list radius (in units of Δl) a lattice start (packing disabled) counts its lattice
+/// neighbours exactly; beyond it, and for packed starts, the list ball's volume is used.
+constexpr double kExactLatticeCountRadius = 24.0;  // in units of Δl
+
+/// Snapshots in the analysis pipeline: one waiting in the mailbox, one being analysed.
+constexpr double kSnapshotsInPipeline = 2.0;
+/// Analysis frames kept while the next is computed: the run's latest frame; with rendering also
+/// the one being rendered (the render mailbox holds the latest).
+constexpr double kFramesRetained = 1.0;
+constexpr double kFramesRetainedWhileRendering = 2.0;
+/// While a frame goes to its sinks it exists twice: the analysed frame and the shared copy that
+/// becomes the latest frame (control/run.cpp).
+constexpr double kFramesInSink = 2.0;
+
+/// The analysis thread's own stack, malloc arena and FFTW plans (about 1 MiB over the
+/// products on a 2D 32² run, where the products are smallest).
+constexpr double kAnalysisThreadBytes = 1024.0 * 1024;
+
+/// Text bytes of one number in the CSV files ("%.17g" and a separator).
+constexpr double kCsvNumberBytes = 25.0;
+/// Header of a 2D .npy file (padded to a multiple of 64 bytes, analysis/writer.cpp).
+constexpr double kNpyHeaderBytes = 128.0;
+/// HDF5 per dataset and per file (object headers, chunk index, checksums), an upper bound
+/// for the files sphles writes (measured against real checkpoints, tests/test_resources.cpp).
+constexpr double kHdf5BytesPerDataset = 4096.0;
+constexpr double kHdf5BytesPerFile = 8192.0;
+
+/// Rendering (Mesa llvmpipe through OSMesa, VTK 9.1 on Debian 12), measured with `sphles run`
+/// on 2D slices: combined frames of 2400 x 1200 and 4800 x 2400 px raised the peak RSS by 168
+/// and 576 MiB, i.e. about 50 B per pixel (OSMesa colour and depth buffers, VTK's frame
+/// buffer, the slice texture, read-back and PNG encoding), plus 32 to 40 MiB for the renderer
+/// set-up (llvmpipe threads and shader cache, VTK's text rendering). Each frame size in use has
+/// its own renderer, kept for the life of the render thread.
+constexpr double kRenderSetupBytes = 40.0 * 1024 * 1024;
+constexpr double kRenderBytesPerPixel = 50.0;
+/// The 3D view: the particle cloud copied for VTK (position, value) plus VTK's point, scalar
+/// and colour arrays and their vertex buffers.
+constexpr double kView3dBytesPerParticle = 4 * kDouble + 64.0;
+
+/// Tracks live bytes along a sequence of allocations and frees and remembers the peak.
+class Timeline {
+ public:
+  void hold(double bytes) {
+    live_ += bytes;
+    peak_ = std::max(peak_, live_);
+  }
+  void release(double bytes) { live_ -= bytes; }
+  /// Allocated and freed again before the next step.
+  void transient(double bytes) { peak_ = std::max(peak_, live_ + bytes); }
+  double live() const { return live_; }
+  double peak() const { return peak_; }
+
+ private:
+  double live_ = 0.0;
+  double peak_ = 0.0;
+};
+
+std::string count_text(double x) {
+  char buffer[32];
+  std::snprintf(buffer, sizeof buffer, "%.4g", x);
+  return buffer;
+}
+
+/// Ball of radius r (in units of Δl): its volume, or the lattice points 0 < |o| < r.
+double neighbours_in_radius(int dim, double radius, bool lattice) {
+  if (lattice && radius <= kExactLatticeCountRadius) {
+    const int reach = static_cast<int>(std::ceil(radius));
+    const double r2 = radius * radius;
+    double count = 0.0;
+    for (int i = -reach; i <= reach; ++i)
+      for (int j = -reach; j <= reach; ++j) {
+        if (dim == 2) {
+          const double d2 = static_cast<double>(i * i + j * j);
+          count += (d2 > 0.0 && d2 < r2) ? 1.0 : 0.0;
+          continue;
+        }
+        for (int k = -reach; k <= reach; ++k) {
+          const double d2 = static_cast<double>(i * i + j * j + k * k);
+          count += (d2 > 0.0 && d2 < r2) ? 1.0 : 0.0;
+        }
+      }
+    return count;
+  }
+  return dim == 2 ? std::numbers::pi * radius * radius
+                  : 4.0 / 3.0 * std::numbers::pi * radius * radius * radius;
+}
+
+/// A Verlet list of one search (sim/neighbour_search.cpp) with the given skin fraction.
+struct ListModel {
+  double neighbours = 0.0;  // per particle
+  double list_bytes = 0.0;
+  double build_bytes = 0.0;  // transient of a build beside the list
+  double cells = 0.0;
+};
+
+ListModel list_model(const sim::Scene& s, double skin_fraction) {
+  const int dim = s.dimension();
+  const double n = static_cast<double>(s.particles_per_side);
+  const double particles = std::pow(n, dim);
+  const double spacing = s.particle_spacing();
+  const double cutoff = 0.5 * s.kernel_diameter();
+  // The search shrinks the skin so that minimum-image lists stay within half a box.
+  const double skin =
+      std::max(0.0, std::min(skin_fraction * cutoff, 0.5 * s.box_length() - cutoff));
+  const double radius = cutoff + skin;
+  ListModel m;
+  m.neighbours =
+      std::min(neighbours_in_radius(dim, radius / spacing, !s.packing.enabled), particles - 1.0);
+  const double pairs = particles * m.neighbours;
+  m.list_bytes = (particles + 1.0) * kSize + pairs * kIndex;
+  const double cell_size = radius / sim::VerletNeighbourSearch::kCellsPerRadius;
+  m.cells = std::pow(std::max(1.0, std::floor(s.box_length() / cell_size)), dim);
+  // Thread buffers; cell of every particle, counting sort (starts, fill, members); the
+  // locality order and the reorder scratch before it are smaller.
+  m.build_bytes = kBuildBuffersOverList * pairs * kIndex + 2.0 * (m.cells + 1.0) * kSize +
+                  2.0 * particles * kIndex;
+  return m;
+}
+
+/// Bytes per particle of sim::ParticleArrays as the solver fills it.
+double particle_array_bytes(const sim::Scene& s) {
+  const bool explicit_model = s.subfilter.model != sim::SubfilterModel::Implicit;
+  // position, velocity, acceleration; mass, volume, density, pressure; ν_t; id.
+  return kDouble * (3.0 * s.dimension() + 4.0 + (explicit_model ? 1.0 : 0.0)) + kId;
+}
+
+/// What analyse() (analysis/products.cpp) computes for a configuration.
+struct AnalysisNeeds {
+  bool map = false, velocity = false, vorticity = false, stress = false;
+  bool particle_vorticity = false, statistics = false, spectrum = false;
+  int slices = 0, scalar_slices = 0;  // all slices; those sampled from particles (τ, ν_t)
+  int particle_fields = 0;
+  bool particles = false;
+};
+
+AnalysisNeeds analysis_needs(const analysis::AnalysisConfig& c, bool explicit_model) {
+  AnalysisNeeds a;
+  const bool slices = c.wants(Product::Slices);
+  const bool omega_slice = slices && c.slice.fields.contains(SliceField::VorticitySquared);
+  const bool stress_slice = slices && c.slice.fields.contains(SliceField::SubfilterStressNorm);
+  const bool eddy_slice =
+      slices && c.slice.fields.contains(SliceField::EddyViscosity) && explicit_model;
+  a.particles = c.wants(Product::Particles);
+  const auto particle_field = [&](SliceField f) {
+    return a.particles && c.particle_fields.contains(f);
+  };
+  a.statistics = c.wants(Product::SubfilterStatistics);
+  a.spectrum = c.wants(Product::Spectrum);
+  a.stress = a.statistics || stress_slice || particle_field(SliceField::SubfilterStressNorm);
+  a.vorticity = c.wants(Product::Vorticity) || omega_slice || a.statistics ||
+                particle_field(SliceField::VorticitySquared);
+  a.velocity = c.wants(Product::Energy) || a.spectrum || a.vorticity;
+  a.map = a.velocity || stress_slice || eddy_slice;
+  a.particle_vorticity = a.statistics || particle_field(SliceField::VorticitySquared);
+  a.slices = (omega_slice ? 1 : 0) + (stress_slice ? 1 : 0) + (eddy_slice ? 1 : 0);
+  a.scalar_slices = a.slices - (omega_slice ? 1 : 0);
+  a.particle_fields = (particle_field(SliceField::VorticitySquared) ? 1 : 0) +
+                      (particle_field(SliceField::SubfilterStressNorm) ? 1 : 0) +
+                      (particle_field(SliceField::EddyViscosity) && explicit_model ? 1 : 0);
+  return a;
+}
+
+struct AnalysisModel {
+  double work_bytes = 0.0;   // peak inside analyse(), frame included
+  double frame_bytes = 0.0;  // the products a frame carries
+  double writer_bytes = 0.0;
+  double file_bytes = 0.0;  // written per frame
+  double grid_points = 0.0;
+};
+
+AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig& c) {
+  const int dim = s.dimension();
+  const double particles = std::pow(static_cast<double>(s.particles_per_side), dim);
+  const double m = static_cast<double>(c.grid_points_per_spacing) * s.particles_per_side;
+  const double nodes = std::pow(m, dim);
+  const double slice_nodes = m * m;
+  const bool explicit_model = s.subfilter.model != sim::SubfilterModel::Implicit;
+  const AnalysisNeeds a = analysis_needs(c, explicit_model);
+  AnalysisModel model;
+  Timeline t;
+  if (a.map) {
+    // Cell list of nearest_particle_map (about one cell per particle): cell index, starts,
+    // fill, sorted positions, ids and indices; then the node → particle map.
+    const double cells = particles * (3.0 * kSize + dim * kDouble + kId + kIndex);
+    t.hold(cells);
+    t.hold(nodes * kIndex);
+    t.release(cells);
+    model.grid_points = nodes;
+  }
+  if (a.velocity) t.hold(dim * nodes * kDouble);
+  const double shells = std::floor(std::sqrt(static_cast<double>(dim)) * (m / 2.0)) + 1.0;
+  if (a.spectrum) {
+    // FFTW r2c input and half-spectrum output, one component at a time.
+    const double complex_nodes = nodes / m * (std::floor(m / 2.0) + 1.0);
+    t.transient(nodes * kDouble + complex_nodes * 2.0 * kDouble);
+    t.hold(3.0 * shells * kDouble);  // wavenumber, E, k² E
+    model.frame_bytes += 3.0 * shells * kDouble;
+  }
+  if (a.vorticity) {
+    const double components = dim == 3 ? 3.0 : 1.0;  // 2D: ω_z only
+    t.hold(components * nodes * kDouble);
+    t.hold(nodes * kDouble);  // ω²
+    t.release(components * nodes * kDouble);
+  }
+  if (a.stress) {
+    using Stress = analysis::SubfilterStressField;
+    t.hold(particles * (sizeof(Stress::tensor[0]) + sizeof(Stress::norm[0]) +
+                        sizeof(Stress::principal[0]) + sizeof(Stress::direction[0])));
+  }
+  if (a.particle_vorticity) {
+    t.hold(particles * kSize);  // nearest node of each particle
+    t.hold(particles * kDouble);
+    t.release(particles * kSize);
+  }
+  double histogram = 0.0;
+  if (a.statistics) {
+    histogram = static_cast<double>(c.histogram_bins) * c.histogram_bins * kId +
+                (dim == 2 ? static_cast<double>(c.angle_bins) * kId : 0.0);
+    t.hold(histogram);
+    model.frame_bytes += histogram;
+  }
+  const double slice_bytes = (dim == 3 ? slice_nodes : nodes) * kDouble;
+  if (a.scalar_slices > 0) t.transient(nodes * kDouble);  // the field sampled on the whole grid
+  t.hold(a.slices * slice_bytes);
+  model.frame_bytes += a.slices * slice_bytes;
+  t.hold(a.particle_fields * particles * kDouble);
+  model.frame_bytes += a.particle_fields * particles * kDouble;
+  model.work_bytes = t.peak();
+
+  // Writer (analysis/writer.cpp): one file's text or buffer at a time.
+  const double joint_rows =
+      std::min(particles, static_cast<double>(c.histogram_bins) * c.histogram_bins);
+  const double joint_text = a.statistics ? joint_rows * 5.0 * kCsvNumberBytes : 0.0;
+  const double particle_file_doubles = (3.0 + 3.0 + 3.0 + a.particle_fields) * particles;
+  model.writer_bytes =
+      std::max({a.slices > 0 ? slice_bytes + kNpyHeaderBytes : 0.0,
+                2.0 * joint_text,  // the string stream and its copy
+                a.particles ? (6.0 + a.particle_fields) * particles * kDouble : 0.0});
+
+  // Files per frame: spectrum CSV, slices, histograms, particle snapshot, one stats row.
+  if (a.spectrum) model.file_bytes += shells * 4.0 * kCsvNumberBytes + 10.0 * kCsvNumberBytes;
+  model.file_bytes += a.slices * (slice_bytes + kNpyHeaderBytes + 14.0 * kCsvNumberBytes);
+  model.file_bytes += joint_text;
+  if (a.statistics && dim == 2) model.file_bytes += c.angle_bins * 4.0 * kCsvNumberBytes;
+  if (a.particles)
+    model.file_bytes += particle_file_doubles * kDouble +
+                        (5.0 + a.particle_fields) * kHdf5BytesPerDataset + kHdf5BytesPerFile;
+  model.file_bytes += 11.0 * kCsvNumberBytes;
+  return model;
+}
+
+double render_pixels(const render::RenderConfig& r) {
+  double pixels = 0.0;
+  if (!r.fields.empty() && r.single) pixels += static_cast<double>(r.height) * r.height;
+  if (!r.fields.empty() && r.combined) pixels += static_cast<double>(r.width) * r.height;
+  if (r.view3d.enabled) pixels += static_cast<double>(r.view3d.width) * r.view3d.height;
+  return pixels;
+}
+
+}  // namespace
+
+ResourceEstimate estimate_resources(const RunSpec& spec) {
+  const sim::Scene& s = spec.run.scene;
+  const analysis::AnalysisConfig& a = spec.run.analysis;
+  const int dim = s.dimension();
+  const bool explicit_model = s.subfilter.model != sim::SubfilterModel::Implicit;
+  ResourceEstimate e;
+  e.particles = std::pow(static_cast<double>(s.particles_per_side), dim);
+  const double n = e.particles;
+  const std::string n_text = count_text(n) + " particles";
+
+  // Solver: particle arrays, predicted velocity, list reference positions, ν_t scratch.
+  const double per_particle = particle_array_bytes(s);
+  const double solver_per_particle =
+      per_particle + 2.0 * dim * kDouble + (explicit_model ? sizeof(sim::VelocityGradient) : 0.0);
+  const ListModel list = list_model(s, s.neighbour_skin);
+  e.neighbours_per_particle = list.neighbours;
+  const std::string list_text = n_text + " x " + count_text(list.neighbours) + " neighbours";
+  // Checkpoints (and a stop) copy the solver state on the solver thread: arrays and reference
+  // positions. Rebuilds happen on the same thread, so the larger of both counts.
+  const double state_copy = n * (per_particle + dim * kDouble);
+  const bool build_larger = list.build_bytes >= state_copy;
+
+  // Analysis on its own thread, concurrent with the solver.
+  double snapshots = 0.0, analysis_bytes = 0.0;
+  std::string snapshot_text, analysis_text;
+  const bool rendering = spec.render.enabled();
+  if (a.enabled()) {
+    const AnalysisModel am = analysis_model(s, a);
+    e.analysis_grid_points = am.grid_points;
+    const double retained = rendering ? kFramesRetainedWhileRendering : kFramesRetained;
+    // A snapshot copies the particle arrays and shares the solver's list, which becomes its
+    // own once the solver rebuilds; the "particles" product keeps a snapshot in every frame.
+    const double count = kSnapshotsInPipeline + (a.wants(Product::Particles) ? retained : 0.0);
+    snapshots = count * (n * per_particle + list.list_bytes);
+    snapshot_text = count_text(count) + " x (" + n_text + " x " + count_text(per_particle) +
+                    " B + a neighbour list)";
+    const double computing = am.work_bytes + retained * am.frame_bytes;
+    const double sinking = (retained + kFramesInSink) * am.frame_bytes + am.writer_bytes;
+    analysis_bytes = kAnalysisThreadBytes + std::max(computing, sinking);
+    analysis_text = "grid " + count_text(am.grid_points) + " nodes; working set " +
+                    format_bytes(am.work_bytes) + ", frame " + format_bytes(am.frame_bytes);
+    e.analysis_frame_bytes = am.file_bytes;
+    e.analysis_frames = std::floor(s.end_time / a.every) + 1.0;
+    e.analysis_disk_bytes = e.analysis_frame_bytes * e.analysis_frames;
+  }
+  double render_bytes = 0.0;
+  if (rendering) {
+    render_bytes = kRenderSetupBytes + kRenderBytesPerPixel * render_pixels(spec.render) +
+                   (spec.render.view3d.enabled ? kView3dBytesPerParticle * n : 0.0);
+  }
+
+  std::vector<MemoryPart> run_parts{
+      {"particles", n * solver_per_particle,
+       n_text + " x " + count_text(solver_per_particle) + " B"},
+      {"neighbour_list", list.list_bytes, list_text + " x 4 B"},
+      build_larger
+          ? MemoryPart{"neighbour_build", list.build_bytes,
+                       "rebuild buffers (3 x the list) and " + count_text(list.cells) + " cells"}
+          : MemoryPart{"checkpoint_copy", state_copy, "solver state copied to write"},
+  };
+  if (snapshots > 0.0) run_parts.push_back({"snapshots", snapshots, snapshot_text});
+  if (analysis_bytes > 0.0) run_parts.push_back({"analysis", analysis_bytes, analysis_text});
+  if (render_bytes > 0.0)
+    run_parts.push_back({"rendering", render_bytes,
+                         count_text(render_pixels(spec.render)) + " px and the renderer set-up"});
+
+  // Set-up: the lattice and the packing's own Verlet list (before the solver exists).
+  std::vector<MemoryPart> setup_parts;
+  if (s.packing.enabled) {
+    const ListModel packing = list_model(s, sim::kPackingSkin);
+    setup_parts = {{"particles", n * per_particle, n_text + " (packing)"},
+                   {"packing_list", packing.list_bytes, "packing Verlet list"},
+                   {"packing_build", packing.build_bytes, "packing list rebuild"}};
+  }
+  const auto total = [](const std::vector<MemoryPart>& parts) {
+    double sum = 0.0;
+    for (const MemoryPart& p : parts) sum += p.bytes;
+    return sum;
+  };
+  e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
+  e.memory_bytes = total(e.memory);
+
+  // Checkpoint file (io/checkpoint.cpp): position, velocity, acceleration and list reference
+  // per axis, mass, volume, density, pressure, id, ν_t; the scene JSON as an attribute.
+  const double datasets = 4.0 * dim + 5.0 + (explicit_model ? 1.0 : 0.0);
+  const double scene_text = static_cast<double>(run_spec_to_json(spec).dump().size());
+  e.checkpoint_file_bytes = n * (kDouble * (datasets - 1.0) + kId) +
+                            datasets * kHdf5BytesPerDataset + kHdf5BytesPerFile + scene_text;
+  e.checkpoint_disk_bytes =
+      e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
+
+  e.time_step = sim::estimate_initial_time_step(s);
+  e.steps = std::ceil(s.end_time / e.time_step.step());
+  return e;
+}
+
+nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
+  const auto finite = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nullptr; };
+  nlohmann::json parts = nlohmann::json::array();
+  for (const MemoryPart& p : e.memory)
+    parts.push_back({{"name", p.name}, {"bytes", p.bytes}, {"detail", p.detail}});
+  const sim::TimeStepLimits& l = e.time_step.limits;
+  return {{"particles", e.particles},
+          {"neighbours_per_particle", e.neighbours_per_particle},
+          {"analysis_grid_points", e.analysis_grid_points},
+          {"memory_bytes", e.memory_bytes},
+          {"memory", parts},
+          {"checkpoint_file_bytes", e.checkpoint_file_bytes},
+          {"checkpoint_disk_bytes", e.checkpoint_disk_bytes},
+          {"analysis_frame_bytes", e.analysis_frame_bytes},
+          {"analysis_frames", e.analysis_frames},
+          {"analysis_disk_bytes", e.analysis_disk_bytes},
+          {"time_step",
+           {{"initial", e.time_step.step()},
+            {"limit", std::string(l.binding())},
+            {"acoustic", finite(l.acoustic)},
+            {"viscous", finite(l.viscous)},
+            {"force", finite(l.force)},
+            {"fixed", l.fixed > 0.0 ? nlohmann::json(l.fixed) : nullptr},
+            {"max_speed", e.time_step.max_speed},
+            {"max_acceleration", e.time_step.max_acceleration}}},
+          {"steps", e.steps}};
+}
+
+std::string format_bytes(double bytes) {
+  static constexpr std::array<const char*, 7> kUnits{"B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"};
+  std::size_t unit = 0;
+  while (bytes >= 1024.0 && unit + 1 < kUnits.size()) {
+    bytes /= 1024.0;
+    ++unit;
+  }
+  char buffer[48];
+  if (unit == 0)
+    std::snprintf(buffer, sizeof buffer, "%.0f B", bytes);
+  else
+    std::snprintf(buffer, sizeof buffer, "%.3g %s", bytes, kUnits[unit]);
+  return buffer;
+}
+
+std::string describe_memory(const ResourceEstimate& e, std::size_t parts) {
+  std::vector<MemoryPart> sorted = e.memory;
+  std::sort(sorted.begin(), sorted.end(),
+            [](const MemoryPart& a, const MemoryPart& b) { return a.bytes > b.bytes; });
+  std::string text = "an estimated " + format_bytes(e.memory_bytes) + " at its peak (";
+  for (std::size_t k = 0; k < sorted.size() && k < parts; ++k)
+    text += (k ? ", " : "") + sorted[k].name + " " + format_bytes(sorted[k].bytes);
+  return text + ")";
+}
+
+std::optional<std::string> check_memory(const ResourceEstimate& e, double limit_bytes) {
+  if (e.memory_bytes <= limit_bytes) return std::nullopt;
+  return "the run needs " + describe_memory(e) + " of memory, more than the " +
+         format_bytes(limit_bytes) + " the server allows (--max-memory)";
+}
+
+namespace {
+
+/// Reads the first number of a file; nothing for "max", a missing file or other text.
+std::optional<std::uint64_t> read_limit(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  std::string word;
+  if (!(in >> word) || word.empty() || word.find_first_not_of("0123456789") != std::string::npos)
+    return std::nullopt;
+  try {
+    return std::stoull(word);
+  } catch (const std::exception&) {
+    return std::nullopt;
+  }
+}
+
+/// cgroup v1 reports "no limit" as a huge number (LONG_MAX rounded down to a page).
+constexpr std::uint64_t kUnlimitedAbove = std::uint64_t{1} << 62;
+
+/// Smallest limit in `file_name` from `directory` up to `root` (a parent's limit applies to its
+/// children); also the file directly in `root` when the path is not visible (a namespaced
+/// cgroup mount shows the process's own cgroup at the root).
+std::optional<std::uint64_t> smallest_limit(const std::filesystem::path& root,
+                                            const std::string& cgroup_path,
+                                            const std::string& file_name) {
+  std::optional<std::uint64_t> best;
+  const auto consider = [&](const std::filesystem::path& file) {
+    const auto value = read_limit(file);
+    if (value && *value < kUnlimitedAbove && (!best || *value < *best)) best = value;
+  };
+  std::filesystem::path relative = std::filesystem::path(cgroup_path).relative_path();
+  while (true) {
+    consider(root / relative / file_name);
+    if (relative.empty()) break;
+    relative = relative.parent_path();
+  }
+  return best;
+}
+
+}  // namespace
+
+std::uint64_t machine_memory_bytes(const std::filesystem::path& self_cgroup,
+                                   const std::filesystem::path& cgroup_root,
+                                   const std::filesystem::path& meminfo) {
+  std::optional<std::uint64_t> limit;
+  const auto take = [&](std::optional<std::uint64_t> value) {
+    if (value && (!limit || *value < *limit)) limit = value;
+  };
+  std::ifstream cgroups(self_cgroup);
+  for (std::string line; std::getline(cgroups, line);) {
+    // "hierarchy-id:controllers:path"; v2 is "0::path".
+    const auto first = line.find(':');
+    const auto second = first == std::string::npos ? first : line.find(':', first + 1);
+    if (second == std::string::npos) continue;
+    const std::string controllers = line.substr(first + 1, second - first - 1);
+    const std::string path = line.substr(second + 1);
+    if (line.substr(0, first) == "0" && controllers.empty()) {
+      take(smallest_limit(cgroup_root, path, "memory.max"));
+    } else {
+      std::stringstream list(controllers);
+      for (std::string c; std::getline(list, c, ',');)
+        if (c == "memory")
+          take(smallest_limit(cgroup_root / "memory", path, "memory.limit_in_bytes"));
+    }
+  }
+  std::optional<std::uint64_t> total;
+  std::ifstream info(meminfo);
+  for (std::string key; info >> key;) {
+    if (key == "MemTotal:") {
+      std::uint64_t kib = 0;
+      if (info >> kib) total = kib * 1024;
+      break;
+    }
+    info.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
+  }
+  if (limit && total) return std::min(*limit, *total);
+  if (limit) return *limit;
+  return total.value_or(0);
+}
+
+std::uint64_t machine_memory_bytes() {
+  return machine_memory_bytes("/proc/self/cgroup", "/sys/fs/cgroup", "/proc/meminfo");
+}
+
+std::uint64_t default_memory_limit_bytes() {
+  return static_cast<std::uint64_t>(kDefaultMemoryFraction *
+                                    static_cast<double>(machine_memory_bytes()));
+}
+
+}  // namespace sphles::control

@@ -1,0 +1,90 @@
+// What a run will ask of the machine, estimated from its scene before it starts (docs/scenes.md,
+// "Resource estimate"): peak resident memory with a breakdown by component, disk per checkpoint
+// and per analysis frame, the initial time step and the number of steps. The estimate is
+// arithmetic on the spec only (no particle set is built), in double precision, so it neither
+// allocates nor overflows for 4096³ particles or a tiny kernel.
+#pragma once
+
+#include <cstdint>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "control/run.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::control {
+
+/// One component of the memory estimate.
+struct MemoryPart {
+  std::string name;    // e.g. "neighbour_list"
+  double bytes = 0.0;  // [B]
+  std::string detail;  // how it was counted
+};
+
+struct ResourceEstimate {
+  double particles = 0.0;                // N^n
+  double neighbours_per_particle = 0.0;  // inside the Verlet list radius H (1 + skin)
+  double analysis_grid_points = 0.0;     // M^n of the analysis grid; 0 without gridded products
+
+  /// Peak resident memory of the run [B], above what the sphles process holds without it
+  /// (libraries, threads: about 80 MiB for `sphles run`). The sum of `memory`.
+  double memory_bytes = 0.0;
+  /// The components that coexist at the peak: the peak of the set-up (packing) or of the run,
+  /// whichever is larger.
+  std::vector<MemoryPart> memory;
+
+  double checkpoint_file_bytes = 0.0;  // one checkpoint, uncompressed (an upper bound) [B]
+  /// Checkpoint files on disk at once: checkpoint.keep + 1 while a new one is written before
+  /// the oldest is removed; 1 when checkpoints are off (a stopped run still writes one) [B].
+  double checkpoint_disk_bytes = 0.0;
+  double analysis_frame_bytes = 0.0;  // files written per analysis frame (spectra, slices, ...)
+  double analysis_frames = 0.0;       // analysis frames to the end time
+  double analysis_disk_bytes = 0.0;   // analysis_frame_bytes x analysis_frames [B]
+
+  sim::TimeStepEstimate time_step;  // at t = 0 (sim::estimate_initial_time_step)
+  double steps = 0.0;               // time.end / initial step
+};
+
+/// The estimate for a parsed spec. Cheap (no allocation proportional to the run).
+ResourceEstimate estimate_resources(const RunSpec& spec);
+
+/// {"memory_bytes", "memory": [{"name", "bytes", "detail"}], "checkpoint_file_bytes", ...,
+///  "time_step": {"initial", "limit", "acoustic", "viscous", "force", "fixed"}, "steps"};
+/// limits that do not apply are null.
+nlohmann::json resource_estimate_to_json(const ResourceEstimate& estimate);
+
+/// "1.5 GiB", "12 MiB", "512 B" (binary units, 3 significant digits).
+std::string format_bytes(double bytes);
+
+/// "an estimated 12.3 GiB at its peak (neighbour_list 6.1 GiB, neighbour_build 4.5 GiB, ...)"
+/// listing the `parts` largest components.
+std::string describe_memory(const ResourceEstimate& estimate, std::size_t parts = 3);
+
+/// The reason a run does not fit, or nothing: "the run needs an estimated 12.3 GiB of memory
+/// at its peak (...), more than the 6.2 GiB the server allows (--max-memory)".
+std::optional<std::string> check_memory(const ResourceEstimate& estimate, double limit_bytes);
+
+/// Memory the machine gives this process [B]: the cgroup limit if one is set (v2 memory.max,
+/// v1 memory.limit_in_bytes, the smallest along the cgroup's path), else MemTotal of
+/// /proc/meminfo; the smaller of both when both are known. 0 if neither can be read.
+std::uint64_t machine_memory_bytes();
+
+/// The same from other files (tests): `self_cgroup` in the format of /proc/self/cgroup,
+/// `cgroup_root` the cgroup mount (v2 files directly below it, v1 under memory/), `meminfo` in
+/// the format of /proc/meminfo.
+std::uint64_t machine_memory_bytes(const std::filesystem::path& self_cgroup,
+                                   const std::filesystem::path& cgroup_root,
+                                   const std::filesystem::path& meminfo);
+
+/// Share of machine_memory_bytes() a server allows its runs by default: the rest is left to the
+/// server process itself (about 80 MiB), the operating system and the page cache that
+/// checkpoints and analysis files go through.
+inline constexpr double kDefaultMemoryFraction = 0.8;
+
+/// kDefaultMemoryFraction x machine_memory_bytes() (the default of --max-memory).
+std::uint64_t default_memory_limit_bytes();
+
+}  // namespace sphles::control

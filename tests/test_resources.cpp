@@ -1,0 +1,357 @@
+// The resource estimate (control/resources.hpp) against real runs: peak RSS of the sphles
+// program, checkpoint files written by io::write_checkpoint, analysis files of a run, the
+// solver's own first time step; and the machine's memory from cgroup and meminfo files.
+#include <gtest/gtest.h>
+
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "control/resources.hpp"
+#include "control/run.hpp"
+#include "io/checkpoint.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::control {
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+fs::path scratch_root() {
+  return fs::temp_directory_path() / ("sphles_resources_" + std::to_string(::getpid()));
+}
+
+/// Removes the scratch directories when the test program ends.
+class ScratchCleanup : public ::testing::Environment {
+ public:
+  void TearDown() override {
+    std::error_code ignored;
+    fs::remove_all(scratch_root(), ignored);
+  }
+};
+const ::testing::Environment* const kCleanup =
+    ::testing::AddGlobalTestEnvironment(new ScratchCleanup);
+
+fs::path scratch(const std::string& name) {
+  const fs::path dir = scratch_root() / name;
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+RunSpec spec_of(const json& document) {
+  return parse_run_spec(document);
+}
+
+json with(json document, const std::string& key, const json& value) {
+  sim::apply_override(document, key + "=" + value.dump());
+  return document;
+}
+
+/// Runs `sphles run` with the arguments and returns its peak RSS [B] (ru_maxrss of the child).
+double peak_rss_of_run(const std::vector<std::string>& arguments, const fs::path& out) {
+  std::vector<std::string> argv{SPHLES_BINARY, "run"};
+  argv.insert(argv.end(), arguments.begin(), arguments.end());
+  argv.insert(argv.end(), {"--out", out.string(), "--threads", "2"});
+  std::vector<char*> pointers;
+  for (std::string& a : argv) pointers.push_back(a.data());
+  pointers.push_back(nullptr);
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const int null = ::open("/dev/null", O_WRONLY);
+    ::dup2(null, STDOUT_FILENO);
+    ::dup2(null, STDERR_FILENO);
+    ::execv(pointers[0], pointers.data());
+    ::_exit(127);
+  }
+  int status = 0;
+  rusage usage{};
+  EXPECT_EQ(::wait4(pid, &status, 0, &usage), pid);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "sphles run failed";
+  return static_cast<double>(usage.ru_maxrss) * 1024.0;  // ru_maxrss is in KiB on Linux
+}
+
+std::vector<std::string> set_arguments(const json& document) {
+  std::vector<std::string> arguments;
+  for (const auto& [key, value] : document.items()) {
+    if (key == "preset") continue;
+    if (value.is_object())
+      for (const auto& [sub, v] : value.items())
+        arguments.insert(arguments.end(), {"--set", key + "." + sub + "=" + v.dump()});
+    else
+      arguments.insert(arguments.end(), {"--set", key + "=" + value.dump()});
+  }
+  return arguments;
+}
+
+// The estimate against the measured peak RSS of real runs, above the peak of the same binary
+// doing a trivial run (libraries, threads: about 80 MiB). Small runs of both dimensions, with
+// and without analysis products; lattice starts keep them short.
+TEST(ResourceEstimate, MemoryIsWithinAFactorOfTheMeasuredPeakRss) {
+  const fs::path dir = scratch("rss");
+  const json analysis = {{"every", 0.05},
+                         {"products", {"energy", "spectrum", "vorticity", "slices", "sfs_stats"}}};
+  json with_particles = analysis;
+  with_particles["products"].push_back("particles");
+  struct Case {
+    std::string label;
+    json document;
+  };
+  const json tgv2d = {{"preset", "tgv2d"},
+                      {"particles_per_side", 32},
+                      {"packing", {{"enabled", false}}},
+                      {"time", {{"end", 0.3}}}};
+  const json tgv3d = {{"preset", "tgv3d"},
+                      {"particles_per_side", 16},
+                      {"packing", {{"enabled", false}}},
+                      {"time", {{"end", 0.3}}}};
+  const std::vector<Case> cases{
+      {"2D 32^2", tgv2d},
+      {"2D 32^2 + analysis", with(tgv2d, "analysis", analysis)},
+      {"3D 16^3", tgv3d},
+      {"3D 16^3 + analysis + particles", with(tgv3d, "analysis", with_particles)},
+      {"3D 24^3", with(tgv3d, "particles_per_side", 24)},
+      {"3D 24^3 + analysis", with(with(tgv3d, "particles_per_side", 24), "analysis", analysis)},
+  };
+  const json trivial = {{"preset", "tgv2d"},
+                        {"particles_per_side", 8},
+                        {"kernel", {{"diameter_over_spacing", 4}}},
+                        {"packing", {{"enabled", false}}},
+                        {"time", {{"end", 0.01}}}};
+  const double baseline = peak_rss_of_run(
+      [&] {
+        auto a = set_arguments(trivial);
+        a.insert(a.begin(), "tgv2d");
+        return a;
+      }(),
+      dir / "trivial");
+  for (std::size_t k = 0; k < cases.size(); ++k) {
+    const Case& c = cases[k];
+    std::vector<std::string> arguments = set_arguments(c.document);
+    arguments.insert(arguments.begin(), c.document.at("preset").get<std::string>());
+    const double measured =
+        peak_rss_of_run(arguments, dir / ("run" + std::to_string(k))) - baseline;
+    const ResourceEstimate e = estimate_resources(spec_of(c.document));
+    const double ratio = e.memory_bytes / measured;
+    std::printf("%-32s estimate %9s  measured %9s  ratio %.2f\n", c.label.c_str(),
+                format_bytes(e.memory_bytes).c_str(), format_bytes(measured).c_str(), ratio);
+    EXPECT_GE(ratio, 0.7) << c.label << ": " << describe_memory(e, 6);
+    EXPECT_LE(ratio, 2.0) << c.label << ": " << describe_memory(e, 6);
+  }
+}
+
+TEST(ResourceEstimate, PartsSumToTheTotalAndGrowWithTheRun) {
+  const ResourceEstimate small = estimate_resources(spec_of({{"preset", "tgv3d"}}));
+  double sum = 0.0;
+  for (const MemoryPart& p : small.memory) {
+    EXPECT_GT(p.bytes, 0.0) << p.name;
+    sum += p.bytes;
+  }
+  EXPECT_DOUBLE_EQ(sum, small.memory_bytes);
+  // Twice the particles per side: 8 times the particles and about 8 times the memory.
+  const ResourceEstimate big =
+      estimate_resources(spec_of({{"preset", "tgv3d"}, {"particles_per_side", 64}}));
+  EXPECT_NEAR(big.memory_bytes / small.memory_bytes, 8.0, 0.5);
+  // Analysis adds snapshots and its own working set.
+  const ResourceEstimate analysed = estimate_resources(
+      spec_of({{"preset", "tgv3d"},
+               {"analysis", {{"every", 0.5}, {"products", {"spectrum", "slices", "sfs_stats"}}}}}));
+  EXPECT_GT(analysed.memory_bytes, small.memory_bytes);
+  EXPECT_DOUBLE_EQ(analysed.analysis_grid_points, std::pow(64.0, 3));  // 2 points per spacing
+  EXPECT_DOUBLE_EQ(analysed.analysis_frames, 31.0);                    // t = 0, 0.5, ..., 15
+}
+
+// Finding 7: 4096³ used to be accepted and failed later with std::bad_alloc. The estimate is
+// finite, cheap (no allocation of the particle set) and far above any machine.
+TEST(ResourceEstimate, HugeRunsAreEstimatedWithoutOverflowOrAllocation) {
+  rusage before{};
+  ::getrusage(RUSAGE_SELF, &before);
+  const RunSpec spec = spec_of({{"preset", "tgv3d"}, {"particles_per_side", 4096}});
+  const ResourceEstimate e = estimate_resources(spec);
+  rusage after{};
+  ::getrusage(RUSAGE_SELF, &after);
+  EXPECT_LT(after.ru_maxrss - before.ru_maxrss, 16 * 1024);  // KiB: nothing run-sized
+  EXPECT_DOUBLE_EQ(e.particles, std::pow(4096.0, 3));
+  EXPECT_TRUE(std::isfinite(e.memory_bytes));
+  // At least the Verlet list: 6.9e10 particles x ~400 neighbours x 4 B ≈ 110 TB.
+  EXPECT_GT(e.memory_bytes, e.particles * 400.0 * 4.0);
+  EXPECT_GT(e.memory_bytes, static_cast<double>(machine_memory_bytes()));
+  const auto refusal = check_memory(e, static_cast<double>(default_memory_limit_bytes()));
+  ASSERT_TRUE(refusal.has_value());
+  EXPECT_NE(refusal->find("--max-memory"), std::string::npos) << *refusal;
+  EXPECT_NE(refusal->find("neighbour_list"), std::string::npos) << *refusal;
+  EXPECT_NE(refusal->find("TiB"), std::string::npos) << *refusal;
+  EXPECT_TRUE(std::isfinite(e.checkpoint_file_bytes));
+  EXPECT_GT(e.checkpoint_file_bytes, e.particles * 8.0 * 17.0);
+
+  // A tiny kernel (refused by the scene since, but the estimate must still be finite): the cell
+  // grid of the neighbour search grows as (L / D_K)³.
+  RunSpec tiny = spec_of({{"preset", "tgv3d"}});
+  tiny.run.scene.kernel_diameter_over_spacing = 0.02;
+  const ResourceEstimate t = estimate_resources(tiny);
+  EXPECT_TRUE(std::isfinite(t.memory_bytes));
+  EXPECT_GT(t.memory_bytes, 1e12);  // 1.7e11 cells x 16 B
+  EXPECT_FALSE(check_memory(estimate_resources(spec_of({{"preset", "tgv2d"}})), 1e9).has_value());
+}
+
+// The checkpoint estimate is an upper bound of a real (uncompressed) checkpoint file, close to it.
+TEST(ResourceEstimate, CheckpointBytesBoundARealCheckpointFile) {
+  const fs::path dir = scratch("checkpoint");
+  for (const std::string model : {"implicit", "smag"}) {
+    const json document = {{"preset", "tgv3d"},
+                           {"particles_per_side", 16},
+                           {"packing", {{"enabled", false}}},
+                           {"subfilter", {{"model", model}}},
+                           {"checkpoint", {{"every", 1.0}, {"keep", 4}}}};
+    const RunSpec spec = spec_of(document);
+    sim::RunSetup setup = sim::setup_run(spec.run.scene);
+    auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+    simulation->step();
+    const fs::path file = dir / ("ckpt_" + model + ".h5");
+    io::write_checkpoint(file, simulation->state(),
+                         {run_spec_to_json(spec).dump(), "test", "lattice"});
+    const double actual = static_cast<double>(fs::file_size(file));
+    const ResourceEstimate e = estimate_resources(spec);
+    std::printf("checkpoint %-8s estimate %s, file %s\n", model.c_str(),
+                format_bytes(e.checkpoint_file_bytes).c_str(), format_bytes(actual).c_str());
+    EXPECT_GE(e.checkpoint_file_bytes, actual) << model;
+    EXPECT_LE(e.checkpoint_file_bytes, 1.1 * actual) << model;
+    EXPECT_DOUBLE_EQ(e.checkpoint_disk_bytes, 5.0 * e.checkpoint_file_bytes);  // keep + 1
+  }
+}
+
+// The time step at t = 0 from the scene matches the first step the solver takes.
+TEST(ResourceEstimate, InitialTimeStepMatchesTheSolver) {
+  struct Case {
+    json document;
+    std::string limit;
+    double tolerance;  // relative
+  };
+  const json lattice = {{"packing", {{"enabled", false}}}};
+  const auto scene = [&](json d) {
+    d.merge_patch(lattice);
+    return d;
+  };
+  const std::vector<Case> cases{
+      // |v|max of the lattice is just below v0: the estimate is a few per cent short.
+      {scene({{"preset", "tgv2d"}, {"particles_per_side", 32}}), "acoustic", 0.02},
+      {scene({{"preset", "tgv3d"}, {"particles_per_side", 16}}), "acoustic", 0.02},
+      {scene({{"preset", "tgv2d"},
+              {"particles_per_side", 32},
+              {"fluid", {{"dynamic_viscosity", 2.0}}}}),
+       "viscous", 1e-12},
+      {scene({{"preset", "kolmogorov2d"}, {"particles_per_side", 64}}), "acoustic", 1e-12},
+      // A strong forcing makes the force limit bind (the fluid starts at rest).
+      {scene({{"preset", "kolmogorov2d"},
+              {"particles_per_side", 64},
+              {"forcing", {{"amplitude", 5e4}}}}),
+       "force", 0.05},
+      {scene({{"preset", "tgv2d"}, {"particles_per_side", 32}, {"time", {{"fixed_step", 1e-3}}}}),
+       "fixed", 0.0},
+  };
+  for (const Case& c : cases) {
+    const sim::Scene s = spec_of(c.document).run.scene;
+    const sim::TimeStepEstimate e = sim::estimate_initial_time_step(s);
+    sim::RunSetup setup = sim::setup_run(s);
+    const auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+    const double actual = simulation->stable_time_step();
+    std::printf("%-60s estimate %.6g s, solver %.6g s (%s)\n",
+                c.document.dump().substr(0, 60).c_str(), e.step(), actual,
+                std::string(e.limits.binding()).c_str());
+    EXPECT_EQ(e.limits.binding(), c.limit) << c.document.dump();
+    EXPECT_NEAR(e.step() / actual, 1.0, c.tolerance) << c.document.dump();
+  }
+  // Steps to the end.
+  const ResourceEstimate r = estimate_resources(spec_of(scene({{"preset", "tgv2d"}})));
+  EXPECT_DOUBLE_EQ(r.steps, std::ceil(2.0 / r.time_step.step()));
+}
+
+// Analysis files of a real run: the estimate per frame bounds what one frame wrote.
+TEST(ResourceEstimate, AnalysisFrameBytesBoundTheFilesOfAFrame) {
+  const fs::path dir = scratch("frames");
+  const json document = {
+      {"preset", "tgv2d"},
+      {"particles_per_side", 32},
+      {"packing", {{"enabled", false}}},
+      {"time", {{"end", 0.05}}},
+      {"analysis",
+       {{"every", 0.05}, {"products", {"spectrum", "slices", "sfs_stats", "particles"}}}}};
+  std::vector<std::string> arguments = set_arguments(document);
+  arguments.insert(arguments.begin(), "tgv2d");
+  peak_rss_of_run(arguments, dir);
+  // Files of the last frame (t = 0.05): every name with its time stamp.
+  double written = 0.0;
+  for (const auto& entry : fs::recursive_directory_iterator(dir))
+    if (entry.is_regular_file() &&
+        entry.path().filename().string().find("_t0.0500") != std::string::npos)
+      written += static_cast<double>(entry.file_size());
+  const ResourceEstimate e = estimate_resources(spec_of(document));
+  std::printf("analysis frame: estimate %s, written %s\n",
+              format_bytes(e.analysis_frame_bytes).c_str(), format_bytes(written).c_str());
+  EXPECT_GT(written, 0.0);
+  EXPECT_GE(e.analysis_frame_bytes, written);
+  EXPECT_LE(e.analysis_frame_bytes, 3.0 * written);
+  EXPECT_DOUBLE_EQ(e.analysis_frames, 2.0);
+}
+
+void write_file(const fs::path& path, const std::string& text) {
+  fs::create_directories(path.parent_path());
+  std::ofstream(path) << text;
+}
+
+TEST(MachineMemory, CgroupLimitsAndMemTotal) {
+  const fs::path dir = scratch("cgroup");
+  const fs::path meminfo = dir / "meminfo";
+  write_file(meminfo, "MemTotal:       16384000 kB\nMemFree:         1000 kB\n");
+  const double total = 16384000.0 * 1024.0;
+  // cgroup v2: the smallest memory.max along the path; "max" is no limit.
+  write_file(dir / "v2" / "self", "0::/a/b\n");
+  write_file(dir / "v2" / "root" / "a" / "b" / "memory.max", "max\n");
+  write_file(dir / "v2" / "root" / "a" / "memory.max", "2147483648\n");
+  EXPECT_EQ(machine_memory_bytes(dir / "v2" / "self", dir / "v2" / "root", meminfo), 2147483648u);
+  write_file(dir / "v2" / "root" / "a" / "memory.max", "max\n");
+  EXPECT_EQ(machine_memory_bytes(dir / "v2" / "self", dir / "v2" / "root", meminfo), total);
+  // cgroup v1: memory.limit_in_bytes, LONG_MAX rounded to a page meaning none.
+  write_file(dir / "v1" / "self", "5:cpu,cpuacct:/x\n4:memory:/job\n0::/\n");
+  write_file(dir / "v1" / "root" / "memory" / "job" / "memory.limit_in_bytes", "1073741824\n");
+  write_file(dir / "v1" / "root" / "memory" / "memory.limit_in_bytes", "9223372036854771712\n");
+  EXPECT_EQ(machine_memory_bytes(dir / "v1" / "self", dir / "v1" / "root", meminfo), 1073741824u);
+  fs::remove(dir / "v1" / "root" / "memory" / "job" / "memory.limit_in_bytes");
+  EXPECT_EQ(machine_memory_bytes(dir / "v1" / "self", dir / "v1" / "root", meminfo), total);
+  // A limit above the machine's memory: the machine's memory.
+  write_file(dir / "v1" / "root" / "memory" / "memory.limit_in_bytes", "99999999999999\n");
+  EXPECT_EQ(machine_memory_bytes(dir / "v1" / "self", dir / "v1" / "root", meminfo), total);
+  EXPECT_EQ(machine_memory_bytes(dir / "none", dir / "none", dir / "none"), 0u);
+
+  // This machine.
+  const std::uint64_t here = machine_memory_bytes();
+  EXPECT_GT(here, 0u);
+  EXPECT_NEAR(static_cast<double>(default_memory_limit_bytes()),
+              kDefaultMemoryFraction * static_cast<double>(here), 1.0);
+}
+
+TEST(ResourceEstimate, JsonAndFormatting) {
+  const ResourceEstimate e = estimate_resources(spec_of({{"preset", "tgv2d"}}));
+  const json j = resource_estimate_to_json(e);
+  EXPECT_DOUBLE_EQ(j["memory_bytes"].get<double>(), e.memory_bytes);
+  EXPECT_EQ(j["memory"].size(), e.memory.size());
+  EXPECT_EQ(j["time_step"]["limit"], "acoustic");
+  EXPECT_TRUE(j["time_step"]["fixed"].is_null());
+  EXPECT_TRUE(j["time_step"]["viscous"].is_number());
+  EXPECT_EQ(format_bytes(512), "512 B");
+  EXPECT_EQ(format_bytes(1536), "1.5 KiB");
+  EXPECT_EQ(format_bytes(3.0 * 1024 * 1024 * 1024), "3 GiB");
+}
+
+}  // namespace
+}  // namespace sphles::control
