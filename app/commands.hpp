@@ -32,7 +32,8 @@ int calibrate_command(const std::vector<std::string>& args);
 int estimate_command(const std::vector<std::string>& args);
 
 /// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
-///   [--max-running N] [--max-queued N] [--max-runs N] [--threads N] [--packing-cache DIR]
+///   [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]
+///   [--packing-cache DIR]
 ///   [--start-run PRESET|SCENE.json [--set key=value ...]]
 int serve_command(const std::vector<std::string>& args);
 

@@ -30,7 +30,7 @@ constexpr const char* kUsage =
     "      estimate the peak memory, checkpoint and analysis disk, initial time step and steps\n"
     "      of a run without running it\n"
     "  serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]\n"
-    "        [--max-running N] [--max-queued N] [--max-runs N] [--threads N]\n"
+    "        [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]\n"
     "        [--packing-cache DIR] [--start-run PRESET|SCENE.json [--set key=value ...]]\n"
     "      the HTTP/WebSocket service and browser dashboard (docs/api.md); runs live in\n"
     "      DIR/runs/ and survive restarts; prints 'sphles serve: listening on URL'\n"

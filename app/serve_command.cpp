@@ -2,14 +2,17 @@
 #include <algorithm>
 #include <boost/asio/io_context.hpp>
 #include <boost/asio/signal_set.hpp>
+#include <cmath>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "app/commands.hpp"
+#include "control/resources.hpp"
 #include "control/run_manager.hpp"
 #include "server/http_server.hpp"
 #include "sim/scene.hpp"
@@ -44,6 +47,29 @@ int parse_int(const std::string& option, const std::string& text, int min, int m
   return value;
 }
 
+/// "12G", "512M", "2.5T", "1000000" (bytes; K, M, G, T are binary multiples, an optional "iB"
+/// or "B" after them is accepted).
+double parse_bytes(const std::string& option, const std::string& text) {
+  std::size_t used = 0;
+  double value = 0.0;
+  try {
+    value = std::stod(text, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  std::string unit = used > 0 ? text.substr(used) : "";
+  for (const char* suffix : {"iB", "B"})
+    if (unit.size() > std::strlen(suffix) && unit.ends_with(suffix))
+      unit.resize(unit.size() - std::strlen(suffix));
+  const std::string units = "KMGT";
+  const std::size_t power = unit.size() == 1 ? units.find(unit[0]) : std::string::npos;
+  if (used == 0 || !(value > 0.0) || (!unit.empty() && power == std::string::npos))
+    throw UsageError(option +
+                     " must be a positive size such as 8G, 512M or 1000000 (bytes), got '" + text +
+                     "'");
+  return unit.empty() ? value : value * std::pow(1024.0, static_cast<double>(power + 1));
+}
+
 ServeOptions parse_serve_options(const std::vector<std::string>& args) {
   ServeOptions o;
   o.server.web_root = SPHLES_WEB_DIR;
@@ -70,6 +96,8 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
       o.manager.max_queued = parse_int(a, value(), 0, 100000);
     else if (a == "--max-runs")
       o.manager.max_runs = parse_int(a, value(), 1, 100000);
+    else if (a == "--max-memory")
+      o.manager.max_memory_bytes = parse_bytes(a, value());
     else if (a == "--packing-cache") {
       o.manager.run_options.packing_cache_dir = value();
       if (o.manager.run_options.packing_cache_dir.empty())
@@ -115,7 +143,7 @@ int serve_command(const std::vector<std::string>& args) {
     std::fprintf(stderr,
                  "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
                  "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--max-queued N] "
-                 "[--max-runs N] [--threads N] [--packing-cache DIR] "
+                 "[--max-runs N] [--max-memory SIZE] [--threads N] [--packing-cache DIR] "
                  "[--start-run PRESET|SCENE.json [--set key=value ...]]\n",
                  e.what());
     return kExitUsage;
@@ -134,8 +162,9 @@ int serve_command(const std::vector<std::string>& args) {
                  options.manager.data_directory.c_str(), e.what());
     return kExitFailure;
   }
-  std::fprintf(stderr, "sphles serve: data directory %s, %zu run(s) found\n",
-               options.manager.data_directory.c_str(), manager->list().size());
+  std::fprintf(stderr, "sphles serve: data directory %s, %zu run(s) found; runs may use %s\n",
+               options.manager.data_directory.c_str(), manager->list().size(),
+               control::format_bytes(manager->options().max_memory_bytes).c_str());
 
   if (options.start_run) {
     try {

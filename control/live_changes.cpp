@@ -65,7 +65,8 @@ bool has_prefix(const std::string& path, const std::string& prefix) {
           path[prefix.size()] == '.');
 }
 
-/// Dotted field of a JSON-pointer path from json::diff, cut at array indices ("/a/b/2" → "a.b").
+/// Dotted field of a JSON-pointer path from json::diff, cut at array indices ("/a/b/2" → "a.b",
+/// "/a/b/-" → "a.b").
 std::string dotted_field(const std::string& pointer) {
   std::string field;
   std::size_t start = 1;
@@ -73,7 +74,10 @@ std::string dotted_field(const std::string& pointer) {
     std::size_t end = pointer.find('/', start);
     if (end == std::string::npos) end = pointer.size();
     const std::string token = pointer.substr(start, end - start);
-    if (!token.empty() && token.find_first_not_of("0123456789") == std::string::npos) break;
+    // An array index, or "-" (json::diff's "append to the array").
+    if (token == "-" ||
+        (!token.empty() && token.find_first_not_of("0123456789") == std::string::npos))
+      break;
     field += (field.empty() ? "" : ".") + token;
     start = end + 1;
   }

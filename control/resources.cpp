@@ -321,9 +321,18 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   const ListModel list = list_model(s, s.neighbour_skin);
   e.neighbours_per_particle = list.neighbours;
   const std::string list_text = n_text + " x " + count_text(list.neighbours) + " neighbours";
+  // Checkpoint file (io/checkpoint.cpp): position, velocity, acceleration and list reference
+  // per axis, mass, volume, density, pressure, id, ν_t; the scene JSON as an attribute.
+  const double datasets = 4.0 * dim + 5.0 + (explicit_model ? 1.0 : 0.0);
+  const double scene_text = static_cast<double>(run_spec_to_json(spec).dump().size());
+  e.checkpoint_file_bytes = n * (kDouble * (datasets - 1.0) + kId) +
+                            datasets * kHdf5BytesPerDataset + kHdf5BytesPerFile + scene_text;
   // Checkpoints (and a stop) copy the solver state on the solver thread: arrays and reference
   // positions. Rebuilds happen on the same thread, so the larger of both counts.
-  const double state_copy = n * (per_particle + dim * kDouble);
+  // Writing a checkpoint also holds the file twice: HDF5 assembles it
+  // in memory (io/hdf5_file.hpp, so that a failed disk write cannot break the library) and its
+  // image is copied out before it is written.
+  const double state_copy = n * (per_particle + dim * kDouble) + 2.0 * e.checkpoint_file_bytes;
   const bool build_larger = list.build_bytes >= state_copy;
 
   // Analysis on its own thread, concurrent with the solver.
@@ -362,7 +371,8 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
       build_larger
           ? MemoryPart{"neighbour_build", list.build_bytes,
                        "rebuild buffers (3 x the list) and " + count_text(list.cells) + " cells"}
-          : MemoryPart{"checkpoint_copy", state_copy, "solver state copied to write"},
+          : MemoryPart{"checkpoint_copy", state_copy,
+                       "solver state copied to write, and the file assembled in memory twice"},
   };
   if (snapshots > 0.0) run_parts.push_back({"snapshots", snapshots, snapshot_text});
   if (analysis_bytes > 0.0) run_parts.push_back({"analysis", analysis_bytes, analysis_text});
@@ -386,12 +396,6 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
 
-  // Checkpoint file (io/checkpoint.cpp): position, velocity, acceleration and list reference
-  // per axis, mass, volume, density, pressure, id, ν_t; the scene JSON as an attribute.
-  const double datasets = 4.0 * dim + 5.0 + (explicit_model ? 1.0 : 0.0);
-  const double scene_text = static_cast<double>(run_spec_to_json(spec).dump().size());
-  e.checkpoint_file_bytes = n * (kDouble * (datasets - 1.0) + kId) +
-                            datasets * kHdf5BytesPerDataset + kHdf5BytesPerFile + scene_text;
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
 

@@ -61,6 +61,17 @@ class ChangeError : public std::runtime_error {
   std::string field_;
 };
 
+/// A run that asks for more than the server allows (memory, disk), with the estimate (HTTP 422).
+class AdmissionError : public std::runtime_error {
+ public:
+  AdmissionError(std::string field, const std::string& reason)
+      : std::runtime_error(reason), field_(std::move(field)) {}
+  const std::string& field() const { return field_; }  // the scene key that drives it
+
+ private:
+  std::string field_;
+};
+
 /// One row of the time series, as pushed to observers.
 struct MetricsSample {
   double time = 0.0;  // [s]
@@ -119,6 +130,9 @@ struct RunOptions {
   std::filesystem::path packing_cache_dir;  // empty: sim::default_packing_cache_dir()
   /// How often (wall time) the solver thread checks that its run directory still exists.
   double directory_check_seconds = 1.0;
+  /// Called with the document a live change would give, before it is made; throws
+  /// AdmissionError to refuse it (the run manager checks the resource estimate).
+  std::function<void(const RunSpec&)> admit;
 };
 
 /// A run name as a single path component: letters, digits, '-', '_' and '.' (others become '-'),

@@ -3,6 +3,9 @@
 #include <algorithm>
 #include <cstdio>
 
+#include <sys/statvfs.h>
+
+#include "control/resources.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
 
@@ -30,14 +33,41 @@ bool occupies_slot(RunState s) {
   return s == RunState::Running || s == RunState::Paused;
 }
 
+/// The scene key that drives a memory component of the estimate, for the error's field.
+std::string field_of(const std::string& part) {
+  if (part == "analysis" || part == "snapshots") return "analysis";
+  if (part == "rendering") return "render";
+  return "particles_per_side";
+}
+
+/// Bytes free for an unprivileged writer on the file system of `directory`; nullopt if unknown.
+std::optional<double> free_disk_bytes(const std::filesystem::path& directory) {
+  struct statvfs info {};
+  if (::statvfs(directory.c_str(), &info) != 0) return std::nullopt;
+  return static_cast<double>(info.f_bavail) * static_cast<double>(info.f_frsize);
+}
+
+double estimated_memory(const Run& run) {
+  try {
+    return estimate_resources(parse_run_spec(run.document())).memory_bytes;
+  } catch (const std::exception&) {
+    return 0.0;  // a document that no longer parses cannot run either
+  }
+}
+
 }  // namespace
 
 json with_live_defaults(json document) {
   if (!document.is_object() || document.contains("analysis") || document.contains("render"))
     return document;
   const sim::Scene scene = sim::parse_scene(document);  // throws naming the field
+  // kLiveAnalysisFrames over the run, but never closer than the time steps allow: a cadence
+  // below them would cut every step short (and raising time.end would then make it a stall).
+  const double step_bound =
+      sim::kMinCadenceOverTimeStep * sim::estimate_initial_time_step(scene).step();
   document["analysis"] = {
-      {"every", scene.end_time / kLiveAnalysisFrames},
+      {"every",
+       std::min(scene.end_time, std::max(scene.end_time / kLiveAnalysisFrames, step_bound))},
       {"products", {"energy", "spectrum", "vorticity", "slices", "sfs_stats"}},
       {"slice",
        {{"axis", "x"}, {"position", 3.141592653589793}, {"fields", {"omega2", "tau_sfs"}}}}};
@@ -112,6 +142,11 @@ RunManager::RunManager(ManagerOptions options)
                                 std::to_string(options_.max_running));
   if (options_.max_queued < 0 || options_.max_runs < 1)
     throw std::invalid_argument("max_queued must be >= 0 and max_runs >= 1");
+  if (options_.max_memory_bytes < 0.0) throw std::invalid_argument("max_memory_bytes must be >= 0");
+  if (options_.max_memory_bytes == 0.0)
+    options_.max_memory_bytes = static_cast<double>(default_memory_limit_bytes());
+  // Live changes are admitted like new runs (a larger render or histogram needs memory too).
+  options_.run_options.admit = [this](const RunSpec& spec) { admit(spec); };
   const std::filesystem::path runs = options_.data_directory / "runs";
   std::filesystem::create_directories(runs);
   std::error_code ignored;  // deletions a previous process did not finish (remove())
@@ -160,12 +195,51 @@ void RunManager::schedule_loop() {
   }
 }
 
-int RunManager::active_runs() const {
+double RunManager::admit(const RunSpec& spec) const {
+  const ResourceEstimate estimate = estimate_resources(spec);
+  if (const std::optional<std::string> refusal =
+          check_memory(estimate, options_.max_memory_bytes)) {
+    std::string field = "particles_per_side";
+    double largest = -1.0;
+    for (const MemoryPart& part : estimate.memory)
+      if (part.bytes > largest) {
+        largest = part.bytes;
+        field = field_of(part.name);
+      }
+    throw AdmissionError(field, *refusal);
+  }
+  const std::optional<double> free = free_disk_bytes(options_.data_directory);
+  if (free && estimate.checkpoint_disk_bytes > *free)
+    throw AdmissionError(
+        "checkpoint.keep",
+        "the run's checkpoints need an estimated " + format_bytes(estimate.checkpoint_disk_bytes) +
+            " (" + format_bytes(estimate.checkpoint_file_bytes) + " each), more than the " +
+            format_bytes(*free) + " free in the data directory");
+  return estimate.memory_bytes;
+}
+
+bool RunManager::fits_now(const Run* run, double memory) const {
+  std::vector<std::shared_ptr<Run>> active;
+  {
+    std::lock_guard lock(mutex_);
+    for (const auto& r : runs_)
+      if (r.get() != run && occupies_slot(r->status().state)) active.push_back(r);
+  }
+  if (static_cast<int>(active.size()) >= options_.max_running) return false;
+  if (active.empty()) return true;  // it fits alone: admit() checked that
+  double in_use = memory;
+  for (const auto& r : active) in_use += estimated_memory(*r);
+  return in_use <= options_.max_memory_bytes;
+}
+
+void RunManager::refuse_if_queue_full() const {
   std::lock_guard lock(mutex_);
-  int active = 0;
-  for (const auto& r : runs_)
-    if (occupies_slot(r->status().state)) ++active;
-  return active;
+  if (queue_.size() >= static_cast<std::size_t>(options_.max_queued))
+    throw CapacityError("all " + std::to_string(options_.max_running) +
+                        " run slots are busy (or the memory is) and " +
+                        std::to_string(queue_.size()) +
+                        " runs wait already, the limit (--max-queued " +
+                        std::to_string(options_.max_queued) + "); try again later");
 }
 
 std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
@@ -187,7 +261,14 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
   if (request.name) document["name"] = *request.name;
   RunSpec spec =
       parse_run_spec(with_live_defaults(document));  // throws naming the field; nothing created yet
+  const double memory = admit(spec);                 // throws AdmissionError with the estimate
 
+  // A run to start is created only if it can start or queue: a full queue refuses it whole.
+  std::unique_lock<std::mutex> schedule;
+  if (request.start) {
+    schedule = std::unique_lock(schedule_mutex_);
+    if (!fits_now(nullptr, memory)) refuse_if_queue_full();
+  }
   std::shared_ptr<Run> run;
   {
     std::lock_guard lock(mutex_);
@@ -204,7 +285,7 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
     run->add_observer(slot_observer_);
     runs_.push_back(run);
   }
-  if (request.start) start(run->id());
+  if (request.start) start_locked(run);
   return run;
 }
 
@@ -223,11 +304,16 @@ std::shared_ptr<Run> RunManager::get(const std::string& id) const {
 void RunManager::start(const std::string& id) {
   const std::shared_ptr<Run> run = get(id);
   std::lock_guard schedule(schedule_mutex_);
+  start_locked(run);
+}
+
+void RunManager::start_locked(const std::shared_ptr<Run>& run) {
+  const std::string& id = run->id();
   {
     std::lock_guard lock(mutex_);
     if (shut_down_) throw StateError("the server is shutting down");
   }
-  if (active_runs() < options_.max_running) {
+  if (fits_now(run.get(), estimated_memory(*run))) {
     run->start();  // throws StateError naming the state
     std::lock_guard lock(mutex_);
     std::erase(queue_, id);
@@ -237,12 +323,8 @@ void RunManager::start(const std::string& id) {
     std::lock_guard lock(mutex_);
     if (std::find(queue_.begin(), queue_.end(), id) != queue_.end())
       throw StateError("run " + id + " is already queued");
-    if (queue_.size() >= static_cast<std::size_t>(options_.max_queued))
-      throw CapacityError("all " + std::to_string(options_.max_running) +
-                          " run slots are busy and " + std::to_string(queue_.size()) +
-                          " runs wait for one, the limit (--max-queued " +
-                          std::to_string(options_.max_queued) + "); try again later");
   }
+  refuse_if_queue_full();
   // Not under mutex_: marking may wait for a transition of this run in progress (a stop), and
   // listing runs must not. schedule_mutex_ keeps other starts out meanwhile.
   run->mark_queued();  // throws StateError if the run cannot start
@@ -299,20 +381,27 @@ void RunManager::remove(const std::string& id) {
 void RunManager::start_queued() {
   // On the scheduler thread, after a run left its slot: the oldest queued runs that fit start.
   std::lock_guard schedule(schedule_mutex_);
-  int active = active_runs();
-  while (active < options_.max_running) {
+  for (;;) {
     std::shared_ptr<Run> next;
+    std::string id;
     {
       std::lock_guard lock(mutex_);
       if (shut_down_ || queue_.empty()) return;
-      const std::string id = queue_.front();
-      queue_.erase(queue_.begin());
+      id = queue_.front();
       for (const auto& r : runs_)
         if (r->id() == id) next = r;
     }
+    // The oldest first: when it does not fit yet (slots or memory), the others wait behind it.
+    if (next && next->status().state == RunState::Queued &&
+        !fits_now(next.get(), estimated_memory(*next)))
+      return;
+    {
+      std::lock_guard lock(mutex_);
+      std::erase(queue_, id);
+    }
     if (!next) continue;
     try {
-      if (next->start_if_queued()) ++active;  // false: stopped or deleted since it queued
+      next->start_if_queued();  // false: stopped or deleted since it queued
     } catch (const std::exception& e) {
       std::fprintf(stderr, "sphles: could not start queued run %s: %s\n", next->id().c_str(),
                    e.what());

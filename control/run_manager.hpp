@@ -22,6 +22,10 @@ struct ManagerOptions {
   int max_running = 1;  // runs stepping at once; further starts queue
   int max_queued = 16;  // runs waiting for a slot; a start beyond is refused (CapacityError)
   int max_runs = 256;   // runs in the data directory; creating more is refused (CapacityError)
+  /// Memory the active runs may use together, by their resource estimates (control/resources.hpp)
+  /// [B]: a run whose estimate exceeds it is refused (AdmissionError), one that fits alone but
+  /// not beside the active runs queues. 0: default_memory_limit_bytes() (--max-memory).
+  double max_memory_bytes = 0.0;
   RunOptions run_options;
 };
 
@@ -38,7 +42,8 @@ struct CreateRequest {
 
 /// A scene document without "analysis" and "render" sections gets the live defaults: all
 /// products (energy, spectrum, vorticity, ω² and |τ_SFS| slices at x = π, sfs_stats) at 60
-/// frames over the run, and rendered images of both slices. Others are returned unchanged.
+/// frames over the run (fewer when its time steps are longer), and rendered images of both
+/// slices. Others are returned unchanged.
 nlohmann::json with_live_defaults(nlohmann::json document);
 
 /// Parses a create request body: {"preset"|"scene", "patch", "overrides", "name", "start"}.
@@ -100,10 +105,17 @@ class RunManager {
 
  private:
   class SlotObserver;
-  int active_runs() const;  // running or paused; caller holds schedule_mutex_
-  void start_queued();      // starts the oldest queued runs that fit; holds schedule_mutex_
-  void slot_freed();        // from a run's thread: wakes the scheduler, never blocks on a run
-  void schedule_loop();     // the scheduler thread
+  /// Throws AdmissionError if the run's estimated memory exceeds the limit, or its checkpoints
+  /// the free disk of the data directory; returns the estimated memory [B].
+  double admit(const RunSpec& spec) const;
+  /// Whether a run (`run`, or a new one when null) needing `memory` may start now: a free slot,
+  /// and memory beside the active runs. Caller holds schedule_mutex_.
+  bool fits_now(const Run* run, double memory) const;
+  void refuse_if_queue_full() const;                   // throws CapacityError
+  void start_locked(const std::shared_ptr<Run>& run);  // caller holds schedule_mutex_
+  void start_queued();   // starts the oldest queued runs that fit; holds schedule_mutex_
+  void slot_freed();     // from a run's thread: wakes the scheduler, never blocks on a run
+  void schedule_loop();  // the scheduler thread
 
   ManagerOptions options_;
   std::shared_ptr<SlotObserver> slot_observer_;

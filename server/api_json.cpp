@@ -127,6 +127,9 @@ ApiError to_api_error(const std::exception& error) {
   if (dynamic_cast<const control::UnknownRunError*>(&error))
     return ApiError(404, error.what(), "id");
   if (dynamic_cast<const control::StateError*>(&error)) return ApiError(409, error.what());
+  if (dynamic_cast<const control::CapacityError*>(&error)) return ApiError(429, error.what());
+  if (const auto* e = dynamic_cast<const control::AdmissionError*>(&error))
+    return ApiError(422, e->what(), e->field());
   if (const auto* e = dynamic_cast<const control::ChangeError*>(&error))
     return ApiError(400, e->what(), e->field());
   if (dynamic_cast<const sim::SceneError*>(&error))

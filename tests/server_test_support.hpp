@@ -122,15 +122,18 @@ inline fs::path make_web_root(const fs::path& base) {
 }
 
 struct TestServer {
-  /// `configure` may change the server's limits before it starts (tests of server/ limits).
+  /// `configure` may change the server's limits before it starts (tests of server/ limits),
+  /// `manage` the run manager's (queue, memory).
   explicit TestServer(fs::path data, std::string token = "", int max_running = 2,
-                      const std::function<void(ServerOptions&)>& configure = {})
+                      const std::function<void(ServerOptions&)>& configure = {},
+                      const std::function<void(sphles::control::ManagerOptions&)>& manage = {})
       : data_directory(std::move(data)) {
     sphles::control::ManagerOptions m;
     m.data_directory = data_directory;
     m.max_running = max_running;
     m.run_options.threads = 1;
     m.run_options.metrics_batch_seconds = 0.05;
+    if (manage) manage(m);
     manager = std::make_unique<sphles::control::RunManager>(m);
     ServerOptions o;
     o.address = "127.0.0.1";

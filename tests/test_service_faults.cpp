@@ -462,4 +462,101 @@ TEST(ServiceFaults, ThePackingCacheIsTheServersSetting) {
   EXPECT_EQ(serve.wait_exit(20s), std::optional<int>(0));
 }
 
+// Finding 7: a run could ask for anything (3D 512³ failed later with a bare std::bad_alloc; tiny
+// kernels, huge histograms, cadences far below a time step, a thousand checkpoints, a
+// nanometre Kolmogorov box) and unlimited runs and queue length got 201. Each is refused before
+// anything is created, naming the field; what does not fit in memory says the estimate.
+TEST(ServiceFaults, WhatARunMayAskForIsBounded) {
+  TestServer server(scratch("limits") / "data");
+  const Api api{server.port()};
+  const auto refused = [&](const json& scene, int status, const std::string& field) {
+    const Reply r = api.post("/api/runs", {{"scene", scene}});
+    expect_error(r, status, field);
+    return r.body_json()["error"]["message"].get<std::string>();
+  };
+  for (const int side : {512, 4096}) {
+    const std::string message =
+        refused({{"case", "tgv3d"}, {"particles_per_side", side}}, 422, "particles_per_side");
+    EXPECT_NE(message.find("estimated"), std::string::npos) << message;
+    EXPECT_NE(message.find("--max-memory"), std::string::npos) << message;
+  }
+  json scene = tiny_scene(1.0);
+  scene["kernel"]["diameter_over_spacing"] = 0.02;
+  refused(scene, 400, "kernel.diameter_over_spacing");
+  scene = tiny_scene(1.0);
+  scene["analysis"] = {
+      {"every", 0.1}, {"products", {"energy", "sfs_stats"}}, {"histogram_bins", 10000}};
+  refused(scene, 400, "analysis.histogram_bins");
+  scene["analysis"] = {{"every", 1e-9}, {"products", {"energy"}}};
+  refused(scene, 400, "analysis.every");
+  scene = tiny_scene(1.0);
+  scene["checkpoint"] = {{"every", 1e-6}, {"keep", 1000}};
+  refused(scene, 400, "checkpoint.keep");
+  refused({{"case", "kolmogorov2d"}, {"box_length", 1e-9}}, 400, "box_length");
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u) << "a refused run was created";
+}
+
+TEST(ServiceFaults, TheQueueAndTheNumberOfRunsAreBounded) {
+  TestServer server(scratch("capacity") / "data", "", /*max_running=*/1, {},
+                    [](sphles::control::ManagerOptions& m) {
+                      m.max_queued = 2;
+                      m.max_runs = 4;
+                    });
+  const Api api{server.port()};
+  std::vector<std::string> ids;
+  for (int k = 0; k < 3; ++k) ids.push_back(api.create({{"scene", long_scene()}}));
+  EXPECT_EQ(api.run(ids[0])["state"], "running");
+  EXPECT_EQ(api.run(ids[1])["state"], "queued");
+  EXPECT_EQ(api.run(ids[2])["state"], "queued");
+  // The queue is full: a run to start is refused whole (nothing is created), one to keep is not.
+  expect_error(api.post("/api/runs", {{"scene", long_scene()}}), 429);
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 3u);
+  ids.push_back(api.create({{"scene", long_scene()}, {"start", false}}));
+  expect_error(api.post("/api/runs/" + ids[3] + "/start"), 429);
+  EXPECT_EQ(api.run(ids[3])["state"], "created");
+  // Four runs is the limit.
+  expect_error(api.post("/api/runs", {{"scene", long_scene()}, {"start", false}}), 429);
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 4u);
+  // Room again: one leaves the queue, one is deleted.
+  ASSERT_EQ(api.post("/api/runs/" + ids[2] + "/stop").status, 200);
+  EXPECT_EQ(api.post("/api/runs/" + ids[3] + "/start").status, 200);
+  ASSERT_EQ(api.remove("/api/runs/" + ids[2]).status, 200);
+  EXPECT_EQ(api.post("/api/runs", {{"scene", long_scene()}, {"start", false}}).status, 201);
+}
+
+TEST(ServiceFaults, MemoryIsSharedByTheActiveRuns) {
+  // A 3D 16³ run with energy analysis is estimated at about 44 MiB: one fits in 60 MiB, two do
+  // not.
+  constexpr double kLimit = 60.0 * 1024 * 1024;
+  TestServer server(scratch("memory") / "data", "", /*max_running=*/2, {},
+                    [&](sphles::control::ManagerOptions& m) { m.max_memory_bytes = kLimit; });
+  const Api api{server.port()};
+  json cube = {{"case", "tgv3d"},
+               {"particles_per_side", 16},
+               {"packing", {{"enabled", false}}},
+               {"time", {{"end", 1e6}}},
+               {"analysis", {{"every", 0.5}, {"products", {"energy"}}}}};
+  const std::string first = api.create({{"scene", cube}});
+  const std::string second = api.create({{"scene", cube}});
+  EXPECT_EQ(api.run(first)["state"], "running");
+  EXPECT_EQ(api.run(second)["state"], "queued") << "two runs were started beyond the memory";
+  // A run that does not fit even alone is refused; so is a live change that outgrows it.
+  cube["particles_per_side"] = 32;
+  expect_error(api.post("/api/runs", {{"scene", cube}}), 422, "particles_per_side");
+  const Reply grown = api.patch(
+      "/api/runs/" + first + "/parameters",
+      {{"analysis",
+        {{"products", json::array({"energy", "slices"})}, {"slice", {{"fields", {"omega2"}}}}}},
+       {"render", {{"fields", {"omega2"}}, {"width", 4096}, {"height", 4096}}}});
+  expect_error(grown, 422, "render");
+  // What fits is changed, and named by its field (an appended array element is the array).
+  const Reply added =
+      api.patch("/api/runs/" + first + "/parameters",
+                {{"analysis", {{"products", json::array({"energy", "vorticity"})}}}});
+  ASSERT_EQ(added.status, 200) << added.body;
+  EXPECT_EQ(added.body_json()["changed"], json::array({"analysis.products"}));
+  ASSERT_EQ(api.post("/api/runs/" + first + "/stop").status, 200);
+  EXPECT_TRUE(wait_until([&] { return api.run(second)["state"] == "running"; }));
+}
+
 }  // namespace
