@@ -109,8 +109,10 @@ struct RunStatus {
   std::uint64_t frames_skipped = 0;  // analysis frames nobody needed an image of
 };
 
-/// Receives a run's products. Called from the solver, analysis or render thread; must be quick
-/// (copy or enqueue) and must not throw or call back into the Run.
+/// Receives a run's products. Called from the solver, analysis or render thread, and on_state
+/// also from a thread making a transition (start, stop) while it holds the run's transition
+/// lock; must be quick (copy or enqueue) and must not throw or call back into the Run. Never
+/// hold a lock an observer takes while calling into a Run.
 class RunObserver {
  public:
   virtual ~RunObserver() = default;

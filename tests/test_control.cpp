@@ -112,10 +112,13 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   EXPECT_EQ(lines_of(dir / "timeseries.csv").size(), s.step + 2);  // header + t = 0 + steps
   const json run_file = json::parse(std::ifstream(dir / "run.json"));
   EXPECT_EQ(run_file.at("state"), "finished");
-  std::lock_guard lock(recorder->mutex);
-  EXPECT_EQ(recorder->metrics.size(), s.step + 1);
-  EXPECT_EQ(recorder->states.back(), RunState::Finished);
-  // A finished run cannot start again until time.end is raised.
+  {
+    std::lock_guard lock(recorder->mutex);
+    EXPECT_EQ(recorder->metrics.size(), s.step + 1);
+    EXPECT_EQ(recorder->states.back(), RunState::Finished);
+  }
+  // A finished run cannot start again until time.end is raised. (Not while holding the
+  // observer's lock: a transition may notify observers while it holds the run's own.)
   EXPECT_THROW(run.start(), StateError);
   EXPECT_THROW(run.pause(), StateError);
 }
