@@ -64,6 +64,10 @@ async function request(method, path, body) {
 
 const run = (id) => `/api/runs/${encodeURIComponent(id)}`;
 
+/** Rows of a run's time series the plots load at once; longer histories come decimated by the
+ * server (first and last rows kept), so that a run of days still shows its whole history. */
+const HISTORY_POINTS = 20000;
+
 export const api = {
   health: () => request('GET', '/api/health'),
   presets: () => request('GET', '/api/presets'),
@@ -73,7 +77,7 @@ export const api = {
   action: (id, verb) => request('POST', `${run(id)}/${verb}`),
   remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
-  timeseries: (id) => request('GET', `${run(id)}/timeseries`),
+  timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
   spectrum: (id) => request('GET', `${run(id)}/spectrum`),
   statistics: (id) => request('GET', `${run(id)}/statistics`),
   frames: (id) => request('GET', `${run(id)}/frames`),
