@@ -22,36 +22,12 @@ namespace sphles::io {
 namespace {
 
 using detail::Handle;
+using detail::write_scalar_attribute;
+using detail::write_string_attribute;
 
 const char* kAxis[] = {"x", "y", "z"};
 
 // --- writing ---------------------------------------------------------------------------
-
-void write_string_attribute(hid_t object, const char* name, const std::string& value,
-                            const std::string& label) {
-  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  if (!type.valid() || !space.valid() ||
-      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0 ||
-      H5Tset_strpad(type.get(), H5T_STR_NULLPAD) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-  const Handle attribute(
-      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  const std::string padded = value.empty() ? std::string(1, '\0') : value;
-  if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-}
-
-template <class T>
-void write_scalar_attribute(hid_t object, const char* name, hid_t type, T value,
-                            const std::string& label) {
-  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  const Handle attribute(
-      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
-      H5Aclose);
-  if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-}
 
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,

@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -46,6 +47,31 @@ void fsync_directory(const std::filesystem::path& file) {
 void silence_hdf5() {
   static std::once_flag once;
   std::call_once(once, [] { H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr); });
+}
+
+void write_string_attribute(hid_t object, const char* name, const std::string& value,
+                            const std::string& label) {
+  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  if (!type.valid() || !space.valid() ||
+      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0 ||
+      H5Tset_strpad(type.get(), H5T_STR_NULLPAD) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
+  const Handle attribute(
+      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  const std::string padded = value.empty() ? std::string(1, '\0') : value;
+  if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
+}
+
+void write_scalar_attribute(hid_t object, const char* name, hid_t type, const void* value,
+                            const std::string& label) {
+  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
+  const Handle attribute(
+      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
+      H5Aclose);
+  if (!attribute.valid() || H5Awrite(attribute.get(), type, value) < 0)
+    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
 }
 
 MemoryFile::MemoryFile(const std::filesystem::path& destination, std::string label)

@@ -42,6 +42,20 @@ class Handle {
 /// hdf5_library_mutex() held.
 void silence_hdf5();
 
+/// A fixed-length, null-padded string attribute (h5py reads it as bytes). Throws
+/// CheckpointError "LABEL: cannot write attribute 'NAME'".
+void write_string_attribute(hid_t object, const char* name, const std::string& value,
+                            const std::string& label);
+
+/// A scalar attribute of HDF5 type `type` holding `value`. Throws like write_string_attribute.
+void write_scalar_attribute(hid_t object, const char* name, hid_t type, const void* value,
+                            const std::string& label);
+template <class T>
+void write_scalar_attribute(hid_t object, const char* name, hid_t type, T value,
+                            const std::string& label) {
+  write_scalar_attribute(object, name, type, static_cast<const void*>(&value), label);
+}
+
 /// The bytes of a complete HDF5 file.
 struct FileImage {
   std::unique_ptr<char[]> bytes;

@@ -15,31 +15,8 @@ namespace sphles::io {
 namespace {
 
 using detail::Handle;
-
-void string_attribute(hid_t object, const char* name, const std::string& value,
-                      const std::string& label) {
-  const Handle type(H5Tcopy(H5T_C_S1), H5Tclose);
-  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  if (!type.valid() || !space.valid() ||
-      H5Tset_size(type.get(), std::max<std::size_t>(value.size(), 1)) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-  const Handle attribute(
-      H5Acreate2(object, name, type.get(), space.get(), H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
-  const std::string padded = value.empty() ? std::string(1, '\0') : value;
-  if (!attribute.valid() || H5Awrite(attribute.get(), type.get(), padded.data()) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-}
-
-template <class T>
-void scalar_attribute(hid_t object, const char* name, hid_t type, T value,
-                      const std::string& label) {
-  const Handle space(H5Screate(H5S_SCALAR), H5Sclose);
-  const Handle attribute(
-      space.valid() ? H5Acreate2(object, name, type, space.get(), H5P_DEFAULT, H5P_DEFAULT) : -1,
-      H5Aclose);
-  if (!attribute.valid() || H5Awrite(attribute.get(), type, &value) < 0)
-    throw CheckpointError(label + ": cannot write attribute '" + name + "'");
-}
+using detail::write_scalar_attribute;
+using detail::write_string_attribute;
 
 void dataset(hid_t file, const std::string& name, const std::vector<double>& data, hsize_t rows,
              hsize_t columns, const std::string& units, const std::string& label) {
@@ -52,7 +29,7 @@ void dataset(hid_t file, const std::string& name, const std::vector<double>& dat
   if (!set.valid() || (rows > 0 && H5Dwrite(set.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL,
                                             H5P_DEFAULT, data.data()) < 0))
     throw CheckpointError(label + ": cannot write dataset '" + name + "'");
-  string_attribute(set.get(), "units", units, label);
+  write_string_attribute(set.get(), "units", units, label);
 }
 
 }  // namespace
@@ -79,10 +56,10 @@ void write_particle_snapshot(const std::filesystem::path& path, const sim::Parti
     const std::lock_guard lock(hdf5_library_mutex());
     detail::MemoryFile file(path, label);
     const hid_t root = file.get();
-    scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, time, label);
-    scalar_attribute(root, "step", H5T_NATIVE_UINT64, step, label);
-    scalar_attribute(root, "dimension", H5T_NATIVE_INT, p.dimension, label);
-    string_attribute(root, "scene", scene_json, label);
+    write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, time, label);
+    write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, step, label);
+    write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, p.dimension, label);
+    write_string_attribute(root, "scene", scene_json, label);
     dataset(root, "position", xyz, n, 3, "m", label);
     dataset(root, "velocity", uvw, n, 3, "m/s", label);
     dataset(root, "mass", p.mass, n, 1, p.dimension == 3 ? "kg" : "kg/m", label);
