@@ -126,17 +126,17 @@ CreateRequest parse_create_request(const json& body) {
 /// Wakes the scheduler when a run leaves its slot (called on the run's threads).
 class RunManager::SlotObserver : public RunObserver {
  public:
-  explicit SlotObserver(RunManager* manager) : manager_(manager) {}
+  explicit SlotObserver(std::shared_ptr<Wakeup> wakeup) : wakeup_(std::move(wakeup)) {}
   void on_state(RunState state, const std::string&) override {
-    if (!occupies_slot(state) && state != RunState::Queued) manager_->slot_freed();
+    if (!occupies_slot(state) && state != RunState::Queued) wakeup_->notify();
   }
 
  private:
-  RunManager* manager_;
+  std::shared_ptr<Wakeup> wakeup_;
 };
 
 RunManager::RunManager(ManagerOptions options)
-    : options_(std::move(options)), slot_observer_(std::make_shared<SlotObserver>(this)) {
+    : options_(std::move(options)), slot_observer_(std::make_shared<SlotObserver>(wakeup_)) {
   if (options_.max_running < 1)
     throw std::invalid_argument("max_running must be >= 1, got " +
                                 std::to_string(options_.max_running));
@@ -175,21 +175,22 @@ RunManager::~RunManager() {
   for (const auto& run : runs_) run->remove_observer(slot_observer_.get());
 }
 
-void RunManager::slot_freed() {
+void RunManager::Wakeup::notify() {
   {
-    std::lock_guard lock(wake_mutex_);
-    wake_ = true;
+    std::lock_guard lock(mutex);
+    wake = true;
   }
-  wake_condition_.notify_one();
+  condition.notify_one();
 }
 
 void RunManager::schedule_loop() {
+  Wakeup& w = *wakeup_;
   for (;;) {
     {
-      std::unique_lock lock(wake_mutex_);
-      wake_condition_.wait(lock, [&] { return wake_ || stop_scheduler_; });
-      if (stop_scheduler_) return;
-      wake_ = false;
+      std::unique_lock lock(w.mutex);
+      w.condition.wait(lock, [&] { return w.wake || w.stop; });
+      if (w.stop) return;
+      w.wake = false;
     }
     start_queued();
   }
@@ -420,10 +421,10 @@ void RunManager::shutdown() {
     runs = runs_;
   }
   {
-    std::lock_guard lock(wake_mutex_);
-    stop_scheduler_ = true;
+    std::lock_guard lock(wakeup_->mutex);
+    wakeup_->stop = true;
   }
-  wake_condition_.notify_one();
+  wakeup_->condition.notify_one();
   if (scheduler_.joinable()) scheduler_.join();
   for (const auto& run : runs) {
     const RunState s = run->status().state;

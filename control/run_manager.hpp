@@ -105,6 +105,14 @@ class RunManager {
 
  private:
   class SlotObserver;
+  /// The scheduler's wake-up, shared with the runs' observer so that a run's thread that reports
+  /// its end after the manager is gone still touches only live memory.
+  struct Wakeup {
+    std::mutex mutex;
+    std::condition_variable condition;
+    bool wake = false, stop = false;
+    void notify();  // from a run's thread: never blocks on a run
+  };
   /// Throws AdmissionError if the run's estimated memory exceeds the limit, or its checkpoints
   /// the free disk of the data directory; returns the estimated memory [B].
   double admit(const RunSpec& spec) const;
@@ -114,22 +122,19 @@ class RunManager {
   void refuse_if_queue_full() const;                   // throws CapacityError
   void start_locked(const std::shared_ptr<Run>& run);  // caller holds schedule_mutex_
   void start_queued();   // starts the oldest queued runs that fit; holds schedule_mutex_
-  void slot_freed();     // from a run's thread: wakes the scheduler, never blocks on a run
   void schedule_loop();  // the scheduler thread
 
   ManagerOptions options_;
+  std::shared_ptr<Wakeup> wakeup_ = std::make_shared<Wakeup>();
   std::shared_ptr<SlotObserver> slot_observer_;
   // Lock order: schedule_mutex_, then mutex_, then a run's own locks. A run's threads take
-  // neither: they only signal the scheduler (wake_mutex_), so no run waits for another.
+  // neither: they only signal the scheduler (wakeup_), so no run waits for another.
   std::mutex schedule_mutex_;  // serialises start decisions: slots are counted and taken at once
   mutable std::mutex mutex_;   // guards runs_, queue_, next_number_, shut_down_
   std::vector<std::shared_ptr<Run>> runs_;
   std::vector<std::string> queue_;  // ids waiting for a slot, oldest first
   std::uint64_t next_number_ = 1;
   bool shut_down_ = false;
-  std::mutex wake_mutex_;  // guards wake_ and stop_scheduler_
-  std::condition_variable wake_condition_;
-  bool wake_ = false, stop_scheduler_ = false;
   std::thread scheduler_;  // starts queued runs when a slot frees (last member: starts last)
 };
 
