@@ -1,4 +1,5 @@
-// Cartesian grid over the periodic box and nearest-particle sampling (SPEC §5, "Gridding").
+// Cartesian grid over the periodic box: nearest-particle sampling (SPEC §5, "Gridding") and
+// kernel-weighted (Shepard) interpolation with the run's kernel.
 //
 // Node (i, j, k) sits at (i h, j h, k h), h = L / M, i, j, k in [0, M); storage is x fastest:
 // index = i + M (j + M k). A 2D grid has k = 0 only. M = 2 N^(1/n) gives spacing Δl / 2.
@@ -7,9 +8,11 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
+#include "sim/kernels.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::analysis {
@@ -59,6 +62,38 @@ VectorField sample_velocity(const NearestParticleMap& map, const sim::ParticleAr
 /// Any per-particle scalar sampled the same way.
 std::vector<double> sample_scalar(const NearestParticleMap& map,
                                   std::span<const double> per_particle);
+
+/// Subtracts the spatial mean over the nodes from each used component (SPEC §5: spectra and
+/// vorticity of the fluctuation). The mean is a fixed-order sum: independent of thread count.
+void remove_spatial_mean(VectorField& field);
+
+/// The kernel of a Shepard interpolation: the run's kernel type and support radius H.
+struct InterpolationKernel {
+  sim::KernelType type = sim::KernelType::WendlandC4;
+  double support_radius = 0.0;  // H [m]
+};
+
+/// One node's Shepard value Σ_j f_j W_j V_j / Σ_j W_j V_j from its two sums; NaN when no
+/// particle lies inside the kernel support of the node (weight sum zero).
+inline double shepard_value(double weighted_sum, double weight_sum) {
+  return weight_sum > 0.0 ? weighted_sum / weight_sum : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// Kernel-weighted (Shepard) interpolation of per-particle fields onto the nodes:
+///   f(x_n) = Σ_j f_j W(x_n - x_j) V_j / Σ_j W(x_n - x_j) V_j   (minimum image),
+/// with the particles' volumes V_j (A.1). Reproduces a constant exactly and is smooth where the
+/// particles are. Each node gathers its particles in a fixed order (cells, then ascending index),
+/// so the result does not depend on the thread count. Every field must hold one value per
+/// particle; positions must lie in [0, L].
+std::vector<std::vector<double>> shepard_sample(const Grid& grid,
+                                                const sim::ParticleArrays& particles,
+                                                const InterpolationKernel& kernel,
+                                                std::span<const std::span<const double>> fields);
+
+/// The velocity interpolated the same way; with remove_mean, the spatial mean over the nodes is
+/// subtracted from each component (as sample_velocity does).
+VectorField shepard_velocity(const Grid& grid, const sim::ParticleArrays& particles,
+                             const InterpolationKernel& kernel, bool remove_mean);
 
 /// Grid node nearest to each particle (for per-particle values of grid fields such as ω²).
 std::vector<std::size_t> nearest_node(const Grid& grid, const sim::ParticleArrays& particles);
