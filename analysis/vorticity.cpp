@@ -2,6 +2,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <type_traits>
 
 #include "sim/reduction.hpp"
 
@@ -77,6 +78,57 @@ std::vector<double> squared_magnitude(const VectorField& field) {
     for (std::size_t n = 0; n < nodes; ++n) result[n] += c[n] * c[n];
   }
   return result;
+}
+
+std::vector<double> ParticleVorticity::squared_magnitude() const {
+  const std::size_t n = size();
+  std::vector<double> result(n, 0.0);
+  for (const std::vector<double>& c : component) {
+    if (c.empty()) continue;  // 2D: ω_x, ω_y
+    for (std::size_t i = 0; i < n; ++i) result[i] += c[i] * c[i];
+  }
+  return result;
+}
+
+ParticleVorticity particle_vorticity(const Snapshot& snapshot,
+                                     const sim::NeighbourList& neighbours) {
+  const sim::ParticleArrays& p = snapshot.particles;
+  const int dim = snapshot.dimension();
+  if (dim != 2 && dim != 3)
+    throw std::invalid_argument("particle vorticity: dimension must be 2 or 3");
+  if (p.dimension != dim)
+    throw std::invalid_argument("particle vorticity: particle and box dimensions differ");
+  if (neighbours.num_particles() != p.size())
+    throw std::invalid_argument("particle vorticity: neighbour list does not match the particles");
+  if (p.volume.size() != p.size())
+    throw std::invalid_argument("particle vorticity: particle volumes missing");
+
+  std::vector<sim::VelocityGradient> gradient;
+  sim::with_kernel(snapshot.kernel, dim, snapshot.support_radius, [&](const auto& kernel) {
+    constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
+    sim::velocity_gradient_pass<kDim>(kernel, snapshot.box, neighbours, sim::view_velocity(p), p,
+                                      gradient);  // (A.20)
+  });
+  ParticleVorticity omega;
+  omega.dimension = dim;
+  const std::size_t n = p.size();
+  for (int a = dim == 3 ? 0 : 2; a < 3; ++a) omega.component[a].resize(n);
+  const auto signed_n = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t si = 0; si < signed_n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    const std::array<double, 3> w = curl(gradient[i]);
+    for (int a = dim == 3 ? 0 : 2; a < 3; ++a) omega.component[a][i] = w[a];
+  }
+  return omega;
+}
+
+std::shared_ptr<const sim::NeighbourList> snapshot_neighbours(const Snapshot& snapshot) {
+  if (snapshot.neighbours && snapshot.neighbours->num_particles() == snapshot.size())
+    return snapshot.neighbours;
+  sim::VerletNeighbourSearch search(snapshot.box, snapshot.support_radius, 0.0);
+  search.build(sim::view_positions(snapshot.particles));
+  return search.shared_list();
 }
 
 double mean_value(const std::vector<double>& values) {

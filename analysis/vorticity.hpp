@@ -1,9 +1,15 @@
-// Vorticity by second-order central differences on the periodic grid (SPEC §5).
+// Vorticity two ways: by second-order central differences on the periodic grid (SPEC §5, the
+// thesis' estimate), and per particle as the curl of the (A.20) velocity gradient (SPEC §4).
 #pragma once
 
+#include <array>
+#include <memory>
 #include <vector>
 
 #include "analysis/grid.hpp"
+#include "analysis/snapshot.hpp"
+#include "sim/neighbour_search.hpp"
+#include "sim/subfilter.hpp"
 
 namespace sphles::analysis {
 
@@ -16,5 +22,34 @@ std::vector<double> squared_magnitude(const VectorField& field);
 
 /// Arithmetic mean of the values (⟨ω²⟩ for the dissipation ε_v = ν ⟨ω²⟩ of (4.6)).
 double mean_value(const std::vector<double>& values);
+
+/// ω = ∇ × v from a velocity gradient J_ab = ∂v_a/∂x_b:
+/// (J_zy - J_yz, J_xz - J_zx, J_yx - J_xy). A 2D gradient (zero third row and column) gives
+/// (0, 0, ω_z).
+inline std::array<double, 3> curl(const sim::VelocityGradient& j) {
+  return {j[2][1] - j[1][2], j[0][2] - j[2][0], j[1][0] - j[0][1]};
+}
+
+/// Vorticity of every particle, ω_i = ∇ × v from J_i = Σ_j (v_j - v_i) ⊗ ∇W_ij V_j (A.20):
+/// the vorticity of the kernel-filtered velocity. Same layout as the grid vorticity, indexed by
+/// particle: 3D components 0, 1, 2; 2D component 2 (ω_z) only.
+struct ParticleVorticity {
+  int dimension = 3;
+  std::array<std::vector<double>, 3> component;
+
+  std::size_t size() const { return component[2].size(); }
+  /// |ω_i|² of every particle.
+  std::vector<double> squared_magnitude() const;
+};
+
+/// From a neighbour list whose radius covers the kernel support; needs the particles' volumes
+/// (A.1). The gradient is sim::velocity_gradient_pass, the solver's own (gather form, so the
+/// result does not depend on the thread count).
+ParticleVorticity particle_vorticity(const Snapshot& snapshot,
+                                     const sim::NeighbourList& neighbours);
+
+/// The snapshot's neighbour list, or a list of radius H built for its positions when it has
+/// none (shared by the per-particle passes of one analysis).
+std::shared_ptr<const sim::NeighbourList> snapshot_neighbours(const Snapshot& snapshot);
 
 }  // namespace sphles::analysis
