@@ -25,7 +25,23 @@ constexpr std::array<std::pair<SliceField, std::string_view>, 3> kSliceFieldName
     {SliceField::SubfilterStressNorm, "tau_sfs"},
     {SliceField::EddyViscosity, "nu_t"},
 }};
+constexpr std::array<std::pair<VelocityGridding, std::string_view>, 2> kVelocityGriddingNames{{
+    {VelocityGridding::Nearest, "nearest"},
+    {VelocityGridding::Shepard, "shepard"},
+}};
+constexpr std::array<std::pair<VorticityEstimate, std::string_view>, 2> kVorticityEstimateNames{{
+    {VorticityEstimate::Particle, "particle"},
+    {VorticityEstimate::Grid, "grid"},
+}};
 constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
+
+template <class Enum, std::size_t N>
+std::string_view name_of(const std::array<std::pair<Enum, std::string_view>, N>& table,
+                         Enum value) {
+  for (const auto& [v, name] : table)
+    if (v == value) return name;
+  return "unknown";
+}
 
 template <class Enum, std::size_t N>
 Enum parse_name(const std::array<std::pair<Enum, std::string_view>, N>& table,
@@ -39,6 +55,14 @@ Enum parse_name(const std::array<std::pair<Enum, std::string_view>, N>& table,
 }
 
 }  // namespace
+
+std::string_view velocity_gridding_name(VelocityGridding gridding) {
+  return name_of(kVelocityGriddingNames, gridding);
+}
+
+std::string_view vorticity_estimate_name(VorticityEstimate estimate) {
+  return name_of(kVorticityEstimateNames, estimate);
+}
 
 std::string_view product_name(Product product) {
   for (const auto& [p, name] : kProductNames)
@@ -99,6 +123,18 @@ AnalysisConfig parse_analysis_config(const json* section) {
                                             "analysis.particle_fields[" + std::to_string(k) + "]"));
     }
   }
+  {
+    sim::ObjectReader g = r.object("gridding");
+    std::string velocity(velocity_gridding_name(c.gridding.velocity));
+    g.string("velocity", velocity);
+    c.gridding.velocity =
+        parse_name(kVelocityGriddingNames, velocity, "analysis.gridding.velocity");
+    std::string vorticity(vorticity_estimate_name(c.gridding.vorticity));
+    g.string("vorticity", vorticity);
+    c.gridding.vorticity =
+        parse_name(kVorticityEstimateNames, vorticity, "analysis.gridding.vorticity");
+    g.reject_unknown();
+  }
   r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
   r.integer("histogram_bins", c.histogram_bins, 1, kMaxHistogramBins);
   r.integer("angle_bins", c.angle_bins, 1, kMaxAngleBins);
@@ -130,6 +166,9 @@ json analysis_config_to_json(const AnalysisConfig& c) {
                list.push_back(std::string(slice_field_name(f)));
              return list;
            }()},
+          {"gridding",
+           {{"velocity", std::string(velocity_gridding_name(c.gridding.velocity))},
+            {"vorticity", std::string(vorticity_estimate_name(c.gridding.vorticity))}}},
           {"grid_points_per_spacing", c.grid_points_per_spacing},
           {"histogram_bins", c.histogram_bins},
           {"angle_bins", c.angle_bins},

@@ -20,6 +20,23 @@ std::string_view slice_field_name(SliceField field);
 /// Inverse of slice_field_name; throws sim::SceneError naming `field` (the dotted scene key).
 SliceField slice_field_from_name(const std::string& name, const std::string& field);
 
+/// How the velocity reaches the grid (products "energy" and "spectrum", and the grid vorticity):
+/// "nearest" (SPEC §5, the thesis: every node takes the velocity of the nearest particle) or
+/// "shepard" (kernel-weighted average of the particles within H, with the run's kernel).
+enum class VelocityGridding { Nearest, Shepard };
+/// How ω is estimated (products "vorticity", "slices" ω², "sfs_stats", "particles" ω²):
+/// "particle" (the curl of the (A.20) gradient on each particle; on the grid by Shepard
+/// interpolation of ω²) or "grid" (SPEC §5, the thesis: central differences of the gridded
+/// velocity; per particle, the value at its nearest node).
+enum class VorticityEstimate { Particle, Grid };
+std::string_view velocity_gridding_name(VelocityGridding gridding);
+std::string_view vorticity_estimate_name(VorticityEstimate estimate);
+
+struct GriddingConfig {
+  VelocityGridding velocity = VelocityGridding::Nearest;
+  VorticityEstimate vorticity = VorticityEstimate::Particle;
+};
+
 struct SliceConfig {
   int axis = 0;  // 0 = x, 1 = y, 2 = z: the slice is normal to this axis (3D)
   double position = 3.14159265358979323846;  // [m], snapped to the nearest grid plane
@@ -42,6 +59,7 @@ struct AnalysisConfig {
   /// omega2, tau_sfs, nu_t.
   std::set<SliceField> particle_fields{SliceField::VorticitySquared,
                                        SliceField::SubfilterStressNorm};
+  GriddingConfig gridding;
   int grid_points_per_spacing = 2;  // grid spacing Δl / 2 (SPEC §5)
   int histogram_bins = 50;          // bivariate (τ*, ω²*) histogram, per axis
   int angle_bins = 18;              // polar histogram of γ ∈ [0, π/2]

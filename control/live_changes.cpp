@@ -31,6 +31,7 @@ const std::vector<std::string> kChangeable = {
     "analysis.slice",
     "analysis.particle_fields",
     "analysis.grid_points_per_spacing",
+    "analysis.gridding",
     "analysis.histogram_bins",
     "analysis.angle_bins",
     "analysis.angle_threshold",
