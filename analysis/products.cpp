@@ -89,6 +89,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   frame.step = snapshot.step;
   frame.dimension = snapshot.dimension();
   frame.kinetic_energy = snapshot.kinetic_energy;
+  frame.energy_dissipation = snapshot.energy_dissipation;
   StageTimer timed(frame);
 
   const bool want_vorticity_slice =
@@ -101,27 +102,40 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   };
   const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice ||
                            particle_field(SliceField::SubfilterStressNorm);
-  const bool need_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
-                              config.wants(Product::SubfilterStatistics) ||
-                              particle_field(SliceField::VorticitySquared);
+  // ω² on the grid (mean and slice) and at the particles (histogram, particle snapshot).
+  const bool need_grid_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice;
+  const bool need_particle_omega2 =
+      config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared);
+  const bool particle_estimate = config.gridding.vorticity == VorticityEstimate::Particle;
+  const bool need_particle_vorticity =
+      particle_estimate && (need_grid_vorticity || need_particle_omega2);
   const bool need_velocity_grid =
-      config.wants(Product::Energy) || config.wants(Product::Spectrum) || need_vorticity;
+      config.wants(Product::Energy) || config.wants(Product::Spectrum) ||
+      (!particle_estimate && (need_grid_vorticity || need_particle_omega2));
+  const bool shepard_velocity_grid = config.gridding.velocity == VelocityGridding::Shepard;
   const bool want_eddy_slice = config.wants(Product::Slices) &&
                                config.slice.fields.contains(SliceField::EddyViscosity) &&
                                snapshot.particles.eddy_viscosity.size() == snapshot.size();
-  const bool need_map = need_velocity_grid || want_stress_slice || want_eddy_slice;
-  if (!need_map && !need_stress && !want_particles) {
+  // The node → particle map serves the nearest-particle velocity and the τ_SFS and ν_t slices.
+  const bool need_map =
+      (need_velocity_grid && !shepard_velocity_grid) || want_stress_slice || want_eddy_slice;
+  if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
+      !want_particles) {
     frame.total_seconds = 0.0;
     return frame;
   }
 
   const Grid grid = analysis_grid(snapshot, config);
   const sim::ParticleArrays& particles = snapshot.particles;
+  const InterpolationKernel kernel{snapshot.kernel, snapshot.support_radius};
   std::optional<NearestParticleMap> map;
   if (need_map) map = timed("grid_map", [&] { return nearest_particle_map(grid, particles); });
   std::optional<VectorField> velocity;
   if (need_velocity_grid)
-    velocity = timed("grid_velocity", [&] { return sample_velocity(*map, particles, true); });
+    velocity = timed("grid_velocity", [&] {
+      return shepard_velocity_grid ? shepard_velocity(grid, particles, kernel, true)
+                                   : sample_velocity(*map, particles, true);
+    });
 
   if (config.wants(Product::Energy))
     frame.grid_kinetic_energy = timed("energy", [&] { return grid_kinetic_energy(*velocity); });
@@ -140,32 +154,49 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
     });
   }
 
-  std::vector<double> vorticity_squared;
-  if (need_vorticity) {
-    vorticity_squared = timed("vorticity", [&] { return squared_magnitude(vorticity(*velocity)); });
+  // One neighbour list for the per-particle passes (the solver's, when the snapshot has it).
+  std::shared_ptr<const sim::NeighbourList> neighbours;
+  const auto neighbour_list = [&]() -> const sim::NeighbourList& {
+    if (!neighbours)
+      neighbours = timed("neighbours", [&] { return snapshot_neighbours(snapshot); });
+    return *neighbours;
+  };
+
+  // ω² per particle: the particle estimate's own value, or the grid value at the nearest node.
+  std::vector<double> particle_vorticity_squared;
+  if (need_particle_vorticity)
+    particle_vorticity_squared = timed("particle_vorticity", [&] {
+      return particle_vorticity(snapshot, neighbour_list()).squared_magnitude();
+    });
+
+  std::vector<double> vorticity_squared;  // ω² on the grid nodes
+  if (need_grid_vorticity || (!particle_estimate && need_particle_omega2)) {
+    vorticity_squared = timed("vorticity", [&] {
+      if (particle_estimate) {
+        const std::span<const double> field(particle_vorticity_squared);
+        return std::move(shepard_sample(grid, particles, kernel, {&field, 1}).front());
+      }
+      return squared_magnitude(vorticity(*velocity));
+    });
     if (config.wants(Product::Vorticity)) {
       VorticityProduct p;
+      p.estimate = config.gridding.vorticity;
       p.mean_vorticity_squared = mean_value(vorticity_squared);
       p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
       frame.vorticity = p;
     }
   }
-
-  std::optional<SubfilterStressField> stress;
-  if (need_stress)
-    stress = timed("subfilter_stress", [&] {
-      return snapshot.neighbours ? implicit_subfilter_stress(snapshot, *snapshot.neighbours)
-                                 : implicit_subfilter_stress(snapshot);
-    });
-
-  // ω² at each particle: the value at its nearest grid node.
-  std::vector<double> particle_vorticity_squared;
-  if (config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared)) {
+  if (!particle_estimate && need_particle_omega2) {
     const std::vector<std::size_t> node = nearest_node(grid, particles);
     particle_vorticity_squared.resize(particles.size());
     for (std::size_t i = 0; i < particles.size(); ++i)
       particle_vorticity_squared[i] = vorticity_squared[node[i]];
   }
+
+  std::optional<SubfilterStressField> stress;
+  if (need_stress)
+    stress = timed("subfilter_stress",
+                   [&] { return implicit_subfilter_stress(snapshot, neighbour_list()); });
 
   if (config.wants(Product::SubfilterStatistics)) {
     frame.subfilter = timed("sfs_statistics", [&] {

@@ -3,6 +3,7 @@
 // several products share (gridded velocity, vorticity, τ_SFS) are computed once per snapshot.
 #pragma once
 
+#include <limits>
 #include <optional>
 #include <string>
 #include <utility>
@@ -26,7 +27,8 @@ struct SpectrumProduct {
 };
 
 struct VorticityProduct {
-  double mean_vorticity_squared = 0.0;  // ⟨ω²⟩ over the grid [1/s²]
+  VorticityEstimate estimate = VorticityEstimate::Particle;  // how ω was computed
+  double mean_vorticity_squared = 0.0;  // ⟨ω²⟩ over the grid nodes [1/s²]
   double dissipation = 0.0;             // ε_v = ν ⟨ω²⟩ (4.6) [m²/s³]
 };
 
@@ -67,6 +69,10 @@ struct AnalysisFrame {
   std::uint64_t step = 0;
   int dimension = 3;
   double kinetic_energy = 0.0;  // e_v from the particles (5.3)
+  /// ε = -de_v/dt (5.4) from the run's time series (Snapshot::energy_dissipation); NaN when
+  /// unknown. The other two dissipation estimates of SPEC §5 are vorticity->dissipation (ν⟨ω²⟩)
+  /// and spectrum->dissipation_resolved (2ν Σ_{k <= k_res} k² E Δk).
+  double energy_dissipation = std::numeric_limits<double>::quiet_NaN();
   /// ½⟨|u'|²⟩ of the gridded, mean-removed velocity (products "energy" and "spectrum").
   std::optional<double> grid_kinetic_energy;
   std::optional<SpectrumProduct> spectrum;

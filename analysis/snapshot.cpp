@@ -4,7 +4,7 @@
 
 namespace sphles::analysis {
 
-SnapshotPtr make_snapshot(const sim::Simulation& simulation) {
+SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissipation) {
   auto snapshot = std::make_shared<Snapshot>();
   const sim::SolverConfig& config = simulation.config();
   snapshot->time = simulation.time();
@@ -15,6 +15,7 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation) {
   snapshot->particle_spacing = config.particle_spacing;
   snapshot->fluid = config.fluid;
   snapshot->kinetic_energy = simulation.diagnostics().kinetic_energy;
+  snapshot->energy_dissipation = energy_dissipation;
   snapshot->particles = simulation.particles();
   snapshot->neighbours = simulation.neighbour_list();
   return snapshot;

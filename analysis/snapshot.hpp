@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <vector>
 
@@ -26,6 +27,9 @@ struct Snapshot {
   double particle_spacing = 0.0;  // Δl [m]
   sim::FluidParameters fluid;
   double kinetic_energy = 0.0;  // e_v (5.3) from the solver's diagnostics
+  /// ε = -de_v/dt (5.4) of the run's time series at its last row at or before `time` (the
+  /// trailing-window slope of DissipationEstimator); NaN when unknown (fewer than two rows).
+  double energy_dissipation = std::numeric_limits<double>::quiet_NaN();
   /// Positions, velocities, masses, densities (volume, pressure and ids as well) at `time`.
   sim::ParticleArrays particles;
   /// The solver's Verlet list for these positions (covers the kernel support), or null; lets
@@ -38,7 +42,9 @@ struct Snapshot {
 
 using SnapshotPtr = std::shared_ptr<const Snapshot>;
 
-/// Copies what analysis needs out of a running simulation.
-SnapshotPtr make_snapshot(const sim::Simulation& simulation);
+/// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
+/// current -de_v/dt (the simulation does not keep a history).
+SnapshotPtr make_snapshot(const sim::Simulation& simulation,
+                          double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
 
 }  // namespace sphles::analysis

@@ -205,7 +205,8 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
   }
   append_line(directory_ / "stats" / "snapshots.csv",
               "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"
-              "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots",
+              "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots,"
+              "dissipation_spectral_resolved,dissipation_energy",
               number(frame.time) + ',' + std::to_string(frame.step) + ',' +
                   number(frame.kinetic_energy) + ',' +
                   (frame.grid_kinetic_energy ? number(*frame.grid_kinetic_energy)
@@ -216,7 +217,9 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
                   (frame.spectrum ? number(frame.spectrum->dissipation) : nan) + ',' +
                   (frame.subfilter ? number(frame.subfilter->max_norm) : nan) + ',' +
                   (frame.subfilter ? number(frame.subfilter->mean_norm) : nan) + ',' +
-                  number(frame.total_seconds) + ',' + std::to_string(frame.dropped_snapshots));
+                  number(frame.total_seconds) + ',' + std::to_string(frame.dropped_snapshots) +
+                  ',' + (frame.spectrum ? number(frame.spectrum->dissipation_resolved) : nan) +
+                  ',' + number(frame.energy_dissipation));
 }
 
 }  // namespace sphles::analysis

@@ -173,6 +173,8 @@ double particle_array_bytes(const sim::Scene& s) {
 struct AnalysisNeeds {
   bool map = false, velocity = false, vorticity = false, stress = false;
   bool particle_vorticity = false, statistics = false, spectrum = false;
+  bool shepard_velocity = false;  // the velocity gridded by Shepard interpolation
+  bool particle_gradient = false, shepard_omega2 = false;  // the particle vorticity estimate
   int slices = 0, scalar_slices = 0;  // all slices; those sampled from particles (τ, ν_t)
   int particle_fields = 0;
   bool particles = false;
@@ -192,11 +194,16 @@ AnalysisNeeds analysis_needs(const analysis::AnalysisConfig& c, bool explicit_mo
   a.statistics = c.wants(Product::SubfilterStatistics);
   a.spectrum = c.wants(Product::Spectrum);
   a.stress = a.statistics || stress_slice || particle_field(SliceField::SubfilterStressNorm);
-  a.vorticity = c.wants(Product::Vorticity) || omega_slice || a.statistics ||
-                particle_field(SliceField::VorticitySquared);
+  const bool grid_omega2 = c.wants(Product::Vorticity) || omega_slice;
+  const bool particle_omega2 = a.statistics || particle_field(SliceField::VorticitySquared);
+  const bool particle_estimate = c.gridding.vorticity == analysis::VorticityEstimate::Particle;
+  a.particle_gradient = particle_estimate && (grid_omega2 || particle_omega2);
+  a.shepard_omega2 = particle_estimate && grid_omega2;
+  a.vorticity = !particle_estimate && (grid_omega2 || particle_omega2);  // central differences
   a.velocity = c.wants(Product::Energy) || a.spectrum || a.vorticity;
-  a.map = a.velocity || stress_slice || eddy_slice;
-  a.particle_vorticity = a.statistics || particle_field(SliceField::VorticitySquared);
+  a.shepard_velocity = a.velocity && c.gridding.velocity == analysis::VelocityGridding::Shepard;
+  a.map = (a.velocity && !a.shepard_velocity) || stress_slice || eddy_slice;
+  a.particle_vorticity = a.vorticity && particle_omega2;  // nearest-node lookup of ω²
   a.slices = (omega_slice ? 1 : 0) + (stress_slice ? 1 : 0) + (eddy_slice ? 1 : 0);
   a.scalar_slices = a.slices - (omega_slice ? 1 : 0);
   a.particle_fields = (particle_field(SliceField::VorticitySquared) ? 1 : 0) +
@@ -232,7 +239,13 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
     t.release(cells);
     model.grid_points = nodes;
   }
-  if (a.velocity) t.hold(dim * nodes * kDouble);
+  // Cell list of the Shepard gather (no more cells than particles for D_K >= 2Δl).
+  const double shepard_cells = particles * (3.0 * kSize + dim * kDouble + kId + kIndex);
+  if (a.velocity) {
+    if (a.shepard_velocity) t.transient(shepard_cells + dim * nodes * kDouble);
+    t.hold(dim * nodes * kDouble);
+    model.grid_points = nodes;
+  }
   const double shells = std::floor(std::sqrt(static_cast<double>(dim)) * (m / 2.0)) + 1.0;
   if (a.spectrum) {
     // FFTW r2c input and half-spectrum output, one component at a time.
@@ -246,6 +259,16 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
     t.hold(components * nodes * kDouble);
     t.hold(nodes * kDouble);  // ω²
     t.release(components * nodes * kDouble);
+  }
+  if (a.particle_gradient) {
+    // J_i (9 doubles), the components of ω_i, then ω_i² (kept).
+    t.transient(particles * (9.0 + 3.0) * kDouble);
+    t.hold(particles * kDouble);
+  }
+  if (a.shepard_omega2) {
+    t.transient(shepard_cells);
+    t.hold(nodes * kDouble);
+    model.grid_points = nodes;
   }
   if (a.stress) {
     using Stress = analysis::SubfilterStressField;

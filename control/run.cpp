@@ -821,6 +821,9 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   // A resumed run refills the trailing window from its time series, so that ε(t) continues as
   // in an uninterrupted run.
   if (checkpoint) seed_dissipation(directory / "timeseries.csv", simulation->time(), dissipation);
+  // -de_v/dt of the last row written: travels with each analysis snapshot (SPEC §5, the first of
+  // the three dissipation estimates of stats/snapshots.csv).
+  double latest_dissipation = std::numeric_limits<double>::quiet_NaN();
   std::vector<MetricsSample> batch;
   auto last_flush = Clock::now();
   const auto flush_metrics = [&] {
@@ -837,6 +840,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     const std::vector<double> values =
         sim::case_diagnostics(current.run.scene, simulation->particles());
     const double epsilon = dissipation.add(d.time, d.kinetic_energy);
+    latest_dissipation = epsilon;
     timeseries.write(d, epsilon, values);
     MetricsSample m{d.time,      d.step, d.dt, d.kinetic_energy, epsilon, d.max_density_deviation,
                     d.max_speed, {}};
@@ -912,7 +916,8 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     }
   };
   ensure_consumers();
-  if (pipeline && !checkpoint) pipeline->publish(analysis::make_snapshot(*simulation));
+  if (pipeline && !checkpoint)
+    pipeline->publish(analysis::make_snapshot(*simulation, latest_dissipation));
 
   const auto cadence = [&] {
     return std::tuple<std::uint64_t, std::uint64_t, std::uint64_t>{
@@ -1015,7 +1020,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       if (every > 0.0) ++output_count;
     }
     if (pipeline && analysis_every > 0.0 && d.time >= next_snapshot - 1e-12 * analysis_every) {
-      pipeline->publish(analysis::make_snapshot(*simulation));
+      pipeline->publish(analysis::make_snapshot(*simulation, latest_dissipation));
       ++snapshot_count;
     }
     bool checkpoint_due = false;

@@ -29,8 +29,10 @@ std::string spectrum_text(const analysis::AnalysisFrame& frame, std::size_t max_
   w.begin_object();
   w.key("delta_k").value(p.spectrum.delta_k);
   w.key("dissipation").value(p.dissipation);
+  // -de_v/dt (5.4) of the run's time series at the frame's time (null while unknown).
+  w.key("dissipation_energy").value(frame.energy_dissipation);
   w.key("dissipation_resolved").value(p.dissipation_resolved);
-  // The second estimate of SPEC §5, ε_v = ν⟨ω²⟩ (4.6), when the scene computes vorticity.
+  // The third estimate of SPEC §5, ε_v = ν⟨ω²⟩ (4.6), when the scene computes vorticity.
   w.key("dissipation_vorticity");
   if (frame.vorticity)
     w.value(frame.vorticity->dissipation);
@@ -44,6 +46,11 @@ std::string spectrum_text(const analysis::AnalysisFrame& frame, std::size_t max_
   w.key("resolution_wavenumber").value(p.resolution_wavenumber);
   w.key("step").value(frame.step);
   w.key("time").value(frame.time);
+  w.key("vorticity_estimate");
+  if (frame.vorticity)
+    w.value(analysis::vorticity_estimate_name(frame.vorticity->estimate));
+  else
+    w.null();
   w.end_object();
   return w.take();
 }
