@@ -2,9 +2,11 @@
 // the run manager's queue and recovery. Real runs (tiny 2D Taylor-Green), real files.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <sstream>
 #include <thread>
 
 #include "control/run.hpp"
@@ -121,6 +123,46 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   // observer's lock: a transition may notify observers while it holds the run's own.)
   EXPECT_THROW(run.start(), StateError);
   EXPECT_THROW(run.pause(), StateError);
+}
+
+// Every analysis snapshot carries -de_v/dt of the time series at its time, so that
+// stats/snapshots.csv has the dissipation three ways (SPEC §5) side by side.
+TEST(RunControl, SnapshotStatisticsCarryTheTimeSeriesDissipation) {
+  const auto dir = fresh_directory("dissipation");
+  json scene = tiny_scene(0.1);
+  scene["analysis"] = {{"every", 0.05}, {"products", {"spectrum", "vorticity"}}};
+  control::Run run("r1", parse_run_spec(scene), dir);
+  ASSERT_EQ(run.run_here(), RunState::Finished);
+  const auto split = [](const std::string& line) {
+    std::vector<std::string> parts;
+    std::stringstream stream(line);
+    for (std::string part; std::getline(stream, part, ',');) parts.push_back(part);
+    return parts;
+  };
+  const std::vector<std::string> series = lines_of(dir / "timeseries.csv");
+  const std::vector<std::string> stats = lines_of(dir / "stats" / "snapshots.csv");
+  // Header and the snapshots of t = 0, 0.05, 0.1 that were analysed (the pipeline drops a waiting
+  // snapshot when a newer one arrives; the last one is always analysed).
+  ASSERT_GE(stats.size(), 2u);
+  const std::vector<std::string> names = split(stats[0]);
+  const auto column = std::find(names.begin(), names.end(), "dissipation_energy") - names.begin();
+  ASSERT_LT(static_cast<std::size_t>(column), names.size());
+  std::size_t finite = 0;
+  for (std::size_t r = 1; r < stats.size(); ++r) {
+    const std::vector<std::string> cells = split(stats[r]);
+    ASSERT_EQ(cells.size(), names.size());
+    // The time series row of the same time (t,step,dt,e_v,dissipation,...).
+    std::string expected;
+    for (std::size_t k = 1; k < series.size(); ++k) {
+      const std::vector<std::string> row = split(series[k]);
+      if (row[0] == cells[0]) expected = row[4];
+    }
+    ASSERT_FALSE(expected.empty()) << "no time series row at t = " << cells[0];
+    EXPECT_EQ(cells[static_cast<std::size_t>(column)], expected) << "t = " << cells[0];
+    finite += expected != "nan";
+  }
+  EXPECT_GE(finite, 1u) << "-de_v/dt is known after the first row (at least at t = 0.1)";
+  EXPECT_EQ(split(stats.back())[0], split(series.back())[0]) << "the last snapshot is analysed";
 }
 
 TEST(RunControl, RefusesADirectoryThatHoldsARun) {

@@ -11,6 +11,7 @@
 
 #include <cstdlib>
 #include <regex>
+#include <sstream>
 #include <thread>
 
 #include "analysis/config.hpp"
@@ -406,6 +407,47 @@ TEST_F(WriterTest, WritesEveryRequestedProduct) {
   // No temporary file is left behind.
   for (const auto& entry : std::filesystem::recursive_directory_iterator(dir_))
     EXPECT_NE(entry.path().extension(), ".tmp") << entry.path();
+}
+
+// stats/snapshots.csv keeps its earlier columns and appends the other two dissipation estimates
+// of SPEC §5: -de_v/dt (carried by the snapshot from the time series) and the resolved spectral
+// sum, next to ν⟨ω²⟩.
+TEST_F(WriterTest, SnapshotStatisticsCarryTheDissipationThreeWays) {
+  auto snapshot = std::make_shared<Snapshot>(*small_tgv_snapshot("tgv2d", 24, 0.1));
+  snapshot->energy_dissipation = 0.0123;
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum, Product::Vorticity};
+  const AnalysisFrame frame = analyse(SnapshotPtr(snapshot), config);
+  ASSERT_TRUE(frame.spectrum && frame.vorticity);
+  EXPECT_EQ(frame.energy_dissipation, 0.0123);
+  RunDirectoryWriter writer(dir_);
+  writer.write(frame);
+  EXPECT_EQ(writer.last_error(), "");
+  std::ifstream in(dir_ / "stats" / "snapshots.csv");
+  std::string header, row;
+  std::getline(in, header);
+  std::getline(in, row);
+  EXPECT_EQ(header,
+            "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"
+            "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots,"
+            "dissipation_spectral_resolved,dissipation_energy");
+  const auto split = [](const std::string& line) {
+    std::vector<std::string> parts;
+    std::stringstream stream(line);
+    for (std::string part; std::getline(stream, part, ',');) parts.push_back(part);
+    return parts;
+  };
+  const std::vector<std::string> names = split(header), cells = split(row);
+  ASSERT_EQ(cells.size(), names.size()) << row;
+  const auto column = [&](const std::string& name) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    return std::stod(cells[static_cast<std::size_t>(it - names.begin())]);
+  };
+  EXPECT_EQ(column("dissipation_energy"), 0.0123);
+  EXPECT_EQ(column("dissipation_vorticity"), frame.vorticity->dissipation);
+  EXPECT_EQ(column("dissipation_spectral_resolved"), frame.spectrum->dissipation_resolved);
+  EXPECT_EQ(column("dissipation_spectral"), frame.spectrum->dissipation);
 }
 
 // Particle snapshots: HDF5 files plus an XDMF series that is well-formed XML (checked by

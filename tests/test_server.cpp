@@ -387,9 +387,13 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
           } else if (j["type"] == "spectrum") {
             EXPECT_EQ(j["k"].size(), j["energy"].size());
             EXPECT_GT(j["kernel_wavenumber"].get<double>(), 0.0);
-            // Both dissipation estimates of SPEC §5 (4.6) travel with the spectrum.
+            // The dissipation estimates of SPEC §5 (4.6) travel with the spectrum; -de_v/dt is
+            // null until the time series has two rows.
             EXPECT_GT(j["dissipation"].get<double>(), 0.0);
             EXPECT_GT(j["dissipation_vorticity"].get<double>(), 0.0);
+            EXPECT_TRUE(j["dissipation_energy"].is_null() || j["dissipation_energy"].is_number())
+                << j["dissipation_energy"];
+            EXPECT_EQ(j["vorticity_estimate"], "particle");
             spectrum = true;
           } else if (j["type"] == "statistics") {
             EXPECT_TRUE(j.contains("joint") && j.contains("max_norm"));
