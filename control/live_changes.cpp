@@ -56,6 +56,7 @@ const std::vector<std::pair<std::string, std::string>> kFixedReasons = {
      "switching the sub-filter model mid-run is not supported; create a new run"},
     {"flow", "applies to the initial condition only"},
     {"packing", "applies to the initial condition only"},
+    {"initial", "applies to the initial condition only"},
     {"neighbours", "fixes the neighbour list that a bitwise restart relies on"},
     {"analysis.dissipation_window", "is fixed for the run's dissipation estimate"},
 };

@@ -2,6 +2,8 @@
 
 #include <cmath>
 
+#include "sim/neighbour_search.hpp"
+#include "sim/physics.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::sim {
@@ -98,6 +100,29 @@ std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& p
   return {injection / mass, scene.forcing.friction * v2 / mass, std::sqrt(v2 / mass)};  // (4.3)
 }
 
+std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles) {
+  ParticleArrays p = particles;
+  p.volume.resize(p.size());
+  p.density.resize(p.size());
+  p.pressure.resize(p.size());
+  VerletNeighbourSearch search(config.box, config.support_radius, 0.0);
+  search.build(view_positions(p));
+  with_kernel(config.kernel, config.box.dimension, config.support_radius, [&](const auto& kernel) {
+    using KernelT = std::decay_t<decltype(kernel)>;
+    density_pass<KernelT::dimension>(kernel, config.box, search.list(), config.fluid, p);
+  });
+  return std::move(p.volume);
+}
+
+void set_summation_masses(const SolverConfig& config, double lattice_cell_volume,
+                          ParticleArrays& particles) {
+  const std::vector<double> volume = summed_volumes(config, particles);
+  for (std::size_t i = 0; i < particles.size(); ++i) {
+    const double rho0 = particles.mass[i] / lattice_cell_volume;  // the case's ρ0_i
+    particles.mass[i] = rho0 * volume[i];                         // M_i = ρ0_i V_i, (A.1)-(A.2)
+  }
+}
+
 SolverConfig make_solver_config(const Scene& scene) {
   SolverConfig c;
   c.box.dimension = scene.dimension();
@@ -106,6 +131,7 @@ SolverConfig make_solver_config(const Scene& scene) {
   c.support_radius = 0.5 * scene.kernel_diameter();
   c.particle_spacing = scene.particle_spacing();
   c.fluid = scene.fluid;
+  c.viscous_operator = scene.viscous_operator;
   c.time_step = scene.time_step;
   c.blow_up = scene.blow_up;
   c.neighbour_skin = scene.neighbour_skin;
@@ -130,6 +156,9 @@ RunSetup setup_run(const Scene& scene, const SetupOptions& options) {
       set_kolmogorov_2d(scene, setup.particles);
       break;
   }
+  if (scene.initial.mass == InitialMass::Summation)
+    set_summation_masses(setup.solver, std::pow(scene.particle_spacing(), scene.dimension()),
+                         setup.particles);
   return setup;
 }
 

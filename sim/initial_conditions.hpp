@@ -44,6 +44,15 @@ double kolmogorov_laminar_velocity(const KolmogorovForcing& forcing, double wave
 std::vector<std::string> case_diagnostic_names(const Scene& scene);
 std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& particles);
 
+/// V_i = 1/Σ_j W_ij (A.1) of every particle of an arrangement, with the kernel, support and box
+/// of `config`: the volumes the solver's first density pass computes.
+std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles);
+
+/// Replaces the lattice masses M0 = ρ0 Δl^n of a case by M_i = ρ0_i V_i (initial.mass =
+/// "summation"), so that ρ_i = M_i / V_i (A.2) is the prescribed ρ0_i exactly.
+void set_summation_masses(const SolverConfig& config, double lattice_cell_volume,
+                          ParticleArrays& particles);
+
 struct RunSetup {
   SolverConfig solver;
   ParticleArrays particles;
@@ -54,7 +63,8 @@ struct RunSetup {
 SolverConfig make_solver_config(const Scene& scene);
 
 /// Box, kernel, fluid and time stepping from the scene; positions from packed_positions();
-/// fields from the scene's case. Throws SetupCancelled when options.cancelled says so.
+/// fields from the scene's case, masses as initial.mass says. Throws SetupCancelled when
+/// options.cancelled says so.
 RunSetup setup_run(const Scene& scene, const SetupOptions& options = {});
 
 }  // namespace sphles::sim

@@ -23,6 +23,11 @@ constexpr std::array<std::pair<CaseType, std::string_view>, 3> kCaseNames{{
     {CaseType::Kolmogorov2D, "kolmogorov2d"},
 }};
 
+constexpr std::array<std::pair<InitialMass, std::string_view>, 2> kInitialMassNames{{
+    {InitialMass::Summation, "summation"},
+    {InitialMass::Lattice, "lattice"},
+}};
+
 /// Defaults that depend on the case (SPEC §6.1 for tgv3d; tgv2d at Re = 100, Ma = 0.1).
 Scene case_defaults(CaseType type) {
   Scene s;
@@ -119,6 +124,12 @@ std::string_view case_name(CaseType type) {
   return "unknown";
 }
 
+std::string_view initial_mass_name(InitialMass mass) {
+  for (const auto& [m, name] : kInitialMassNames)
+    if (m == mass) return name;
+  return "unknown";
+}
+
 int case_dimension(CaseType type) {
   return type == CaseType::TaylorGreen3D ? 3 : 2;
 }
@@ -196,6 +207,17 @@ Scene parse_scene(const json& input) {
     f.reject_unknown();
   }
   {
+    ObjectReader m = top.object("scheme");
+    std::string op = std::string(viscous_operator_name(s.viscous_operator));
+    m.string("viscous_operator", op);
+    try {
+      s.viscous_operator = viscous_operator_from_name(op);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'scheme.viscous_operator' " + std::string(e.what()));
+    }
+    m.reject_unknown();
+  }
+  {
     ObjectReader f = top.object("flow");
     f.number("velocity_amplitude", s.velocity_amplitude);
     f.vector("uniform_velocity", s.uniform_velocity, static_cast<std::size_t>(s.dimension()));
@@ -266,6 +288,19 @@ Scene parse_scene(const json& input) {
     p.number("tolerance", s.packing.tolerance, positive);
     p.integer("seed", s.packing.seed, 0, std::numeric_limits<long long>::max());
     p.reject_unknown();
+  }
+  {
+    ObjectReader in = top.object("initial");
+    std::string mass = std::string(initial_mass_name(s.initial.mass));
+    in.string("mass", mass);
+    std::optional<InitialMass> parsed;
+    for (const auto& [m, name] : kInitialMassNames)
+      if (name == mass) parsed = m;
+    if (!parsed)
+      throw SceneError("scene: 'initial.mass' must be one of summation, lattice, got '" + mass +
+                       "'");
+    s.initial.mass = *parsed;
+    in.reject_unknown();
   }
   {
     ObjectReader c = top.object("checkpoint");
@@ -403,6 +438,7 @@ json scene_to_json(const Scene& s) {
                 {"sound_speed", s.fluid.sound_speed},
                 {"reference_pressure", s.fluid.reference_pressure},
                 {"dynamic_viscosity", s.fluid.dynamic_viscosity}};
+  j["scheme"] = {{"viscous_operator", std::string(viscous_operator_name(s.viscous_operator))}};
   j["flow"] = {
       {"velocity_amplitude", s.velocity_amplitude},
       {"uniform_velocity", std::vector<double>(s.uniform_velocity.begin(),
@@ -420,6 +456,7 @@ json scene_to_json(const Scene& s) {
       {"enabled", s.packing.enabled},           {"cache", s.packing.cache},
       {"perturbation", s.packing.perturbation}, {"max_iterations", s.packing.max_iterations},
       {"tolerance", s.packing.tolerance},       {"seed", s.packing.seed}};
+  j["initial"] = {{"mass", std::string(initial_mass_name(s.initial.mass))}};
   j["checkpoint"] = {{"every", s.checkpoint.every},
                      {"every_seconds", s.checkpoint.every_seconds},
                      {"keep", s.checkpoint.keep},
@@ -518,6 +555,7 @@ json preset_document(const std::string& name) {
             {"fluid", fluid},
             {"flow", {{"uniform_velocity", {0.0, 0.0, c.uniform_velocity_z}}}},
             {"subfilter", {{"model", c.model}, {"smagorinsky_constant", c.smagorinsky_constant}}},
+            {"initial", {{"mass", "lattice"}}},  // the thesis' M0 = ρ0 Δl³ (SPEC §6.1)
             {"time", {{"end", 15.0}}}};
   }
   std::string valid;

@@ -39,6 +39,21 @@ struct PackingConfig {
   std::uint64_t seed = 1;
 };
 
+/// How the initial masses are set (docs/scenes.md, "initial"):
+/// - Summation: M_i = ρ0_i V_i with V_i = 1/Σ_j W_ij (A.1) on the packed arrangement, so that the
+///   summed density (A.2) equals the prescribed ρ0_i of the case exactly and the start is in
+///   discrete equilibrium with the model (no sound radiated by mass errors);
+/// - Lattice: the thesis' M0 = ρ0 Δl^n (SPEC §6.1), whose summed density differs from ρ0 by the
+///   arrangement's deviation of Σ_j W_ij from 1/Δl^n.
+enum class InitialMass { Summation, Lattice };
+
+/// Scene names: "summation", "lattice".
+std::string_view initial_mass_name(InitialMass mass);
+
+struct InitialConfig {
+  InitialMass mass = InitialMass::Summation;
+};
+
 /// Kolmogorov forcing a = χ sin(k_y y) e_x and linear friction -μ v (SPEC §6.3).
 struct KolmogorovForcing {
   double amplitude = 1.8;  // χ [m/s²]
@@ -70,15 +85,17 @@ struct Scene {
   KernelType kernel = KernelType::WendlandC4;
   double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
   FluidParameters fluid;
-  double velocity_amplitude = 1.0;                        // v0 [m/s]
-  std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
-  double end_time = 15.0;                                 // [s]
+  ViscousOperator viscous_operator = ViscousOperator::Thesis;  // scheme.viscous_operator
+  double velocity_amplitude = 1.0;                             // v0 [m/s]
+  std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};       // added to the initial field [m/s]
+  double end_time = 15.0;                                      // [s]
   TimeStepConfig time_step;
   BlowUpThresholds blow_up;  // runaway-energy test after every step (docs/stability.md)
   SubfilterConfig subfilter;
   KolmogorovForcing forcing;     // kolmogorov2d only
   double neighbour_skin = 0.15;  // fraction of H
   PackingConfig packing;
+  InitialConfig initial;
   OutputConfig output;
   CheckpointConfig checkpoint;
 
