@@ -8,9 +8,12 @@
 
 #include <cmath>
 #include <cstddef>
+#include <string_view>
+#include <vector>
 
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
+#include "sim/viscous_operator.hpp"
 
 namespace sphles::sim {
 
@@ -88,11 +91,29 @@ void density_pass(const KernelT& kernel, const PeriodicBox& box, const Neighbour
   }
 }
 
+template <int Dim, bool Corrected, class KernelT>
+void force_pass_impl(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& neighbours,
+                     const FluidParameters& fluid, const VelocityView& velocity, ParticleArrays& p,
+                     const double* viscous_weights);
+
 /// Acceleration (F^p + F^visc)/ρ_i of (3.25) with (A.9) and (A.14), evaluated at the given
-/// velocities; overwrites p.acceleration. Requires density_pass on the same positions.
+/// velocities; overwrites p.acceleration. Requires density_pass on the same positions. With
+/// non-null `viscous_weights` (the g_i of viscous_correction_pass) each viscous pair is scaled
+/// by pair_weight (ViscousOperator::Corrected, viscous_operator.hpp).
 template <int Dim, class KernelT>
 void force_pass(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& neighbours,
-                const FluidParameters& fluid, const VelocityView& velocity, ParticleArrays& p) {
+                const FluidParameters& fluid, const VelocityView& velocity, ParticleArrays& p,
+                const double* viscous_weights = nullptr) {
+  if (viscous_weights)
+    force_pass_impl<Dim, true>(kernel, box, neighbours, fluid, velocity, p, viscous_weights);
+  else
+    force_pass_impl<Dim, false>(kernel, box, neighbours, fluid, velocity, p, nullptr);
+}
+
+template <int Dim, bool Corrected, class KernelT>
+void force_pass_impl(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& neighbours,
+                     const FluidParameters& fluid, const VelocityView& velocity, ParticleArrays& p,
+                     const double* viscous_weights) {
   const double support2 = kernel.support_radius() * kernel.support_radius();
   const double viscous_factor = 2.0 * (Dim + 2) * fluid.dynamic_viscosity;  // 2(n+2)η (A.14)
   double length[Dim], half_length[Dim];
@@ -129,8 +150,16 @@ void force_pass(const KernelT& kernel, const PeriodicBox& box, const NeighbourLi
         v_dot_x += (vi[d] - v[d][j]) * dx[d];
       }
       if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double coefficient = pressure_pair_coefficient(pi, pressure[j]) +
-                                 viscous_pair_coefficient(viscous_factor, v_dot_x, r2);
+      double viscous = viscous_pair_coefficient(viscous_factor, v_dot_x, r2);
+      if constexpr (Corrected) {
+        constexpr int K = QuarticBasis<Dim>::size;
+        const double inv_r = 1.0 / std::sqrt(r2);
+        double e[Dim];
+        for (int d = 0; d < Dim; ++d) e[d] = dx[d] * inv_r;
+        viscous *= pair_weight<Dim>(viscous_weights + i * K, viscous_weights + std::size_t{j} * K,
+                                    QuarticBasis<Dim>::monomials(e));
+      }
+      const double coefficient = pressure_pair_coefficient(pi, pressure[j]) + viscous;
       const double scale = coefficient * volume[j] * kernel.gradient_over_r(std::sqrt(r2));
       for (int d = 0; d < Dim; ++d) force[d] += scale * dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
     }

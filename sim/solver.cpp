@@ -11,6 +11,11 @@ namespace sphles::sim {
 
 namespace {
 
+constexpr std::array<std::pair<ViscousOperator, std::string_view>, 2> kViscousOperatorNames{{
+    {ViscousOperator::Thesis, "thesis"},
+    {ViscousOperator::Corrected, "corrected"},
+}};
+
 void validate(const SolverConfig& c, const ParticleArrays& p) {
   if (c.box.dimension != 2 && c.box.dimension != 3)
     throw std::invalid_argument("solver: dimension must be 2 or 3");
@@ -168,8 +173,15 @@ class SphSolver final : public Simulation {
   }
 
   void evaluate_acceleration(const VelocityView& velocity, double time) {
-    density_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, particles_);
-    force_pass<Dim>(kernel_, config_.box, search_.list(), config_.fluid, velocity, particles_);
+    const NeighbourList& list = search_.list();
+    density_pass<Dim>(kernel_, config_.box, list, config_.fluid, particles_);
+    const double* viscous_weights = nullptr;
+    if (config_.viscous_operator == ViscousOperator::Corrected) {
+      viscous_correction_pass<Dim>(kernel_, config_.box, list, particles_, viscous_weights_);
+      viscous_weights = viscous_weights_.data();
+    }
+    force_pass<Dim>(kernel_, config_.box, list, config_.fluid, velocity, particles_,
+                    viscous_weights);
     if (config_.subfilter.model != SubfilterModel::Implicit) add_subfilter_force(velocity);
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
     update_max_acceleration();
@@ -305,6 +317,7 @@ class SphSolver final : public Simulation {
   ParticleArrays particles_;
   std::array<std::vector<double>, 3> predicted_velocity_;
   std::vector<VelocityGradient> gradient_;  // scratch of the explicit sub-filter model
+  std::vector<double> viscous_weights_;     // g_i of ViscousOperator::Corrected (scratch)
   double time_;
   std::uint64_t step_;
   double max_acceleration_ = 0.0;
@@ -313,6 +326,18 @@ class SphSolver final : public Simulation {
 };
 
 }  // namespace
+
+std::string_view viscous_operator_name(ViscousOperator op) {
+  for (const auto& [o, name] : kViscousOperatorNames)
+    if (o == op) return name;
+  return "unknown";
+}
+
+ViscousOperator viscous_operator_from_name(std::string_view name) {
+  for (const auto& [o, n] : kViscousOperatorNames)
+    if (n == name) return o;
+  throw std::invalid_argument("must be one of thesis, corrected, got '" + std::string(name) + "'");
+}
 
 TimeStepLimits time_step_limits(const TimeStepConfig& ts, double spacing,
                                 const FluidParameters& fluid, double max_speed,

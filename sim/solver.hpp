@@ -71,6 +71,7 @@ struct SolverConfig {
   double support_radius = 0.0;    // H = D_K / 2 [m]
   double particle_spacing = 0.0;  // Δl [m], sets the time-step limits
   FluidParameters fluid;
+  ViscousOperator viscous_operator = ViscousOperator::Thesis;
   TimeStepConfig time_step;
   SubfilterConfig subfilter;      // explicit sub-filter model (SPEC §4); implicit by default
   double neighbour_skin = 0.15;   // Verlet skin as a fraction of H

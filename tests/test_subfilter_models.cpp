@@ -176,68 +176,18 @@ INSTANTIATE_TEST_SUITE_P(Models, ModelMomentumTest,
                                   std::string(subfilter_model_name(std::get<1>(info.param)));
                          });
 
-/// Σ M x × v (z component in 2D) of a cluster far from the periodic faces.
-std::array<double, 3> angular_momentum(const ParticleArrays& p) {
-  std::array<double, 3> l{0, 0, 0};
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    const double x = p.position[0][i], y = p.position[1][i];
-    const double z = p.dimension == 3 ? p.position[2][i] : 0.0;
-    const double vx = p.velocity[0][i], vy = p.velocity[1][i];
-    const double vz = p.dimension == 3 ? p.velocity[2][i] : 0.0;
-    l[0] += p.mass[i] * (y * vz - z * vy);
-    l[1] += p.mass[i] * (z * vx - x * vz);
-    l[2] += p.mass[i] * (x * vy - y * vx);
-  }
-  return l;
-}
-
 // SMAG-MCG (A.23), like the pressure (A.9) and viscous (A.14) terms, acts along x_ij, so a
-// cluster that never meets its periodic images keeps Σ M x × v to round-off. The periodic-safe
-// setting: a disc of particles in the middle of a box 3x its diameter.
+// cluster that never meets its periodic images keeps Σ M x × v to round-off.
 TEST(AngularMomentum, ConservedWithSmagorinskyMcg) {
   for (const int dim : {2, 3}) {
-    SolverConfig c;
-    c.box.dimension = dim;
-    for (int d = 0; d < dim; ++d) c.box.length[d] = 3.0;
-    c.particle_spacing = dim == 3 ? 0.1 : 0.05;
-    c.support_radius = 2.0 * c.particle_spacing;
-    c.fluid = {.reference_density = 1.0,
-               .sound_speed = 5.0,
-               .reference_pressure = 0.0,
-               .dynamic_viscosity = 1e-3};
-    c.subfilter.model = SubfilterModel::SmagorinskyMcg;
-    c.time_step.fixed = 1e-3;
-    ParticleArrays lattice =
-        make_lattice(c.box, static_cast<int>(std::lround(3.0 / c.particle_spacing)));
-    ParticleArrays p;
-    p.dimension = dim;
-    std::vector<std::size_t> keep;
-    for (std::size_t i = 0; i < lattice.size(); ++i) {
-      double r2 = 0.0;
-      for (int d = 0; d < dim; ++d) r2 += std::pow(lattice.position[d][i] - 1.5, 2);
-      if (r2 < 0.5 * 0.5) keep.push_back(i);
-    }
-    p.resize(keep.size());
-    std::mt19937_64 rng(8);
-    std::uniform_real_distribution<double> u(-1.0, 1.0);
-    for (std::size_t k = 0; k < keep.size(); ++k) {
-      for (int d = 0; d < dim; ++d) {
-        p.position[d][k] = lattice.position[d][keep[k]];
-        p.velocity[d][k] = 0.5 * u(rng);
-      }
-      // a rigid spin on top of the noise
-      p.velocity[0][k] += -(p.position[1][k] - 1.5);
-      p.velocity[1][k] += (p.position[0][k] - 1.5);
-      p.mass[k] = std::pow(c.particle_spacing, dim);
-    }
-    auto sim = make_simulation(c, p);
-    const auto l0 = angular_momentum(sim->particles());
-    double scale = 0.0;
-    for (std::size_t i = 0; i < p.size(); ++i) scale += p.mass[i] * 1.5 * 1.5;
+    testing::RotatingCluster cluster = testing::rotating_cluster(dim);
+    cluster.config.subfilter.model = SubfilterModel::SmagorinskyMcg;
+    auto sim = make_simulation(cluster.config, cluster.particles);
+    const auto l0 = testing::angular_momentum(sim->particles());
     for (int step = 0; step < 40; ++step) sim->step();
-    const auto l1 = angular_momentum(sim->particles());
+    const auto l1 = testing::angular_momentum(sim->particles());
     for (int d = 0; d < 3; ++d)
-      EXPECT_NEAR(l1[d], l0[d], 1e-12 * scale) << dim << "D, component " << d;
+      EXPECT_NEAR(l1[d], l0[d], 1e-12 * cluster.scale) << dim << "D, component " << d;
     EXPECT_GT(*std::max_element(sim->particles().eddy_viscosity.begin(),
                                 sim->particles().eddy_viscosity.end()),
               0.0);
