@@ -109,6 +109,7 @@ SolverConfig make_solver_config(const Scene& scene) {
   c.time_step = scene.time_step;
   c.blow_up = scene.blow_up;
   c.neighbour_skin = scene.neighbour_skin;
+  c.scheme = scene.scheme;
   c.subfilter = scene.subfilter;
   if (scene.case_type == CaseType::Kolmogorov2D)
     c.external = kolmogorov_acceleration(scene.forcing, scene.forcing_wavenumber());

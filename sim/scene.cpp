@@ -221,6 +221,18 @@ Scene parse_scene(const json& input) {
     b.reject_unknown();
   }
   {
+    // An object, so that further keys of the scheme can join "type".
+    ObjectReader sc = top.object("scheme");
+    std::string type = std::string(scheme_name(s.scheme.type));
+    sc.string("type", type);
+    try {
+      s.scheme.type = scheme_from_name(type);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'scheme.type': " + std::string(e.what()));
+    }
+    sc.reject_unknown();
+  }
+  {
     ObjectReader m = top.object("subfilter");
     std::string model = std::string(subfilter_model_name(s.subfilter.model));
     m.string("model", model);
@@ -391,6 +403,7 @@ json scene_to_json(const Scene& s) {
                     {"periods", s.forcing.periods},
                     {"friction", s.forcing.friction}};
   }
+  j["scheme"] = {{"type", std::string(scheme_name(s.scheme.type))}};
   j["subfilter"] = {{"model", std::string(subfilter_model_name(s.subfilter.model))},
                     {"smagorinsky_constant", s.subfilter.smagorinsky_constant},
                     {"sigma_constant", s.subfilter.sigma_constant},

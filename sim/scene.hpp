@@ -75,6 +75,7 @@ struct Scene {
   double end_time = 15.0;                                 // [s]
   TimeStepConfig time_step;
   BlowUpThresholds blow_up;  // runaway-energy test after every step (docs/stability.md)
+  SchemeConfig scheme;       // SPH scheme (docs/models.md); the thesis model by default
   SubfilterConfig subfilter;
   KolmogorovForcing forcing;     // kolmogorov2d only
   double neighbour_skin = 0.15;  // fraction of H
