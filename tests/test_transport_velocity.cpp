@@ -85,7 +85,8 @@ TEST_P(TransportVelocityMomentumTest, ConservedToRoundOffOver100Steps) {
   EXPECT_GT(std::abs(sim->diagnostics().kinetic_energy - 0.5), 1e-3);
 }
 
-INSTANTIATE_TEST_SUITE_P(Dimensions, TransportVelocityMomentumTest, ::testing::Values(2, 3));
+INSTANTIATE_TEST_SUITE_P(Dimensions, TransportVelocityMomentumTest, ::testing::Values(2, 3),
+                         [](const auto& info) { return std::to_string(info.param) + "D"; });
 
 // The TVF moves particles with ṽ ≠ v: the same initial state ends elsewhere than under the
 // thesis model, and a TVF run with p_b = 0 (ã = 0, so ṽ = v and A = 0) differs from the thesis
