@@ -54,6 +54,9 @@ const std::vector<std::pair<std::string, std::string>> kFixedReasons = {
     {"fluid.reference_density", "sets the particle masses; create a new run"},
     {"subfilter.model",
      "switching the sub-filter model mid-run is not supported; create a new run"},
+    {"scheme.type",
+     "fixes the discretisation the stored state belongs to (a^n, and the transport velocity of "
+     "the TVF, are the scheme's); create a new run"},
     {"flow", "applies to the initial condition only"},
     {"packing", "applies to the initial condition only"},
     {"initial", "applies to the initial condition only"},
@@ -96,7 +99,7 @@ ChangeScope scope_of(const std::vector<std::string>& fields) {
     else if (has_prefix(f, "render"))
       s.render = true;
     else if (has_prefix(f, "time") || has_prefix(f, "fluid") || has_prefix(f, "subfilter") ||
-             has_prefix(f, "forcing"))
+             has_prefix(f, "scheme") || has_prefix(f, "forcing"))
       s.solver = true;
     else
       s.other = true;

@@ -337,10 +337,13 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   const double n = e.particles;
   const std::string n_text = count_text(n) + " particles";
 
-  // Solver: particle arrays, predicted velocity, list reference positions, ν_t scratch.
+  // Solver: particle arrays, predicted velocity, list reference positions, ν_t scratch, the
+  // scheme's fields (TVF: background acceleration and transport shift, sim/scheme.hpp).
   const double per_particle = particle_array_bytes(s);
-  const double solver_per_particle =
-      per_particle + 2.0 * dim * kDouble + (explicit_model ? sizeof(sim::VelocityGradient) : 0.0);
+  const double scheme_fields =
+      sim::scheme_uses_transport_velocity(s.scheme.type) ? 2.0 * dim * kDouble : 0.0;
+  const double solver_per_particle = per_particle + 2.0 * dim * kDouble + scheme_fields +
+                                     (explicit_model ? sizeof(sim::VelocityGradient) : 0.0);
   const ListModel list = list_model(s, s.neighbour_skin);
   e.neighbours_per_particle = list.neighbours;
   const std::string list_text = n_text + " x " + count_text(list.neighbours) + " neighbours";

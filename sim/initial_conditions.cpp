@@ -131,10 +131,10 @@ SolverConfig make_solver_config(const Scene& scene) {
   c.support_radius = 0.5 * scene.kernel_diameter();
   c.particle_spacing = scene.particle_spacing();
   c.fluid = scene.fluid;
-  c.viscous_operator = scene.viscous_operator;
   c.time_step = scene.time_step;
   c.blow_up = scene.blow_up;
   c.neighbour_skin = scene.neighbour_skin;
+  c.scheme = scene.scheme;
   c.subfilter = scene.subfilter;
   if (scene.case_type == CaseType::Kolmogorov2D)
     c.external = kolmogorov_acceleration(scene.forcing, scene.forcing_wavenumber());

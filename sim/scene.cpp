@@ -207,17 +207,6 @@ Scene parse_scene(const json& input) {
     f.reject_unknown();
   }
   {
-    ObjectReader m = top.object("scheme");
-    std::string op = std::string(viscous_operator_name(s.viscous_operator));
-    m.string("viscous_operator", op);
-    try {
-      s.viscous_operator = viscous_operator_from_name(op);
-    } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'scheme.viscous_operator' " + std::string(e.what()));
-    }
-    m.reject_unknown();
-  }
-  {
     ObjectReader f = top.object("flow");
     f.number("velocity_amplitude", s.velocity_amplitude);
     f.vector("uniform_velocity", s.uniform_velocity, static_cast<std::size_t>(s.dimension()));
@@ -241,6 +230,29 @@ Scene parse_scene(const json& input) {
     b.number("reference_mach", s.blow_up.reference_mach, non_negative);
     b.number("reference_energy", s.blow_up.reference_energy, non_negative);
     b.reject_unknown();
+  }
+  {
+    // An object, so that further keys of the scheme can join "type".
+    ObjectReader sc = top.object("scheme");
+    std::string type = std::string(scheme_name(s.scheme.type));
+    sc.string("type", type);
+    try {
+      s.scheme.type = scheme_from_name(type);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'scheme.type': " + std::string(e.what()));
+    }
+    std::string op = std::string(viscous_operator_name(s.scheme.viscous_operator));
+    sc.string("viscous_operator", op);
+    try {
+      s.scheme.viscous_operator = viscous_operator_from_name(op);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'scheme.viscous_operator' " + std::string(e.what()));
+    }
+    if (s.scheme.viscous_operator != ViscousOperator::Thesis && s.scheme.type != SchemeType::Thesis)
+      throw SceneError("scene: 'scheme.viscous_operator' = '" + op +
+                       "' applies to scheme.type thesis only (the transport-velocity scheme "
+                       "has its own viscous term)");
+    sc.reject_unknown();
   }
   {
     ObjectReader m = top.object("subfilter");
@@ -426,6 +438,9 @@ json scene_to_json(const Scene& s) {
                     {"periods", s.forcing.periods},
                     {"friction", s.forcing.friction}};
   }
+  j["scheme"] = {
+      {"type", std::string(scheme_name(s.scheme.type))},
+      {"viscous_operator", std::string(viscous_operator_name(s.scheme.viscous_operator))}};
   j["subfilter"] = {{"model", std::string(subfilter_model_name(s.subfilter.model))},
                     {"smagorinsky_constant", s.subfilter.smagorinsky_constant},
                     {"sigma_constant", s.subfilter.sigma_constant},
@@ -438,7 +453,6 @@ json scene_to_json(const Scene& s) {
                 {"sound_speed", s.fluid.sound_speed},
                 {"reference_pressure", s.fluid.reference_pressure},
                 {"dynamic_viscosity", s.fluid.dynamic_viscosity}};
-  j["scheme"] = {{"viscous_operator", std::string(viscous_operator_name(s.viscous_operator))}};
   j["flow"] = {
       {"velocity_amplitude", s.velocity_amplitude},
       {"uniform_velocity", std::vector<double>(s.uniform_velocity.begin(),

@@ -85,12 +85,12 @@ struct Scene {
   KernelType kernel = KernelType::WendlandC4;
   double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
   FluidParameters fluid;
-  ViscousOperator viscous_operator = ViscousOperator::Thesis;  // scheme.viscous_operator
   double velocity_amplitude = 1.0;                             // v0 [m/s]
   std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};       // added to the initial field [m/s]
   double end_time = 15.0;                                      // [s]
   TimeStepConfig time_step;
   BlowUpThresholds blow_up;  // runaway-energy test after every step (docs/stability.md)
+  SchemeConfig scheme;       // SPH scheme (docs/models.md); the thesis model by default
   SubfilterConfig subfilter;
   KolmogorovForcing forcing;     // kolmogorov2d only
   double neighbour_skin = 0.15;  // fraction of H

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <sstream>
 
 #include "sim/neighbour_search.hpp"
@@ -56,6 +57,7 @@ class SphSolver final : public Simulation {
     particles_.volume.resize(particles_.size());
     particles_.density.resize(particles_.size());
     particles_.pressure.resize(particles_.size());
+    allocate_scheme_fields();  // ṽ = v at the start: zero shift
     rebuild_neighbours();
     evaluate_acceleration(view_velocity(particles_), time_);
     update_diagnostics(0.0);
@@ -82,6 +84,8 @@ class SphSolver final : public Simulation {
     }
     search_.build(reference);
     search_.set_num_builds(state.neighbour_builds);
+    allocate_scheme_fields();
+    if (transport_velocity_) recompute_scheme_fields();
     update_max_acceleration();
     update_diagnostics(0.0);
     set_reference_energy();
@@ -103,16 +107,28 @@ class SphSolver final : public Simulation {
     if (!(dt > 0.0)) throw std::invalid_argument("solver: time step must be > 0");
     const double half_dt = 0.5 * dt;
     const std::size_t n = particles_.size();
-    // Kick and drift.
+    // Kick and drift: with v^{n+1/2}, or with the transport velocity v^{n+1/2} + δv,
+    // δv = dt/2 ã^n (Adami et al. 2013, eqs. 14-16).
     for (int d = 0; d < Dim; ++d) {
       double* v = particles_.velocity[d].data();
       double* x = particles_.position[d].data();
       const double* a = particles_.acceleration[d].data();
       const double length = config_.box.length[d];
+      if (transport_velocity_) {
+        const double* a_background = fields_.background_acceleration[d].data();
+        double* shift = fields_.transport_shift[d].data();
 #pragma omp parallel for schedule(static)
-      for (std::size_t i = 0; i < n; ++i) {
-        v[i] += half_dt * a[i];
-        x[i] = wrap_periodic(x[i] + dt * v[i], length);
+        for (std::size_t i = 0; i < n; ++i) {
+          v[i] += half_dt * a[i];
+          shift[i] = half_dt * a_background[i];
+          x[i] = wrap_periodic(x[i] + dt * (v[i] + shift[i]), length);
+        }
+      } else {
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < n; ++i) {
+          v[i] += half_dt * a[i];
+          x[i] = wrap_periodic(x[i] + dt * v[i], length);
+        }
       }
     }
     if (search_.needs_rebuild(view_positions(particles_))) rebuild_neighbours();
@@ -169,19 +185,47 @@ class SphSolver final : public Simulation {
   void rebuild_neighbours() {
     const auto order = search_.locality_order(view_positions(particles_));
     particles_.reorder(order);
+    // The shift of the step being taken follows its particles (ã is rewritten before use).
+    if (transport_velocity_)
+      for (int d = 0; d < Dim; ++d) reorder_array(fields_.transport_shift[d], order);
     search_.build(view_positions(particles_));
   }
 
-  void evaluate_acceleration(const VelocityView& velocity, double time) {
-    const NeighbourList& list = search_.list();
-    density_pass<Dim>(kernel_, config_.box, list, config_.fluid, particles_);
-    const double* viscous_weights = nullptr;
-    if (config_.viscous_operator == ViscousOperator::Corrected) {
-      viscous_correction_pass<Dim>(kernel_, config_.box, list, particles_, viscous_weights_);
-      viscous_weights = viscous_weights_.data();
+  void reorder_array(std::vector<double>& values, std::span<const std::uint32_t> order) {
+    scratch_.resize(values.size());
+    for (std::size_t k = 0; k < order.size(); ++k) scratch_[k] = values[order[k]];
+    values.swap(scratch_);
+  }
+
+  void allocate_scheme_fields() {
+    fields_.viscous_operator = config_.scheme.viscous_operator;
+    transport_velocity_ = scheme_uses_transport_velocity(config_.scheme.type);
+    if (!transport_velocity_) return;
+    for (int d = 0; d < Dim; ++d) {
+      fields_.background_acceleration[d].assign(particles_.size(), 0.0);
+      fields_.transport_shift[d].assign(particles_.size(), 0.0);
     }
-    force_pass<Dim>(kernel_, config_.box, list, config_.fluid, velocity, particles_,
-                    viscous_weights);
+  }
+
+  /// On restore: ã^n of the saving run's last force evaluation, by the same pass on the same
+  /// positions and list (bitwise equal: ã depends on neither velocity nor shift). The density
+  /// pass rewrites V, ρ, p with the values they have; a^n is kept as stored.
+  void recompute_scheme_fields() {
+    const std::array<std::vector<double>, 3> stored = particles_.acceleration;
+    visit_scheme(config_.scheme.type, [&](auto scheme) {
+      decltype(scheme)::template evaluate<Dim>(kernel_, config_.box, search_.list(), config_.fluid,
+                                               view_velocity(particles_), fields_, particles_);
+    });
+    particles_.acceleration = stored;
+  }
+
+  /// One force evaluation: the scheme's passes (the single dispatch per evaluation), then an
+  /// explicit sub-filter model and the external acceleration.
+  void evaluate_acceleration(const VelocityView& velocity, double time) {
+    visit_scheme(config_.scheme.type, [&](auto scheme) {
+      decltype(scheme)::template evaluate<Dim>(kernel_, config_.box, search_.list(), config_.fluid,
+                                               velocity, fields_, particles_);
+    });
     if (config_.subfilter.model != SubfilterModel::Implicit) add_subfilter_force(velocity);
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
     update_max_acceleration();
@@ -316,6 +360,9 @@ class SphSolver final : public Simulation {
   VerletNeighbourSearch search_;
   ParticleArrays particles_;
   std::array<std::vector<double>, 3> predicted_velocity_;
+  SchemeFields fields_;                     // the scheme's fields (empty for the thesis model)
+  bool transport_velocity_ = false;         // particles drift with v + δv (SchemeFields)
+  std::vector<double> scratch_;             // reorder buffer of the scheme's fields
   std::vector<VelocityGradient> gradient_;  // scratch of the explicit sub-filter model
   std::vector<double> viscous_weights_;     // g_i of ViscousOperator::Corrected (scratch)
   double time_;

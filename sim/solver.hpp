@@ -5,7 +5,9 @@
 //   v^{n+1/2} = v^n + dt/2 a^n,   x^{n+1} = x^n + dt v^{n+1/2},
 //   v*        = v^{n+1/2} + dt/2 a^n,   a^{n+1} = a(x^{n+1}, v*, t^{n+1}),
 //   v^{n+1}   = v^{n+1/2} + dt/2 a^{n+1}.
-// One density pass and one force pass per step.
+// One density pass and one force pass per step. A scheme with transport velocity (TVF,
+// scheme.hpp) drifts with ṽ = v^{n+1/2} + dt/2 ã^n instead, ã^n its background acceleration
+// of the last force evaluation, and evaluates forces with the shift δv = dt/2 ã^n.
 #pragma once
 
 #include <array>
@@ -23,6 +25,7 @@
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
+#include "sim/scheme.hpp"
 #include "sim/subfilter.hpp"
 
 namespace sphles::sim {
@@ -71,8 +74,8 @@ struct SolverConfig {
   double support_radius = 0.0;    // H = D_K / 2 [m]
   double particle_spacing = 0.0;  // Δl [m], sets the time-step limits
   FluidParameters fluid;
-  ViscousOperator viscous_operator = ViscousOperator::Thesis;
   TimeStepConfig time_step;
+  SchemeConfig scheme;            // SPH scheme (scheme.hpp); the thesis model by default
   SubfilterConfig subfilter;      // explicit sub-filter model (SPEC §4); implicit by default
   double neighbour_skin = 0.15;   // Verlet skin as a fraction of H
   ExternalAcceleration external;  // optional
@@ -133,7 +136,8 @@ class BlowUpError : public SimulationError {
 /// Everything a bitwise-exact restart needs: the particle arrays in their current order (with
 /// the acceleration a^n the next kick uses), the positions the current Verlet list was built
 /// from (rebuilding from them gives the identical list, hence identical summation order), the
-/// time, the step and the build counter.
+/// time, the step and the build counter. A scheme's own fields (SchemeFields: the background
+/// acceleration of the TVF) are functions of the positions and are recomputed on restore.
 struct SolverState {
   ParticleArrays particles;
   std::array<std::vector<double>, 3> list_reference_positions;

@@ -85,7 +85,7 @@ TEST(ConsistentStart, SceneKeyIsValidatedAndWritten) {
 double effective_viscosity_ratio(int per_side, double diameter_over_spacing, ViscousOperator op) {
   const Scene scene = parse_scene(taylor_green_2d(per_side, diameter_over_spacing));
   RunSetup setup = setup_run(scene, packing_cache());
-  setup.solver.viscous_operator = op;
+  setup.solver.scheme.viscous_operator = op;
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   ParticleArrays p = sim->particles();
   const NeighbourList& list = *sim->neighbour_list();
@@ -141,7 +141,7 @@ TEST(ViscousOperator, EffectiveViscosityOnThePackedArrangement) {
 TEST(ViscousOperator, CorrectedKeepsMomentaAndDeterminism) {
   for (const int dim : {2, 3}) {
     testing::RandomFlow flow = testing::random_flow(dim, dim == 3 ? 10 : 24, 6.0, 1.0, 5);
-    flow.config.viscous_operator = ViscousOperator::Corrected;
+    flow.config.scheme.viscous_operator = ViscousOperator::Corrected;
     flow.config.fluid.dynamic_viscosity = 1e-2;
     auto one = [&](int threads) {
       const int saved = omp_get_max_threads();
@@ -167,7 +167,7 @@ TEST(ViscousOperator, CorrectedKeepsMomentaAndDeterminism) {
     }
 
     testing::RotatingCluster cluster = testing::rotating_cluster(dim);
-    cluster.config.viscous_operator = ViscousOperator::Corrected;
+    cluster.config.scheme.viscous_operator = ViscousOperator::Corrected;
     cluster.config.fluid.dynamic_viscosity = 1e-2;
     auto sim = make_simulation(cluster.config, cluster.particles);
     const double e0 = sim->diagnostics().kinetic_energy;
@@ -182,10 +182,11 @@ TEST(ViscousOperator, CorrectedKeepsMomentaAndDeterminism) {
 
 TEST(ViscousOperator, SceneKeyIsValidated) {
   nlohmann::json doc = taylor_green_2d(16, 4);
-  EXPECT_EQ(parse_scene(doc).viscous_operator, ViscousOperator::Thesis);
+  EXPECT_EQ(parse_scene(doc).scheme.viscous_operator, ViscousOperator::Thesis);
   doc["scheme"] = {{"viscous_operator", "corrected"}};
-  EXPECT_EQ(parse_scene(doc).viscous_operator, ViscousOperator::Corrected);
-  EXPECT_EQ(make_solver_config(parse_scene(doc)).viscous_operator, ViscousOperator::Corrected);
+  EXPECT_EQ(parse_scene(doc).scheme.viscous_operator, ViscousOperator::Corrected);
+  EXPECT_EQ(make_solver_config(parse_scene(doc)).scheme.viscous_operator,
+            ViscousOperator::Corrected);
   doc["scheme"] = {{"viscous_operator", "morris"}};
   try {
     parse_scene(doc);

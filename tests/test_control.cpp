@@ -259,6 +259,14 @@ TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {
     EXPECT_NE(std::string(e.what()).find("create a new run"), std::string::npos);
   }
   try {
+    // The stored a^n belongs to the scheme that computed it.
+    run.apply_changes({{"scheme", {{"type", "transport_velocity"}}}});
+    ADD_FAILURE() << "scheme change accepted";
+  } catch (const ChangeError& e) {
+    EXPECT_EQ(e.field(), "scheme.type");
+    EXPECT_NE(std::string(e.what()).find("create a new run"), std::string::npos) << e.what();
+  }
+  try {
     run.apply_changes({{"fluid", {{"reference_pressure", "high"}}}});
     ADD_FAILURE() << "string p_ref accepted";
   } catch (const ChangeError& e) {

@@ -10,10 +10,11 @@
 namespace sphles::sim {
 namespace {
 
-ParticleArrays run_with_threads(int threads, int dim) {
+ParticleArrays run_with_threads(int threads, int dim, SchemeType scheme) {
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
   auto flow = testing::random_flow(dim, dim == 3 ? 12 : 40, dim == 3 ? 6.0 : 8.0, 1.0, 11);
+  flow.config.scheme.type = scheme;
   auto sim = make_simulation(flow.config, flow.particles);
   for (int step = 0; step < 60; ++step) sim->step();
   omp_set_num_threads(saved);
@@ -24,13 +25,13 @@ bool bitwise_equal(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
-class DeterminismTest : public ::testing::TestWithParam<int> {};
+class DeterminismTest : public ::testing::TestWithParam<std::tuple<int, SchemeType>> {};
 
 TEST_P(DeterminismTest, OneAndTwoThreadsGiveIdenticalState) {
-  const int dim = GetParam();
-  const ParticleArrays one = run_with_threads(1, dim);
+  const auto [dim, scheme] = GetParam();
+  const ParticleArrays one = run_with_threads(1, dim, scheme);
   for (const int threads : {2, 3}) {
-    const ParticleArrays many = run_with_threads(threads, dim);
+    const ParticleArrays many = run_with_threads(threads, dim, scheme);
     EXPECT_EQ(one.id, many.id) << threads << " threads";
     for (int d = 0; d < dim; ++d) {
       EXPECT_TRUE(bitwise_equal(one.position[d], many.position[d])) << threads << " threads";
@@ -43,7 +44,14 @@ TEST_P(DeterminismTest, OneAndTwoThreadsGiveIdenticalState) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(Dimensions, DeterminismTest, ::testing::Values(2, 3));
+INSTANTIATE_TEST_SUITE_P(DimensionsAndSchemes, DeterminismTest,
+                         ::testing::Combine(::testing::Values(2, 3),
+                                            ::testing::Values(SchemeType::Thesis,
+                                                              SchemeType::TransportVelocity)),
+                         [](const auto& info) {
+                           return std::to_string(std::get<0>(info.param)) + "D_" +
+                                  std::string(scheme_name(std::get<1>(info.param)));
+                         });
 
 }  // namespace
 }  // namespace sphles::sim

@@ -397,7 +397,8 @@ TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
       {"case=kolmogorov2d", {{"case", "kolmogorov2d"}}},
       {"kernel.type=quintic_spline", {{"kernel", {{"type", "quintic_spline"}}}}},
       {"fluid.sound_speed=20", {{"fluid", {{"sound_speed", 20}}}}},
-      {"subfilter.model=smagorinsky", {{"subfilter", {{"model", "smagorinsky"}}}}}};
+      {"subfilter.model=smagorinsky", {{"subfilter", {{"model", "smagorinsky"}}}}},
+      {"scheme.type=transport_velocity", {{"scheme", {{"type", "transport_velocity"}}}}}};
   for (const auto& [assignment, patch] : refused) {
     const Reply change = api.patch("/api/runs/" + live + "/parameters", patch);
     ASSERT_EQ(change.status, 400) << change.body;

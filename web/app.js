@@ -35,7 +35,7 @@ const TGV2D_SCENE_OPTION = {
   // Shown in the form only; the server fills in the same defaults.
   defaults: {
     particles_per_side: 128, kernel: { type: 'wendland_c4' },
-    subfilter: { model: 'implicit', smagorinsky_constant: 0.15 },
+    subfilter: { model: 'implicit', smagorinsky_constant: 0.15 }, scheme: { type: 'thesis' },
     fluid: { sound_speed: 10, reference_pressure: 1 }, time: { end: 2 },
   },
   builtinScene: true,
