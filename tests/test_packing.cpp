@@ -146,6 +146,7 @@ TEST(PackingCacheDirectory, IsAProgramSettingNotASceneKey) {
 TEST_F(PackingTest, TaylorGreen3DInitialState) {
   Scene s = scene(3, 16);
   s.packing.enabled = false;
+  s.initial.mass = InitialMass::Lattice;
   const RunSetup setup = setup_run(s, options());
   const ParticleArrays& p = setup.particles;
   // (5.1) at a lattice point and mass from (5.2) via the EOS: M0 = ρ0 Δl³.
