@@ -7,6 +7,7 @@
 #include <fstream>
 #include <iomanip>
 #include <limits>
+#include <numbers>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
@@ -37,7 +38,25 @@ json tgv2d_scene(double reynolds, int n, const std::string& kernel, double dk) {
             {"sound_speed", 10.0},
             {"reference_pressure", 1.0},
             {"dynamic_viscosity", 1.0 / reynolds}}},
+          {"initial", {{"mass", "lattice"}}},  // the baseline rows: the thesis' start
           {"time", {{"end", 2.0}}}};
+}
+
+/// The peers' 2D Taylor-Green vortex (PySPH, DualSPHysics, SPHinXsys): Re = 100 on a unit box,
+/// U = 1, c0 = 10, t = 2, i.e. ν = 2π/100 and t = 4π in the 2π box (SPEC §8), 100² particles,
+/// WC4 D_K = 8Δl. `scheme`, `initial` and the background pressure vary.
+json peers_scene(int n, const json& scheme, const std::string& initial_mass, double pressure) {
+  return {{"case", "tgv2d"},
+          {"particles_per_side", n},
+          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8.0}}},
+          {"fluid",
+           {{"reference_density", 1.0},
+            {"sound_speed", 10.0},
+            {"reference_pressure", pressure},
+            {"dynamic_viscosity", 2.0 * std::numbers::pi / 100.0}}},
+          {"scheme", scheme},
+          {"initial", {{"mass", initial_mass}}},
+          {"time", {{"end", 4.0 * std::numbers::pi}}}};
 }
 
 /// 3D Taylor-Green vortex (SPEC §6.1: c_s = 5, p_ref = 6.25) at the DNS' Re = 5000
@@ -52,6 +71,7 @@ json tgv3d_scene(int n, const std::string& kernel, double dk, const std::string&
             {"reference_pressure", 6.25},
             {"dynamic_viscosity", 2e-4}}},
           {"subfilter", {{"model", model}}},
+          {"initial", {{"mass", "lattice"}}},
           {"time", {{"end", kMisfitEndTime}}}};
 }
 
@@ -65,6 +85,7 @@ json kolmogorov_scene(int n) {
           {"box_length", 0.012},
           {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
           {"forcing", {{"amplitude", 1.8}, {"periods", 2}}},
+          {"initial", {{"mass", "lattice"}}},
           {"time", {{"end", 1.0}}}};
 }
 
@@ -110,6 +131,20 @@ double tgv2d_velocity_error(const sim::ParticleArrays& p, double v0, double nu, 
   return std::sqrt(error / norm);
 }
 
+/// PySPH's L1 error of the speed (examples/taylor_green.py): mean_i | |v_i| - |v_a(x_i, t)| | /
+/// mean_i |v_a(x_i, t)|, unweighted over the particles.
+double tgv2d_speed_l1_error(const sim::ParticleArrays& p, double v0, double nu, double time) {
+  double error = 0.0, norm = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const auto [ux, uy] =
+        sim::taylor_green_2d_velocity(v0, nu, time, p.position[0][i], p.position[1][i]);
+    const double exact = std::hypot(ux, uy);
+    error += std::abs(std::hypot(p.velocity[0][i], p.velocity[1][i]) - exact);
+    norm += exact;
+  }
+  return error / norm;
+}
+
 /// ν⟨ω²⟩ (4.6) with ω from the nearest-particle grid of spacing Δl/2 (SPEC §5).
 double grid_viscous_dissipation(const sim::ParticleArrays& p, int particles_per_side,
                                 double box_length, double nu) {
@@ -145,6 +180,8 @@ void finish_tgv2d(RunResult& r) {
   r.energy_error = std::sqrt(error / norm);
   r.velocity_error_rms = std::sqrt(velocity / static_cast<double>(r.history.size()));
   r.velocity_error_end = r.history.back().velocity_error;
+  r.speed_l1_error_end = r.history.back().speed_l1_error;
+  r.energy_error_end = r.history.back().kinetic_energy / r.history.back().reference_energy - 1.0;
 }
 
 void finish_tgv3d(RunResult& r, const ReferenceHistory& dns) {
@@ -262,13 +299,41 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
                                    kernel + " D_K/dl=" + number_label(diameters[c]) + " " + model,
                                    tgv3d_scene(n, kernel, diameters[c], model), 0.1));
         }
+  } else if (study == "peers") {
+    // The peers' 2D case (SPEC §8) at 100²: the thesis model as the peers' comparison ran it
+    // (p_ref = 1, lattice masses), the consistent start, the corrected viscous operator, and the
+    // transport-velocity scheme at background pressures around PySPH's p_b = ρ c_s² = 100.
+    // Quick: the thesis model and TVF at p_b = 100, 50².
+    struct PeersConfig {
+      const char* name;
+      json scheme;
+      const char* initial_mass;
+      double pressure;
+      bool quick;
+    };
+    const json thesis = {{"type", "thesis"}};
+    const json corrected = {{"type", "thesis"}, {"viscous_operator", "corrected"}};
+    const json tvf = {{"type", "transport_velocity"}};
+    const PeersConfig configs[] = {
+        {"thesis p_ref=1 lattice", thesis, "lattice", 1.0, true},
+        {"thesis p_ref=1 summation", thesis, "summation", 1.0, false},
+        {"thesis-corrected p_ref=1 summation", corrected, "summation", 1.0, false},
+        {"tvf p_b=100 summation", tvf, "summation", 100.0, true},
+        {"tvf p_b=200 summation", tvf, "summation", 200.0, false},
+    };
+    for (const PeersConfig& c : configs)
+      for (const int n : {50, 100}) {
+        if (quick ? (!c.quick || n != 50) : n != 100) continue;
+        runs.push_back(
+            make_spec("peers", c.name, peers_scene(n, c.scheme, c.initial_mass, c.pressure), 0.1));
+      }
   } else if (study == "kolmogorov") {
     for (const int n : {24, 36, 48, 72}) {
       if (quick && n > 36) continue;
       runs.push_back(make_spec("kolmogorov", "wendland_c4 D_K/dl=8", kolmogorov_scene(n), 0.02));
     }
   } else {
-    throw std::invalid_argument("unknown study '" + study + "' (2d, 3d, kolmogorov)");
+    throw std::invalid_argument("unknown study '" + study + "' (2d, 3d, peers, kolmogorov)");
   }
   return runs;
 }
@@ -315,6 +380,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
     if (tgv2d) {
       s.reference_energy = sim::taylor_green_2d_energy(scene.velocity_amplitude, nu, s.time);
       s.velocity_error = tgv2d_velocity_error(p, scene.velocity_amplitude, nu, s.time);
+      s.speed_l1_error = tgv2d_speed_l1_error(p, scene.velocity_amplitude, nu, s.time);
     } else if (tgv3d) {
       s.reference_energy = interpolate(reference->time, reference->energy, s.time);
     } else if (kolmogorov) {
@@ -385,7 +451,7 @@ void write_summary_header(std::ostream& out) {
          "cpu_seconds,total_wall_seconds,energy_error,velocity_error_end,velocity_error_rms,"
          "energy_misfit,dissipation_misfit,peak_dissipation,peak_time,final_energy,mean_u_rms,"
          "mean_energy_injection,mean_viscous_dissipation,mean_film_dissipation,"
-         "mean_energy_change,budget_imbalance\n";
+         "mean_energy_change,budget_imbalance,energy_error_end,speed_l1_error_end\n";
 }
 
 void write_summary_row(std::ostream& out, const RunResult& r) {
@@ -405,12 +471,13 @@ void write_summary_row(std::ostream& out, const RunResult& r) {
       << optional_number(kf, r.mean_viscous_dissipation) << ','
       << optional_number(kf, r.mean_film_dissipation) << ','
       << optional_number(kf, r.mean_energy_change) << ',' << optional_number(kf, r.budget_imbalance)
-      << '\n';
+      << ',' << optional_number(t2, r.energy_error_end) << ','
+      << optional_number(t2, r.speed_l1_error_end) << '\n';
 }
 
 void write_history_header(std::ostream& out) {
   out << "study,label,time,kinetic_energy,reference_energy,velocity_error,dissipation,"
-         "energy_injection,viscous_dissipation,film_dissipation,u_rms\n";
+         "energy_injection,viscous_dissipation,film_dissipation,u_rms,speed_l1_error\n";
 }
 
 void write_history_rows(std::ostream& out, const RunResult& r) {
@@ -419,7 +486,7 @@ void write_history_rows(std::ostream& out, const RunResult& r) {
     out << r.spec.study << ',' << r.spec.label << ',' << s.time << ',' << s.kinetic_energy << ','
         << s.reference_energy << ',' << s.velocity_error << ',' << s.dissipation << ','
         << s.energy_injection << ',' << s.viscous_dissipation << ',' << s.film_dissipation << ','
-        << s.u_rms << '\n';
+        << s.u_rms << ',' << s.speed_l1_error << '\n';
 }
 
 }  // namespace sphles::accuracy

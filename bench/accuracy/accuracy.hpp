@@ -13,7 +13,7 @@
 
 namespace sphles::accuracy {
 
-/// Studies: "tgv2d_re100", "tgv2d_re1000", "tgv3d_re5000", "kolmogorov".
+/// Studies: "tgv2d_re100", "tgv2d_re1000", "tgv3d_re5000", "peers", "kolmogorov".
 struct RunSpec {
   std::string study;
   std::string config;  // everything but the resolution, e.g. "wendland_c4 D_K/dl=8"
@@ -38,6 +38,7 @@ struct Sample {
   double kinetic_energy = 0.0;       // e_v of (5.3), the solver's diagnostic [m²/s²]
   double reference_energy = 0.0;     // tgv2d: analytic e_v(t); tgv3d: DNS E(t) interpolated
   double velocity_error = 0.0;       // tgv2d: relative L2 error of the particle velocities
+  double speed_l1_error = 0.0;       // tgv2d: PySPH's L1 error of |v|
   double dissipation = 0.0;          // tgv3d: -de_v/dt by centred differences of the samples
   double energy_injection = 0.0;     // kolmogorov: ⟨χ sin(k_y y) v_x⟩ [m²/s³]
   double viscous_dissipation = 0.0;  // kolmogorov: ν⟨ω²⟩ on the Δl/2 grid (4.6) [m²/s³]
@@ -67,6 +68,8 @@ struct RunResult {
   double energy_error = 0.0;        // relative L2 of e_v(t) over the samples
   double velocity_error_end = 0.0;  // relative L2 velocity error at end_time
   double velocity_error_rms = 0.0;  // RMS over the samples of the relative L2 velocity error
+  double energy_error_end = 0.0;    // e_v(end) / e_v,exact(end) - 1 (signed)
+  double speed_l1_error_end = 0.0;  // PySPH's L1 error of |v| at end_time
   // tgv3d (t in [0, 12] on the DNS time grid)
   double energy_misfit = 0.0;       // relative L2 of e_v against the DNS E
   double dissipation_misfit = 0.0;  // relative L2 of -de_v/dt against the DNS -dE/dt
@@ -85,7 +88,8 @@ struct RunResult {
   std::vector<Sample> history;
 };
 
-/// The configurations of `study` ("2d", "3d" or "kolmogorov"); `quick` gives a few-minute subset.
+/// The configurations of `study` ("2d", "3d", "peers" or "kolmogorov"); `quick` gives a few-minute
+/// subset.
 std::vector<RunSpec> make_matrix(const std::string& study, bool quick);
 
 /// The same configuration at another resolution (the label's N is replaced).

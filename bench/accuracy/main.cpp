@@ -1,6 +1,6 @@
 // sphles_accuracy: run time against error (issue 8, docs/accuracy.md).
 //
-//   build/bench/sphles_accuracy [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR]
+//   build/bench/sphles_accuracy [--quick] [--only 2d|3d|peers|kolmogorov[,...]] [--out DIR]
 //                               [--reference FILE] [--threads T] [--refine-2d K]
 //                               [--refine-2d-side N] [--refine-3d-sides N[,N...]]
 //                               [--wall-limit SECONDS] [--sides N[,N...]] [--config NAME[,...]]
@@ -49,7 +49,7 @@ namespace ac = sphles::accuracy;
 
 int usage(const char* program) {
   std::cerr << "usage: " << program
-            << " [--quick] [--only 2d|3d|kolmogorov[,...]] [--out DIR] [--reference FILE]\n"
+            << " [--quick] [--only 2d|3d|peers|kolmogorov[,...]] [--out DIR] [--reference FILE]\n"
                "       [--threads T] [--refine-2d K] [--refine-2d-side N]\n"
                "       [--refine-3d-sides N[,N...]] [--wall-limit SECONDS] [--sides N[,N...]]\n"
                "       [--config NAME[,NAME...]] [--merge] [--list] [--trace]\n"
