@@ -2,7 +2,7 @@
 //
 // Debian 12's VTK 9.1 is built for GLX only, so this library creates its own OSMesa context
 // (software, llvmpipe), hands it to a vtkGenericOpenGLRenderWindow and routes GLEW's entry-point
-// loader to OSMesa (see render/gl_loader.cpp and docs in /work/shared/notes/headless-vtk.md).
+// loader to OSMesa (see render/gl_loader.cpp and docs/rendering.md).
 //
 // Threading: a Renderer owns one OSMesa context and is used from one thread at a time; make one
 // renderer per thread. The free functions render_slice_png / render_slices_png keep one

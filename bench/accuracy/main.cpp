@@ -199,7 +199,7 @@ int main(int argc, char** argv) {
   bool refine_3d_set = false;
   std::vector<std::string> overrides;  // "dotted.key=value", applied to every scene
   ac::RunOptions options;
-  options.reference_path = "../shared/reference/tgv_re5000_incompact3d_1280_dairay2017.dat";
+  options.reference_path = SPHLES_SOURCE_DIR "/data/reference/tgv_re5000_incompact3d_1280_dairay2017.dat";
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];
     auto value = [&]() -> std::string {
