@@ -85,9 +85,9 @@ struct Scene {
   KernelType kernel = KernelType::WendlandC4;
   double kernel_diameter_over_spacing = 8.0;  // D_K / Δl
   FluidParameters fluid;
-  double velocity_amplitude = 1.0;                             // v0 [m/s]
-  std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};       // added to the initial field [m/s]
-  double end_time = 15.0;                                      // [s]
+  double velocity_amplitude = 1.0;                        // v0 [m/s]
+  std::array<double, 3> uniform_velocity{0.0, 0.0, 0.0};  // added to the initial field [m/s]
+  double end_time = 15.0;                                 // [s]
   TimeStepConfig time_step;
   BlowUpThresholds blow_up;  // runaway-energy test after every step (docs/stability.md)
   SchemeConfig scheme;       // SPH scheme (docs/models.md); the thesis model by default

@@ -10,16 +10,6 @@
 namespace sphles::sim {
 namespace {
 
-double momentum_scale(const ParticleArrays& p) {
-  double s = 0.0;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    double v2 = 0.0;
-    for (int d = 0; d < p.dimension; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
-    s += p.mass[i] * std::sqrt(v2);
-  }
-  return s;
-}
-
 class MomentumTest : public ::testing::TestWithParam<std::tuple<int, KernelType>> {};
 
 // Pair forces are antisymmetric, so Σ M v changes only by round-off: over 100 steps of a random
@@ -29,7 +19,7 @@ TEST_P(MomentumTest, ConservedToRoundOffOver100Steps) {
   auto flow = testing::random_flow(dim, dim == 3 ? 10 : 24, 4.0, 1.0, 7, kernel);
   auto sim = make_simulation(flow.config, flow.particles);
   const std::array<double, 3> initial = sim->diagnostics().momentum;
-  const double scale = momentum_scale(sim->particles());
+  const double scale = testing::momentum_scale(sim->particles());
   for (int step = 0; step < 100; ++step) sim->step();
   ASSERT_EQ(sim->step_count(), 100u);
   for (int d = 0; d < dim; ++d)

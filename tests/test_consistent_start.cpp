@@ -18,11 +18,6 @@
 namespace sphles::sim {
 namespace {
 
-SetupOptions packing_cache() {
-  return {.packing_cache_dir =
-              std::filesystem::temp_directory_path() / "sphles_validation_packing"};
-}
-
 nlohmann::json taylor_green_2d(int per_side, double diameter_over_spacing) {
   return {{"case", "tgv2d"},
           {"particles_per_side", per_side},
@@ -38,7 +33,7 @@ nlohmann::json taylor_green_2d(int per_side, double diameter_over_spacing) {
 /// Largest |ρ_i / ρ0_i - 1| of the first density pass, ρ0 from the case's pressure (5.2).
 double max_density_error(const nlohmann::json& doc) {
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene, packing_cache());
+  RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   const ParticleArrays& p = sim->particles();
   const double v0 = scene.velocity_amplitude,
@@ -84,7 +79,7 @@ TEST(ConsistentStart, SceneKeyIsValidatedAndWritten) {
 /// ν_eff = -Σ M v·a / (2 Σ M v²), the rate at which it removes energy, as a multiple of ν.
 double effective_viscosity_ratio(int per_side, double diameter_over_spacing, ViscousOperator op) {
   const Scene scene = parse_scene(taylor_green_2d(per_side, diameter_over_spacing));
-  RunSetup setup = setup_run(scene, packing_cache());
+  RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   setup.solver.scheme.viscous_operator = op;
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   ParticleArrays p = sim->particles();

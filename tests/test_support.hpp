@@ -3,6 +3,7 @@
 
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <random>
 #include <vector>
 
@@ -10,6 +11,24 @@
 #include "sim/solver.hpp"
 
 namespace sphles::sim::testing {
+
+/// The packing cache shared by the validation tests (packed arrangements are reused between
+/// tests and runs of the suite).
+inline SetupOptions validation_packing_cache() {
+  return {.packing_cache_dir =
+              std::filesystem::temp_directory_path() / "sphles_validation_packing"};
+}
+
+/// Σ M |v|: the scale of the momentum-conservation bounds.
+inline double momentum_scale(const ParticleArrays& p) {
+  double s = 0.0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    double v2 = 0.0;
+    for (int d = 0; d < p.dimension; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
+    s += p.mass[i] * std::sqrt(v2);
+  }
+  return s;
+}
 
 struct RandomFlow {
   SolverConfig config;

@@ -8,14 +8,10 @@
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
+#include "test_support.hpp"
 
 namespace sphles::sim {
 namespace {
-
-SetupOptions packing_cache() {
-  return {.packing_cache_dir =
-              std::filesystem::temp_directory_path() / "sphles_validation_packing"};
-}
 
 /// Runs a 2D Taylor-Green vortex at Re = 100 to t = 2 and returns the largest relative error of
 /// e_v(t) against e_v(0) exp(-4νt) (SPEC §6.2) over all steps.
@@ -31,7 +27,7 @@ double taylor_green_2d_error(int per_side, double diameter_over_spacing) {
         {"reference_pressure", 1.0}}},
       {"time", {{"end", 2.0}}}};
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene, packing_cache());
+  RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   const double nu = scene.fluid.kinematic_viscosity();
   const double e0 = sim->diagnostics().kinetic_energy;
@@ -73,7 +69,7 @@ TEST(TaylorGreen3D, InitialEnergyAndMonotoneDecay) {
   const nlohmann::json doc = {
       {"case", "tgv3d"}, {"particles_per_side", 20}, {"time", {{"end", 1.0}}}};
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene, packing_cache());
+  RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   EXPECT_NEAR(sim->diagnostics().kinetic_energy, 0.125, 0.125 * 0.01);
   double previous = sim->diagnostics().kinetic_energy;

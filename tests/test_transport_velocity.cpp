@@ -20,16 +20,6 @@ bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
-double momentum_scale(const ParticleArrays& p) {
-  double s = 0.0;
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    double v2 = 0.0;
-    for (int d = 0; d < p.dimension; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
-    s += p.mass[i] * std::sqrt(v2);
-  }
-  return s;
-}
-
 testing::RandomFlow transport_velocity_flow(int dim, std::uint64_t seed) {
   auto flow = testing::random_flow(dim, dim == 3 ? 10 : 24, 4.0, 1.0, seed);
   flow.config.scheme.type = SchemeType::TransportVelocity;
@@ -78,7 +68,7 @@ TEST_P(TransportVelocityMomentumTest, ConservedToRoundOffOver100Steps) {
   auto flow = transport_velocity_flow(dim, 7);
   auto sim = make_simulation(flow.config, flow.particles);
   const std::array<double, 3> initial = sim->diagnostics().momentum;
-  const double scale = momentum_scale(sim->particles());
+  const double scale = testing::momentum_scale(sim->particles());
   for (int step = 0; step < 100; ++step) sim->step();
   for (int d = 0; d < dim; ++d)
     EXPECT_NEAR(sim->diagnostics().momentum[d], initial[d], 1e-12 * scale) << "component " << d;
@@ -186,11 +176,6 @@ TEST(SchemeScene, ParsedWrittenAndBadNamesRejectedNamingTheField) {
 
 // --- 2D Taylor-Green vortex (SPEC §6.2): Re = 100, 64², WC4, D_K = 8Δl ----------------------
 
-SetupOptions packing_cache() {
-  return {.packing_cache_dir =
-              std::filesystem::temp_directory_path() / "sphles_validation_packing"};
-}
-
 constexpr int kTaylorGreenSide = 64;
 constexpr double kTaylorGreenEnd = 1.0;
 
@@ -229,7 +214,7 @@ TaylorGreenRun taylor_green(const std::string& scheme, double reference_pressure
                               {"scheme", {{"type", scheme}}},
                               {"time", {{"end", kTaylorGreenEnd}}}};
   const Scene scene = parse_scene(doc);
-  RunSetup setup = setup_run(scene, packing_cache());
+  RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   const double nu = scene.fluid.kinematic_viscosity();
   const double e0 = relative_energy(sim->particles());
