@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <functional>
 #include <iomanip>
 #include <limits>
 #include <numbers>
@@ -26,6 +27,9 @@ namespace {
 using nlohmann::json;
 
 constexpr double kMisfitEndTime = 12.0;  // the 3D comparison window t ∈ [0, 12]
+constexpr double kStartStudyEnd = 0.3;   // the start study: t ∈ [0, 0.3] ...
+constexpr double kStartStudySample =
+    0.05;  // ... sampled every 0.05 (the first sample is the floor)
 
 /// 2D Taylor-Green vortex (SPEC §6.2) as in the stability sweep: Ma = 0.1 (c_s = 10),
 /// p_ref = ρ v0² = 1; Re = v0 L / ν with L = 1, ρ = 1. t ∈ [0, 2].
@@ -327,13 +331,91 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
         runs.push_back(
             make_spec("peers", c.name, peers_scene(n, c.scheme, c.initial_mass, c.pressure), 0.1));
       }
+  } else if (study == "start") {
+    // The start-up error of issue 16: the 2D TGV at Re = 100 (WC4 8Δl) to t = 0.3, sampled every
+    // 0.05, at c_s = 10, 20, 40, with the thesis' lattice masses and the consistent start, for
+    // the thesis model and the TVF (p_b = ρ c_s²). The velocity error at t = 0.05 is the floor
+    // that acoustic waves from an inconsistent start leave. Quick: 32² and c_s = 10, 40.
+    const json tvf = {{"type", "transport_velocity"}};
+    for (const double sound_speed : {10.0, 20.0, 40.0})
+      for (const std::string mass : {"lattice", "summation"})
+        for (const bool transport : {false, true})
+          for (const int n : {32, 64}) {
+            if (quick && (n == 64 || sound_speed == 20.0)) continue;
+            if (transport && mass == "lattice") continue;
+            json scene = tgv2d_scene(100.0, n, "wendland_c4", 8.0);
+            scene["fluid"]["sound_speed"] = sound_speed;
+            scene["initial"]["mass"] = mass;
+            scene["time"]["end"] = kStartStudyEnd;
+            std::string name = std::string(transport ? "tvf" : "thesis") + " " + mass;
+            if (transport) {
+              scene["scheme"] = tvf;
+              scene["fluid"]["reference_pressure"] = sound_speed * sound_speed;  // ρ = 1
+            }
+            runs.push_back(make_spec("start", name + " c_s=" + number_label(sound_speed), scene,
+                                     kStartStudySample));
+          }
+  } else if (study == "schemes") {
+    // The head-to-head of issue 16: every scheme on the same cases and resolutions, the thesis
+    // model with its own start first (the baseline rows). The TVF's background pressure is
+    // p_b = ρ_ref c_s² (Adami et al. 2013; PySPH's choice); the other schemes keep each case's
+    // p_ref. Quick: the smallest resolution of each case.
+    enum class Pressure { Case, BulkModulus };
+    struct SchemeVariant {
+      const char* name;
+      json scheme;
+      const char* initial_mass;
+      Pressure pressure;
+    };
+    const SchemeVariant variants[] = {
+        {"thesis", {{"type", "thesis"}}, "lattice", Pressure::Case},
+        {"thesis+summation", {{"type", "thesis"}}, "summation", Pressure::Case},
+        {"thesis+corrected",
+         {{"type", "thesis"}, {"viscous_operator", "corrected"}},
+         "summation",
+         Pressure::Case},
+        {"tvf", {{"type", "transport_velocity"}}, "summation", Pressure::BulkModulus},
+    };
+    struct SchemeCase {
+      const char* study;
+      std::vector<int> sides;
+      double sample_interval;
+      std::function<json(int)> scene;
+    };
+    const SchemeCase cases[] = {
+        {"schemes_tgv2d_re100",
+         {32, 64, 128},
+         0.05,
+         [](int n) { return tgv2d_scene(100.0, n, "wendland_c4", 8.0); }},
+        {"schemes_tgv3d_re5000",
+         {24},
+         0.1,
+         [](int n) { return tgv3d_scene(n, "wendland_c4", 8.0, "implicit"); }},
+        {"schemes_kolmogorov", {24, 36, 48}, 0.02, [](int n) { return kolmogorov_scene(n); }},
+    };
+    for (const SchemeCase& c : cases)
+      for (const SchemeVariant& v : variants)
+        for (const int n : c.sides) {
+          if (quick && n != c.sides.front()) continue;
+          json scene = c.scene(n);
+          scene["scheme"] = v.scheme;
+          scene["initial"]["mass"] = v.initial_mass;
+          if (v.pressure == Pressure::BulkModulus) {
+            const sim::Scene parsed = sim::parse_scene(scene);
+            scene["fluid"]["reference_pressure"] = parsed.fluid.reference_density *
+                                                   parsed.fluid.sound_speed *
+                                                   parsed.fluid.sound_speed;
+          }
+          runs.push_back(make_spec(c.study, v.name, scene, c.sample_interval));
+        }
   } else if (study == "kolmogorov") {
     for (const int n : {24, 36, 48, 72}) {
       if (quick && n > 36) continue;
       runs.push_back(make_spec("kolmogorov", "wendland_c4 D_K/dl=8", kolmogorov_scene(n), 0.02));
     }
   } else {
-    throw std::invalid_argument("unknown study '" + study + "' (2d, 3d, peers, kolmogorov)");
+    throw std::invalid_argument("unknown study '" + study +
+                                "' (2d, 3d, peers, start, schemes, kolmogorov)");
   }
   return runs;
 }

@@ -1,6 +1,7 @@
 // sphles_accuracy: run time against error (issue 8, docs/accuracy.md).
 //
-//   build/bench/sphles_accuracy [--quick] [--only 2d|3d|peers|kolmogorov[,...]] [--out DIR]
+//   build/bench/sphles_accuracy [--quick] [--only 2d|3d|peers|start|schemes|kolmogorov[,...]]
+//   [--out DIR]
 //                               [--reference FILE] [--threads T] [--refine-2d K]
 //                               [--refine-2d-side N] [--refine-3d-sides N[,N...]]
 //                               [--wall-limit SECONDS] [--sides N[,N...]] [--config NAME[,...]]
@@ -49,7 +50,8 @@ namespace ac = sphles::accuracy;
 
 int usage(const char* program) {
   std::cerr << "usage: " << program
-            << " [--quick] [--only 2d|3d|peers|kolmogorov[,...]] [--out DIR] [--reference FILE]\n"
+            << " [--quick] [--only 2d|3d|peers|start|schemes|kolmogorov[,...]] [--out DIR] "
+               "[--reference FILE]\n"
                "       [--threads T] [--refine-2d K] [--refine-2d-side N]\n"
                "       [--refine-3d-sides N[,N...]] [--wall-limit SECONDS] [--sides N[,N...]]\n"
                "       [--config NAME[,NAME...]] [--merge] [--list] [--trace]\n"
@@ -199,7 +201,8 @@ int main(int argc, char** argv) {
   bool refine_3d_set = false;
   std::vector<std::string> overrides;  // "dotted.key=value", applied to every scene
   ac::RunOptions options;
-  options.reference_path = SPHLES_SOURCE_DIR "/data/reference/tgv_re5000_incompact3d_1280_dairay2017.dat";
+  options.reference_path =
+      SPHLES_SOURCE_DIR "/data/reference/tgv_re5000_incompact3d_1280_dairay2017.dat";
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];
     auto value = [&]() -> std::string {
@@ -283,7 +286,10 @@ int main(int argc, char** argv) {
       continue;
     }
     ac::ReferenceHistory reference;
-    if (study == "3d") {
+    const bool needs_reference = std::any_of(runs.begin(), runs.end(), [](const ac::RunSpec& r) {
+      return r.scene.value("case", "") == "tgv3d";
+    });
+    if (needs_reference) {
       try {
         reference = ac::read_reference(options.reference_path);
       } catch (const std::exception& e) {

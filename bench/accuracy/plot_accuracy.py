@@ -10,6 +10,7 @@ DIR (default docs) holds accuracy_<study>.csv and accuracy_history_<study>.csv f
   FIGURES/accuracy_tgv3d.png         3D Taylor-Green: misfits against the DNS vs wall time, peak
   FIGURES/accuracy_tgv3d_history.png e_v(t) and -de_v/dt of every run against the DNS
   FIGURES/accuracy_kolmogorov.png    Kolmogorov flow: u_rms, budget terms and imbalance vs wall
+  FIGURES/accuracy_schemes.png       the schemes head-to-head (study schemes): error vs CPU time
 FIGURES defaults to DIR/figures. With --tables, prints the Markdown tables of docs/accuracy.md
 (Pareto fronts and the best run per time budget). Wall time is the single-thread wall time of
 the solver steps (column wall_seconds). Needs matplotlib (Debian: python3-matplotlib).
@@ -360,6 +361,82 @@ def plot_kolmogorov(rows, history, path):
     plt.close(fig)
 
 
+# The head-to-head of the schemes (study "schemes"): per case, the error measure and its label.
+SCHEME_CASES = [
+    ("schemes_tgv2d_re100", "2D TGV Re = 100: velocity error at t = 2", "velocity_error_end"),
+    ("schemes_tgv3d_re5000", "3D TGV Re = 5000: e_v misfit to the DNS over [0, 12]",
+     "energy_misfit"),
+    ("schemes_kolmogorov", "Kolmogorov (reduced): |budget imbalance|", "abs_budget_imbalance"),
+]
+SCHEME_COLOURS = ["#000000", "#377eb8", "#4daf4a", "#e41a1c", "#984ea3", "#ff7f00"]
+
+
+def scheme_rows(rows):
+    for r in rows:
+        r["abs_budget_imbalance"] = abs(r["budget_imbalance"])
+    return rows
+
+
+def plot_schemes(rows, path):
+    """Error against single-thread CPU seconds of the solver steps, one panel per case, one
+    colour per scheme; each scheme's own Pareto front as a staircase."""
+    schemes = list(dict.fromkeys(r["config"] for r in rows))
+    colour = {s: SCHEME_COLOURS[k % len(SCHEME_COLOURS)] for k, s in enumerate(schemes)}
+    fig, axes = plt.subplots(1, len(SCHEME_CASES), figsize=(5.2 * len(SCHEME_CASES), 4.4))
+    for ax, (study, title, key) in zip(axes, SCHEME_CASES):
+        sub = [r for r in rows if r["study"] == study and math.isfinite(r[key])]
+        for scheme in schemes:
+            runs = [r for r in sub if r["config"] == scheme]
+            if not runs:
+                continue
+            front = pareto([dict(r, wall_seconds=r["cpu_seconds"]) for r in runs], key)
+            xs, ys = [], []
+            for k, r in enumerate(front):
+                xs.append(r["cpu_seconds"])
+                ys.append(r[key])
+                if k + 1 < len(front):
+                    xs.append(front[k + 1]["cpu_seconds"])
+                    ys.append(r[key])
+            ax.plot(xs, ys, color=colour[scheme], lw=1.2)
+            ax.scatter([r["cpu_seconds"] for r in runs], [r[key] for r in runs],
+                       color=colour[scheme], s=28, label=scheme, zorder=3)
+            for r in runs:
+                ax.annotate(f"{int(r['particles_per_side'])}", (r["cpu_seconds"], r[key]),
+                            fontsize=6, xytext=(3, 3), textcoords="offset points")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("single-thread CPU time of the steps [s]")
+        ax.set_title(title, fontsize=9)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def print_scheme_tables(rows):
+    """Per case: the best error of each scheme within each CPU budget (— where no run fits)."""
+    schemes = list(dict.fromkeys(r["config"] for r in rows))
+    for study, title, key in SCHEME_CASES:
+        sub = [r for r in rows if r["study"] == study and math.isfinite(r[key])]
+        if not sub:
+            continue
+        budgets = [b for b in BUDGETS if any(r["cpu_seconds"] <= b for r in sub)]
+        print(f"\n#### {title}: best error within a single-thread CPU budget\n")
+        print("| scheme | " + " | ".join(f"≤ {b} s" for b in budgets) + " |")
+        print("|---|" + "---|" * len(budgets))
+        for scheme in schemes:
+            cells = []
+            for b in budgets:
+                inside = [r for r in sub if r["config"] == scheme and r["cpu_seconds"] <= b]
+                if not inside:
+                    cells.append("—")
+                    continue
+                best = min(inside, key=lambda r: r[key])
+                cells.append(f"{fmt(best[key])} ({int(best['particles_per_side'])})")
+            print(f"| {scheme} | " + " | ".join(cells) + " |")
+
+
 def fmt(x, digits=3):
     return "—" if not math.isfinite(x) else f"{x:.{digits}g}"
 
@@ -470,10 +547,15 @@ def main():
         historyk = read_rows(os.path.join(d, "accuracy_history_kolmogorov.csv"))
         written.append(os.path.join(figures, "accuracy_kolmogorov.png"))
         plot_kolmogorov(rowsk, historyk, written[-1])
+    rowss = scheme_rows(read_rows(os.path.join(d, "accuracy_schemes.csv")))
+    if rowss:
+        written.append(os.path.join(figures, "accuracy_schemes.png"))
+        plot_schemes(rowss, written[-1])
     for w in written:
         print("wrote", w)
     if args.tables:
         print_tables(rows2, rows3, rowsk, history3)
+        print_scheme_tables(rowss)
 
 
 if __name__ == "__main__":
