@@ -1,6 +1,8 @@
-// Single-slot hand-over from one producer to one consumer that never blocks the producer on the
-// consumer's work: publish() replaces a value the consumer has not taken yet and counts it as
-// dropped. The consumer always gets the newest value.
+// Single-slot hand-over from one producer to one consumer. publish() never blocks the producer
+// on the consumer's work: it replaces a value the consumer has not taken yet and counts it as
+// dropped, so the consumer always gets the newest value (live viewers). publish_waiting() is the
+// lossless hand-over (outputs a scene asks for): it waits until the consumer has taken the
+// previous value, so at most one value waits while the consumer works on another.
 #pragma once
 
 #include <condition_variable>
@@ -34,6 +36,16 @@ class LatestValueMailbox {
     return replaced;
   }
 
+  /// Stores value once the slot is free (the consumer took the previous one) or the mailbox is
+  /// closed; drops nothing unless closed. Returns true if it replaced an untaken one.
+  bool publish_waiting(T value) {
+    {
+      std::unique_lock lock(mutex_);
+      taken_.wait(lock, [&] { return !pending_.has_value() || closed_; });
+    }
+    return publish(std::move(value));
+  }
+
   /// Waits for a value or close(); returns nothing once closed and empty.
   std::optional<T> take() {
     std::unique_lock lock(mutex_);
@@ -42,6 +54,8 @@ class LatestValueMailbox {
     std::optional<T> value = std::move(pending_);
     pending_.reset();
     ++counters_.taken;
+    lock.unlock();
+    taken_.notify_all();
     return value;
   }
 
@@ -52,6 +66,7 @@ class LatestValueMailbox {
       closed_ = true;
     }
     ready_.notify_all();
+    taken_.notify_all();
   }
 
   MailboxCounters counters() const {
@@ -62,6 +77,7 @@ class LatestValueMailbox {
  private:
   mutable std::mutex mutex_;
   std::condition_variable ready_;
+  std::condition_variable taken_;
   std::optional<T> pending_;
   bool closed_ = false;
   MailboxCounters counters_;

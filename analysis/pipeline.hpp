@@ -1,7 +1,10 @@
-// The solver → analysis hand-over: the solver thread publishes snapshots and goes on; one
-// analysis thread takes the newest, computes the requested products and hands each frame to the
-// sinks (writer, renderer, server). A snapshot published while an older one still waits replaces
-// it and is counted as dropped. The solver never waits for analysis.
+// The solver → analysis hand-over: the solver thread publishes snapshots; one analysis thread
+// takes them, computes the requested products and hands each frame to the sinks (writer,
+// renderer, server). Delivery::Lossless (what a run's saved outputs need, issue 17): publish
+// waits while an earlier snapshot still waits, so every snapshot is analysed and the solver is
+// held only when analysis falls more than one snapshot behind. Delivery::LatestOnly (live
+// viewing only): a snapshot published while an older one still waits replaces it and is counted
+// as dropped; the solver never waits.
 #pragma once
 
 #include <atomic>
@@ -28,16 +31,20 @@ struct PipelineCounters {
   double busy_seconds = 0.0;  // wall time spent analysing and in sinks
 };
 
+enum class Delivery { Lossless, LatestOnly };
+
 class AnalysisPipeline {
  public:
   /// Starts the analysis thread. `analysis_threads` OpenMP threads are used inside analysis
   /// (1 leaves the cores to the solver).
-  AnalysisPipeline(AnalysisConfig config, std::vector<FrameSink> sinks, int analysis_threads = 1);
+  AnalysisPipeline(AnalysisConfig config, std::vector<FrameSink> sinks, int analysis_threads = 1,
+                   Delivery delivery = Delivery::Lossless);
   ~AnalysisPipeline();  // close(false)
   AnalysisPipeline(const AnalysisPipeline&) = delete;
   AnalysisPipeline& operator=(const AnalysisPipeline&) = delete;
 
-  /// Hands over a snapshot; returns at once.
+  /// Hands over a snapshot: at once with LatestOnly; with Lossless once the previous one has
+  /// been taken.
   void publish(SnapshotPtr snapshot);
 
   /// Stops the thread. With drain, a snapshot still waiting is analysed first (end of a run);
@@ -58,6 +65,7 @@ class AnalysisPipeline {
   mutable std::mutex config_mutex_;
   AnalysisConfig config_;
   std::vector<FrameSink> sinks_;
+  Delivery delivery_;
   LatestValueMailbox<SnapshotPtr> mailbox_;
   std::atomic<bool> discard_{false};
   std::atomic<std::uint64_t> analysed_{0};

@@ -97,10 +97,12 @@ double run_steps_per_second(int per_side, double run_time, Mode mode,
   if (mode == Mode::SlowConsumerEveryStep) {
     an::AnalysisConfig spectrum_only = all_products();
     spectrum_only.products = {an::Product::Spectrum};
+    // Live viewing's delivery: the solver must not notice the slow consumer.
     pipeline = std::make_unique<an::AnalysisPipeline>(
         spectrum_only, std::vector<an::FrameSink>{[](const an::AnalysisFrame&) {
           std::this_thread::sleep_for(std::chrono::seconds(1));
-        }});
+        }},
+        1, an::Delivery::LatestOnly);
   }
   const bool every_step = mode == Mode::SlowConsumerEveryStep;
   const auto start = Clock::now();

@@ -16,8 +16,10 @@
 namespace sphles::control {
 
 namespace {
-/// Rendering yields the cores to the solver, like analysis (analysis/pipeline.cpp).
-constexpr int kRenderNice = 19;
+/// Rendering only for live viewers yields the cores to the solver, like LatestOnly analysis
+/// (analysis/pipeline.cpp); saved frames render at the solver's priority, since it waits for them.
+constexpr int kLiveOnlyRenderNice = 19;
+constexpr int kSavingRenderNice = 0;
 constexpr const char* kIndexHeader = "time,step,field,file\n";
 }  // namespace
 
@@ -37,7 +39,15 @@ RenderSink::~RenderSink() {
 }
 
 void RenderSink::post(std::shared_ptr<const analysis::AnalysisFrame> frame) {
-  mailbox_.publish(std::move(frame));
+  bool save = false;
+  {
+    std::lock_guard lock(mutex_);
+    save = config_.save;
+  }
+  if (save)
+    mailbox_.publish_waiting(std::move(frame));
+  else
+    mailbox_.publish(std::move(frame));
 }
 
 void RenderSink::set_config(render::RenderConfig config) {
@@ -84,9 +94,20 @@ void RenderSink::truncate_index_after(const std::filesystem::path& frames_dir, d
 }
 
 void RenderSink::run() {
-  setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), kRenderNice);
+  int nice = -1;  // none set yet
   while (auto frame = mailbox_.take()) {
     if (discard_) break;
+    bool save = false;
+    {
+      std::lock_guard lock(mutex_);
+      save = config_.save;
+    }
+    // Raising the priority back (a live change to saving) needs privileges a user may not
+    // have; then the thread stays at the lower one, still rendering every saved frame.
+    if (const int wanted = save ? kSavingRenderNice : kLiveOnlyRenderNice; wanted != nice) {
+      setpriority(PRIO_PROCESS, static_cast<id_t>(::syscall(SYS_gettid)), wanted);
+      nice = wanted;
+    }
     const auto start = std::chrono::steady_clock::now();
     try {
       render_one(**frame);

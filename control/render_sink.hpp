@@ -1,6 +1,8 @@
-// Rendering on its own thread: takes the newest analysis frame (older ones still waiting are
-// dropped and counted, so the solver and the analysis never wait for it), renders the images
-// the render configuration asks for, saves them as an image series and hands them on.
+// Rendering on its own thread: renders the images the render configuration asks for, saves
+// them as an image series and hands them on. When the configuration saves images every frame is
+// rendered (post waits while an earlier frame still waits, issue 17); when images are only for
+// live viewers it takes the newest frame (older ones still waiting are dropped and counted, so
+// the solver and the analysis never wait for it).
 //   frames/{field}_t{time}.png   frames/index.csv (time,step,field,file)
 #pragma once
 
@@ -44,6 +46,8 @@ class RenderSink {
   RenderSink(const RenderSink&) = delete;
   RenderSink& operator=(const RenderSink&) = delete;
 
+  /// Hands over a frame: waits for the previous one to be taken when images are saved,
+  /// else replaces a frame still waiting.
   void post(std::shared_ptr<const analysis::AnalysisFrame> frame);
   void set_config(render::RenderConfig config);
   /// Stops the thread; with drain, a frame still waiting is rendered first. Idempotent.

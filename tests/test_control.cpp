@@ -320,9 +320,13 @@ TEST(RunControl, RendersAndSavesTheImageSeriesWithAnIndex) {
     EXPECT_TRUE(is_png(std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {})));
   }
   EXPECT_EQ(fields, (std::set<std::string>{"combined", "omega2", "tau_sfs"}));
-  // Frames may be dropped while the renderer is busy (newest wins), but the last one is drained.
-  EXPECT_TRUE(std::filesystem::exists(dir / "frames" / "omega2_t0.1000.png"));
-  EXPECT_TRUE(std::filesystem::exists(dir / "frames" / "tau_sfs_t0.1000.png"));
+  // Saved frames are never dropped (issue 17): every analysis time t = 0, 0.05, 0.1, each field.
+  EXPECT_EQ(index.size(), 1u + 3u * 3u);
+  for (const char* time : {"0.0000", "0.0500", "0.1000"})
+    for (const char* field : {"combined", "omega2", "tau_sfs"})
+      EXPECT_TRUE(
+          std::filesystem::exists(dir / "frames" / (std::string(field) + "_t" + time + ".png")))
+          << field << " at " << time;
   std::lock_guard lock(recorder->mutex);
   ASSERT_FALSE(recorder->images.empty());
   EXPECT_TRUE(is_png(*recorder->images.back().png));

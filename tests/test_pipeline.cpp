@@ -73,6 +73,40 @@ TEST(Mailbox, ConcurrentProducerAndSlowConsumer) {
   EXPECT_LT(publish_seconds, 2.0);
 }
 
+// The lossless hand-over: a slow consumer gets every value, in order, and nothing is dropped.
+TEST(Mailbox, PublishWaitingDeliversEveryValueToASlowConsumer) {
+  LatestValueMailbox<int> box;
+  std::vector<int> received;
+  std::thread consumer([&] {
+    while (auto v = box.take()) {
+      received.push_back(*v);
+      std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+  });
+  constexpr int kValues = 500;
+  for (int k = 1; k <= kValues; ++k) box.publish_waiting(k);
+  box.close();
+  consumer.join();
+  const MailboxCounters c = box.counters();
+  EXPECT_EQ(c.published, static_cast<std::uint64_t>(kValues));
+  EXPECT_EQ(c.taken, static_cast<std::uint64_t>(kValues));
+  EXPECT_EQ(c.dropped, 0u);
+  ASSERT_EQ(received.size(), static_cast<std::size_t>(kValues));
+  for (int k = 0; k < kValues; ++k) EXPECT_EQ(received[k], k + 1);
+}
+
+// A producer waiting for the slot is released by close(), not left hanging.
+TEST(Mailbox, CloseReleasesAWaitingProducer) {
+  LatestValueMailbox<int> box;
+  box.publish(1);  // the slot is taken and nobody consumes
+  std::thread producer([&] { box.publish_waiting(2); });
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  box.close();
+  producer.join();  // a hang here is the failure
+  EXPECT_EQ(box.take(), 2);
+  EXPECT_EQ(box.counters().dropped, 1u);
+}
+
 // --- configuration ---------------------------------------------------------------------
 
 TEST(AnalysisConfig, DefaultsComputeNothing) {
@@ -288,7 +322,8 @@ TEST(Pipeline, SlowConsumerDropsSnapshotsAndLeavesSolverUntouched) {
                               std::this_thread::sleep_for(std::chrono::milliseconds(30));
                               times.push_back(frame.time);
                               ++frames;
-                            }});
+                            }},
+                            1, Delivery::LatestOnly);
   const sim::ParticleArrays with_analysis = run(&pipeline);
   pipeline.close(/*drain=*/true);
   EXPECT_TRUE(pipeline.error().empty()) << pipeline.error();
@@ -306,6 +341,47 @@ TEST(Pipeline, SlowConsumerDropsSnapshotsAndLeavesSolverUntouched) {
                           reference.size() * sizeof(double)),
               0);
   }
+}
+
+// Lossless delivery (the default, what saved outputs need): the same slow consumer analyses
+// every snapshot, in order, none dropped, and the solver's result is still bitwise the same.
+TEST(Pipeline, LosslessDeliveryAnalysesEverySnapshotOfASlowConsumer) {
+  const json doc = {{"case", "tgv2d"},
+                    {"particles_per_side", 32},
+                    {"kernel", {{"diameter_over_spacing", 6}}},
+                    {"packing", {{"enabled", false}}}};
+  const sim::Scene scene = sim::parse_scene(doc);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Spectrum};
+  std::vector<double> times;
+  constexpr int kSteps = 20;
+  sim::ParticleArrays with_analysis, reference;
+  for (const bool analyse : {false, true}) {
+    AnalysisPipeline pipeline(config, {[&](const AnalysisFrame& frame) {
+                                std::this_thread::sleep_for(std::chrono::milliseconds(30));
+                                times.push_back(frame.time);
+                              }});
+    sim::RunSetup setup = sim::setup_run(scene);
+    auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+    for (int step = 0; step < kSteps; ++step) {
+      simulation->step();
+      if (analyse) pipeline.publish(make_snapshot(*simulation));
+    }
+    pipeline.close(/*drain=*/true);
+    EXPECT_TRUE(pipeline.error().empty()) << pipeline.error();
+    const PipelineCounters c = pipeline.counters();
+    EXPECT_EQ(c.published, analyse ? kSteps : 0u);
+    EXPECT_EQ(c.analysed, c.published);
+    EXPECT_EQ(c.dropped, 0u);
+    (analyse ? with_analysis : reference) = simulation->particles();
+  }
+  ASSERT_EQ(times.size(), static_cast<std::size_t>(kSteps));
+  for (std::size_t k = 1; k < times.size(); ++k) EXPECT_LT(times[k - 1], times[k]);
+  for (int d = 0; d < 2; ++d)
+    EXPECT_EQ(std::memcmp(reference.velocity[d].data(), with_analysis.velocity[d].data(),
+                          reference.size() * sizeof(double)),
+              0);
 }
 
 TEST(Pipeline, CloseWithoutDrainDiscardsAndDestructorJoins) {
