@@ -23,8 +23,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-REFERENCE = os.path.join(ROOT, "..", "shared", "reference",
-                         "tgv_re5000_incompact3d_1280_dairay2017.dat")
+REFERENCE = os.path.join(ROOT, "data", "reference", "tgv_re5000_incompact3d_1280_dairay2017.dat")
 T_SPEC = 14.0
 NU = 1e-4
 
@@ -45,7 +44,18 @@ TGV_RUNS = {
     "case19_n32": ("SMAG 0.3 (case 19)", 32, "WC4", 8),
     "case20_n32": ("p_ref 68 (case 20)", 32, "WC4", 8),
     "case21_n32": ("p_ref 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
+    # The transport-velocity scheme (issue 16) on the same cases: run_findings.py, TVF.
+    "tvf_case8_n32": ("TVF: WC4 8Δl 32³ (case 8)", 32, "WC4", 8),
+    "tvf_case1_n32": ("TVF: QS 6Δl 32³ (case 1)", 32, "QS", 6),
+    "tvf_case5_n32": ("TVF: WC4 4Δl 32³ (case 5)", 32, "WC4", 4),
+    "tvf_case12_n32": ("TVF: SMAG 0.15 (case 12)", 32, "WC4", 8),
+    "tvf_case20_n32": ("TVF: p_b 68 (case 20)", 32, "WC4", 8),
+    "tvf_case21_n32": ("TVF: p_b 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
 }
+# The TVF runs and their thesis-model counterparts (figure validation_tvf.png).
+TVF_PAIRS = [("case8_n32", "tvf_case8_n32"), ("case1_n32", "tvf_case1_n32"),
+             ("case5_n32", "tvf_case5_n32"), ("case12_n32", "tvf_case12_n32"),
+             ("case20_n32", "tvf_case20_n32"), ("case21_n32", "tvf_case21_n32")]
 GROUPS = [
     ("kernel, D_K/Δl and N", ["case8_n24", "case8_n32", "case8_n48", "case8_n48_t5", "case1_n24", "case1_n32",
                               "case5_n32", "case6_n32"]),
@@ -63,6 +73,10 @@ STYLE = {
     "case17_n32": dict(color="tab:cyan", ls="-"), "case18_n32": dict(color="tab:green", ls=":"),
     "case19_n32": dict(color="tab:green", ls="--"),
     "case20_n32": dict(color="tab:brown", ls="-"), "case21_n32": dict(color="tab:pink", ls="--"),
+    "tvf_case8_n32": dict(color="tab:blue", ls="-"), "tvf_case1_n32": dict(color="tab:orange", ls="-"),
+    "tvf_case5_n32": dict(color="tab:red", ls="-"), "tvf_case12_n32": dict(color="tab:green", ls="-"),
+    "tvf_case20_n32": dict(color="tab:brown", ls="-"),
+    "tvf_case21_n32": dict(color="tab:pink", ls="--"),
 }
 
 rows = []  # (run, quantity, value, note)
@@ -629,6 +643,53 @@ TABLE = [("wall [s]", "wall_seconds", "{:.0f}"), ("steps", "steps", "{:d}"),
          ("⟨τ⟩/e_v at 5 / 14", ("tau_sfs_mean/e_v(5)", "tau_sfs_mean/e_v(14)"), "{:.2f}")]
 
 
+def plot_tvf(runs, ref, docs):
+    """e_v(t) and the smoothed ε(t) of the TVF runs against the DNS (the thesis-model
+    counterparts too when their run directories are present)."""
+    names = [n for pair in TVF_PAIRS for n in pair if n in runs]
+    if not any(n.startswith("tvf_") for n in names):
+        return
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(12, 4.5))
+    if ref is not None:
+        ax.plot(ref["t"], ref["e_v"], color="k", lw=1, label="DNS Re 5000 (guide)")
+        bx.plot(ref["t"], ref["eps"], color="k", lw=1, label="DNS Re 5000 (guide)")
+    for n in names:
+        r, st = runs[n], dict(STYLE[n])
+        if not n.startswith("tvf_"):
+            st.update(ls=":", lw=1)
+        ax.plot(r["ts"]["t"], r["ts"]["e_v"], label=TGV_RUNS[n][0], **st)
+        if "eps_smooth" in r:
+            bx.plot(*r["eps_smooth"], label=TGV_RUNS[n][0], **st)
+    ax.set_title("e_v(t), 32³: transport-velocity scheme (dotted: thesis model if present)",
+                 fontsize=9)
+    bx.set_title("ε(t) = -de_v/dt, 1.0 centred window", fontsize=9)
+    for a, top in ((ax, 0.13), (bx, 0.03)):
+        a.set_xlim(0, 15)
+        a.set_ylim(0, top)
+        a.set_xlabel("t")
+        a.grid(alpha=0.3)
+        a.legend(fontsize=7)
+    fig.tight_layout()
+    save(fig, docs, "validation_tvf.png")
+
+
+def read_kept_rows(path, loaded):
+    """The rows of an earlier validation_findings.csv whose run is not among `loaded` (--merge)."""
+    kept = []
+    if not os.path.exists(path):
+        return kept
+    with open(path, newline="") as f:
+        for run, quantity, value, note in list(csv.reader(f))[1:]:
+            if run in loaded or run == "campaign":
+                continue
+            try:
+                value = float(value)
+            except ValueError:
+                pass
+            kept.append((run, quantity, value, note))
+    return kept
+
+
 def print_table(runs):
     """The per-run numbers of the CSV as a markdown table (pasted into docs/validation.md)."""
     look = {(r, q): v for r, q, v, _ in rows}
@@ -644,8 +705,9 @@ def print_table(runs):
 
     print("| run | " + " | ".join(h for h, _, _ in TABLE) + " |")
     print("|---" * (len(TABLE) + 1) + "|")
+    recorded = {r for r, _, _, _ in rows}
     for n in list(TGV_RUNS) + ["dns_re5000"]:
-        if n in runs or n == "dns_re5000":
+        if n in runs or n in recorded:
             label = TGV_RUNS[n][0] if n in TGV_RUNS else "DNS Re 5000"
             print(f"| {label} | " + " | ".join(fmt(n, k, f) for _, k, f in TABLE) + " |")
 
@@ -657,6 +719,9 @@ def main():
     p.add_argument("--docs", default=os.path.join(ROOT, "docs"))
     p.add_argument("--t-spectra", type=float, default=T_SPEC,
                    help="time of spectra, slices and statistics (14; smaller only for tests)")
+    p.add_argument("--merge", action="store_true",
+                   help="keep the CSV rows of runs not found in --runs and write only the figures "
+                        "that need none of the missing runs (validation_tvf.png)")
     a = p.parse_args()
     T_SPEC = a.t_spectra
     os.makedirs(os.path.join(a.docs, "figures"), exist_ok=True)
@@ -681,18 +746,22 @@ def main():
     missing = [n for n in TGV_RUNS if n not in runs]
     if missing:
         print("not found (not run):", ", ".join(missing))
-    plot_energy(runs, ref, a.docs)
-    plot_decay(runs, ref, a.docs)
-    plot_spectra(runs, a.docs)
-    plot_spectra_time(runs, ref, a.docs)
-    plot_slices(runs, a.docs)
-    plot_joint(runs, a.docs)
-    kolmogorov(a.runs, a.docs)
+    out = os.path.join(a.docs, "validation_findings.csv")
+    if a.merge:
+        rows.extend(read_kept_rows(out, set(runs) | {"dns_re5000"}))
+    else:
+        plot_energy(runs, ref, a.docs)
+        plot_decay(runs, ref, a.docs)
+        plot_spectra(runs, a.docs)
+        plot_spectra_time(runs, ref, a.docs)
+        plot_slices(runs, a.docs)
+        plot_joint(runs, a.docs)
+        kolmogorov(a.runs, a.docs)
+    plot_tvf(runs, ref, a.docs)
     walls = [v for r, q, v, _ in rows if q == "wall_seconds"]
     record("campaign", "runs_completed", len(walls))
     record("campaign", "total_wall_seconds", round(float(sum(walls)), 0), "sum over runs")
     print_table(runs)
-    out = os.path.join(a.docs, "validation_findings.csv")
     with open(out, "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["run", "quantity", "value", "note"])

@@ -45,8 +45,8 @@ def tgv(name, preset, n, **extra):
 # wavelength λ = 6 mm), fluid, friction, c_s and p_ref are kept; the box is cut to two forcing
 # wavelengths (L = 12 mm, the least that keeps the long-wave Kolmogorov instability, k_x = k_y/2)
 # and resolved by 48² particles: Δl = 250 µm, D_K = 8Δl = 2 mm (thesis: 125 µm, 1 mm, λ/D_K = 6;
-# here 3). The thesis resolution in this box (96²) runs at ~8·10⁻⁶ s steps (the force limit of the
-# background-pressure term) and ~130 steps/s on one thread: 50 min per simulated second.
+# here 3). The thesis resolution in this box (96²) steps at the acoustic limit, 2.3·10⁻⁵ s
+# (43 000 steps per simulated second), about 11 min per simulated second on one idle thread.
 KOLMOGOROV_L = 0.042 * 2.0 / 7.0
 KOLMOGOROV = {
     "preset": "kolmogorov2d", "name": "kolmogorov_n48", "case": "kolmogorov2d",
@@ -79,6 +79,19 @@ RUNS = [
     tgv("case18_n32", "tgv3d-case18", 32),    # SMAG C_S = 0.075
     tgv("case8_n48", "tgv3d-case8", 48),      # N trend to t = 15 (about 30 min on one thread)
     tgv("case21_n32", "tgv3d-case21", 32),    # Galilean test, c_s = 16.5: 3.3x the steps
+]
+
+# Findings 1, 2, 6 and 7 again with the transport-velocity scheme (issue 16), beside the thesis
+# model's runs above: the consistent start, and the background pressure only in the transport
+# velocity, p_b = ρ c_s² = 25 (case 20 and 21: the cases' p_ref = 68).
+TVF = {"scheme": {"type": "transport_velocity"}, "initial": {"mass": "summation"}}
+RUNS += [
+    tgv("tvf_case8_n32", "tgv3d-case8", 32, fluid={"reference_pressure": 25.0}, **TVF),
+    tgv("tvf_case1_n32", "tgv3d-case1", 32, fluid={"reference_pressure": 25.0}, **TVF),
+    tgv("tvf_case5_n32", "tgv3d-case5", 32, fluid={"reference_pressure": 25.0}, **TVF),
+    tgv("tvf_case12_n32", "tgv3d-case12", 32, fluid={"reference_pressure": 25.0}, **TVF),
+    tgv("tvf_case20_n32", "tgv3d-case20", 32, **TVF),
+    tgv("tvf_case21_n32", "tgv3d-case21", 32, **TVF),
 ]
 
 
