@@ -13,16 +13,20 @@
 //
 // The ALE terms. Density stays by summation (density_pass, SPEC (5.2), constant masses): the
 // density of a particle follows its volume along the shifted path, dρ_i/dt = -ρ_i ∇·(v + δv),
-// so the continuity ALE term of the papers' -ρ∇·δv is implicit in the positions, and the mass
-// flux ∇·(ρ δv) the papers add to the continuity equation is not there (a particle keeps its
-// mass). The momentum equation consistent with that continuity equation (the same algebra that
-// takes the papers' pair ∇·(ρ δv) in continuity and -v ∇·(ρ δv) in momentum to each other) is
-//   ρ dv/dt = -∇p + viscous + ∇·(ρ v ⊗ δv),
-// the conservative term alone. It is discretised as in Sun et al. 2019 (their symmetric sum
-// Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j), whose pair terms of M_i a_i are
-// antisymmetric, so Σ M a = 0 to round-off. Pressure (A.9) and viscous term (A.14) are the thesis
-// model's (force_pass). The passes are in gather form like physics.hpp, so results do not depend
-// on the thread count.
+// so the continuity ALE term -ρ ∇·δv is implicit in the positions; the mass flux ∇·(ρ δv) the
+// papers add to their continuity equation is not there (a particle keeps its mass). The velocity
+// obeys dv/dt = Dv/Dt + δv·∇v along the shifted path whatever the density does; the papers write
+// ρ δv·∇v conservatively as ∇·(ρ v ⊗ δv) - v ∇·(ρ δv). Two discrete forms (scheme.ale_correction):
+//  - Conservative (default): the first term alone, in Sun et al. 2019's symmetric sum
+//    Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j. Its pair terms of M_i a_i are
+//    antisymmetric, so Σ M a = 0 to round-off; it is the momentum equation one derives from the
+//    summation continuity ρ d(v)/dt = d(ρv)/dt - v dρ/dt, but not Galilean invariant (a uniform U
+//    adds (U/ρ) ∇·(ρ δv)).
+//  - Full: both terms, (1/ρ_i) Σ_j ρ_j (v_j - v_i)(δv_j·∇W_ij) V_j = δv·∇v: Galilean invariant,
+//    but -v ∇·(ρ δv) has no antisymmetric pair form (its integral over a periodic box is not
+//    zero), so Σ M v is not conserved.
+// Pressure (A.9) and viscous term (A.14) are the thesis model's (ThesisScheme::forces). The
+// passes are in gather form like physics.hpp, so results do not depend on the thread count.
 #pragma once
 
 #include <array>
@@ -44,21 +48,34 @@ inline constexpr int kShiftingClusteringExponent = 4;
 /// limit the shift to half the reference velocity).
 inline constexpr double kShiftingSpeedLimit = 0.5;
 
+/// The discrete ALE correction of the momentum equation (scheme.ale_correction).
+enum class AleCorrection {
+  /// (1/ρ) ∇·(ρ v ⊗ δv) alone: antisymmetric pair terms, Σ M a = 0 to round-off; not Galilean
+  /// invariant (a uniform U adds (U/ρ) ∇·(ρ δv)).
+  Conservative,
+  /// Sun et al. 2019's (1/ρ) [∇·(ρ v ⊗ δv) - v ∇·(ρ δv)] = δv·∇v: Galilean invariant; the
+  /// -v_i ∇·(ρ δv)_i term is not antisymmetric, so Σ M v drifts.
+  Full,
+};
+
 /// The scheme's constants for one run (SchemeFields::shifting), formed once from the
 /// configuration.
 struct ShiftingParameters {
   double coefficient = 0.0;       // Ma c_0 (2h) = U · support radius [m²/s]
   double reference_kernel = 1.0;  // W(Δx), the kernel at one particle spacing
   double speed_limit = 0.0;       // the limiter's bound on |δv| [m/s]
+  AleCorrection ale = AleCorrection::Conservative;
 };
 
 /// Ma c_0 (2h), W(Δx) and the limiter from the reference velocity U = Ma c_0 [m/s], the kernel's
 /// support radius (2h) and W at one particle spacing.
 inline ShiftingParameters shifting_parameters(double reference_velocity, double support_radius,
-                                              double kernel_at_spacing) {
+                                              double kernel_at_spacing,
+                                              AleCorrection ale = AleCorrection::Conservative) {
   return {.coefficient = reference_velocity * support_radius,
           .reference_kernel = kernel_at_spacing,
-          .speed_limit = kShiftingSpeedLimit * reference_velocity};
+          .speed_limit = kShiftingSpeedLimit * reference_velocity,
+          .ale = ale};
 }
 
 /// The pair factor 1 + R (W_ij / W(Δx))^n of the shifting velocity (Sun et al. 2017, 2019);
@@ -83,6 +100,17 @@ inline double shifting_ale_term(double density_i, double velocity_i, double shif
                                 double density_j, double velocity_j, double shift_dot_gradient_j) {
   return density_i * velocity_i * shift_dot_gradient_i +
          density_j * velocity_j * shift_dot_gradient_j;
+}
+
+/// Component a of the pair term of Sun et al. 2019's full correction ∇·(ρ v ⊗ δv) - v_i ∇·(ρ δv):
+/// the conservative term less v_i,a (ρ_i δv_i·∇W_ij + ρ_j δv_j·∇W_ij), i.e.
+/// ρ_j (v_j,a - v_i,a)(δv_j·∇W_ij): unchanged by a uniform velocity added to v_i and v_j.
+inline double shifting_ale_full_term(double density_i, double velocity_i,
+                                     double shift_dot_gradient_i, double density_j,
+                                     double velocity_j, double shift_dot_gradient_j) {
+  return shifting_ale_term(density_i, velocity_i, shift_dot_gradient_i, density_j, velocity_j,
+                           shift_dot_gradient_j) -
+         velocity_i * (density_i * shift_dot_gradient_i + density_j * shift_dot_gradient_j);
 }
 
 /// The shifting velocity δv_i = -Ma c_0 (2h) Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j, limited to
@@ -136,9 +164,10 @@ void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box,
 }
 
 /// Adds the ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (the
-/// discrete (1/ρ) ∇·(ρ v ⊗ δv), Sun et al. 2019) at the given velocities and shifting velocities
-/// to p.acceleration. Requires density_pass on the same positions.
-template <int Dim, class KernelT>
+/// discrete (1/ρ) ∇·(ρ v ⊗ δv), Sun et al. 2019), with Full less (v_i/ρ_i) Σ_j (ρ_i δv_i +
+/// ρ_j δv_j)·∇W_ij V_j, at the given velocities and shifting velocities to p.acceleration.
+/// Requires density_pass on the same positions.
+template <int Dim, AleCorrection Ale, class KernelT>
 void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const VelocityView& velocity,
                        const VelocityView& shift, ParticleArrays& p) {
@@ -186,8 +215,12 @@ void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
       }
       const double rho_j = density[j];
       const double vol_j = volume[j];
-      for (int d = 0; d < Dim; ++d)
-        sum[d] += vol_j * shifting_ale_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
+      for (int d = 0; d < Dim; ++d) {
+        if constexpr (Ale == AleCorrection::Full)
+          sum[d] += vol_j * shifting_ale_full_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
+        else
+          sum[d] += vol_j * shifting_ale_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
+      }
     }
     const double inv_density = 1.0 / rho_i;
     for (int d = 0; d < Dim; ++d) a[d][i] += sum[d] * inv_density;

@@ -40,6 +40,8 @@ struct SchemeConfig {
   /// in units of the sound speed, U = Ma c_s (particle_shifting.hpp). Default: the weakly
   /// compressible c_s = 10 U_max.
   double shifting_mach = 0.1;
+  /// Particle shifting: the discrete ALE correction of the momentum equation.
+  AleCorrection ale_correction = AleCorrection::Conservative;
 };
 
 /// Per-particle fields a scheme carries between force evaluations, in the particles' order.
@@ -137,7 +139,12 @@ struct ParticleShiftingScheme {
     density_pass<Dim>(kernel, box, neighbours, fluid, p);
     shifting_velocity_pass<Dim>(kernel, box, neighbours, fields.shifting, p, fields.drift_source);
     ThesisScheme::forces<Dim>(kernel, box, neighbours, fluid, velocity, fields, p);
-    shifting_ale_pass<Dim>(kernel, box, neighbours, velocity, view_of(fields.drift_source, Dim), p);
+    const VelocityView shift = view_of(fields.drift_source, Dim);
+    if (fields.shifting.ale == AleCorrection::Full)
+      shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, neighbours, velocity, shift, p);
+    else
+      shifting_ale_pass<Dim, AleCorrection::Conservative>(kernel, box, neighbours, velocity, shift,
+                                                          p);
   }
 };
 
@@ -162,5 +169,9 @@ void visit_scheme(SchemeType type, F&& f) {
 std::string_view scheme_name(SchemeType type);
 SchemeType scheme_from_name(std::string_view name);  // throws invalid_argument listing the names
 bool scheme_uses_transport_velocity(SchemeType type);
+
+/// Scene names of scheme.ale_correction: "conservative", "full".
+std::string_view ale_correction_name(AleCorrection ale);
+AleCorrection ale_correction_from_name(std::string_view name);  // throws invalid_argument
 
 }  // namespace sphles::sim

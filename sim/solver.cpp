@@ -217,9 +217,9 @@ class SphSolver final : public Simulation {
     fields_.viscous_operator = config_.scheme.viscous_operator;
     transport_velocity_ = scheme_uses_transport_velocity(config_.scheme.type);
     if (!transport_velocity_) return;
-    fields_.shifting =
-        shifting_parameters(config_.scheme.shifting_mach * config_.fluid.sound_speed,
-                            config_.support_radius, kernel_.value(config_.particle_spacing));
+    fields_.shifting = shifting_parameters(
+        config_.scheme.shifting_mach * config_.fluid.sound_speed, config_.support_radius,
+        kernel_.value(config_.particle_spacing), config_.scheme.ale_correction);
     for (int d = 0; d < Dim; ++d) {
       fields_.drift_source[d].assign(particles_.size(), 0.0);
       fields_.transport_shift[d].assign(particles_.size(), 0.0);

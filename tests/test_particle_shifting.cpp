@@ -76,10 +76,21 @@ TEST(ParticleShiftingPairs, FactorAleTermAndLimiter) {
   EXPECT_DOUBLE_EQ(shifting_ale_term(2.0, 3.0, 0.5, 1.0, 4.0, 0.25), 4.0);
   EXPECT_EQ(shifting_limiter_scale(0.1, 0.5), 1.0);
   EXPECT_DOUBLE_EQ(shifting_limiter_scale(2.0, 0.5), 0.25);
+  // The full correction is unchanged by a uniform velocity U added to v_i and v_j (Galilean);
+  // the conservative one changes by U (ρ_i δv_i + ρ_j δv_j)·∇W_ij.
+  const double uniform = 1.7;
+  EXPECT_NEAR(shifting_ale_full_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4),
+              shifting_ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 1e-15);
+  EXPECT_DOUBLE_EQ(shifting_ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 0.9 * (-1.0) * 0.4);
+  EXPECT_NEAR(shifting_ale_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4) -
+                  shifting_ale_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4),
+              uniform * (1.1 * -0.2 + 0.9 * 0.4), 1e-15);
   const ShiftingParameters p = shifting_parameters(2.0, 0.3, 5.0);
   EXPECT_DOUBLE_EQ(p.coefficient, 0.6);  // Ma c_0 (2h)
   EXPECT_EQ(p.reference_kernel, 5.0);
   EXPECT_DOUBLE_EQ(p.speed_limit, kShiftingSpeedLimit * 2.0);
+  EXPECT_EQ(p.ale, AleCorrection::Conservative);
+  EXPECT_EQ(shifting_parameters(2.0, 0.3, 5.0, AleCorrection::Full).ale, AleCorrection::Full);
 }
 
 // On a perfect lattice every particle's neighbours come in ± pairs: δv = 0 to round-off. One
@@ -156,8 +167,9 @@ TEST(ParticleShifting, DriftsWithVelocityPlusShiftingVelocity) {
 
 class ParticleShiftingMomentumTest : public ::testing::TestWithParam<int> {};
 
-// Every pair term of M_i a_i is antisymmetric (pressure, viscous and ALE terms), so Σ M v
-// changes only by round-off over 100 steps of a random flow on a disordered lattice.
+// Every pair term of M_i a_i is antisymmetric (pressure, viscous and the conservative ALE term),
+// so Σ M v changes only by round-off over 100 steps of a random flow on a disordered lattice.
+// (With ale_correction = full this fails: the drift is about 2e-3 here.)
 TEST_P(ParticleShiftingMomentumTest, ConservedToRoundOffOver100Steps) {
   const int dim = GetParam();
   auto flow = shifting_flow(dim, 7);
@@ -173,10 +185,11 @@ TEST_P(ParticleShiftingMomentumTest, ConservedToRoundOffOver100Steps) {
 INSTANTIATE_TEST_SUITE_P(Dimensions, ParticleShiftingMomentumTest, ::testing::Values(2, 3),
                          [](const auto& info) { return std::to_string(info.param) + "D"; });
 
-ParticleArrays run_with_threads(int threads, int dim) {
+ParticleArrays run_with_threads(int threads, int dim, AleCorrection ale) {
   const int saved = omp_get_max_threads();
   omp_set_num_threads(threads);
   auto flow = shifting_flow(dim, 11);
+  flow.config.scheme.ale_correction = ale;
   auto sim = make_simulation(flow.config, flow.particles);
   for (int step = 0; step < 40; ++step) sim->step();
   omp_set_num_threads(saved);
@@ -185,9 +198,11 @@ ParticleArrays run_with_threads(int threads, int dim) {
 
 // Gather-form passes: 1 and 2 threads give the same state bit for bit.
 TEST(ParticleShifting, OneAndTwoThreadsGiveIdenticalState) {
-  for (const int dim : {2, 3}) {
-    const ParticleArrays one = run_with_threads(1, dim);
-    const ParticleArrays two = run_with_threads(2, dim);
+  for (const auto& [dim, ale] :
+       {std::pair{2, AleCorrection::Conservative}, std::pair{3, AleCorrection::Conservative},
+        std::pair{2, AleCorrection::Full}}) {
+    const ParticleArrays one = run_with_threads(1, dim, ale);
+    const ParticleArrays two = run_with_threads(2, dim, ale);
     EXPECT_EQ(one.id, two.id);
     for (int d = 0; d < dim; ++d) {
       EXPECT_TRUE(same_bits(one.position[d], two.position[d])) << dim << "D position " << d;
@@ -201,8 +216,11 @@ TEST(ParticleShifting, OneAndTwoThreadsGiveIdenticalState) {
 // Restoring from state() continues bitwise identically: δv^n is recomputed from the positions
 // (it is not in the checkpoint), with neighbour-list rebuilds on both sides of the restart.
 TEST(ParticleShifting, RestoreContinuesBitwise) {
-  for (const int dim : {2, 3}) {
+  for (const auto& [dim, ale] :
+       {std::pair{2, AleCorrection::Conservative}, std::pair{3, AleCorrection::Conservative},
+        std::pair{2, AleCorrection::Full}}) {
     auto flow = shifting_flow(dim, 21);
+    flow.config.scheme.ale_correction = ale;
     auto uninterrupted = make_simulation(flow.config, flow.particles);
     auto first_leg = make_simulation(flow.config, flow.particles);
     for (int k = 0; k < 23; ++k) first_leg->step();
@@ -251,6 +269,21 @@ TEST(ParticleShiftingScene, ParsedWrittenAndBadValuesRejectedNamingTheField) {
   EXPECT_EQ(again.scheme.shifting_mach, 0.05);
   EXPECT_EQ(again.scheme.viscous_operator, ViscousOperator::Corrected);
   EXPECT_EQ(parse_scene({{"case", "tgv2d"}}).scheme.shifting_mach, SchemeConfig{}.shifting_mach);
+  EXPECT_EQ(again.scheme.ale_correction, AleCorrection::Conservative);
+  EXPECT_EQ(written["scheme"]["ale_correction"], "conservative");
+  const Scene full =
+      parse_scene({{"scheme", {{"type", "particle_shifting"}, {"ale_correction", "full"}}}});
+  EXPECT_EQ(full.scheme.ale_correction, AleCorrection::Full);
+  EXPECT_EQ(parse_scene(scene_to_json(full)).scheme.ale_correction, AleCorrection::Full);
+  EXPECT_EQ(make_solver_config(full).scheme.ale_correction, AleCorrection::Full);
+  const std::string bad_ale =
+      scene_error({{"scheme", {{"type", "particle_shifting"}, {"ale_correction", "sun"}}}});
+  EXPECT_NE(bad_ale.find("'scheme.ale_correction' must be one of conservative, full, got 'sun'"),
+            std::string::npos)
+      << bad_ale;
+  EXPECT_NE(scene_error({{"scheme", {{"type", "thesis"}, {"ale_correction", "full"}}}})
+                .find("'scheme.ale_correction' applies to scheme.type particle_shifting only"),
+            std::string::npos);
 
   for (const double bad : {0.0, -0.1}) {
     const std::string e =
@@ -274,7 +307,6 @@ TEST(ParticleShiftingScene, ParsedWrittenAndBadValuesRejectedNamingTheField) {
 
 constexpr int kTaylorGreenSide = 64;
 constexpr double kTaylorGreenEnd = 1.0;
-constexpr double kShiftingTaylorGreenBound = 0.05;
 
 struct TaylorGreenRun {
   double max_error = 0.0;    // max over steps of |e_v'/e_exact - 1|
@@ -297,7 +329,7 @@ double relative_energy(const ParticleArrays& p) {
   return energy / mass;
 }
 
-TaylorGreenRun taylor_green(const std::string& scheme, double reference_pressure,
+TaylorGreenRun taylor_green(const std::string& ale, double reference_pressure,
                             std::array<double, 2> uniform) {
   const nlohmann::json doc = {{"case", "tgv2d"},
                               {"particles_per_side", kTaylorGreenSide},
@@ -308,7 +340,7 @@ TaylorGreenRun taylor_green(const std::string& scheme, double reference_pressure
                                 {"sound_speed", 10.0},
                                 {"reference_pressure", reference_pressure}}},
                               {"flow", {{"uniform_velocity", {uniform[0], uniform[1]}}}},
-                              {"scheme", {{"type", scheme}}},
+                              {"scheme", {{"type", "particle_shifting"}, {"ale_correction", ale}}},
                               {"time", {{"end", kTaylorGreenEnd}}}};
   const Scene scene = parse_scene(doc);
   RunSetup setup = setup_run(scene, testing::validation_packing_cache());
@@ -327,32 +359,40 @@ TaylorGreenRun taylor_green(const std::string& scheme, double reference_pressure
 }
 
 // e_v(t) against e_v(0) exp(-4νt) to t = 1, at p_ref = 0 (the δ⁺-SPH pressure c_0²(ρ - ρ_0)) and
-// at the tgv2d preset's p_ref = 1. Measured (Release, packed start): see the printed line and
-// docs/models.md; the bounds leave a margin of about 1.5x.
+// at the tgv2d preset's p_ref = 1, and with the full ALE correction at p_ref = 0. Measured
+// (Release, packed start): conservative 0.0067 (p_ref 0), 0.0111 (p_ref 1); full 0.0013 (thesis
+// 0.0248 at p_ref 0, TVF 0.0071 at p_b = ρ c_s²). The bounds leave a margin of about 1.5x.
 TEST(ParticleShiftingTaylorGreen2D, EnergyDecayFollowsTheAnalyticSolution) {
-  const TaylorGreenRun zero = taylor_green("particle_shifting", 0.0, {0.0, 0.0});
-  const TaylorGreenRun one = taylor_green("particle_shifting", 1.0, {0.0, 0.0});
+  const TaylorGreenRun zero = taylor_green("conservative", 0.0, {0.0, 0.0});
+  const TaylorGreenRun one = taylor_green("conservative", 1.0, {0.0, 0.0});
+  const TaylorGreenRun full = taylor_green("full", 0.0, {0.0, 0.0});
   std::printf(
-      "tgv2d Re=100 64^2 D_K=8dl t<=1, max |e_v/e_exact - 1|: particle_shifting p_ref 0 %.5f, "
-      "p_ref 1 %.5f\n",
-      zero.max_error, one.max_error);
+      "tgv2d Re=100 64^2 D_K=8dl t<=1, max |e_v/e_exact - 1|: particle_shifting conservative "
+      "p_ref 0 %.5f, p_ref 1 %.5f; full p_ref 0 %.5f\n",
+      zero.max_error, one.max_error, full.max_error);
   ::testing::Test::RecordProperty("shifting_pref0_error", std::to_string(zero.max_error));
   ::testing::Test::RecordProperty("shifting_pref1_error", std::to_string(one.max_error));
-  EXPECT_LT(zero.max_error, kShiftingTaylorGreenBound);
-  EXPECT_LT(one.max_error, kShiftingTaylorGreenBound);
+  ::testing::Test::RecordProperty("shifting_full_pref0_error", std::to_string(full.max_error));
+  EXPECT_LT(zero.max_error, 0.01);
+  EXPECT_LT(one.max_error, 0.017);
+  EXPECT_LT(full.max_error, 0.002);
 }
 
 // The same vortex convected with a uniform velocity U = (1, ½) keeps its decay: e_v relative to
-// the mean flow at t = 1 changes by < 1 %. The ALE term ∇·(ρ v ⊗ δv) holds v itself (not
-// Galilean invariant: U adds (U/ρ) ∇·(ρ δv)), so this bounds its effect.
+// the mean flow at t = 1 changes by < 1 %. The conservative ALE term ∇·(ρ v ⊗ δv) holds v
+// itself (a uniform U adds (U/ρ) ∇·(ρ δv)): measured change 8.0e-4. The full correction is
+// Galilean invariant: 2.8e-6 (thesis 1.2e-6), asserted < 1e-4.
 TEST(ParticleShiftingTaylorGreen2D, UniformVelocityShiftLeavesTheDecayUnchanged) {
-  const TaylorGreenRun rest = taylor_green("particle_shifting", 0.0, {0.0, 0.0});
-  const TaylorGreenRun moving = taylor_green("particle_shifting", 0.0, {1.0, 0.5});
-  const double change = std::abs(moving.final_ratio / rest.final_ratio - 1.0);
-  std::printf(
-      "particle_shifting p_ref 0: e_v'(1)/e_v'(0) at rest %.6f, convected %.6f, change %.2e\n",
-      rest.final_ratio, moving.final_ratio, change);
-  EXPECT_LT(change, 0.01);
+  for (const auto& [ale, bound] : {std::pair{"conservative", 0.01}, std::pair{"full", 1e-4}}) {
+    const TaylorGreenRun rest = taylor_green(ale, 0.0, {0.0, 0.0});
+    const TaylorGreenRun moving = taylor_green(ale, 0.0, {1.0, 0.5});
+    const double change = std::abs(moving.final_ratio / rest.final_ratio - 1.0);
+    std::printf(
+        "particle_shifting %s p_ref 0: e_v'(1)/e_v'(0) at rest %.6f, convected %.6f, change "
+        "%.2e\n",
+        ale, rest.final_ratio, moving.final_ratio, change);
+    EXPECT_LT(change, bound) << ale;
+  }
 }
 
 }  // namespace
