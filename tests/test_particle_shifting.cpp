@@ -169,7 +169,7 @@ class ParticleShiftingMomentumTest : public ::testing::TestWithParam<int> {};
 
 // Every pair term of M_i a_i is antisymmetric (pressure, viscous and the conservative ALE term),
 // so Σ M v changes only by round-off over 100 steps of a random flow on a disordered lattice.
-// (With ale_correction = full this fails: the drift is about 2e-3 here.)
+// (With ale_correction = full this fails: the drift is 2-3e-3 of Σ M |v| here.)
 TEST_P(ParticleShiftingMomentumTest, ConservedToRoundOffOver100Steps) {
   const int dim = GetParam();
   auto flow = shifting_flow(dim, 7);
