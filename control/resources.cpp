@@ -338,7 +338,8 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   const std::string n_text = count_text(n) + " particles";
 
   // Solver: particle arrays, predicted velocity, list reference positions, ν_t scratch, the
-  // scheme's fields (TVF: background acceleration and transport shift, sim/scheme.hpp).
+  // scheme's fields (TVF: background acceleration and transport shift; particle shifting:
+  // shifting velocity and transport shift; sim/scheme.hpp SchemeFields).
   const double per_particle = particle_array_bytes(s);
   const double scheme_fields =
       sim::scheme_uses_transport_velocity(s.scheme.type) ? 2.0 * dim * kDouble : 0.0;

@@ -248,10 +248,29 @@ Scene parse_scene(const json& input) {
     } catch (const std::invalid_argument& e) {
       throw SceneError("scene: 'scheme.viscous_operator' " + std::string(e.what()));
     }
-    if (s.scheme.viscous_operator != ViscousOperator::Thesis && s.scheme.type != SchemeType::Thesis)
+    if (s.scheme.viscous_operator != ViscousOperator::Thesis &&
+        s.scheme.type == SchemeType::TransportVelocity)
       throw SceneError("scene: 'scheme.viscous_operator' = '" + op +
-                       "' applies to scheme.type thesis only (the transport-velocity scheme "
-                       "has its own viscous term)");
+                       "' applies to scheme.type thesis and particle_shifting only (the "
+                       "transport-velocity scheme has its own viscous term)");
+    const double default_mach = SchemeConfig{}.shifting_mach;
+    sc.number("shifting_mach", s.scheme.shifting_mach, positive);
+    if (s.scheme.shifting_mach != default_mach && s.scheme.type != SchemeType::ParticleShifting)
+      throw SceneError(
+          "scene: 'scheme.shifting_mach' applies to scheme.type particle_shifting "
+          "only");
+    std::string ale = std::string(ale_correction_name(s.scheme.ale_correction));
+    sc.string("ale_correction", ale);
+    try {
+      s.scheme.ale_correction = ale_correction_from_name(ale);
+    } catch (const std::invalid_argument& e) {
+      throw SceneError("scene: 'scheme.ale_correction' " + std::string(e.what()));
+    }
+    if (s.scheme.ale_correction != SchemeConfig{}.ale_correction &&
+        s.scheme.type != SchemeType::ParticleShifting)
+      throw SceneError(
+          "scene: 'scheme.ale_correction' applies to scheme.type particle_shifting "
+          "only");
     sc.reject_unknown();
   }
   {
@@ -440,7 +459,9 @@ json scene_to_json(const Scene& s) {
   }
   j["scheme"] = {
       {"type", std::string(scheme_name(s.scheme.type))},
-      {"viscous_operator", std::string(viscous_operator_name(s.scheme.viscous_operator))}};
+      {"viscous_operator", std::string(viscous_operator_name(s.scheme.viscous_operator))},
+      {"shifting_mach", s.scheme.shifting_mach},
+      {"ale_correction", std::string(ale_correction_name(s.scheme.ale_correction))}};
   j["subfilter"] = {{"model", std::string(subfilter_model_name(s.subfilter.model))},
                     {"smagorinsky_constant", s.subfilter.smagorinsky_constant},
                     {"sigma_constant", s.subfilter.sigma_constant},

@@ -4,7 +4,9 @@
 // A scheme is one struct with
 //   static constexpr SchemeType type;          its enum value
 //   static constexpr std::string_view name;    its scene name
-//   static constexpr bool transport_velocity;  particles move with v + (dt/2) ã (SchemeFields)
+//   static constexpr bool transport_velocity;  particles move with v + δv (SchemeFields)
+//   static double drift_shift(double dt, double source);  (transport_velocity only) δv of the
+//       step being taken from SchemeFields::drift_source of the last force evaluation
 //   template <int Dim, class KernelT> static void evaluate(kernel, box, list, fluid, velocity,
 //                                                          fields, particles);
 // where evaluate is one force evaluation (density, pressure, accelerations) at the current
@@ -19,30 +21,42 @@
 #include <vector>
 
 #include "sim/neighbour_search.hpp"
+#include "sim/particle_shifting.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
 #include "sim/transport_velocity.hpp"
 
 namespace sphles::sim {
 
-enum class SchemeType { Thesis, TransportVelocity };
+enum class SchemeType { Thesis, TransportVelocity, ParticleShifting };
 
 /// The scene's "scheme" object.
 struct SchemeConfig {
   SchemeType type = SchemeType::Thesis;
-  /// The thesis scheme's viscous term: (A.14), or its moment-corrected form
-  /// (viscous_operator.hpp). The transport-velocity scheme has its own.
+  /// The viscous term of the thesis and particle-shifting schemes: (A.14), or its
+  /// moment-corrected form (viscous_operator.hpp). The transport-velocity scheme has its own.
   ViscousOperator viscous_operator = ViscousOperator::Thesis;
+  /// Particle shifting: Ma of Sun et al. 2019, the reference velocity of the shifting velocity
+  /// in units of the sound speed, U = Ma c_s (particle_shifting.hpp). Default: the weakly
+  /// compressible c_s = 10 U_max.
+  double shifting_mach = 0.1;
+  /// Particle shifting: the discrete ALE correction of the momentum equation.
+  AleCorrection ale_correction = AleCorrection::Conservative;
 };
 
 /// Per-particle fields a scheme carries between force evaluations, in the particles' order.
 /// Empty for a scheme without transport velocity. They are functions of the positions (and
 /// the step size), so a restart recomputes them instead of storing them.
 struct SchemeFields {
-  /// ã_i of the last force evaluation (TVF: the background-pressure acceleration, eq. 13).
-  std::array<std::vector<double>, 3> background_acceleration;
-  /// δv_i = ṽ_i - v_i = (dt/2) ã^n_i of the step being taken, read by the force evaluation.
+  /// The field of the last force evaluation the drift shift is formed from (Scheme::drift_shift):
+  /// TVF ã_i, the background-pressure acceleration (eq. 13); particle shifting δv_i, the
+  /// shifting velocity (Sun et al. 2019).
+  std::array<std::vector<double>, 3> drift_source;
+  /// δv_i = ṽ_i - v_i of the step being taken (TVF (dt/2) ã^n_i, read by its force
+  /// evaluation; particle shifting δv^n_i).
   std::array<std::vector<double>, 3> transport_shift;
+  /// Particle shifting: Ma c_0 (2h), W(Δx) and the limiter (particle_shifting.hpp).
+  ShiftingParameters shifting;
   /// The thesis scheme with ViscousOperator::Corrected: the operator, and its g_i of the
   /// current evaluation (viscous_correction_pass), a function of the positions.
   ViscousOperator viscous_operator = ViscousOperator::Thesis;
@@ -67,6 +81,14 @@ struct ThesisScheme {
                        const NeighbourList& neighbours, const FluidParameters& fluid,
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p);
+    forces<Dim>(kernel, box, neighbours, fluid, velocity, fields, p);
+  }
+
+  /// Pressure (A.9) and viscous term (A.14 or its corrected form) after density_pass.
+  template <int Dim, class KernelT>
+  static void forces(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& neighbours,
+                     const FluidParameters& fluid, const VelocityView& velocity,
+                     SchemeFields& fields, ParticleArrays& p) {
     const double* weights = nullptr;
     if (fields.viscous_operator == ViscousOperator::Corrected) {
       viscous_correction_pass<Dim>(kernel, box, neighbours, p, fields.viscous_weights);
@@ -82,14 +104,47 @@ struct TransportVelocityScheme {
   static constexpr std::string_view name = "transport_velocity";
   static constexpr bool transport_velocity = true;
 
+  /// ṽ - v = (dt/2) ã^n (eqs. 14-16).
+  static double drift_shift(double dt, double background_acceleration) {
+    return 0.5 * dt * background_acceleration;
+  }
+
   template <int Dim, class KernelT>
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p);
     transport_velocity_force_pass<Dim>(kernel, box, neighbours, fluid, velocity,
-                                       view_of(fields.transport_shift, Dim),
-                                       fields.background_acceleration, p);
+                                       view_of(fields.transport_shift, Dim), fields.drift_source,
+                                       p);
+  }
+};
+
+/// Particle shifting with the consistent ALE correction of the δ⁺-SPH model (Sun et al. 2017,
+/// 2019; particle_shifting.hpp): the thesis pressure (A.9) and viscous term (A.14, or its
+/// corrected form) plus (1/ρ) ∇·(ρ v ⊗ δv); particles move with v + δv, δv the shifting
+/// velocity at the positions of the step's start.
+struct ParticleShiftingScheme {
+  static constexpr SchemeType type = SchemeType::ParticleShifting;
+  static constexpr std::string_view name = "particle_shifting";
+  static constexpr bool transport_velocity = true;
+
+  /// δv^n, computed at the positions x^n (a velocity: independent of dt).
+  static double drift_shift(double /*dt*/, double shifting_velocity) { return shifting_velocity; }
+
+  template <int Dim, class KernelT>
+  static void evaluate(const KernelT& kernel, const PeriodicBox& box,
+                       const NeighbourList& neighbours, const FluidParameters& fluid,
+                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
+    density_pass<Dim>(kernel, box, neighbours, fluid, p);
+    shifting_velocity_pass<Dim>(kernel, box, neighbours, fields.shifting, p, fields.drift_source);
+    ThesisScheme::forces<Dim>(kernel, box, neighbours, fluid, velocity, fields, p);
+    const VelocityView shift = view_of(fields.drift_source, Dim);
+    if (fields.shifting.ale == AleCorrection::Full)
+      shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, neighbours, velocity, shift, p);
+    else
+      shifting_ale_pass<Dim, AleCorrection::Conservative>(kernel, box, neighbours, velocity, shift,
+                                                          p);
   }
 };
 
@@ -97,7 +152,7 @@ template <class... Schemes>
 struct SchemeList {};
 
 /// The registry: every scheme the scene may name, the default first.
-using SchemeRegistry = SchemeList<ThesisScheme, TransportVelocityScheme>;
+using SchemeRegistry = SchemeList<ThesisScheme, TransportVelocityScheme, ParticleShiftingScheme>;
 
 /// Calls f(S{}) with the registered scheme S of the given type.
 template <class F, class... Schemes>
@@ -110,9 +165,13 @@ void visit_scheme(SchemeType type, F&& f) {
   visit_scheme(type, SchemeRegistry{}, std::forward<F>(f));
 }
 
-/// Scene names: "thesis", "transport_velocity".
+/// Scene names: "thesis", "transport_velocity", "particle_shifting".
 std::string_view scheme_name(SchemeType type);
 SchemeType scheme_from_name(std::string_view name);  // throws invalid_argument listing the names
 bool scheme_uses_transport_velocity(SchemeType type);
+
+/// Scene names of scheme.ale_correction: "conservative", "full".
+std::string_view ale_correction_name(AleCorrection ale);
+AleCorrection ale_correction_from_name(std::string_view name);  // throws invalid_argument
 
 }  // namespace sphles::sim

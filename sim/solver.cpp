@@ -29,6 +29,11 @@ void validate(const SolverConfig& c, const ParticleArrays& p) {
   if (!(c.fluid.reference_density > 0.0) || !(c.fluid.sound_speed > 0.0) ||
       !(c.fluid.dynamic_viscosity >= 0.0))
     throw std::invalid_argument("solver: invalid fluid parameters");
+  if (c.scheme.type == SchemeType::ParticleShifting &&
+      (!(c.scheme.shifting_mach > 0.0) || !(c.support_radius > c.particle_spacing)))
+    throw std::invalid_argument(
+        "solver: particle shifting needs shifting_mach > 0 and a kernel support radius larger "
+        "than the particle spacing (W(Δx) > 0)");
   if (!(c.blow_up.energy_factor > 1.0) || !(c.blow_up.reference_mach >= 0.0) ||
       !(c.blow_up.reference_energy >= 0.0))
     throw std::invalid_argument(
@@ -107,30 +112,10 @@ class SphSolver final : public Simulation {
     if (!(dt > 0.0)) throw std::invalid_argument("solver: time step must be > 0");
     const double half_dt = 0.5 * dt;
     const std::size_t n = particles_.size();
-    // Kick and drift: with v^{n+1/2}, or with the transport velocity v^{n+1/2} + δv,
-    // δv = dt/2 ã^n (Adami et al. 2013, eqs. 14-16).
-    for (int d = 0; d < Dim; ++d) {
-      double* v = particles_.velocity[d].data();
-      double* x = particles_.position[d].data();
-      const double* a = particles_.acceleration[d].data();
-      const double length = config_.box.length[d];
-      if (transport_velocity_) {
-        const double* a_background = fields_.background_acceleration[d].data();
-        double* shift = fields_.transport_shift[d].data();
-#pragma omp parallel for schedule(static)
-        for (std::size_t i = 0; i < n; ++i) {
-          v[i] += half_dt * a[i];
-          shift[i] = half_dt * a_background[i];
-          x[i] = wrap_periodic(x[i] + dt * (v[i] + shift[i]), length);
-        }
-      } else {
-#pragma omp parallel for schedule(static)
-        for (std::size_t i = 0; i < n; ++i) {
-          v[i] += half_dt * a[i];
-          x[i] = wrap_periodic(x[i] + dt * v[i], length);
-        }
-      }
-    }
+    // Kick and drift: with v^{n+1/2}, or with the transport velocity v^{n+1/2} + δv, δv formed
+    // by the scheme from the field of the last force evaluation (TVF: dt/2 ã^n, Adami et al.
+    // 2013, eqs. 14-16; particle shifting: δv^n, Sun et al. 2019).
+    visit_scheme(config_.scheme.type, [&](auto scheme) { kick_drift<decltype(scheme)>(dt); });
     if (search_.needs_rebuild(view_positions(particles_))) rebuild_neighbours();
     // Predicted end-of-step velocity for the velocity-dependent forces.
     VelocityView predicted;
@@ -182,6 +167,37 @@ class SphSolver final : public Simulation {
   }
 
  private:
+  /// The opening kick v^{n+1/2} = v^n + dt/2 a^n and the drift x^{n+1} = x^n + dt (v^{n+1/2} +
+  /// δv), δv = 0 or Scheme::drift_shift of SchemeFields::drift_source (stored in
+  /// transport_shift for the force evaluation of the step).
+  template <class Scheme>
+  void kick_drift(double dt) {
+    const double half_dt = 0.5 * dt;
+    const std::size_t n = particles_.size();
+    for (int d = 0; d < Dim; ++d) {
+      double* v = particles_.velocity[d].data();
+      double* x = particles_.position[d].data();
+      const double* a = particles_.acceleration[d].data();
+      const double length = config_.box.length[d];
+      if constexpr (Scheme::transport_velocity) {
+        const double* source = fields_.drift_source[d].data();
+        double* shift = fields_.transport_shift[d].data();
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < n; ++i) {
+          v[i] += half_dt * a[i];
+          shift[i] = Scheme::drift_shift(dt, source[i]);
+          x[i] = wrap_periodic(x[i] + dt * (v[i] + shift[i]), length);
+        }
+      } else {
+#pragma omp parallel for schedule(static)
+        for (std::size_t i = 0; i < n; ++i) {
+          v[i] += half_dt * a[i];
+          x[i] = wrap_periodic(x[i] + dt * v[i], length);
+        }
+      }
+    }
+  }
+
   void rebuild_neighbours() {
     const auto order = search_.locality_order(view_positions(particles_));
     particles_.reorder(order);
@@ -201,14 +217,18 @@ class SphSolver final : public Simulation {
     fields_.viscous_operator = config_.scheme.viscous_operator;
     transport_velocity_ = scheme_uses_transport_velocity(config_.scheme.type);
     if (!transport_velocity_) return;
+    fields_.shifting = shifting_parameters(
+        config_.scheme.shifting_mach * config_.fluid.sound_speed, config_.support_radius,
+        kernel_.value(config_.particle_spacing), config_.scheme.ale_correction);
     for (int d = 0; d < Dim; ++d) {
-      fields_.background_acceleration[d].assign(particles_.size(), 0.0);
+      fields_.drift_source[d].assign(particles_.size(), 0.0);
       fields_.transport_shift[d].assign(particles_.size(), 0.0);
     }
   }
 
-  /// On restore: ã^n of the saving run's last force evaluation, by the same pass on the same
-  /// positions and list (bitwise equal: ã depends on neither velocity nor shift). The density
+  /// On restore: the drift source of the saving run's last force evaluation (TVF ã^n, particle
+  /// shifting δv^n), by the same passes on the same positions and list (bitwise equal: both
+  /// depend on neither velocity nor shift). The density
   /// pass rewrites V, ρ, p with the values they have; a^n is kept as stored.
   void recompute_scheme_fields() {
     const std::array<std::vector<double>, 3> stored = particles_.acceleration;

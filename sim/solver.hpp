@@ -5,9 +5,10 @@
 //   v^{n+1/2} = v^n + dt/2 a^n,   x^{n+1} = x^n + dt v^{n+1/2},
 //   v*        = v^{n+1/2} + dt/2 a^n,   a^{n+1} = a(x^{n+1}, v*, t^{n+1}),
 //   v^{n+1}   = v^{n+1/2} + dt/2 a^{n+1}.
-// One density pass and one force pass per step. A scheme with transport velocity (TVF,
-// scheme.hpp) drifts with ṽ = v^{n+1/2} + dt/2 ã^n instead, ã^n its background acceleration
-// of the last force evaluation, and evaluates forces with the shift δv = dt/2 ã^n.
+// One density pass and one force pass per step. A scheme with transport velocity (scheme.hpp)
+// drifts with ṽ = v^{n+1/2} + δv instead, δv formed by the scheme from a field of the last force
+// evaluation: the TVF δv = dt/2 ã^n (ã^n its background acceleration, evaluating forces with
+// that shift), particle shifting δv = δv^n (the shifting velocity at x^n).
 #pragma once
 
 #include <array>
@@ -137,7 +138,8 @@ class BlowUpError : public SimulationError {
 /// the acceleration a^n the next kick uses), the positions the current Verlet list was built
 /// from (rebuilding from them gives the identical list, hence identical summation order), the
 /// time, the step and the build counter. A scheme's own fields (SchemeFields: the background
-/// acceleration of the TVF) are functions of the positions and are recomputed on restore.
+/// acceleration of the TVF, the shifting velocity of particle shifting) are functions of the
+/// positions and are recomputed on restore.
 struct SolverState {
   ParticleArrays particles;
   std::array<std::vector<double>, 3> list_reference_positions;

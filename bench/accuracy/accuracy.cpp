@@ -306,7 +306,9 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
   } else if (study == "peers") {
     // The peers' 2D case (SPEC §8) at 100²: the thesis model as the peers' comparison ran it
     // (p_ref = 1, lattice masses), the consistent start, the corrected viscous operator, and the
-    // transport-velocity scheme at background pressures around PySPH's p_b = ρ c_s² = 100.
+    // transport-velocity scheme at background pressures around PySPH's p_b = ρ c_s² = 100, and
+    // particle shifting (Sun et al. 2019) at the δ⁺-SPH p_ref = 0 and at the thesis' p_ref = 1,
+    // and with the full (Galilean-invariant) ALE correction at p_ref = 0.
     // Quick: the thesis model and TVF at p_b = 100, 50².
     struct PeersConfig {
       const char* name;
@@ -318,12 +320,17 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
     const json thesis = {{"type", "thesis"}};
     const json corrected = {{"type", "thesis"}, {"viscous_operator", "corrected"}};
     const json tvf = {{"type", "transport_velocity"}};
+    const json shifting = {{"type", "particle_shifting"}};
+    const json shifting_full = {{"type", "particle_shifting"}, {"ale_correction", "full"}};
     const PeersConfig configs[] = {
         {"thesis p_ref=1 lattice", thesis, "lattice", 1.0, true},
         {"thesis p_ref=1 summation", thesis, "summation", 1.0, false},
         {"thesis-corrected p_ref=1 summation", corrected, "summation", 1.0, false},
         {"tvf p_b=100 summation", tvf, "summation", 100.0, true},
         {"tvf p_b=200 summation", tvf, "summation", 200.0, false},
+        {"shifting p_ref=0 summation", shifting, "summation", 0.0, false},
+        {"shifting p_ref=1 summation", shifting, "summation", 1.0, false},
+        {"shifting-full p_ref=0 summation", shifting_full, "summation", 0.0, false},
     };
     for (const PeersConfig& c : configs)
       for (const int n : {50, 100}) {

@@ -1,0 +1,230 @@
+// Particle shifting with the consistent ALE correction of the δ⁺-SPH model: Sun, Colagrossi,
+// Marrone & Zhang, "The δplus-SPH model", CMAME 315 (2017) 25-49 (the shifting law with its
+// anti-clustering term), and Sun, Colagrossi, Marrone, Antuono & Zhang, "A consistent approach to
+// particle shifting in the δ⁺-SPH model", CMAME 348 (2019) 912-934 (the shifting velocity and
+// the ALE terms it brings into the equations); as in the δ-LES-SPH of Antuono et al. 2021
+// (docs/models.md, "Particle shifting").
+//
+// Particles move with v + δv, the shifting velocity (Sun et al. 2019)
+//   δv_i = -Ma c_0 (2h) Σ_j [1 + R (W_ij / W(Δx))^n] ∇W_ij V_j,   |δv_i| ≤ limit,
+// a function of the positions only. In sphles' symbols: 2h (the papers' kernel support, Wendland
+// C2 with support 2h) is the kernel's support radius D_K/2, Δx the particle spacing Δl, c_0 the
+// sound speed c_s, and Ma c_0 the reference velocity U = Ma c_s (scheme.shifting_mach).
+//
+// The ALE terms. Density stays by summation (density_pass, SPEC (5.2), constant masses): the
+// density of a particle follows its volume along the shifted path, dρ_i/dt = -ρ_i ∇·(v + δv),
+// so the continuity ALE term -ρ ∇·δv is implicit in the positions; the mass flux ∇·(ρ δv) the
+// papers add to their continuity equation is not there (a particle keeps its mass). The velocity
+// obeys dv/dt = Dv/Dt + δv·∇v along the shifted path whatever the density does; the papers write
+// ρ δv·∇v conservatively as ∇·(ρ v ⊗ δv) - v ∇·(ρ δv). Two discrete forms (scheme.ale_correction):
+//  - Conservative (default): the first term alone, in Sun et al. 2019's symmetric sum
+//    Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j. Its pair terms of M_i a_i are
+//    antisymmetric, so Σ M a = 0 to round-off; it is the momentum equation one derives from the
+//    summation continuity ρ d(v)/dt = d(ρv)/dt - v dρ/dt, but not Galilean invariant (a uniform U
+//    adds (U/ρ) ∇·(ρ δv)).
+//  - Full: both terms, (1/ρ_i) Σ_j ρ_j (v_j - v_i)(δv_j·∇W_ij) V_j = δv·∇v: Galilean invariant,
+//    but -v ∇·(ρ δv) has no antisymmetric pair form (its integral over a periodic box is not
+//    zero), so Σ M v is not conserved.
+// Pressure (A.9) and viscous term (A.14) are the thesis model's (ThesisScheme::forces). The
+// passes are in gather form like physics.hpp, so results do not depend on the thread count.
+#pragma once
+
+#include <array>
+#include <cmath>
+#include <cstddef>
+#include <vector>
+
+#include "sim/neighbour_search.hpp"
+#include "sim/particles.hpp"
+#include "sim/physics.hpp"
+
+namespace sphles::sim {
+
+/// R of the anti-clustering term 1 + R (W_ij/W(Δx))^n (Sun et al. 2017, §3; Sun et al. 2019).
+inline constexpr double kShiftingClusteringAmplitude = 0.2;
+/// n of the anti-clustering term (Sun et al. 2017, §3; Sun et al. 2019).
+inline constexpr int kShiftingClusteringExponent = 4;
+/// The limiter on the shifting velocity: |δv_i| ≤ kShiftingSpeedLimit · Ma c_0 (Sun et al. 2019
+/// limit the shift to half the reference velocity).
+inline constexpr double kShiftingSpeedLimit = 0.5;
+
+/// The discrete ALE correction of the momentum equation (scheme.ale_correction).
+enum class AleCorrection {
+  /// (1/ρ) ∇·(ρ v ⊗ δv) alone: antisymmetric pair terms, Σ M a = 0 to round-off; not Galilean
+  /// invariant (a uniform U adds (U/ρ) ∇·(ρ δv)).
+  Conservative,
+  /// Sun et al. 2019's (1/ρ) [∇·(ρ v ⊗ δv) - v ∇·(ρ δv)] = δv·∇v: Galilean invariant; the
+  /// -v_i ∇·(ρ δv)_i term is not antisymmetric, so Σ M v drifts.
+  Full,
+};
+
+/// The scheme's constants for one run (SchemeFields::shifting), formed once from the
+/// configuration.
+struct ShiftingParameters {
+  double coefficient = 0.0;       // Ma c_0 (2h) = U · support radius [m²/s]
+  double reference_kernel = 1.0;  // W(Δx), the kernel at one particle spacing
+  double speed_limit = 0.0;       // the limiter's bound on |δv| [m/s]
+  AleCorrection ale = AleCorrection::Conservative;
+};
+
+/// Ma c_0 (2h), W(Δx) and the limiter from the reference velocity U = Ma c_0 [m/s], the kernel's
+/// support radius (2h) and W at one particle spacing.
+inline ShiftingParameters shifting_parameters(double reference_velocity, double support_radius,
+                                              double kernel_at_spacing,
+                                              AleCorrection ale = AleCorrection::Conservative) {
+  return {.coefficient = reference_velocity * support_radius,
+          .reference_kernel = kernel_at_spacing,
+          .speed_limit = kShiftingSpeedLimit * reference_velocity,
+          .ale = ale};
+}
+
+/// The pair factor 1 + R (W_ij / W(Δx))^n of the shifting velocity (Sun et al. 2017, 2019);
+/// symmetric in i and j (it depends on r_ij only).
+inline double shifting_pair_factor(double kernel_value, double reference_kernel) {
+  const double ratio = kernel_value / reference_kernel;
+  double power = 1.0;
+  for (int k = 0; k < kShiftingClusteringExponent; ++k) power *= ratio;
+  return 1.0 + kShiftingClusteringAmplitude * power;
+}
+
+/// Scale applied to the unlimited δv of magnitude `speed` so that |δv| ≤ `limit` (1 below it).
+inline double shifting_limiter_scale(double speed, double limit) {
+  return speed > limit ? limit / speed : 1.0;
+}
+
+/// Component a of the pair term of ∇·(ρ v ⊗ δv) in Sun et al. 2019's symmetric form,
+/// ρ_i v_i,a (δv_i·∇W_ij) + ρ_j v_j,a (δv_j·∇W_ij), with `shift_dot_gradient_*` = δv·∇W_ij.
+/// Symmetric in i and j; times V_j ∇W_ij-antisymmetry it makes the pair term of M_i a_i
+/// antisymmetric.
+inline double shifting_ale_term(double density_i, double velocity_i, double shift_dot_gradient_i,
+                                double density_j, double velocity_j, double shift_dot_gradient_j) {
+  return density_i * velocity_i * shift_dot_gradient_i +
+         density_j * velocity_j * shift_dot_gradient_j;
+}
+
+/// Component a of the pair term of Sun et al. 2019's full correction ∇·(ρ v ⊗ δv) - v_i ∇·(ρ δv):
+/// the conservative term less v_i,a (ρ_i δv_i·∇W_ij + ρ_j δv_j·∇W_ij), i.e.
+/// ρ_j (v_j,a - v_i,a)(δv_j·∇W_ij): unchanged by a uniform velocity added to v_i and v_j.
+inline double shifting_ale_full_term(double density_i, double velocity_i,
+                                     double shift_dot_gradient_i, double density_j,
+                                     double velocity_j, double shift_dot_gradient_j) {
+  return shifting_ale_term(density_i, velocity_i, shift_dot_gradient_i, density_j, velocity_j,
+                           shift_dot_gradient_j) -
+         velocity_i * (density_i * shift_dot_gradient_i + density_j * shift_dot_gradient_j);
+}
+
+/// The shifting velocity δv_i = -Ma c_0 (2h) Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j, limited to
+/// |δv_i| ≤ speed_limit (overwrites `shift`, whose arrays must have p.size() entries for each
+/// dimension). Requires density_pass on the same positions (V_j).
+template <int Dim, class KernelT>
+void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box,
+                            const NeighbourList& neighbours, const ShiftingParameters& parameters,
+                            const ParticleArrays& p, std::array<std::vector<double>, 3>& shift) {
+  const double support2 = kernel.support_radius() * kernel.support_radius();
+  double length[Dim], half_length[Dim];
+  const double* x[Dim];
+  double* dv[Dim];
+  for (int d = 0; d < Dim; ++d) {
+    length[d] = box.length[d];
+    half_length[d] = 0.5 * box.length[d];
+    x[d] = p.position[d].data();
+    dv[d] = shift[d].data();
+  }
+  const double* volume = p.volume.data();
+  const auto n = static_cast<std::ptrdiff_t>(p.size());
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t si = 0; si < n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    double xi[Dim], sum[Dim];
+    for (int d = 0; d < Dim; ++d) {
+      xi[d] = x[d][i];
+      sum[d] = 0.0;
+    }
+    for (const std::uint32_t j : neighbours.of(i)) {
+      double dx[Dim];
+      double r2 = 0.0;
+      for (int d = 0; d < Dim; ++d) {
+        dx[d] = minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
+        r2 += dx[d] * dx[d];
+      }
+      if (!(r2 < support2 && r2 > 0.0)) continue;
+      const double r = std::sqrt(r2);
+      const double scale = shifting_pair_factor(kernel.value(r), parameters.reference_kernel) *
+                           kernel.gradient_over_r(r) * volume[j];
+      for (int d = 0; d < Dim; ++d) sum[d] += scale * dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
+    }
+    double speed2 = 0.0;
+    for (int d = 0; d < Dim; ++d) {
+      sum[d] *= -parameters.coefficient;
+      speed2 += sum[d] * sum[d];
+    }
+    const double limiter = shifting_limiter_scale(std::sqrt(speed2), parameters.speed_limit);
+    for (int d = 0; d < Dim; ++d) dv[d][i] = limiter * sum[d];
+  }
+}
+
+/// Adds the ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (the
+/// discrete (1/ρ) ∇·(ρ v ⊗ δv), Sun et al. 2019), with Full less (v_i/ρ_i) Σ_j (ρ_i δv_i +
+/// ρ_j δv_j)·∇W_ij V_j, at the given velocities and shifting velocities to p.acceleration.
+/// Requires density_pass on the same positions.
+template <int Dim, AleCorrection Ale, class KernelT>
+void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
+                       const NeighbourList& neighbours, const VelocityView& velocity,
+                       const VelocityView& shift, ParticleArrays& p) {
+  const double support2 = kernel.support_radius() * kernel.support_radius();
+  double length[Dim], half_length[Dim];
+  const double* x[Dim];
+  const double* v[Dim];
+  const double* dv[Dim];
+  double* a[Dim];
+  for (int d = 0; d < Dim; ++d) {
+    length[d] = box.length[d];
+    half_length[d] = 0.5 * box.length[d];
+    x[d] = p.position[d].data();
+    v[d] = velocity.v[d];
+    dv[d] = shift.v[d];
+    a[d] = p.acceleration[d].data();
+  }
+  const double* volume = p.volume.data();
+  const double* density = p.density.data();
+  const auto n = static_cast<std::ptrdiff_t>(p.size());
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t si = 0; si < n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    double xi[Dim], vi[Dim], dvi[Dim], sum[Dim];
+    for (int d = 0; d < Dim; ++d) {
+      xi[d] = x[d][i];
+      vi[d] = v[d][i];
+      dvi[d] = dv[d][i];
+      sum[d] = 0.0;
+    }
+    const double rho_i = density[i];
+    for (const std::uint32_t j : neighbours.of(i)) {
+      double dx[Dim];
+      double r2 = 0.0;
+      for (int d = 0; d < Dim; ++d) {
+        dx[d] = minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
+        r2 += dx[d] * dx[d];
+      }
+      if (!(r2 < support2 && r2 > 0.0)) continue;
+      const double g = kernel.gradient_over_r(std::sqrt(r2));  // ∇W_ij = g x_ij
+      double shift_i = 0.0, shift_j = 0.0;                     // δv · ∇W_ij
+      for (int d = 0; d < Dim; ++d) {
+        shift_i += dvi[d] * g * dx[d];
+        shift_j += dv[d][j] * g * dx[d];
+      }
+      const double rho_j = density[j];
+      const double vol_j = volume[j];
+      for (int d = 0; d < Dim; ++d) {
+        if constexpr (Ale == AleCorrection::Full)
+          sum[d] += vol_j * shifting_ale_full_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
+        else
+          sum[d] += vol_j * shifting_ale_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
+      }
+    }
+    const double inv_density = 1.0 / rho_i;
+    for (int d = 0; d < Dim; ++d) a[d][i] += sum[d] * inv_density;
+  }
+}
+
+}  // namespace sphles::sim
