@@ -39,6 +39,7 @@ void AnalysisPipeline::close(bool drain) {
   discard_ = !drain;
   mailbox_.close();
   if (worker_.joinable()) worker_.join();
+  stopped_ = true;
 }
 
 PipelineCounters AnalysisPipeline::counters() const {
@@ -48,8 +49,9 @@ PipelineCounters AnalysisPipeline::counters() const {
   c.dropped = m.dropped;
   c.analysed = analysed_.load();
   c.busy_seconds = busy_seconds_.load();
-  // A snapshot discarded by close(false) was never analysed: count it as dropped.
-  if (m.taken > c.analysed && closed_.load()) c.dropped += m.taken - c.analysed;
+  // Once the worker has stopped, every snapshot not analysed was dropped: replaced in the
+  // mailbox, taken but discarded by close(false), or still waiting when close(false) came.
+  if (stopped_.load()) c.dropped = m.published - c.analysed;
   return c;
 }
 

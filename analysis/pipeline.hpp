@@ -74,6 +74,7 @@ class AnalysisPipeline {
   std::string error_;
   std::thread worker_;
   std::atomic<bool> closed_{false};
+  std::atomic<bool> stopped_{false};  // the worker has been joined
 };
 
 }  // namespace sphles::analysis
