@@ -121,38 +121,21 @@ void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box,
                             const NeighbourList& neighbours, const ShiftingParameters& parameters,
                             const ParticleArrays& p, std::array<std::vector<double>, 3>& shift) {
   const double support2 = kernel.support_radius() * kernel.support_radius();
-  double length[Dim], half_length[Dim];
-  const double* x[Dim];
   double* dv[Dim];
-  for (int d = 0; d < Dim; ++d) {
-    length[d] = box.length[d];
-    half_length[d] = 0.5 * box.length[d];
-    x[d] = p.position[d].data();
-    dv[d] = shift[d].data();
-  }
+  for (int d = 0; d < Dim; ++d) dv[d] = shift[d].data();
   const double* volume = p.volume.data();
   const auto n = static_cast<std::ptrdiff_t>(p.size());
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
-    double xi[Dim], sum[Dim];
-    for (int d = 0; d < Dim; ++d) {
-      xi[d] = x[d][i];
-      sum[d] = 0.0;
-    }
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] = minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
-        r2 += dx[d] * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double r = std::sqrt(r2);
-      const double scale = shifting_pair_factor(kernel.value(r), parameters.reference_kernel) *
-                           kernel.gradient_over_r(r) * volume[j];
-      for (int d = 0; d < Dim; ++d) sum[d] += scale * dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
-    }
+    double sum[Dim] = {};
+    for_each_pair_in_support<Dim>(
+        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
+          const double r = std::sqrt(r2);
+          const double scale = shifting_pair_factor(kernel.value(r), parameters.reference_kernel) *
+                               kernel.gradient_over_r(r) * volume[j];
+          for (int d = 0; d < Dim; ++d) sum[d] += scale * dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
+        });
     double speed2 = 0.0;
     for (int d = 0; d < Dim; ++d) {
       sum[d] *= -parameters.coefficient;
@@ -172,15 +155,10 @@ void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const VelocityView& velocity,
                        const VelocityView& shift, ParticleArrays& p) {
   const double support2 = kernel.support_radius() * kernel.support_radius();
-  double length[Dim], half_length[Dim];
-  const double* x[Dim];
   const double* v[Dim];
   const double* dv[Dim];
   double* a[Dim];
   for (int d = 0; d < Dim; ++d) {
-    length[d] = box.length[d];
-    half_length[d] = 0.5 * box.length[d];
-    x[d] = p.position[d].data();
     v[d] = velocity.v[d];
     dv[d] = shift.v[d];
     a[d] = p.acceleration[d].data();
@@ -191,37 +169,26 @@ void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t si = 0; si < n; ++si) {
     const auto i = static_cast<std::size_t>(si);
-    double xi[Dim], vi[Dim], dvi[Dim], sum[Dim];
-    for (int d = 0; d < Dim; ++d) {
-      xi[d] = x[d][i];
-      vi[d] = v[d][i];
-      dvi[d] = dv[d][i];
-      sum[d] = 0.0;
-    }
+    double sum[Dim] = {};
     const double rho_i = density[i];
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] = minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
-        r2 += dx[d] * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double g = kernel.gradient_over_r(std::sqrt(r2));  // ∇W_ij = g x_ij
-      double shift_i = 0.0, shift_j = 0.0;                     // δv · ∇W_ij
-      for (int d = 0; d < Dim; ++d) {
-        shift_i += dvi[d] * g * dx[d];
-        shift_j += dv[d][j] * g * dx[d];
-      }
-      const double rho_j = density[j];
-      const double vol_j = volume[j];
-      for (int d = 0; d < Dim; ++d) {
-        if constexpr (Ale == AleCorrection::Full)
-          sum[d] += vol_j * shifting_ale_full_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
-        else
-          sum[d] += vol_j * shifting_ale_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
-      }
-    }
+    for_each_pair_in_support<Dim>(
+        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
+          const double g = kernel.gradient_over_r(std::sqrt(r2));  // ∇W_ij = g x_ij
+          double shift_i = 0.0, shift_j = 0.0;                     // δv · ∇W_ij
+          for (int d = 0; d < Dim; ++d) {
+            shift_i += dv[d][i] * g * dx[d];
+            shift_j += dv[d][j] * g * dx[d];
+          }
+          const double rho_j = density[j];
+          const double vol_j = volume[j];
+          for (int d = 0; d < Dim; ++d) {
+            if constexpr (Ale == AleCorrection::Full)
+              sum[d] +=
+                  vol_j * shifting_ale_full_term(rho_i, v[d][i], shift_i, rho_j, v[d][j], shift_j);
+            else
+              sum[d] += vol_j * shifting_ale_term(rho_i, v[d][i], shift_i, rho_j, v[d][j], shift_j);
+          }
+        });
     const double inv_density = 1.0 / rho_i;
     for (int d = 0; d < Dim; ++d) a[d][i] += sum[d] * inv_density;
   }

@@ -17,6 +17,25 @@
 
 namespace sphles::sim {
 
+/// Calls visit(j, dx, r2) for every neighbour j of particle i with 0 < |x_ij|² < support², in
+/// list order (dx = x_i - x_j under the minimum image). The pair loop of the sub-filter and
+/// particle-shifting passes.
+template <int Dim, class Visit>
+inline void for_each_pair_in_support(double support2, const PeriodicBox& box,
+                                     const NeighbourList& neighbours, const ParticleArrays& p,
+                                     std::size_t i, Visit&& visit) {
+  for (const std::uint32_t j : neighbours.of(i)) {
+    double dx[Dim];
+    double r2 = 0.0;
+    for (int d = 0; d < Dim; ++d) {
+      dx[d] =
+          minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
+      r2 += dx[d] * dx[d];
+    }
+    if (r2 < support2 && r2 > 0.0) visit(j, dx, r2);
+  }
+}
+
 /// Barotropic fluid with constant dynamic viscosity (SPEC §2).
 struct FluidParameters {
   double reference_density = 1.0;    // ρ_ref [kg/m^n]

@@ -45,24 +45,6 @@ double sigma_viscosity(const VelocityGradient& gradient, double scale);
 double eddy_viscosity(const SubfilterConfig& config, double kernel_diameter,
                       const VelocityGradient& gradient);
 
-/// Calls visit(j, dx, r2) for every neighbour j of particle i with 0 < |x_ij|² < support², in
-/// list order (dx = x_i - x_j under the minimum image). The pair loop of the model passes.
-template <int Dim, class Visit>
-inline void for_each_pair_in_support(double support2, const PeriodicBox& box,
-                                     const NeighbourList& neighbours, const ParticleArrays& p,
-                                     std::size_t i, Visit&& visit) {
-  for (const std::uint32_t j : neighbours.of(i)) {
-    double dx[Dim];
-    double r2 = 0.0;
-    for (int d = 0; d < Dim; ++d) {
-      dx[d] =
-          minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-      r2 += dx[d] * dx[d];
-    }
-    if (r2 < support2 && r2 > 0.0) visit(j, dx, r2);
-  }
-}
-
 /// J_i = Σ_j (v_j - v_i) ⊗ ∇W_ij V_j (A.20) for every particle; needs volumes (density_pass).
 template <int Dim, class KernelT>
 void velocity_gradient_pass(const KernelT& kernel, const PeriodicBox& box,
