@@ -1,10 +1,11 @@
 #include "analysis/writer.hpp"
 
-#include "io/particle_snapshot.hpp"
+#include "io/image_data.hpp"
 
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <sstream>
 #include <stdexcept>
 
@@ -42,6 +43,27 @@ std::string number(double x) {
 
 }  // namespace
 
+std::vector<std::map<std::string, std::string>> read_index(const std::filesystem::path& path) {
+  std::vector<std::map<std::string, std::string>> rows;
+  std::ifstream in(path);
+  std::string line;
+  if (!std::getline(in, line)) return rows;
+  const auto split = [](const std::string& text) {
+    std::vector<std::string> cells;
+    std::stringstream row(text);
+    for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
+    return cells;
+  };
+  const std::vector<std::string> header = split(line);
+  while (std::getline(in, line)) {
+    const std::vector<std::string> cells = split(line);
+    std::map<std::string, std::string> row;
+    for (std::size_t k = 0; k < header.size() && k < cells.size(); ++k) row[header[k]] = cells[k];
+    rows.push_back(std::move(row));
+  }
+  return rows;
+}
+
 std::string timed_file_name(const std::string& prefix, double time, const std::string& extension) {
   char buffer[64];
   std::snprintf(buffer, sizeof buffer, "_t%.4f", time);
@@ -66,9 +88,10 @@ void write_npy(const std::filesystem::path& path, std::span<const double> values
   replace_atomically(path, content);
 }
 
-RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory, std::string scene_json)
-    : directory_(std::move(directory)), scene_json_(std::move(scene_json)) {
-  for (const char* sub : {"spectra", "slices", "stats", "snapshots"}) {
+RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory,
+                                       io::SnapshotMetadata metadata)
+    : directory_(std::move(directory)), metadata_(std::move(metadata)) {
+  for (const char* sub : {"spectra", "slices", "stats", "snapshots", "fields"}) {
     std::error_code ec;
     std::filesystem::create_directories(directory_ / sub, ec);
     if (ec)
@@ -117,22 +140,42 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
   for (const SliceProduct& slice : frame.slices) {
     const std::string field(slice_field_name(slice.field));
     const std::string file = timed_file_name(field, frame.time, ".npy");
+    const std::string vti = timed_file_name(field, frame.time, ".vti");
     write_npy(directory_ / "slices" / file, slice.values, static_cast<std::size_t>(slice.height),
               static_cast<std::size_t>(slice.width));
+    // The same plane as VTK image data: one point thick along the normal, so that values[iu +
+    // width iv] (u < v) is VTK's x-fastest point order.
+    io::ImageData image;
+    image.dimensions[static_cast<std::size_t>(slice.axis_u)] = slice.width;
+    image.dimensions[static_cast<std::size_t>(slice.axis_v)] = slice.height;
+    image.origin[static_cast<std::size_t>(slice.normal_axis)] = slice.position;
+    image.spacing = {slice.spacing, slice.spacing, slice.spacing};
+    image.time = frame.time;
+    image.arrays.push_back({field, slice.units, 1, slice.values});
+    io::write_vti(directory_ / "slices" / vti, image, metadata_.code_version);
     double lo = slice.values.empty() ? 0.0 : slice.values.front(), hi = lo;
     for (const double v : slice.values) {
       lo = std::min(lo, v);
       hi = std::max(hi, v);
     }
     static constexpr const char* kAxis[] = {"x", "y", "z"};
-    append_line(directory_ / "slices" / "index.csv",
+    const auto index = directory_ / "slices" / "index.csv";
+    append_line(index,
                 "t,step,field,units,normal_axis,position,axis_u,axis_v,width,height,spacing,min,"
-                "max,file",
+                "max,file,vti",
                 number(frame.time) + ',' + std::to_string(frame.step) + ',' + field + ',' +
                     slice.units + ',' + kAxis[slice.normal_axis] + ',' + number(slice.position) +
                     ',' + kAxis[slice.axis_u] + ',' + kAxis[slice.axis_v] + ',' +
                     std::to_string(slice.width) + ',' + std::to_string(slice.height) + ',' +
-                    number(slice.spacing) + ',' + number(lo) + ',' + number(hi) + ',' + file);
+                    number(slice.spacing) + ',' + number(lo) + ',' + number(hi) + ',' + file + ',' +
+                    vti);
+    // One ParaView collection per field over every slice in the index (earlier runs of this
+    // directory included).
+    std::vector<io::CollectionEntry> series;
+    for (const auto& row : read_index(index))
+      if (row.contains("vti") && row.at("field") == field)
+        series.push_back({std::stod(row.at("t")), row.at("vti")});
+    io::write_pvd(directory_ / "slices" / (field + ".pvd"), series);
   }
   if (frame.subfilter) {
     const SubfilterStatisticsProduct& s = *frame.subfilter;
@@ -175,7 +218,7 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
     }
     const std::string file = timed_file_name("particles", frame.time, ".h5");
     io::write_particle_snapshot(directory_ / "snapshots" / file, p.snapshot->particles, frame.time,
-                                frame.step, fields, scene_json_);
+                                frame.step, fields, metadata_);
     const auto index = directory_ / "snapshots" / "index.csv";
     append_line(index, "t,step,file,particles,fields",
                 number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
@@ -183,25 +226,54 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
     // The XDMF series lists every snapshot in the index (including those of earlier runs of
     // this directory, e.g. before a restart).
     std::vector<io::SnapshotEntry> entries;
-    std::ifstream in(index);
-    std::string line;
-    std::getline(in, line);
-    while (std::getline(in, line)) {
-      std::vector<std::string> cells;
-      std::stringstream row(line);
-      for (std::string cell; std::getline(row, cell, ',');) cells.push_back(cell);
-      if (cells.size() < 4) continue;
+    for (const auto& row : read_index(index)) {
+      if (!row.contains("particles")) continue;
       io::SnapshotEntry e;
-      e.time = std::stod(cells[0]);
-      e.file = cells[2];
-      e.count = std::stoul(cells[3]);
-      if (cells.size() > 4) {
-        std::stringstream list(cells[4]);
+      e.time = std::stod(row.at("t"));
+      e.file = row.at("file");
+      e.count = std::stoul(row.at("particles"));
+      if (row.contains("fields")) {
+        std::stringstream list(row.at("fields"));
         for (std::string name; std::getline(list, name, ';');) e.scalars.push_back(name);
       }
       entries.push_back(e);
     }
     io::write_xdmf_series(directory_ / "snapshots" / "particles.xdmf", entries);
+  }
+  if (frame.fields) {
+    const GridFieldsProduct& f = *frame.fields;
+    const std::size_t points = f.grid.size();
+    io::ImageData image;
+    for (int d = 0; d < f.grid.dimension; ++d)
+      image.dimensions[static_cast<std::size_t>(d)] = f.grid.points_per_side;
+    const double h = f.grid.spacing();
+    image.spacing = {h, h, h};
+    image.time = frame.time;
+    std::string names;
+    if (f.velocity) {
+      io::ImageArray v{"velocity", "m/s", 3, std::vector<double>(3 * points, 0.0)};
+      for (int d = 0; d < f.grid.dimension; ++d)
+        for (std::size_t n = 0; n < points; ++n)
+          v.values[3 * n + static_cast<std::size_t>(d)] =
+              f.velocity->component[static_cast<std::size_t>(d)][n];
+      image.arrays.push_back(std::move(v));
+      names = "velocity";
+    }
+    for (const GridScalarField& g : f.scalars) {
+      const std::string name(slice_field_name(g.field));
+      image.arrays.push_back({name, g.units, 1, g.values});
+      names += (names.empty() ? "" : ";") + name;
+    }
+    const std::string file = timed_file_name("fields", frame.time, ".vti");
+    io::write_vti(directory_ / "fields" / file, image, metadata_.code_version);
+    const auto index = directory_ / "fields" / "index.csv";
+    append_line(index, "t,step,file,points_per_side,spacing,arrays",
+                number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
+                    std::to_string(f.grid.points_per_side) + ',' + number(h) + ',' + names);
+    std::vector<io::CollectionEntry> series;
+    for (const auto& row : read_index(index))
+      if (row.contains("file")) series.push_back({std::stod(row.at("t")), row.at("file")});
+    io::write_pvd(directory_ / "fields" / "fields.pvd", series);
   }
   append_line(directory_ / "stats" / "snapshots.csv",
               "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"

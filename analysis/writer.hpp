@@ -1,24 +1,34 @@
 // Writes analysis frames into a run directory (file formats in docs/analysis.md):
 //   spectra/E_t{t}.csv + spectra/index.csv      energy spectra
-//   slices/{field}_t{t}.npy + slices/index.csv   2D slices (NumPy .npy, float64, C order)
+//   slices/{field}_t{t}.npy + .vti + {field}.pvd  2D slices (NumPy .npy, float64, C order;
+//                                                VTK image data; ParaView time series)
+//   slices/index.csv                             one row per slice file
 //   stats/snapshots.csv                          one row of scalars per analysed snapshot
 //   stats/joint_tau_omega2_t{t}.csv              bivariate histogram (τ*, ω²*)
 //   stats/alignment_t{t}.csv                     polar histogram of γ (2D runs)
 //   snapshots/particles_t{t}.h5 + index.csv + particles.xdmf   particle data for ParaView
+//   fields/fields_t{t}.vti + index.csv + fields.pvd   the whole analysis grid (VTK image data)
 // Every file is written to a temporary name and renamed, so no reader sees half a file.
 #pragma once
 
 #include <filesystem>
+#include <map>
 #include <mutex>
 #include <span>
 #include <string>
+#include <vector>
 
 #include "analysis/products.hpp"
+#include "io/particle_snapshot.hpp"
 
 namespace sphles::analysis {
 
 /// "{prefix}_t{time with 4 decimals}{extension}", e.g. E_t14.0000.csv.
 std::string timed_file_name(const std::string& prefix, double time, const std::string& extension);
+
+/// The rows of a CSV index (header name → cell; sphles' indexes quote nothing). A missing file
+/// has no rows; a row shorter than the header (being appended) lacks the missing cells.
+std::vector<std::map<std::string, std::string>> read_index(const std::filesystem::path& path);
 
 /// Writes a 2D float64 array as NumPy .npy (format 1.0) with shape (rows, columns).
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
@@ -27,8 +37,8 @@ void write_npy(const std::filesystem::path& path, std::span<const double> values
 class RunDirectoryWriter {
  public:
   /// Creates the sub-directories; throws std::runtime_error naming the path on failure.
-  /// `scene_json` is stored in particle snapshots.
-  explicit RunDirectoryWriter(std::filesystem::path directory, std::string scene_json = "{}");
+  /// `metadata` (scene JSON, code version) is stored in particle snapshots and images.
+  explicit RunDirectoryWriter(std::filesystem::path directory, io::SnapshotMetadata metadata = {});
 
   /// Writes the frame's products. Errors are kept (last_error) rather than thrown, because this
   /// runs on the analysis thread.
@@ -39,7 +49,7 @@ class RunDirectoryWriter {
  private:
   void write_or_throw(const AnalysisFrame& frame);
   std::filesystem::path directory_;
-  std::string scene_json_;
+  io::SnapshotMetadata metadata_;
   mutable std::mutex mutex_;
   std::string last_error_;
 };

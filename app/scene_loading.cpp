@@ -4,6 +4,7 @@
 
 #include "app/commands.hpp"
 #include "io/checkpoint.hpp"
+#include "io/particle_snapshot.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -32,11 +33,23 @@ analysis::RunConfig load_run_config(const std::string& scene_or_preset,
 
 int inspect_command(const std::vector<std::string>& args) {
   if (args.size() != 1) {
-    std::fprintf(stderr, "sphles inspect: usage: sphles inspect CHECKPOINT.h5\n");
+    std::fprintf(stderr, "sphles inspect: usage: sphles inspect CHECKPOINT.h5|SNAPSHOT.h5\n");
     return kExitUsage;
   }
   try {
-    std::fputs(io::describe_checkpoint(args[0]).c_str(), stdout);
+    // The root attribute "schema" says which kind of sphles file it is.
+    const std::string schema = io::hdf5_schema(args[0]);
+    if (schema == io::kParticleSnapshotSchema)
+      std::fputs(io::describe_particle_snapshot(args[0]).c_str(), stdout);
+    else if (schema == io::kCheckpointSchema)
+      std::fputs(io::describe_checkpoint(args[0]).c_str(), stdout);
+    else
+      throw io::CheckpointError("'" + args[0] + "': " +
+                                (schema.empty() ? std::string("has no root attribute 'schema'")
+                                                : "root attribute 'schema' is '" + schema + "'") +
+                                ", so it is neither a sphles checkpoint ('" +
+                                io::kCheckpointSchema + "') nor a particle snapshot ('" +
+                                io::kParticleSnapshotSchema + "')");
     return kExitOk;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles inspect: %s\n", e.what());

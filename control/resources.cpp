@@ -65,6 +65,7 @@ constexpr double kAnalysisThreadBytes = 1024.0 * 1024;
 constexpr double kCsvNumberBytes = 25.0;
 /// Header of a 2D .npy file (padded to a multiple of 64 bytes, analysis/writer.cpp).
 constexpr double kNpyHeaderBytes = 128.0;
+constexpr double kVtkImageWriterBytes = 3.5 * 1024 * 1024;  // VTK XML image writer at work
 /// HDF5 per dataset and per file (object headers, chunk index, checksums), an upper bound
 /// for the files sphles writes (measured against real checkpoints, tests/test_resources.cpp).
 constexpr double kHdf5BytesPerDataset = 4096.0;
@@ -178,6 +179,7 @@ struct AnalysisNeeds {
   int slices = 0, scalar_slices = 0;  // all slices; those sampled from particles (τ, ν_t)
   int particle_fields = 0;
   bool particles = false;
+  int field_doubles = 0;  // doubles per grid node the "fields" product keeps and writes
 };
 
 AnalysisNeeds analysis_needs(const analysis::AnalysisConfig& c, bool explicit_model) {
@@ -193,16 +195,25 @@ AnalysisNeeds analysis_needs(const analysis::AnalysisConfig& c, bool explicit_mo
   };
   a.statistics = c.wants(Product::SubfilterStatistics);
   a.spectrum = c.wants(Product::Spectrum);
-  a.stress = a.statistics || stress_slice || particle_field(SliceField::SubfilterStressNorm);
-  const bool grid_omega2 = c.wants(Product::Vorticity) || omega_slice;
+  const bool fields = c.wants(Product::Fields);
+  const auto grid_field = [&](SliceField f) { return fields && c.grid_fields.contains(f); };
+  const bool stress_grid = stress_slice || grid_field(SliceField::SubfilterStressNorm);
+  const bool eddy_grid = explicit_model && (eddy_slice || grid_field(SliceField::EddyViscosity));
+  a.field_doubles = (fields && c.grid_velocity ? 3 : 0) +
+                    (grid_field(SliceField::VorticitySquared) ? 1 : 0) +
+                    (grid_field(SliceField::SubfilterStressNorm) ? 1 : 0) +
+                    (grid_field(SliceField::EddyViscosity) && explicit_model ? 1 : 0);
+  a.stress = a.statistics || stress_grid || particle_field(SliceField::SubfilterStressNorm);
+  const bool grid_omega2 =
+      c.wants(Product::Vorticity) || omega_slice || grid_field(SliceField::VorticitySquared);
   const bool particle_omega2 = a.statistics || particle_field(SliceField::VorticitySquared);
   const bool particle_estimate = c.gridding.vorticity == analysis::VorticityEstimate::Particle;
   a.particle_gradient = particle_estimate && (grid_omega2 || particle_omega2);
   a.shepard_omega2 = particle_estimate && grid_omega2;
   a.vorticity = !particle_estimate && (grid_omega2 || particle_omega2);  // central differences
-  a.velocity = c.wants(Product::Energy) || a.spectrum || a.vorticity;
+  a.velocity = c.wants(Product::Energy) || a.spectrum || a.vorticity || (fields && c.grid_velocity);
   a.shepard_velocity = a.velocity && c.gridding.velocity == analysis::VelocityGridding::Shepard;
-  a.map = (a.velocity && !a.shepard_velocity) || stress_slice || eddy_slice;
+  a.map = (a.velocity && !a.shepard_velocity) || stress_grid || eddy_grid;
   a.particle_vorticity = a.vorticity && particle_omega2;  // nearest-node lookup of ω²
   a.slices = (omega_slice ? 1 : 0) + (stress_slice ? 1 : 0) + (eddy_slice ? 1 : 0);
   a.scalar_slices = a.slices - (omega_slice ? 1 : 0);
@@ -293,6 +304,10 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
   model.frame_bytes += a.slices * slice_bytes;
   t.hold(a.particle_fields * particles * kDouble);
   model.frame_bytes += a.particle_fields * particles * kDouble;
+  const double field_bytes = a.field_doubles * nodes * kDouble;  // the "fields" product
+  t.hold(field_bytes);
+  model.frame_bytes += field_bytes;
+  if (a.field_doubles > 0) model.grid_points = nodes;
   model.work_bytes = t.peak();
 
   // Writer (analysis/writer.cpp): one file's text or buffer at a time.
@@ -303,7 +318,11 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
   model.writer_bytes =
       std::max({a.slices > 0 ? slice_bytes + kNpyHeaderBytes : 0.0,
                 2.0 * joint_text,  // the string stream and its copy
-                a.particles ? (6.0 + a.particle_fields) * particles * kDouble : 0.0});
+                a.particles ? (6.0 + a.particle_fields) * particles * kDouble : 0.0,
+                2.0 * field_bytes});  // VTK's arrays and the compressed blocks
+  // VTK's XML image writer (slices and fields as .vti): its objects, zlib state and buffers,
+  // measured as the growth of a 2D 32² run's peak RSS when the .vti writer was added.
+  if (a.slices > 0 || a.field_doubles > 0) model.writer_bytes += kVtkImageWriterBytes;
 
   // Files per frame: spectrum CSV, slices, histograms, particle snapshot, one stats row.
   if (a.spectrum) model.file_bytes += shells * 4.0 * kCsvNumberBytes + 10.0 * kCsvNumberBytes;
@@ -313,6 +332,7 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
   if (a.particles)
     model.file_bytes += particle_file_doubles * kDouble +
                         (5.0 + a.particle_fields) * kHdf5BytesPerDataset + kHdf5BytesPerFile;
+  model.file_bytes += field_bytes;  // uncompressed, an upper bound
   model.file_bytes += 11.0 * kCsvNumberBytes;
   return model;
 }

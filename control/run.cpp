@@ -155,6 +155,58 @@ std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem:
   return std::pair{info.st_dev, info.st_ino};
 }
 
+/// What the run directory holds, from its indexes (so every session of a restarted run counts):
+/// for each kind of output, how many and at which times, and the index listing the files
+/// (run.json "outputs", docs/analysis.md).
+json outputs_json(const std::filesystem::path& dir) {
+  const auto series = [&](const std::filesystem::path& index, const char* time_key,
+                          const char* group_key) {
+    json by_group = json::object();
+    for (const auto& row : analysis::read_index(dir / index)) {
+      if (!row.contains(time_key)) continue;
+      const std::string group = group_key && row.contains(group_key) ? row.at(group_key) : "";
+      json& entry = by_group[group];
+      if (entry.is_null()) entry = {{"count", 0}, {"times", json::array()}};
+      entry["count"] = entry["count"].get<int>() + 1;
+      entry["times"].push_back(std::stod(row.at(time_key)));
+    }
+    json out = group_key ? json{{"index", index.string()}, {"by_field", by_group}}
+                         : (by_group.contains("") ? by_group[""] : json{{"count", 0}});
+    if (!group_key) out["index"] = index.string();
+    return out;
+  };
+  json outputs = {{"timeseries", series("timeseries.csv", "t", nullptr)},
+                  {"spectra", series("spectra/index.csv", "t", nullptr)},
+                  {"statistics", series("stats/snapshots.csv", "t", nullptr)},
+                  {"snapshots", series("snapshots/index.csv", "t", nullptr)},
+                  {"fields", series("fields/index.csv", "t", nullptr)},
+                  {"slices", series("slices/index.csv", "t", "field")},
+                  {"frames", series("frames/index.csv", "time", "field")}};
+  json checkpoints = json::array();
+  for (const auto& file : io::list_checkpoints(dir / "checkpoints"))
+    checkpoints.push_back(file.filename().string());
+  outputs["checkpoints"] = {{"count", checkpoints.size()}, {"files", checkpoints}};
+  return outputs;
+}
+
+/// One line: "written: 3 spectra, 3 snapshots, slices omega2 3 tau_sfs 3, ...".
+std::string outputs_summary(const json& outputs) {
+  std::string line = "written:";
+  const auto count = [](const json& j) { return j.value("count", 0); };
+  for (const char* kind :
+       {"timeseries", "spectra", "statistics", "snapshots", "fields", "checkpoints"})
+    line += " " + std::to_string(count(outputs[kind])) + " " + kind + ",";
+  for (const char* kind : {"slices", "frames"}) {
+    line += std::string(" ") + kind;
+    if (outputs[kind]["by_field"].empty()) line += " 0";
+    for (const auto& [field, entry] : outputs[kind]["by_field"].items())
+      line += " " + field + " " + std::to_string(count(entry));
+    line += ",";
+  }
+  line.pop_back();
+  return line;
+}
+
 std::string utc_now() {
   const std::time_t now = std::time(nullptr);
   std::tm tm{};
@@ -215,6 +267,7 @@ struct Run::Impl {
   }
   std::thread thread;
   std::string last_checkpoint;  // file name under checkpoints/ of the newest one written
+  json outputs;                 // what the run directory holds, set when the run ends
   double time = 0.0, end_time = 0.0;
   std::uint64_t step = 0;
   double wall_seconds = 0.0, steps_per_second = 0.0;
@@ -248,15 +301,18 @@ struct Run::Impl {
   }
 
   void write_run_file_locked() const {
-    const json j = {{"id", id},
-                    {"name", spec.run.scene.name},
-                    {"state", run_state_name(state)},
-                    {"reason", reason},
-                    {"created", created},
-                    {"updated", utc_now()},
-                    {"time", time},
-                    {"step", step},
-                    {"checkpoint", last_checkpoint}};
+    json j = {{"schema", "sphles-run"},
+              {"code_version", SPHLES_VERSION},
+              {"id", id},
+              {"name", spec.run.scene.name},
+              {"state", run_state_name(state)},
+              {"reason", reason},
+              {"created", created},
+              {"updated", utc_now()},
+              {"time", time},
+              {"step", step},
+              {"checkpoint", last_checkpoint}};
+    if (!outputs.is_null()) j["outputs"] = outputs;
     write_text_atomically(directory / "run.json", j.dump(2) + "\n");
   }
   /// run.json, where a failure to write it must not change what happens (the state in memory is
@@ -860,13 +916,16 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     std::filesystem::create_directories(checkpoint_dir);
     const io::CheckpointMetadata metadata{run_spec_to_json(current).dump(), SPHLES_VERSION,
                                           packing};
-    io::write_checkpoint(checkpoint_dir / io::checkpoint_file_name(simulation->step_count()),
-                         simulation->state(), metadata,
+    const auto file = checkpoint_dir / io::checkpoint_file_name(simulation->step_count());
+    io::write_checkpoint(file, simulation->state(), metadata,
                          {.gzip_level = current.run.scene.checkpoint.compression});
+    io::write_checkpoint_xdmf(file, simulation->state());
     const auto files = io::list_checkpoints(checkpoint_dir);
     for (std::size_t k = static_cast<std::size_t>(current.run.scene.checkpoint.keep);
-         k < files.size(); ++k)
+         k < files.size(); ++k) {
       std::filesystem::remove(files[k]);
+      std::filesystem::remove(io::checkpoint_xdmf_path(files[k]));
+    }
     last_checkpoint_wall = Clock::now();
     last_checkpoint_step = simulation->step_count();
     // run.json follows the checkpoints: after a crash it says where a resume continues.
@@ -898,8 +957,8 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
       render_target = renderer.get();
     }
     if (current.run.analysis.enabled() && !pipeline) {
-      writer = std::make_unique<analysis::RunDirectoryWriter>(directory,
-                                                              run_spec_to_json(current).dump());
+      writer = std::make_unique<analysis::RunDirectoryWriter>(
+          directory, io::SnapshotMetadata{run_spec_to_json(current).dump(), SPHLES_VERSION});
       pipeline = std::make_unique<analysis::AnalysisPipeline>(
           current.run.analysis,
           std::vector<analysis::FrameSink>{
@@ -1070,7 +1129,10 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     throw std::runtime_error("writing analysis products failed: " + writer->last_error());
   if (renderer && !renderer->error().empty())
     throw std::runtime_error("rendering failed: " + renderer->error());
+  json written = outputs_json(directory);
+  if (options.log_progress) std::fprintf(stderr, "%s\n", outputs_summary(written).c_str());
   std::unique_lock lock(mutex);
+  outputs = std::move(written);
   if (stopped) {
     set_state(lock, RunState::Stopped, stopped_reason);
   } else {

@@ -31,7 +31,8 @@ const char* kAxis[] = {"x", "y", "z"};
 
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
-                   const CheckpointWriteOptions& options, const std::string& label) {
+                   const std::string& units, const CheckpointWriteOptions& options,
+                   const std::string& label) {
   const auto failed = [&] {
     return CheckpointError(label + ": cannot write dataset 'particles/" + name + "'");
   };
@@ -54,6 +55,7 @@ void write_dataset(hid_t group, const std::string& name, hid_t type, const std::
   if (!dataset.valid() ||
       (size > 0 && H5Dwrite(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0))
     throw failed();
+  write_string_attribute(dataset.get(), "units", units, label);
 }
 
 // --- reading ---------------------------------------------------------------------------
@@ -390,27 +392,81 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
                          H5Gclose);
       if (!group.valid()) throw CheckpointError(label + ": cannot create group 'particles'");
       const hid_t g = group.get();
+      const bool three = dim == 3;
       for (int d = 0; d < dim; ++d) {
         const std::string axis = kAxis[d];
-        write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], options, label);
-        write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], options, label);
-        write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], options,
+        write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], "m", options, label);
+        write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], "m/s", options,
                       label);
+        write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], "m/s^2",
+                      options, label);
         write_dataset(g, "list_reference_" + axis, H5T_NATIVE_DOUBLE,
-                      state.list_reference_positions[d], options, label);
+                      state.list_reference_positions[d], "m", options, label);
       }
-      write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, options, label);
-      write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, options, label);
-      write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, options, label);
-      write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, options, label);
-      write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, options, label);
+      write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, three ? "kg" : "kg/m", options, label);
+      write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, three ? "m^3" : "m^2", options,
+                    label);
+      write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, three ? "kg/m^3" : "kg/m^2",
+                    options, label);
+      write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, "Pa", options, label);
+      write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, "1", options, label);
       if (!p.eddy_viscosity.empty())
-        write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, options, label);
+        write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, "m^2/s", options,
+                      label);
     }
     image = h5.finish();
   }
   // The disk write needs no HDF5 call, so it runs outside the library lock.
   detail::write_file_atomically(path, image, label);
+}
+
+std::filesystem::path checkpoint_xdmf_path(const std::filesystem::path& checkpoint) {
+  std::filesystem::path side = checkpoint;
+  return side.replace_extension(".xdmf2");
+}
+
+void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::SolverState& state) {
+  const sim::ParticleArrays& p = state.particles;
+  const std::string n = std::to_string(p.size());
+  const std::string file = checkpoint.filename().string();
+  const auto item = [&](const std::string& dataset, const char* type = "Float") {
+    return "<DataItem Dimensions=\"" + n + "\" NumberType=\"" + type +
+           "\" Precision=\"8\" Format=\"HDF\">" + file + ":/particles/" + dataset + "</DataItem>";
+  };
+  // Positions from their components (X_Y_Z, or X_Y with z = 0 in 2D); vectors joined from
+  // them by XDMF 2 function items (ParaView's Xdmf3 reader evaluates neither, its XDMF 2 reader
+  // both). A 2D vector gets z = 0 * x, so that ParaView sees 3-vectors in both cases.
+  const auto vector = [&](const std::string& prefix) {
+    std::string components = item(prefix + "_x") + item(prefix + "_y");
+    const char* function = p.dimension == 3 ? "JOIN($0, $1, $2)" : "JOIN($0, $1, 0 * $0)";
+    if (p.dimension == 3) components += item(prefix + "_z");
+    return "<DataItem ItemType=\"Function\" Function=\"" + std::string(function) +
+           "\" Dimensions=\"" + n + " 3\">" + components + "</DataItem>";
+  };
+  std::ostringstream x;
+  x.precision(17);
+  x << "<?xml version=\"1.0\" ?>\n"
+    << "<Xdmf Version=\"2.0\">\n  <Domain>\n"
+    << "    <Grid Name=\"" << file << "\" GridType=\"Uniform\">\n"
+    << "      <Time Value=\"" << state.time << "\"/>\n"
+    << "      <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
+    << "\" NodesPerElement=\"1\">" << item("id", "UInt") << "</Topology>\n"
+    << "      <Geometry GeometryType=\"" << (p.dimension == 3 ? "X_Y_Z" : "X_Y") << "\">"
+    << item("position_x") << item("position_y") << (p.dimension == 3 ? item("position_z") : "")
+    << "</Geometry>\n";
+  for (const char* v : {"velocity", "acceleration"})
+    x << "      <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
+      << vector(v) << "</Attribute>\n";
+  x << "      <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\">"
+    << item("id", "UInt") << "</Attribute>\n";
+  std::vector<std::string> scalars{"mass", "volume", "density", "pressure"};
+  if (!p.eddy_viscosity.empty()) scalars.push_back("eddy_viscosity");
+  for (const std::string& s : scalars)
+    x << "      <Attribute Name=\"" << s << "\" AttributeType=\"Scalar\" Center=\"Node\">"
+      << item(s) << "</Attribute>\n";
+  x << "    </Grid>\n  </Domain>\n</Xdmf>\n";
+  const std::filesystem::path side = checkpoint_xdmf_path(checkpoint);
+  detail::write_file_atomically(side, x.str(), "checkpoint side file '" + side.string() + "'");
 }
 
 Checkpoint read_checkpoint(const std::filesystem::path& path) {

@@ -47,6 +47,15 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
                       const CheckpointMetadata& metadata,
                       const CheckpointWriteOptions& options = {});
 
+/// The XDMF side file of a checkpoint: the same name with extension .xdmf2 (XDMF 2, the
+/// extension by which ParaView picks its XDMF 2 reader; docs/checkpoints.md).
+std::filesystem::path checkpoint_xdmf_path(const std::filesystem::path& checkpoint);
+
+/// Writes (atomically) checkpoint_xdmf_path(checkpoint): an XDMF 2 polyvertex grid over the
+/// checkpoint's particle datasets (vectors joined from their components), so ParaView opens a
+/// checkpoint as particles. Throws CheckpointError.
+void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::SolverState& state);
+
 /// Reads and validates. Structure: existence, HDF5 readability, schema name and version,
 /// dimension, particle count and array lengths, checksums. Content: the `scene` attribute is a
 /// JSON object; time finite and >= 0; step and neighbour_builds consistent with it; every value

@@ -1,6 +1,6 @@
 // Particle snapshots for tools outside sphles: one HDF5 file per snapshot plus an XDMF file
-// describing the time series, so ParaView and VisIt open the series directly
-// (docs/checkpoints.md, "Snapshots").
+// describing the time series, so ParaView and VisIt open the series directly, and h5py reads
+// every dataset with its units (docs/checkpoints.md, "Snapshots").
 #pragma once
 
 #include <cstdint>
@@ -12,20 +12,32 @@
 
 namespace sphles::io {
 
+inline constexpr const char* kParticleSnapshotSchema = "sphles-particles";
+/// Version 2: rows in id order with an `id` dataset, schema and code version attributes.
+inline constexpr int kParticleSnapshotSchemaVersion = 2;
+
 /// An extra per-particle scalar (τ_SFS norm, ν_t, ω², ...).
 struct ParticleField {
   std::string name;
   std::string units;
-  std::vector<double> values;
+  std::vector<double> values;  // in the particle arrays' order
 };
 
-/// Writes `path` atomically with datasets position (N x 3, z = 0 in 2D), velocity (N x 3),
-/// mass, density, pressure and the extra fields (N), each with a "units" attribute, and root
-/// attributes time, step, dimension, scene (JSON).
+struct SnapshotMetadata {
+  std::string scene_json = "{}";  // the run configuration, JSON text
+  std::string code_version = "unknown";
+};
+
+/// Writes `path` atomically. Rows are in id order (row k holds the particle with id k, so the
+/// same row is the same particle in every snapshot of a run); the ids must be a permutation of
+/// 0..N-1. Datasets: id (N, uint64), position (N x 3, z = 0 in 2D), velocity (N x 3), mass,
+/// density, pressure and the extra fields (N), each with a "units" attribute. Root attributes:
+/// schema, schema_version, code_version, time, time_units, step, dimension, num_particles, scene.
+/// Throws CheckpointError naming the file and the reason.
 void write_particle_snapshot(const std::filesystem::path& path,
                              const sim::ParticleArrays& particles, double time, std::uint64_t step,
                              const std::vector<ParticleField>& extra,
-                             const std::string& scene_json);
+                             const SnapshotMetadata& metadata);
 
 struct SnapshotEntry {
   std::string file;  // relative to the XDMF file
@@ -34,8 +46,18 @@ struct SnapshotEntry {
   std::vector<std::string> scalars;  // scalar datasets besides mass, density, pressure
 };
 
-/// Writes (atomically) an XDMF 3 temporal collection of polyvertex grids over the entries.
+/// Writes (atomically) an XDMF 3 temporal collection of polyvertex grids over the entries: one
+/// vertex cell per particle (connectivity: the `id` dataset, 0..N-1 in row order), so ParaView's
+/// Xdmf3 reader draws the points with its default representation.
 void write_xdmf_series(const std::filesystem::path& path,
                        const std::vector<SnapshotEntry>& entries);
+
+/// A human-readable listing of a particle snapshot (for `sphles inspect`): attributes, datasets
+/// with shape and units, id order check, e_v. Throws CheckpointError naming the file.
+std::string describe_particle_snapshot(const std::filesystem::path& path);
+
+/// The value of the root attribute "schema" of an HDF5 file ("" when it has none). Throws
+/// CheckpointError when the file is not HDF5.
+std::string hdf5_schema(const std::filesystem::path& path);
 
 }  // namespace sphles::io

@@ -2,6 +2,7 @@
 # Installs every Debian package sphles needs (build, tests, rendering, service, browser tests).
 # Safe to re-run: does nothing when all packages are already installed.
 set -euo pipefail
+cd "$(dirname "$0")/.."
 
 packages=(
   build-essential cmake ninja-build pkg-config clang-format
@@ -10,7 +11,8 @@ packages=(
   libboost-dev libboost-system-dev nlohmann-json3-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
-  python3 python3-matplotlib
+  python3 python3-matplotlib python3-h5py
+  paraview xvfb xauth
 )
 
 missing=()
@@ -45,11 +47,25 @@ fi
 
 if [ ${#missing[@]} -eq 0 ]; then
   echo "setup: all ${#packages[@]} packages present"
-  exit 0
+else
+  echo "setup: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -qq
+  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  echo "setup: done"
 fi
 
-echo "setup: installing ${missing[*]}"
-export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -qq
-"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
-echo "setup: done"
+# ParaView's Python modules for pvbatch (the reader tests, docs/analysis.md). Debian's
+# python3-paraview conflicts with python3-vtk9, which libvtk9-dev needs, so the package is
+# unpacked into .deps/ (never installed) at the version of the installed paraview.
+paraview_python=.deps/python3-paraview
+if [ ! -d "$paraview_python/usr/lib/python3/dist-packages/paraview" ]; then
+  version=$(dpkg-query -W -f='${Version}' paraview)
+  echo "setup: unpacking python3-paraview $version into $paraview_python"
+  rm -rf "$paraview_python" .deps/download
+  mkdir -p .deps/download
+  (cd .deps/download && { apt-get download -qq "python3-paraview=$version" 2> /dev/null ||
+    { "${sudo_cmd[@]}" apt-get update -qq && apt-get download -qq "python3-paraview=$version"; }; })
+  dpkg-deb -x .deps/download/python3-paraview_*.deb "$paraview_python"
+  rm -rf .deps/download
+fi

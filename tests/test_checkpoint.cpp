@@ -494,7 +494,7 @@ TEST_F(CheckpointTest, WritesOverAFileSizeLimitFailCleanlyAndKeepThePreviousFile
                                           {"b", "1", std::vector<double>(n, 2.0)}};
   write_checkpoint(file, previous, meta);
   write_particle_snapshot(snapshot, previous.particles, previous.time, previous.step, fields,
-                          meta.scene_json);
+                          {meta.scene_json, meta.code_version});
   const std::string previous_snapshot = file_text(snapshot);
   ASSERT_GT(std::filesystem::file_size(file), kFileSizeLimit);
   ASSERT_GT(previous_snapshot.size(), kFileSizeLimit);
@@ -523,7 +523,7 @@ TEST_F(CheckpointTest, WritesOverAFileSizeLimitFailCleanlyAndKeepThePreviousFile
 
     const std::string snapshot_error = error_writing([&] {
       write_particle_snapshot(snapshot, next.particles, next.time, next.step, fields,
-                              meta.scene_json);
+                              {meta.scene_json, meta.code_version});
     });
     report += "snapshot error: " + snapshot_error + "\n";
     check(snapshot_error.find(snapshot.string()) != std::string::npos &&
@@ -583,7 +583,8 @@ TEST_F(CheckpointTest, FailuresAtEveryStepOfAWriteLeaveNoHdf5IdentifierOpen) {
   const std::size_t n = state.particles.size();
   const std::string dataset_error = error_writing([&] {
     write_particle_snapshot(snapshot, state.particles, state.time, state.step,
-                            {{"mass", "kg", std::vector<double>(n, 1.0)}}, meta.scene_json);
+                            {{"mass", "kg", std::vector<double>(n, 1.0)}},
+                            {meta.scene_json, meta.code_version});
   });
   EXPECT_NE(dataset_error.find("snapshot '" + snapshot.string() + "': cannot write dataset 'mass'"),
             std::string::npos)
@@ -593,7 +594,7 @@ TEST_F(CheckpointTest, FailuresAtEveryStepOfAWriteLeaveNoHdf5IdentifierOpen) {
     write_particle_snapshot(
         snapshot, state.particles, state.time, state.step,
         {{"omega2", std::string(kOversizedAttribute, 'x'), std::vector<double>(n, 1.0)}},
-        meta.scene_json);
+        {meta.scene_json, meta.code_version});
   });
   EXPECT_NE(units_error.find("cannot write attribute 'units'"), std::string::npos) << units_error;
   EXPECT_EQ(hdf5_identifiers(), baseline) << describe(hdf5_identifiers());
@@ -801,5 +802,80 @@ TEST_F(CheckpointTest, ImplausibleContentIsRejectedNamingTheField) {
             std::string::npos)
       << restart.err;
 }
+
+std::vector<double> read_doubles(const std::filesystem::path& file, const char* dataset) {
+  const hid_t h5 = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  const hid_t set = H5Dopen2(h5, dataset, H5P_DEFAULT);
+  const hid_t space = H5Dget_space(set);
+  std::vector<double> values(static_cast<std::size_t>(H5Sget_simple_extent_npoints(space)));
+  H5Dread(set, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, values.data());
+  H5Sclose(space);
+  H5Dclose(set);
+  H5Fclose(h5);
+  return values;
+}
+
+/// Snapshots are written in id order whatever order the solver holds the particles in, carry
+/// schema, version and units, and `sphles inspect` describes them; particle ids that are not a
+/// permutation of 0..N-1, HDF5 files of other kinds and non-HDF5 files are clear errors.
+TEST_F(CheckpointTest, SnapshotsAreInIdOrderAndInspectDescribesThem) {
+  TinyRun run = tiny_run(3);
+  sim::SolverState state = run.simulation->state();
+  sim::ParticleArrays& p = state.particles;
+  const std::size_t n = p.size();
+  // A deliberately scrambled order (a reversal) on top of the solver's cell order.
+  std::vector<std::uint32_t> reversed(n);
+  for (std::size_t i = 0; i < n; ++i) reversed[i] = static_cast<std::uint32_t>(n - 1 - i);
+  p.reorder(reversed);
+  ASSERT_NE(p.id[0], 0u);
+  std::vector<double> field(n);
+  for (std::size_t i = 0; i < n; ++i) field[i] = 10.0 * static_cast<double>(p.id[i]);
+  const auto snapshot = dir_ / "particles_t1.h5";
+  write_particle_snapshot(snapshot, p, state.time, state.step, {{"tag", "1", field}},
+                          {run.metadata().scene_json, "test-version"});
+  const std::vector<double> ids = read_doubles(snapshot, "id");
+  const std::vector<double> xyz = read_doubles(snapshot, "position");
+  const std::vector<double> tag = read_doubles(snapshot, "tag");
+  const std::vector<double> mass = read_doubles(snapshot, "mass");
+  ASSERT_EQ(ids.size(), n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t k = p.id[i];
+    EXPECT_EQ(ids[k], static_cast<double>(k));
+    EXPECT_EQ(xyz[3 * k], p.position[0][i]);
+    EXPECT_EQ(xyz[3 * k + 1], p.position[1][i]);
+    EXPECT_EQ(xyz[3 * k + 2], 0.0);
+    EXPECT_EQ(tag[k], 10.0 * static_cast<double>(k));
+    EXPECT_EQ(mass[k], p.mass[i]);
+  }
+
+  const Finished inspected = run_sphles({"inspect", snapshot.string()}, dir_);
+  EXPECT_EQ(inspected.end.code, 0) << inspected.err;
+  for (const std::string expected :
+       {"schema:           sphles-particles", "schema_version:   2",
+        "code_version:     test-version", "num_particles:    256", "position          256 x 3  [m]",
+        "tag               256  [1]", "id order:         row k holds id k"})
+    EXPECT_NE(inspected.out.find(expected), std::string::npos) << expected << "\n" << inspected.out;
+
+  sim::ParticleArrays duplicated = p;
+  duplicated.id[5] = duplicated.id[6];
+  const std::string error = error_writing([&] {
+    write_particle_snapshot(dir_ / "bad.h5", duplicated, state.time, state.step, {}, {});
+  });
+  EXPECT_NE(error.find("particle ids are not a permutation of 0..255"), std::string::npos) << error;
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "bad.h5"));
+
+  const auto plain = dir_ / "plain.h5";
+  H5Fclose(H5Fcreate(plain.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT));
+  const Finished other = run_sphles({"inspect", plain.string()}, dir_);
+  EXPECT_EQ(other.end.code, 2);
+  EXPECT_NE(other.err.find("has no root attribute 'schema', so it is neither a sphles checkpoint"),
+            std::string::npos)
+      << other.err;
+  std::ofstream(dir_ / "text.h5") << "not HDF5";
+  const Finished text = run_sphles({"inspect", (dir_ / "text.h5").string()}, dir_);
+  EXPECT_EQ(text.end.code, 2);
+  EXPECT_NE(text.err.find("not an HDF5 file"), std::string::npos) << text.err;
+}
+
 }  // namespace
 }  // namespace sphles::io

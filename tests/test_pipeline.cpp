@@ -144,7 +144,7 @@ TEST(AnalysisConfig, ErrorsNameTheField) {
   };
   EXPECT_NE(error_of({{"products", {"spectrum", "colour"}}, {"every", 1}})
                 .find("'analysis.products[1]' must be one of energy, spectrum, vorticity, "
-                      "slices, sfs_stats, particles, got 'colour'"),
+                      "slices, sfs_stats, particles, fields, got 'colour'"),
             std::string::npos);
   EXPECT_NE(error_of({{"products", {"spectrum"}}}).find("'analysis.every' must be > 0"),
             std::string::npos);
@@ -533,7 +533,7 @@ TEST_F(WriterTest, ParticleSnapshotsWithXdmfSeries) {
   config.every = 1.0;
   config.products = {Product::Particles};
   config.particle_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
-  RunDirectoryWriter writer(dir_, R"({"case":"tgv2d"})");
+  RunDirectoryWriter writer(dir_, {R"({"case":"tgv2d"})", "test-version"});
   for (const double t : {0.0, 0.05}) {
     const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 16, t);
     writer.write(analyse(snapshot, config));
@@ -577,8 +577,9 @@ TEST_F(WriterTest, ParticleSnapshotsWithXdmfSeries) {
     H5Dclose(set);
     H5Fclose(file);
   }
-  // Per grid: position, velocity, mass, density, pressure, omega2, tau_sfs.
-  EXPECT_EQ(items, 2 * 7);
+  // Per grid: id (topology and attribute), position, velocity, mass, density, pressure, omega2,
+  // tau_sfs.
+  EXPECT_EQ(items, 2 * 9);
 }
 
 TEST_F(WriterTest, UnwritableDirectoryIsAClearError) {

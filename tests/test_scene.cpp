@@ -236,6 +236,23 @@ TEST_F(CliTest, RunWithAnalysisWritesProductsAtTheCadence) {
   const json written = json::parse(std::ifstream(out / "scene.json"));
   EXPECT_EQ(written["analysis"]["every"], 0.05);
   EXPECT_FALSE(std::filesystem::exists(out / "stats" / "vorticity"));
+  // run.json and the end summary list what was written, at exactly the requested times.
+  const json record = json::parse(std::ifstream(out / "run.json"));
+  const json& outputs = record["outputs"];
+  const json times = json::array({0.0, 0.05, 0.1});
+  EXPECT_EQ(outputs["spectra"]["count"], 3) << outputs.dump(2);
+  EXPECT_EQ(outputs["spectra"]["times"], times) << outputs.dump(2);
+  EXPECT_EQ(outputs["statistics"]["times"], times);
+  EXPECT_EQ(outputs["slices"]["by_field"]["omega2"]["times"], times);
+  EXPECT_EQ(outputs["slices"]["by_field"]["tau_sfs"]["count"], 3);
+  EXPECT_EQ(outputs["snapshots"]["count"], 0);
+  EXPECT_EQ(outputs["checkpoints"]["count"], 1);
+  EXPECT_NE(r.output.find("written: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(" 3 spectra,"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("slices omega2 3 tau_sfs 3"), std::string::npos) << r.output;
+  for (const char* time : {"0.0000", "0.0500", "0.1000"})
+    EXPECT_TRUE(
+        std::filesystem::exists(out / "slices" / ("omega2_t" + std::string(time) + ".vti")));
 }
 
 TEST_F(CliTest, PresetsAreListedAndRunnableByName) {

@@ -337,7 +337,14 @@ TEST(ServiceFaults, DeletingTheRunDirectoryFailsTheRunSayingWhy) {
   const Api api{server.port()};
   const std::string id = api.create({{"scene", long_scene()}});
   ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 20); }));
-  fs::remove_all(server.data_directory / "runs" / id);
+  // Like `rm -rf` while the run writes: a file the run renames away between remove_all's
+  // listing and its unlink makes one pass fail (seen in CI with a .pvd.tmp), so repeat it.
+  const fs::path run_dir = server.data_directory / "runs" / id;
+  ASSERT_TRUE(wait_until([&] {
+    std::error_code ignored;
+    fs::remove_all(run_dir, ignored);
+    return !fs::exists(run_dir);
+  }));
   ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "failed"; }, 20s));
   const std::string reason = api.run(id)["reason"];
   EXPECT_NE(reason.find("was deleted or replaced"), std::string::npos) << reason;
