@@ -12,13 +12,14 @@ using sim::SceneError;
 
 namespace {
 
-constexpr std::array<std::pair<Product, std::string_view>, 6> kProductNames{{
+constexpr std::array<std::pair<Product, std::string_view>, 7> kProductNames{{
     {Product::Energy, "energy"},
     {Product::Spectrum, "spectrum"},
     {Product::Vorticity, "vorticity"},
     {Product::Slices, "slices"},
     {Product::SubfilterStatistics, "sfs_stats"},
     {Product::Particles, "particles"},
+    {Product::Fields, "fields"},
 }};
 constexpr std::array<std::pair<SliceField, std::string_view>, 3> kSliceFieldNames{{
     {SliceField::VorticitySquared, "omega2"},
@@ -29,9 +30,10 @@ constexpr std::array<std::pair<VelocityGridding, std::string_view>, 2> kVelocity
     {VelocityGridding::Nearest, "nearest"},
     {VelocityGridding::Shepard, "shepard"},
 }};
-constexpr std::array<std::pair<VorticityEstimate, std::string_view>, 2> kVorticityEstimateNames{{
+constexpr std::array<std::pair<VorticityEstimate, std::string_view>, 3> kVorticityEstimateNames{{
     {VorticityEstimate::Particle, "particle"},
     {VorticityEstimate::Grid, "grid"},
+    {VorticityEstimate::Mls, "mls"},
 }};
 constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
 
@@ -124,6 +126,23 @@ AnalysisConfig parse_analysis_config(const json* section) {
     }
   }
   {
+    std::vector<std::string> fields;
+    r.strings("grid_fields", fields);
+    if (r.find("grid_fields")) {
+      c.grid_velocity = false;
+      c.grid_fields.clear();
+      for (std::size_t k = 0; k < fields.size(); ++k) {
+        const std::string field = "analysis.grid_fields[" + std::to_string(k) + "]";
+        if (fields[k] == "velocity") {
+          if (c.grid_velocity) throw SceneError("scene: '" + field + "' repeats 'velocity'");
+          c.grid_velocity = true;
+        } else if (!c.grid_fields.insert(parse_name(kSliceFieldNames, fields[k], field)).second) {
+          throw SceneError("scene: '" + field + "' repeats '" + fields[k] + "'");
+        }
+      }
+    }
+  }
+  {
     sim::ObjectReader g = r.object("gridding");
     std::string velocity(velocity_gridding_name(c.gridding.velocity));
     g.string("velocity", velocity);
@@ -133,6 +152,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
     g.string("vorticity", vorticity);
     c.gridding.vorticity =
         parse_name(kVorticityEstimateNames, vorticity, "analysis.gridding.vorticity");
+    g.number("fit_radius", c.gridding.fit_radius, sim::in_range(kMinFitRadius, kMaxFitRadius));
     g.reject_unknown();
   }
   r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
@@ -166,9 +186,18 @@ json analysis_config_to_json(const AnalysisConfig& c) {
                list.push_back(std::string(slice_field_name(f)));
              return list;
            }()},
+          {"grid_fields",
+           [&] {
+             json list = json::array();
+             if (c.grid_velocity) list.push_back("velocity");
+             for (const SliceField f : c.grid_fields)
+               list.push_back(std::string(slice_field_name(f)));
+             return list;
+           }()},
           {"gridding",
            {{"velocity", std::string(velocity_gridding_name(c.gridding.velocity))},
-            {"vorticity", std::string(vorticity_estimate_name(c.gridding.vorticity))}}},
+            {"vorticity", std::string(vorticity_estimate_name(c.gridding.vorticity))},
+            {"fit_radius", c.gridding.fit_radius}}},
           {"grid_points_per_spacing", c.grid_points_per_spacing},
           {"histogram_bins", c.histogram_bins},
           {"angle_bins", c.angle_bins},
@@ -205,6 +234,27 @@ RunConfig parse_run_config(const json& document) {
     throw SceneError(
         "scene: 'analysis.particle_fields' asks for nu_t, but 'subfilter.model' is implicit (no "
         "eddy viscosity)");
+  if (implicit && config.analysis.wants(Product::Fields) &&
+      config.analysis.grid_fields.contains(SliceField::EddyViscosity))
+    throw SceneError(
+        "scene: 'analysis.grid_fields' asks for nu_t, but 'subfilter.model' is implicit (no "
+        "eddy viscosity)");
+  if (config.analysis.wants(Product::Fields) && !config.analysis.grid_velocity &&
+      config.analysis.grid_fields.empty())
+    throw SceneError("scene: 'analysis.grid_fields' is empty, but the product 'fields' is on");
+  // The local fits of the mls estimate reach R = fit_radius H around a point; the periodic box
+  // must hold the fit's ball once: 2 R <= L, i.e. fit_radius D_K <= particles_per_side.
+  const AnalysisConfig& a = config.analysis;
+  if (a.enabled() && a.gridding.vorticity == VorticityEstimate::Mls &&
+      a.gridding.fit_radius * config.scene.kernel_diameter_over_spacing >
+          config.scene.particles_per_side)
+    throw SceneError(
+        "scene: 'analysis.gridding.fit_radius' must be at most 'particles_per_side' / "
+        "'kernel.diameter_over_spacing' (" +
+        sim::format_number(config.scene.particles_per_side /
+                           config.scene.kernel_diameter_over_spacing) +
+        ") for the mls vorticity, so that the fit fits in the periodic box, got " +
+        sim::format_number(a.gridding.fit_radius));
   return config;
 }
 

@@ -9,9 +9,10 @@
 
 namespace sphles::analysis {
 
-enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics, Particles };
+enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics, Particles, Fields };
 
-/// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats", "particles".
+/// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats", "particles",
+/// "fields" (the whole analysis grid as VTK image data).
 std::string_view product_name(Product product);
 
 enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
@@ -25,16 +26,30 @@ SliceField slice_field_from_name(const std::string& name, const std::string& fie
 /// "shepard" (kernel-weighted average of the particles within H, with the run's kernel).
 enum class VelocityGridding { Nearest, Shepard };
 /// How ω is estimated (products "vorticity", "slices" ω², "sfs_stats", "particles" ω²):
-/// "particle" (the curl of the (A.20) gradient on each particle; on the grid by Shepard
-/// interpolation of ω²) or "grid" (SPEC §5, the thesis: central differences of the gridded
-/// velocity; per particle, the value at its nearest node).
-enum class VorticityEstimate { Particle, Grid };
+/// "particle" (the curl of the (A.20) gradient on each particle, the vorticity of the
+/// kernel-filtered velocity; on the grid by Shepard interpolation of ω²), "grid" (SPEC §5, the
+/// thesis: central differences of the gridded velocity; per particle, the value at its nearest
+/// node) or "mls" (the default: the curl of a local cubic least-squares fit to the particle
+/// velocities within gridding.fit_radius, which does not attenuate the scales it resolves; on
+/// the grid a local quadratic fit of ω, and ⟨ω²⟩ as the volume-weighted mean over the
+/// particles; local_fit.hpp).
+enum class VorticityEstimate { Particle, Grid, Mls };
 std::string_view velocity_gridding_name(VelocityGridding gridding);
 std::string_view vorticity_estimate_name(VorticityEstimate estimate);
 
+/// Bounds of gridding.fit_radius, in kernel support radii H: below 0.75 H the fits of the thesis'
+/// D_K = 4 Δl kernels would see too few particles for a cubic in 3D (20 monomials); above 2 H the
+/// fit averages over scales the model resolves, and costs (R/Δl)^n per point.
+inline constexpr double kMinFitRadius = 0.75;
+inline constexpr double kMaxFitRadius = 2.0;
+
 struct GriddingConfig {
   VelocityGridding velocity = VelocityGridding::Nearest;
-  VorticityEstimate vorticity = VorticityEstimate::Particle;
+  VorticityEstimate vorticity = VorticityEstimate::Mls;
+  /// R / H of the "mls" estimate's local fits (local_fit.hpp): by default the fits reach as far
+  /// as the kernel, so they see the scales the model resolves and not the particle-scale noise
+  /// below them (docs/analysis.md).
+  double fit_radius = 1.0;
 };
 
 struct SliceConfig {
@@ -59,6 +74,10 @@ struct AnalysisConfig {
   /// omega2, tau_sfs, nu_t.
   std::set<SliceField> particle_fields{SliceField::VorticitySquared,
                                        SliceField::SubfilterStressNorm};
+  /// What the "fields" product writes on the whole grid: the gridded velocity (scene name
+  /// "velocity") and any of omega2, tau_sfs, nu_t.
+  bool grid_velocity = true;
+  std::set<SliceField> grid_fields{SliceField::VorticitySquared};
   GriddingConfig gridding;
   int grid_points_per_spacing = 2;  // grid spacing Δl / 2 (SPEC §5)
   int histogram_bins = 50;          // bivariate (τ*, ω²*) histogram, per axis

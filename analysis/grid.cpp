@@ -1,5 +1,7 @@
 #include "analysis/grid.hpp"
 
+#include "analysis/cell_list.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -28,86 +30,6 @@ struct Candidate {
   std::uint64_t id;
   std::uint32_t index;
 };
-
-void check_grid(const Grid& grid) {
-  if (grid.dimension != 2 && grid.dimension != 3)
-    throw std::invalid_argument("grid: dimension must be 2 or 3");
-  if (grid.points_per_side <= 0) throw std::invalid_argument("grid: points_per_side must be > 0");
-  if (!(grid.length > 0.0)) throw std::invalid_argument("grid: length must be > 0");
-}
-
-/// The particles can be gridded on `grid`: same dimension, at least one, 32-bit indices,
-/// positions in [0, L].
-void check_particles(const Grid& grid, const sim::ParticleArrays& particles, const char* what) {
-  check_grid(grid);
-  const std::string name(what);
-  if (particles.dimension != grid.dimension)
-    throw std::invalid_argument(name + ": grid and particle dimensions differ");
-  const std::size_t n = particles.size();
-  if (n == 0) throw std::invalid_argument(name + ": no particles");
-  if (n > std::numeric_limits<std::uint32_t>::max())
-    throw std::invalid_argument(name + ": too many particles for 32-bit indices");
-  for (int d = 0; d < grid.dimension; ++d) {
-    if (particles.position[d].size() != n)
-      throw std::invalid_argument(name + ": position arrays do not match the particles");
-    const auto [lo, hi] =
-        std::minmax_element(particles.position[d].begin(), particles.position[d].end());
-    if (*lo < 0.0 || *hi > grid.length)
-      throw std::invalid_argument(name + ": positions must lie in [0, L] (axis " +
-                                  std::to_string(d) + ")");
-  }
-}
-
-/// Periodic cell list of C^n cubic cells of side w = L/C ≈ Δl, particle data copied in
-/// cell-major order so that a cell's members are contiguous.
-struct CellList {
-  int cells_per_side = 1;                              // C
-  double cell_size = 0.0;                              // w [m]
-  std::vector<std::size_t> cell_start;                 // members of c: [start[c], start[c+1])
-  std::array<std::vector<double>, 3> sorted_position;  // x of the members, cell-major
-  std::vector<std::uint64_t> sorted_id;
-  std::vector<std::uint32_t> sorted_index;  // index into ParticleArrays
-
-  int cell_of(double x) const {
-    return std::clamp(static_cast<int>(std::floor(x / cell_size)), 0, cells_per_side - 1);
-  }
-};
-
-/// C^n cells of side L/C over the grid's box.
-CellList build_cell_list(const Grid& grid, const sim::ParticleArrays& particles,
-                         int cells_per_side) {
-  const int dim = grid.dimension;
-  const std::size_t n = particles.size();
-  CellList cells;
-  cells.cells_per_side = std::max(1, cells_per_side);
-  cells.cell_size = grid.length / cells.cells_per_side;
-  const auto c_side = static_cast<std::size_t>(cells.cells_per_side);
-  std::size_t num_cells = 1;
-  for (int d = 0; d < dim; ++d) num_cells *= c_side;
-
-  std::vector<std::size_t> cell(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    std::size_t c = 0;
-    for (int d = dim - 1; d >= 0; --d)
-      c = c * c_side + static_cast<std::size_t>(cells.cell_of(particles.position[d][i]));
-    cell[i] = c;
-  }
-  // Counting sort by cell (stable; the order within a cell does not affect the result).
-  cells.cell_start.assign(num_cells + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++cells.cell_start[cell[i] + 1];
-  for (std::size_t c = 0; c < num_cells; ++c) cells.cell_start[c + 1] += cells.cell_start[c];
-  std::vector<std::size_t> fill(cells.cell_start.begin(), cells.cell_start.end() - 1);
-  for (int d = 0; d < dim; ++d) cells.sorted_position[d].resize(n);
-  cells.sorted_id.resize(n);
-  cells.sorted_index.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const std::size_t k = fill[cell[i]]++;
-    for (int d = 0; d < dim; ++d) cells.sorted_position[d][k] = particles.position[d][i];
-    cells.sorted_id[k] = i < particles.id.size() ? particles.id[i] : i;  // ids: nearest map only
-    cells.sorted_index[k] = static_cast<std::uint32_t>(i);
-  }
-  return cells;
-}
 
 /// Nearest particle to the point x by expanding rings of cells around x's cell: the particle of
 /// smallest id among those with |Δx|² <= kTieFactor min |Δx|² (minimum image). `candidates` is
@@ -281,11 +203,6 @@ void remove_spatial_mean(VectorField& field) {
 
 namespace {
 
-/// Cells per kernel support radius of the Shepard gather: cells of side >= H / kCellsPerSupport,
-/// so the particles within H of a node lie at most kCellsPerSupport cells from the node's cell.
-/// Two cells per H scan (5/3)^n support cubes per node, against 3^n with one.
-constexpr int kCellsPerSupport = 2;
-
 /// A particle near a node row: its cell along x, x itself, its squared distance to the row's
 /// axis (the y, z part of |x_n - x_j|², the same for every node of the row) and its index.
 struct RowCandidate {
@@ -311,13 +228,7 @@ void shepard_fill(const KernelT& kernel, const CellList& cells, const Grid& grid
   const double support2 = kernel.support_radius() * kernel.support_radius();
   const int c_side = cells.cells_per_side;
   const auto side = static_cast<std::size_t>(c_side);
-  // Distinct offsets per axis: -reach..reach, or every cell once when the box has fewer cells.
-  std::vector<int> offsets;
-  if (c_side >= 2 * kCellsPerSupport + 1) {
-    for (int o = -kCellsPerSupport; o <= kCellsPerSupport; ++o) offsets.push_back(o);
-  } else {
-    for (int o = 0; o < c_side; ++o) offsets.push_back(o);
-  }
+  const std::vector<int> offsets = gather_offsets(cells);
   const std::vector<int> no_offset{0};
   const std::vector<int>& z_offsets = Dim == 3 ? offsets : no_offset;
   const double* volume = particles.volume.data();
@@ -405,9 +316,7 @@ std::vector<std::vector<double>> shepard_sample(const Grid& grid,
   if (!(kernel.support_radius > 0.0))
     throw std::invalid_argument("shepard_sample: kernel support radius must be > 0");
 
-  const double cell_size = kernel.support_radius / kCellsPerSupport;
-  const int cells_per_side = std::max(1, static_cast<int>(std::floor(grid.length / cell_size)));
-  const CellList cells = build_cell_list(grid, particles, cells_per_side);
+  const CellList cells = build_gather_cell_list(grid, particles, kernel.support_radius);
   std::vector<std::vector<double>> out(fields.size(), std::vector<double>(grid.size(), 0.0));
   sim::with_kernel(kernel.type, grid.dimension, kernel.support_radius, [&](const auto& k) {
     constexpr int kDim = std::remove_cvref_t<decltype(k)>::dimension;

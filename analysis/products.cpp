@@ -5,6 +5,7 @@
 #include <numbers>
 
 #include "analysis/grid.hpp"
+#include "analysis/local_fit.hpp"
 #include "analysis/subfilter_stress.hpp"
 #include "analysis/vorticity.hpp"
 
@@ -29,8 +30,9 @@ class StageTimer {
   AnalysisFrame& frame_;
 };
 
-SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, SliceField name,
-                           const SliceConfig& config) {
+/// The slice's geometry and, in `nodes`, the grid node of every slice value (u fastest).
+SliceProduct slice_layout(const Grid& grid, SliceField name, const SliceConfig& config,
+                          std::vector<std::size_t>& nodes) {
   SliceProduct s;
   s.field = name;
   s.units = name == SliceField::VorticitySquared ? "1/s^2"
@@ -40,12 +42,12 @@ SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, S
   const int m = grid.points_per_side;
   s.width = m;
   s.height = m;
-  s.values.resize(static_cast<std::size_t>(m) * static_cast<std::size_t>(m));
+  nodes.resize(static_cast<std::size_t>(m) * static_cast<std::size_t>(m));
   if (grid.dimension == 2) {
     s.normal_axis = 2;
     s.axis_u = 0;
     s.axis_v = 1;
-    s.values = field;
+    for (std::size_t n = 0; n < nodes.size(); ++n) nodes[n] = n;
     return s;
   }
   s.normal_axis = config.axis;
@@ -60,10 +62,35 @@ SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, S
       node[static_cast<std::size_t>(config.axis)] = plane;
       node[static_cast<std::size_t>(s.axis_u)] = iu;
       node[static_cast<std::size_t>(s.axis_v)] = iv;
-      s.values[static_cast<std::size_t>(iu) + static_cast<std::size_t>(m) * iv] =
-          field[grid.index(node[0], node[1], node[2])];
+      nodes[static_cast<std::size_t>(iu) + static_cast<std::size_t>(m) * iv] =
+          grid.index(node[0], node[1], node[2]);
     }
   return s;
+}
+
+SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, SliceField name,
+                           const SliceConfig& config) {
+  std::vector<std::size_t> nodes;
+  SliceProduct s = slice_layout(grid, name, config, nodes);
+  s.values.resize(nodes.size());
+  for (std::size_t n = 0; n < nodes.size(); ++n) s.values[n] = field[nodes[n]];
+  return s;
+}
+
+/// |ω|² at the given grid nodes (all when empty) from the local quadratic fit of the particle
+/// vorticity's components (the "mls" estimate).
+std::vector<double> fitted_vorticity_squared(const Grid& grid, const sim::ParticleArrays& particles,
+                                             const FitSettings& fit, const ParticleVorticity& omega,
+                                             std::span<const std::size_t> nodes) {
+  std::vector<std::span<const double>> components;
+  for (const std::vector<double>& c : omega.component)
+    if (!c.empty()) components.emplace_back(c);
+  const std::vector<std::vector<double>> sampled =
+      fitted_sample(grid, particles, fit, components, nodes);
+  std::vector<double> squared(sampled.front().size(), 0.0);
+  for (const std::vector<double>& c : sampled)
+    for (std::size_t n = 0; n < squared.size(); ++n) squared[n] += c[n] * c[n];
+  return squared;
 }
 
 }  // namespace
@@ -97,30 +124,42 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   const bool want_stress_slice = config.wants(Product::Slices) &&
                                  config.slice.fields.contains(SliceField::SubfilterStressNorm);
   const bool want_particles = config.wants(Product::Particles);
+  const bool want_fields = config.wants(Product::Fields);
+  const auto grid_field = [&](SliceField f) {
+    return want_fields && config.grid_fields.contains(f);
+  };
+  const bool want_field_velocity = want_fields && config.grid_velocity;
   const auto particle_field = [&](SliceField f) {
     return want_particles && config.particle_fields.contains(f);
   };
-  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_slice ||
+  const bool want_stress_grid = want_stress_slice || grid_field(SliceField::SubfilterStressNorm);
+  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_grid ||
                            particle_field(SliceField::SubfilterStressNorm);
-  // ω² on the grid (mean and slice) and at the particles (histogram, particle snapshot).
-  const bool need_grid_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice;
+  // ω² on the grid (mean, slice, fields) and at the particles (histogram, particle snapshot).
+  const bool need_grid_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
+                                   grid_field(SliceField::VorticitySquared);
   const bool need_particle_omega2 =
       config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared);
-  const bool particle_estimate = config.gridding.vorticity == VorticityEstimate::Particle;
+  const VorticityEstimate estimate = config.gridding.vorticity;
+  // The particle and mls estimates start from ω on every particle; grid from the gridded velocity.
+  const bool particle_estimate = estimate != VorticityEstimate::Grid;
   const bool need_particle_vorticity =
       particle_estimate && (need_grid_vorticity || need_particle_omega2);
   const bool need_velocity_grid =
-      config.wants(Product::Energy) || config.wants(Product::Spectrum) ||
+      config.wants(Product::Energy) || config.wants(Product::Spectrum) || want_field_velocity ||
       (!particle_estimate && (need_grid_vorticity || need_particle_omega2));
   const bool shepard_velocity_grid = config.gridding.velocity == VelocityGridding::Shepard;
+  const bool has_eddy_viscosity = snapshot.particles.eddy_viscosity.size() == snapshot.size();
   const bool want_eddy_slice = config.wants(Product::Slices) &&
                                config.slice.fields.contains(SliceField::EddyViscosity) &&
-                               snapshot.particles.eddy_viscosity.size() == snapshot.size();
-  // The node → particle map serves the nearest-particle velocity and the τ_SFS and ν_t slices.
+                               has_eddy_viscosity;
+  const bool want_eddy_grid =
+      want_eddy_slice || (grid_field(SliceField::EddyViscosity) && has_eddy_viscosity);
+  // The node → particle map serves the nearest-particle velocity and the τ_SFS and ν_t grids.
   const bool need_map =
-      (need_velocity_grid && !shepard_velocity_grid) || want_stress_slice || want_eddy_slice;
+      (need_velocity_grid && !shepard_velocity_grid) || want_stress_grid || want_eddy_grid;
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
-      !want_particles) {
+      !want_particles && !want_fields) {
     frame.total_seconds = 0.0;
     return frame;
   }
@@ -130,11 +169,20 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   const InterpolationKernel kernel{snapshot.kernel, snapshot.support_radius};
   std::optional<NearestParticleMap> map;
   if (need_map) map = timed("grid_map", [&] { return nearest_particle_map(grid, particles); });
-  std::optional<VectorField> velocity;
+  std::optional<VectorField> velocity;  // mean removed (SPEC §5)
+  std::optional<GridFieldsProduct> fields;
+  if (want_fields) fields = GridFieldsProduct{grid, std::nullopt, {}};
   if (need_velocity_grid)
     velocity = timed("grid_velocity", [&] {
-      return shepard_velocity_grid ? shepard_velocity(grid, particles, kernel, true)
-                                   : sample_velocity(*map, particles, true);
+      // The fields product keeps the velocity with its mean; the rest uses the fluctuation.
+      VectorField v = shepard_velocity_grid
+                          ? shepard_velocity(grid, particles, kernel, !want_field_velocity)
+                          : sample_velocity(*map, particles, !want_field_velocity);
+      if (want_field_velocity) {
+        fields->velocity = v;
+        remove_spatial_mean(v);
+      }
+      return v;
     });
 
   if (config.wants(Product::Energy))
@@ -162,29 +210,44 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
     return *neighbours;
   };
 
-  // ω² per particle: the particle estimate's own value, or the grid value at the nearest node.
+  // ω per particle (particle and mls estimates), and ω² per particle: the particle estimate's
+  // own value, or the grid value at the nearest node.
+  const FitSettings fit{snapshot.kernel, config.gridding.fit_radius * snapshot.support_radius};
+  std::optional<ParticleVorticity> omega;
   std::vector<double> particle_vorticity_squared;
-  if (need_particle_vorticity)
-    particle_vorticity_squared = timed("particle_vorticity", [&] {
-      return particle_vorticity(snapshot, neighbour_list()).squared_magnitude();
+  if (need_particle_vorticity) {
+    omega = timed("particle_vorticity", [&] {
+      return estimate == VorticityEstimate::Mls ? fitted_particle_vorticity(snapshot, grid, fit)
+                                                : particle_vorticity(snapshot, neighbour_list());
     });
+    particle_vorticity_squared = omega->squared_magnitude();
+  }
 
-  std::vector<double> vorticity_squared;  // ω² on the grid nodes
-  if (need_grid_vorticity || (!particle_estimate && need_particle_omega2)) {
+  // ω² on the grid nodes: the whole grid, except for the mls estimate when only the slice needs
+  // it (its local fits cost (R/Δl)^n per node), which fits the slice's nodes alone.
+  const bool mls = estimate == VorticityEstimate::Mls;
+  const bool need_whole_grid_vorticity =
+      mls ? grid_field(SliceField::VorticitySquared)
+          : need_grid_vorticity || (!particle_estimate && need_particle_omega2);
+  std::vector<double> vorticity_squared;
+  if (need_whole_grid_vorticity)
     vorticity_squared = timed("vorticity", [&] {
+      if (mls) return fitted_vorticity_squared(grid, particles, fit, *omega, {});
       if (particle_estimate) {
         const std::span<const double> field(particle_vorticity_squared);
         return std::move(shepard_sample(grid, particles, kernel, {&field, 1}).front());
       }
       return squared_magnitude(vorticity(*velocity));
     });
-    if (config.wants(Product::Vorticity)) {
-      VorticityProduct p;
-      p.estimate = config.gridding.vorticity;
-      p.mean_vorticity_squared = mean_value(vorticity_squared);
-      p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
-      frame.vorticity = p;
-    }
+  if (config.wants(Product::Vorticity)) {
+    VorticityProduct p;
+    p.estimate = estimate;
+    // mls: the volume-weighted mean over the particles, Σ V ω² / Σ V (the fits are pointwise,
+    // and a grid of Δl/2 would cost 2^n fits per particle); otherwise the mean over the nodes.
+    p.mean_vorticity_squared = mls ? volume_weighted_mean(particles, particle_vorticity_squared)
+                                   : mean_value(vorticity_squared);
+    p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
+    frame.vorticity = p;
   }
   if (!particle_estimate && need_particle_omega2) {
     const std::vector<std::size_t> node = nearest_node(grid, particles);
@@ -218,12 +281,19 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
 
   if (want_vorticity_slice)
     frame.slices.push_back(timed("slice_omega2", [&] {
-      return extract_slice(grid, vorticity_squared, SliceField::VorticitySquared, config.slice);
+      if (!vorticity_squared.empty())
+        return extract_slice(grid, vorticity_squared, SliceField::VorticitySquared, config.slice);
+      std::vector<std::size_t> nodes;
+      SliceProduct slice = slice_layout(grid, SliceField::VorticitySquared, config.slice, nodes);
+      slice.values = fitted_vorticity_squared(grid, particles, fit, *omega, nodes);
+      return slice;
     }));
+  std::vector<double> stress_grid;  // |τ_SFS| at the nearest particle of each node
+  if (want_stress_grid)
+    stress_grid = timed("grid_tau_sfs", [&] { return sample_scalar(*map, stress->norm); });
   if (want_stress_slice)
     frame.slices.push_back(timed("slice_tau_sfs", [&] {
-      return extract_slice(grid, sample_scalar(*map, stress->norm), SliceField::SubfilterStressNorm,
-                           config.slice);
+      return extract_slice(grid, stress_grid, SliceField::SubfilterStressNorm, config.slice);
     }));
 
   if (want_particles) {
@@ -239,11 +309,25 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
     frame.particles = std::move(p);
   }
 
+  std::vector<double> eddy_grid;  // ν_t at the nearest particle of each node
+  if (want_eddy_grid)
+    eddy_grid =
+        timed("grid_nu_t", [&] { return sample_scalar(*map, snapshot.particles.eddy_viscosity); });
   if (want_eddy_slice)
     frame.slices.push_back(timed("slice_nu_t", [&] {
-      return extract_slice(grid, sample_scalar(*map, snapshot.particles.eddy_viscosity),
-                           SliceField::EddyViscosity, config.slice);
+      return extract_slice(grid, eddy_grid, SliceField::EddyViscosity, config.slice);
     }));
+
+  if (want_fields) {
+    if (grid_field(SliceField::VorticitySquared))
+      fields->scalars.push_back(
+          {SliceField::VorticitySquared, "1/s^2", std::move(vorticity_squared)});
+    if (grid_field(SliceField::SubfilterStressNorm))
+      fields->scalars.push_back({SliceField::SubfilterStressNorm, "Pa", std::move(stress_grid)});
+    if (grid_field(SliceField::EddyViscosity) && has_eddy_viscosity)
+      fields->scalars.push_back({SliceField::EddyViscosity, "m^2/s", std::move(eddy_grid)});
+    frame.fields = std::move(fields);
+  }
 
   frame.total_seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

@@ -45,6 +45,19 @@ struct SliceProduct {
   std::string units;  // "1/s^2" or "Pa"
 };
 
+/// The whole analysis grid (product "fields"): node (i, j, k) at (i h, j h, k h), index
+/// i + M (j + M k) (VTK's point order).
+struct GridScalarField {
+  SliceField field = SliceField::VorticitySquared;
+  std::string units;
+  std::vector<double> values;
+};
+struct GridFieldsProduct {
+  Grid grid;
+  std::optional<VectorField> velocity;  // the gridded velocity with its mean [m/s]
+  std::vector<GridScalarField> scalars;
+};
+
 struct SubfilterStatisticsProduct {
   double max_norm = 0.0;                    // max_i |τ_SFS,i| [Pa]
   double mean_norm = 0.0;                   // mean_i |τ_SFS,i| [Pa]
@@ -80,6 +93,7 @@ struct AnalysisFrame {
   std::vector<SliceProduct> slices;
   std::optional<SubfilterStatisticsProduct> subfilter;
   std::optional<ParticlesProduct> particles;
+  std::optional<GridFieldsProduct> fields;
   /// Wall time per stage, in the order computed: ("grid", s), ("spectrum", s), ...
   std::vector<std::pair<std::string, double>> timings;
   double total_seconds = 0.0;

@@ -123,6 +123,34 @@ ParticleVorticity particle_vorticity(const Snapshot& snapshot,
   return omega;
 }
 
+ParticleVorticity fitted_particle_vorticity(const Snapshot& snapshot, const Grid& grid,
+                                            const FitSettings& fit) {
+  const sim::ParticleArrays& p = snapshot.particles;
+  const int dim = snapshot.dimension();
+  const std::vector<sim::VelocityGradient> gradient = fitted_velocity_gradient(grid, p, fit);
+  ParticleVorticity omega;
+  omega.dimension = dim;
+  const std::size_t n = p.size();
+  for (int a = dim == 3 ? 0 : 2; a < 3; ++a) omega.component[a].resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::array<double, 3> w = curl(gradient[i]);
+    for (int a = dim == 3 ? 0 : 2; a < 3; ++a) omega.component[a][i] = w[a];
+  }
+  return omega;
+}
+
+double volume_weighted_mean(const sim::ParticleArrays& particles,
+                            const std::vector<double>& values) {
+  if (values.size() != particles.size() || particles.volume.size() != particles.size())
+    throw std::invalid_argument("volume-weighted mean: one value and one volume per particle");
+  if (values.empty()) return 0.0;
+  const double weighted = sim::deterministic_sum(
+      values.size(), [&](std::size_t i) { return particles.volume[i] * values[i]; });
+  const double volume =
+      sim::deterministic_sum(values.size(), [&](std::size_t i) { return particles.volume[i]; });
+  return weighted / volume;
+}
+
 std::shared_ptr<const sim::NeighbourList> snapshot_neighbours(const Snapshot& snapshot) {
   if (snapshot.neighbours && snapshot.neighbours->num_particles() == snapshot.size())
     return snapshot.neighbours;

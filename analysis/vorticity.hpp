@@ -1,5 +1,6 @@
-// Vorticity two ways: by second-order central differences on the periodic grid (SPEC §5, the
-// thesis' estimate), and per particle as the curl of the (A.20) velocity gradient (SPEC §4).
+// Vorticity three ways: by second-order central differences on the periodic grid (SPEC §5, the
+// thesis' estimate), per particle as the curl of the (A.20) velocity gradient (SPEC §4), and per
+// particle as the curl of a local cubic fit to the velocities (local_fit.hpp).
 #pragma once
 
 #include <array>
@@ -7,6 +8,7 @@
 #include <vector>
 
 #include "analysis/grid.hpp"
+#include "analysis/local_fit.hpp"
 #include "analysis/snapshot.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/subfilter.hpp"
@@ -47,6 +49,17 @@ struct ParticleVorticity {
 /// result does not depend on the thread count).
 ParticleVorticity particle_vorticity(const Snapshot& snapshot,
                                      const sim::NeighbourList& neighbours);
+
+/// Vorticity of every particle from the local cubic least-squares fit of the velocities within
+/// fit.radius (local_fit.hpp, the "mls" estimate): the vorticity of the particle velocity field
+/// itself, not of its kernel-filtered version. `grid` gives the periodic box.
+ParticleVorticity fitted_particle_vorticity(const Snapshot& snapshot, const Grid& grid,
+                                            const FitSettings& fit);
+
+/// Σ_i V_i f_i / Σ_i V_i over the particles (fixed-order sums): the volume average of a
+/// per-particle field (A.1 volumes).
+double volume_weighted_mean(const sim::ParticleArrays& particles,
+                            const std::vector<double>& values);
 
 /// The snapshot's neighbour list, or a list of radius H built for its positions when it has
 /// none (shared by the per-particle passes of one analysis).

@@ -393,7 +393,7 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
             EXPECT_GT(j["dissipation_vorticity"].get<double>(), 0.0);
             EXPECT_TRUE(j["dissipation_energy"].is_null() || j["dissipation_energy"].is_number())
                 << j["dissipation_energy"];
-            EXPECT_EQ(j["vorticity_estimate"], "particle");
+            EXPECT_EQ(j["vorticity_estimate"], "mls");
             spectrum = true;
           } else if (j["type"] == "statistics") {
             EXPECT_TRUE(j.contains("joint") && j.contains("max_norm"));

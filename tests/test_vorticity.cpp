@@ -391,6 +391,14 @@ void report(const char* what, const VorticityNumbers& grid, const VorticityNumbe
       particle.seconds);
 }
 
+void report_fitted(const VorticityNumbers& fitted, const Expected& e) {
+  std::printf(
+      "  mls: <omega^2> %.4f (%+.2f %% of exact), slice max %.4f (%+.2f %% of exact), "
+      "analysis %.2f s\n",
+      fitted.mean, 100.0 * (fitted.mean / e.point_mean - 1.0), fitted.slice_max,
+      100.0 * (fitted.slice_max / e.point_max - 1.0), fitted.seconds);
+}
+
 /// Tolerances of the smooth estimate against the filtered analytic values (issue 16: 2 % on the
 /// mean, 5 % on the slice maximum).
 constexpr double kMeanTolerance = 0.02;
@@ -419,6 +427,10 @@ TEST(TaylorGreenVorticity, ThreeDimensionalAtTimeZero) {
   report("3D TGV 32^3 packed, t = 0", grid, particle, e);
   EXPECT_NEAR(particle.mean / e.filtered_mean, 1.0, kMeanTolerance);
   EXPECT_NEAR(particle.slice_max / e.filtered_max, 1.0, kSliceMaxTolerance);
+  const VorticityNumbers fitted = vorticity_numbers(*snapshot, VorticityEstimate::Mls);
+  report_fitted(fitted, e);
+  EXPECT_NEAR(fitted.mean / e.point_mean, 1.0, kMeanTolerance);
+  EXPECT_NEAR(fitted.slice_max / e.point_max, 1.0, kSliceMaxTolerance);
 }
 
 // v = (sin x cos y, -cos x sin y) (6.2), v0 = 1: ω_z = 2 sin x sin y (|k| = √2), ω² = 4 sin²x
@@ -440,6 +452,10 @@ TEST(TaylorGreenVorticity, TwoDimensionalAtTimeZero) {
   report("2D TGV 64^2 packed, t = 0", grid, particle, e);
   EXPECT_NEAR(particle.mean / e.filtered_mean, 1.0, kMeanTolerance);
   EXPECT_NEAR(particle.slice_max / e.filtered_max, 1.0, kSliceMaxTolerance);
+  const VorticityNumbers fitted = vorticity_numbers(*snapshot, VorticityEstimate::Mls);
+  report_fitted(fitted, e);
+  EXPECT_NEAR(fitted.mean / e.point_mean, 1.0, kMeanTolerance);
+  EXPECT_NEAR(fitted.slice_max / e.point_max, 1.0, kSliceMaxTolerance);
 }
 
 // --- the option ------------------------------------------------------------------------------
@@ -447,7 +463,8 @@ TEST(TaylorGreenVorticity, TwoDimensionalAtTimeZero) {
 TEST(GriddingConfig, DefaultsParseAndRoundTrip) {
   const RunConfig defaults = parse_run_config(json::object());
   EXPECT_EQ(defaults.analysis.gridding.velocity, VelocityGridding::Nearest);
-  EXPECT_EQ(defaults.analysis.gridding.vorticity, VorticityEstimate::Particle);
+  EXPECT_EQ(defaults.analysis.gridding.vorticity, VorticityEstimate::Mls);
+  EXPECT_EQ(defaults.analysis.gridding.fit_radius, 1.0);
   const json doc = {{"analysis", {{"gridding", {{"velocity", "shepard"}, {"vorticity", "grid"}}}}}};
   const RunConfig c = parse_run_config(doc);
   EXPECT_EQ(c.analysis.gridding.velocity, VelocityGridding::Shepard);
@@ -456,6 +473,14 @@ TEST(GriddingConfig, DefaultsParseAndRoundTrip) {
   EXPECT_EQ(written["analysis"]["gridding"]["velocity"], "shepard");
   EXPECT_EQ(written["analysis"]["gridding"]["vorticity"], "grid");
   EXPECT_EQ(run_config_to_json(parse_run_config(written)), written);
+  const RunConfig m = parse_run_config(
+      {{"analysis", {{"gridding", {{"vorticity", "mls"}, {"fit_radius", 1.25}}}}}});
+  EXPECT_EQ(m.analysis.gridding.vorticity, VorticityEstimate::Mls);
+  EXPECT_EQ(m.analysis.gridding.fit_radius, 1.25);
+  const json mls_written = run_config_to_json(m);
+  EXPECT_EQ(mls_written["analysis"]["gridding"]["vorticity"], "mls");
+  EXPECT_EQ(mls_written["analysis"]["gridding"]["fit_radius"], 1.25);
+  EXPECT_EQ(run_config_to_json(parse_run_config(mls_written)), mls_written);
 }
 
 TEST(GriddingConfig, RejectsBadValuesNamingTheField) {
@@ -471,9 +496,35 @@ TEST(GriddingConfig, RejectsBadValuesNamingTheField) {
                 .find("'analysis.gridding.velocity' must be one of nearest, shepard, got 'cubic'"),
             std::string::npos);
   EXPECT_NE(error_of({{"vorticity", "spectral"}})
-                .find("'analysis.gridding.vorticity' must be one of particle, grid, got "
+                .find("'analysis.gridding.vorticity' must be one of particle, grid, mls, got "
                       "'spectral'"),
             std::string::npos);
+  EXPECT_NE(error_of({{"fit_radius", 0.5}})
+                .find("'analysis.gridding.fit_radius' must be in [0.75, 2], got 0.5"),
+            std::string::npos);
+  EXPECT_NE(error_of({{"fit_radius", "3"}}).find("'analysis.gridding.fit_radius' must be a number"),
+            std::string::npos);
+  // The fit's ball must fit in the periodic box: 2 R <= L, fit_radius D_K <= particles_per_side.
+  const json small = {{"particles_per_side", 12},
+                      {"kernel", {{"diameter_over_spacing", 8}}},
+                      {"analysis",
+                       {{"every", 0.5},
+                        {"products", {"vorticity"}},
+                        {"gridding", {{"vorticity", "mls"}, {"fit_radius", 1.5}}}}}};
+  EXPECT_NO_THROW(parse_run_config(small));  // R = 6 Δl = L/2
+  try {
+    json too_wide = small;
+    too_wide["analysis"]["gridding"]["fit_radius"] = 1.6;
+    parse_run_config(too_wide);
+    ADD_FAILURE() << "a fit wider than half the box was accepted";
+  } catch (const sim::SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "'analysis.gridding.fit_radius' must be at most 'particles_per_side' / "
+                  "'kernel.diameter_over_spacing' (1.5) for the mls vorticity, so that the fit "
+                  "fits in the periodic box, got 1.6"),
+              std::string::npos)
+        << e.what();
+  }
   EXPECT_NE(error_of({{"vorticity", 2}}).find("'analysis.gridding.vorticity' must be a string"),
             std::string::npos);
   EXPECT_NE(error_of({{"spectrum", "nearest"}}).find("unknown key 'analysis.gridding.spectrum'"),
