@@ -1,12 +1,6 @@
 #include "analysis/subfilter_stress.hpp"
 
-// GCC 12 with -march=native (AVX-512) reports a false -Wmaybe-uninitialized inside its own
-// avx512fintrin.h when Eigen's fixed-size eigen-solvers are inlined. The diagnostic is located in
-// the intrinsics header, which Eigen includes first here.
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#include <Eigen/Eigenvalues>
-#pragma GCC diagnostic pop
+#include "sim/eigen.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -16,6 +10,7 @@
 #include <type_traits>
 
 #include "sim/kernels.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::analysis {
@@ -24,60 +19,59 @@ namespace {
 // Tensor slot of the symmetric component (a, b), a, b < 3.
 constexpr int kSlot[3][3] = {{kXX, kXY, kXZ}, {kXY, kYY, kYZ}, {kXZ, kYZ, kZZ}};
 
-/// τ_SFS,i = Σ_j (v_j - v_i)(v_j - v_i)ᵀ W_ij M_j (3.27) in gather form: each particle sums over
-/// its own neighbours in list order, so the result does not depend on the thread count. The self
-/// pair (absent from the list) would contribute zero.
+/// τ_SFS,i = Σ_j (v_j - v_i)(v_j - v_i)ᵀ W_ij M_j (3.27) as an evaluator of the pair loop
+/// (sim/pair_loop.hpp; outputs: the upper triangle, row by row). The self pair (absent from the
+/// list) would contribute zero; a particle on top of another counts.
 template <int Dim, class KernelT>
-void stress_pass(const KernelT& kernel, const sim::PeriodicBox& box,
-                 const sim::NeighbourList& neighbours, const sim::ParticleArrays& p,
-                 std::vector<std::array<double, 6>>& tensor) {
-  const double support2 = kernel.support_radius() * kernel.support_radius();
-  double length[Dim], half_length[Dim];
-  const double* x[Dim];
-  const double* v[Dim];
-  for (int d = 0; d < Dim; ++d) {
-    length[d] = box.length[d];
-    half_length[d] = 0.5 * box.length[d];
-    x[d] = p.position[d].data();
-    v[d] = p.velocity[d].data();
+struct StressSum {
+  static constexpr int outputs = Dim * (Dim + 1) / 2;
+  static constexpr bool coincident_pairs = true;
+  struct Own {
+    double v[Dim];
+  };
+
+  StressSum(const KernelT& kernel, const sim::ParticleArrays& p,
+            std::vector<std::array<double, 6>>& tensor)
+      : kernel_(kernel), mass_(p.mass.data()), tensor_(tensor.data()) {
+    for (int d = 0; d < Dim; ++d) v_[d] = p.velocity[d].data();
   }
-  const double* mass = p.mass.data();
-  const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(static, 512)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    double xi[Dim], vi[Dim];
-    for (int d = 0; d < Dim; ++d) {
-      xi[d] = x[d][i];
-      vi[d] = v[d][i];
-    }
-    double sum[Dim][Dim] = {};  // upper triangle used
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        const double dx = sim::minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
-        r2 += dx * dx;
-      }
-      if (!(r2 < support2)) continue;
-      const double weight = kernel.value(std::sqrt(r2)) * mass[j];  // W_ij M_j
-      double dv[Dim];
-      for (int d = 0; d < Dim; ++d) dv[d] = v[d][j] - vi[d];
-      for (int a = 0; a < Dim; ++a)
-        for (int b = a; b < Dim; ++b) sum[a][b] += dv[a] * dv[b] * weight;
-    }
-    std::array<double, 6>& t = tensor[i];
-    t.fill(0.0);
+
+  Own own(std::size_t i) const {
+    Own o;
+    for (int d = 0; d < Dim; ++d) o.v[d] = v_[d][i];
+    return o;
+  }
+  void pair(const Own& o, const sim::Pair<Dim>& q, double (&out)[outputs]) const {
+    const double weight = kernel_.value(q.r) * mass_[q.j];  // W_ij M_j
+    double dv[Dim];
+    for (int d = 0; d < Dim; ++d) dv[d] = v_[d][q.j] - o.v[d];
+    int slot = 0;
     for (int a = 0; a < Dim; ++a)
-      for (int b = a; b < Dim; ++b) t[kSlot[a][b]] = sum[a][b];
+      for (int b = a; b < Dim; ++b) out[slot++] = dv[a] * dv[b] * weight;
   }
-}
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    std::array<double, 6>& t = tensor_[i];
+    t.fill(0.0);
+    int slot = 0;
+    for (int a = 0; a < Dim; ++a)
+      for (int b = a; b < Dim; ++b) t[kSlot[a][b]] = sum[slot++];
+  }
+
+ private:
+  KernelT kernel_;
+  const double* v_[Dim];
+  const double* mass_;
+  std::array<double, 6>* tensor_;
+};
 
 /// Frobenius norm (4.7) and principal stresses/directions (4.8) of one tensor.
 template <int Dim>
 void principal_axes(const std::array<double, 6>& t, double& norm, std::array<double, 3>& values,
                     std::array<std::array<double, 3>, 3>& directions) {
   using Matrix = Eigen::Matrix<double, Dim, Dim>;
-  Matrix m;
+  // 64-byte aligned: the same address-dependent loop splitting in Eigen on every thread's stack
+  // (thread-count determinism; see directional_weight in sim/viscous_operator.hpp).
+  alignas(64) Matrix m;
   double squares = 0.0;
   for (int a = 0; a < Dim; ++a) {
     for (int b = 0; b < Dim; ++b) {
@@ -88,7 +82,7 @@ void principal_axes(const std::array<double, 6>& t, double& norm, std::array<dou
   norm = std::sqrt(squares);  // (4.7)
 
   // Iterative (not closed-form) solver: reconstruction accurate to round-off.
-  const Eigen::SelfAdjointEigenSolver<Matrix> solver(m, Eigen::ComputeEigenvectors);
+  alignas(64) const Eigen::SelfAdjointEigenSolver<Matrix> solver(m, Eigen::ComputeEigenvectors);
   values.fill(0.0);
   for (auto& direction : directions) direction.fill(0.0);
   for (int a = 0; a < Dim; ++a) {
@@ -131,7 +125,10 @@ SubfilterStressField implicit_subfilter_stress(const Snapshot& snapshot,
 
   sim::with_kernel(snapshot.kernel, dim, snapshot.support_radius, [&](const auto& kernel) {
     constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
-    stress_pass<kDim>(kernel, snapshot.box, neighbours, p, field.tensor);
+    sim::pair_pass<kDim>(
+        StressSum<kDim, std::remove_cvref_t<decltype(kernel)>>(kernel, p, field.tensor),
+        sim::PeriodicGeometry<kDim>(snapshot.box, p), neighbours, kernel.support_radius(), 0,
+        p.size());
     const auto n = static_cast<std::ptrdiff_t>(p.size());
 #pragma omp parallel for schedule(static, 512)
     for (std::ptrdiff_t si = 0; si < n; ++si) {

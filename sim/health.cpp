@@ -6,6 +6,7 @@
 #include <sstream>
 #include <vector>
 
+#include "sim/pair_loop.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::sim {
@@ -52,36 +53,59 @@ DensityDeviation density_deviation(const ParticleArrays& p, double reference_den
   return result;
 }
 
+namespace {
+
+constexpr double kNoNeighbour = std::numeric_limits<double>::infinity();
+
+/// The squared distances to the nearest and the second-nearest neighbour of every particle in
+/// its Verlet list, as an evaluator of the pair loop reducing by a running top-2 minimum.
+template <int Dim>
+struct NearestTwo {
+  static constexpr int outputs = 2;
+  static constexpr bool coincident_pairs = true;  // a coincident pair is the closest there is
+  static constexpr double identity = kNoNeighbour;
+  struct Own {};
+
+  static void accumulate(double (&acc)[outputs], const double (&c)[outputs]) {
+    const double d2 = c[0];  // c = {r², r²}
+    if (d2 < acc[0]) {
+      acc[1] = acc[0];
+      acc[0] = d2;
+    } else if (d2 < acc[1]) {
+      acc[1] = d2;
+    }
+  }
+  Own own(std::size_t) const { return {}; }
+  void pair(const Own&, const Pair<Dim>& q, double (&out)[outputs]) const {
+    out[0] = q.r2;
+    out[1] = q.r2;
+  }
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    nearest2[i] = sum[0];
+    second2[i] = sum[1];
+  }
+
+  double* nearest2;
+  double* second2;
+};
+
+}  // namespace
+
 PairingStatistics pairing_statistics(const ParticleArrays& p, const NeighbourList& list,
                                      const PeriodicBox& box, double spacing,
                                      const HealthThresholds& thresholds) {
   PairingStatistics result;
   const std::size_t n = std::min(p.size(), list.num_particles());
-  const int dim = p.dimension;
-  constexpr double kNone = std::numeric_limits<double>::infinity();
+  constexpr double kNone = kNoNeighbour;
   std::vector<double> nearest2(n, kNone), second2(n, kNone);
-  const auto signed_n = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t si = 0; si < signed_n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    double r1 = kNone, r2 = kNone;  // squared, r1 <= r2
-    for (const std::uint32_t j : list.of(i)) {
-      double d2 = 0.0;
-      for (int d = 0; d < dim; ++d) {
-        const double dx =
-            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
-        d2 += dx * dx;
-      }
-      if (d2 < r1) {
-        r2 = r1;
-        r1 = d2;
-      } else if (d2 < r2) {
-        r2 = d2;
-      }
-    }
-    nearest2[i] = r1;
-    second2[i] = r2;
-  }
+  // Every entry of the list counts (an infinite "support"), as in a plain scan of the list.
+  const double everywhere = std::numeric_limits<double>::infinity();
+  if (p.dimension == 2)
+    pair_pass<2>(NearestTwo<2>{nearest2.data(), second2.data()}, PeriodicGeometry<2>(box, p), list,
+                 everywhere, 0, n);
+  else
+    pair_pass<3>(NearestTwo<3>{nearest2.data(), second2.data()}, PeriodicGeometry<3>(box, p), list,
+                 everywhere, 0, n);
   const double distance2 = thresholds.pairing_distance * thresholds.pairing_distance;
   const double ratio2 = thresholds.pairing_ratio * thresholds.pairing_ratio;
   const double spacing2 = spacing * spacing;

@@ -1,31 +1,43 @@
 #include "sim/kernels.hpp"
 
-#include <array>
-#include <utility>
+#include <string>
 
 namespace sphles::sim {
 
 namespace {
-constexpr std::array<std::pair<KernelType, std::string_view>, 4> kKernelNames{{
-    {KernelType::WendlandC2, "wendland_c2"},
-    {KernelType::WendlandC4, "wendland_c4"},
-    {KernelType::WendlandC6, "wendland_c6"},
-    {KernelType::QuinticSpline, "quintic_spline"},
-}};
+
+template <class... Shapes>
+std::string_view name_of(KernelType type, KernelShapeList<Shapes...>) {
+  std::string_view found;
+  ((Shapes::type == type ? (found = Shapes::name, true) : false) || ...);
+  return found;
+}
+
+template <class... Shapes>
+bool type_of(std::string_view name, KernelType& type, KernelShapeList<Shapes...>) {
+  return ((Shapes::name == name ? (type = Shapes::type, true) : false) || ...);
+}
+
+template <class... Shapes>
+std::string all_names(KernelShapeList<Shapes...>) {
+  std::string valid;
+  ((valid += (valid.empty() ? "" : ", ") + std::string(Shapes::name)), ...);
+  return valid;
+}
+
 }  // namespace
 
 std::string_view kernel_name(KernelType type) {
-  for (const auto& [t, name] : kKernelNames)
-    if (t == type) return name;
-  throw std::invalid_argument("unknown kernel type");
+  const std::string_view name = name_of(type, KernelRegistry{});
+  if (name.empty()) throw std::invalid_argument("unknown kernel type");
+  return name;
 }
 
 KernelType kernel_from_name(std::string_view name) {
-  for (const auto& [t, n] : kKernelNames)
-    if (n == name) return t;
-  std::string valid;
-  for (const auto& [t, n] : kKernelNames) valid += (valid.empty() ? "" : ", ") + std::string(n);
-  throw std::invalid_argument("unknown kernel '" + std::string(name) + "' (valid: " + valid + ")");
+  KernelType type{};
+  if (type_of(name, type, KernelRegistry{})) return type;
+  throw std::invalid_argument("unknown kernel '" + std::string(name) +
+                              "' (valid: " + all_names(KernelRegistry{}) + ")");
 }
 
 }  // namespace sphles::sim

@@ -11,6 +11,7 @@
 #include <stdexcept>
 #include <string>
 #include <string_view>
+#include <utility>
 
 namespace sphles::sim {
 
@@ -26,6 +27,7 @@ namespace kernel_shape {
 /// Wendland C2: f = (1-q)^4 (1 + 4q); σ_3D = 21/(2π), σ_2D = 7/π (SPEC §3).
 struct WendlandC2 {
   static constexpr KernelType type = KernelType::WendlandC2;
+  static constexpr std::string_view name = "wendland_c2";
   static double value(double q) {
     const double a = 1.0 - q;
     const double a2 = a * a;
@@ -44,6 +46,7 @@ struct WendlandC2 {
 /// Wendland C4: f = (1-q)^6 (1 + 6q + 35/3 q²); σ_3D = 495/(32π), σ_2D = 9/π (SPEC §3).
 struct WendlandC4 {
   static constexpr KernelType type = KernelType::WendlandC4;
+  static constexpr std::string_view name = "wendland_c4";
   static double value(double q) {
     const double a = 1.0 - q;
     const double a2 = a * a;
@@ -63,6 +66,7 @@ struct WendlandC4 {
 /// Wendland C6: f = (1-q)^8 (1 + 8q + 25q² + 32q³); σ_3D = 1365/(64π), σ_2D = 78/(7π) (SPEC §3).
 struct WendlandC6 {
   static constexpr KernelType type = KernelType::WendlandC6;
+  static constexpr std::string_view name = "wendland_c6";
   static double value(double q) {
     const double a = 1.0 - q;
     const double a2 = a * a;
@@ -86,6 +90,7 @@ struct WendlandC6 {
 /// C_3 = 27/(120π), σ_2D = 7/(478π h²) becomes C_2 = 63/(478π).
 struct QuinticSpline {
   static constexpr KernelType type = KernelType::QuinticSpline;
+  static constexpr std::string_view name = "quintic_spline";
   static double value(double q) {
     const double s = 3.0 * q;
     const auto p5 = [](double x) { return x * x * x * x * x; };
@@ -109,6 +114,26 @@ struct QuinticSpline {
 };
 
 }  // namespace kernel_shape
+
+template <class... Shapes>
+struct KernelShapeList {};
+
+/// The registry: every kernel shape a scene may name. Adding a kernel is its shape struct (with
+/// `type`, `name`, `value`, `derivative_over_q`, `normalisation`), its KernelType value and one
+/// entry here; names, parsing and with_kernel follow from this list.
+using KernelRegistry = KernelShapeList<kernel_shape::WendlandC2, kernel_shape::WendlandC4,
+                                       kernel_shape::WendlandC6, kernel_shape::QuinticSpline>;
+
+/// Calls for_shape.template operator()<Shape>() for the registered shape of the given type.
+template <class F, class First, class... Rest>
+decltype(auto) visit_kernel_shape(KernelType type, F&& for_shape, KernelShapeList<First, Rest...>) {
+  if (First::type == type) return for_shape.template operator()<First>();
+  if constexpr (sizeof...(Rest) > 0) {
+    return visit_kernel_shape(type, std::forward<F>(for_shape), KernelShapeList<Rest...>{});
+  } else {
+    throw std::invalid_argument("unknown kernel type");
+  }
+}
 
 /// A kernel shape bound to a support radius H in `Dim` dimensions.
 template <class Shape, int Dim>
@@ -152,17 +177,7 @@ decltype(auto) with_kernel(KernelType type, int dim, double support_radius, F&& 
     if (dim != 3) throw std::invalid_argument("kernel dimension must be 2 or 3");
     return f(Kernel<Shape, 3>(support_radius));
   };
-  switch (type) {
-    case KernelType::WendlandC2:
-      return for_dim.template operator()<kernel_shape::WendlandC2>();
-    case KernelType::WendlandC4:
-      return for_dim.template operator()<kernel_shape::WendlandC4>();
-    case KernelType::WendlandC6:
-      return for_dim.template operator()<kernel_shape::WendlandC6>();
-    case KernelType::QuinticSpline:
-      return for_dim.template operator()<kernel_shape::QuinticSpline>();
-  }
-  throw std::invalid_argument("unknown kernel type");
+  return visit_kernel_shape(type, for_dim, KernelRegistry{});
 }
 
 }  // namespace sphles::sim

@@ -1,6 +1,9 @@
 #include "sim/neighbour_search.hpp"
 
 #include <omp.h>
+#if defined(__AVX512F__)
+#include <immintrin.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
@@ -8,6 +11,34 @@
 #include <string>
 
 namespace sphles::sim {
+
+namespace {
+
+/// Appends members[k] for every k < count with selected[k] != 0 (0x00 or 0xFF) to `out`, in
+/// order; returns how many. May write up to 16 entries past the last appended one, but never
+/// past out + count.
+std::size_t append_selected(const std::uint32_t* members, const std::uint8_t* selected,
+                            std::size_t count, std::uint32_t* out) {
+  std::size_t used = 0, k = 0;
+#if defined(__AVX512F__)
+  // 16 candidates at a time: the selection bytes' sign bits form the mask of a compress.
+  for (; k + 16 <= count; k += 16) {
+    const __m128i bytes = _mm_loadu_si128(reinterpret_cast<const __m128i*>(selected + k));
+    const auto mask = static_cast<__mmask16>(_mm_movemask_epi8(bytes));
+    const __m512i indices = _mm512_loadu_si512(members + k);
+    _mm512_storeu_si512(out + used, _mm512_maskz_compress_epi32(mask, indices));
+    used += static_cast<std::size_t>(__builtin_popcount(mask));
+  }
+#endif
+  // Branch-free: every candidate is written, the count advances for those selected.
+  for (; k < count; ++k) {
+    out[used] = members[k];
+    used += selected[k] & 1u;
+  }
+  return used;
+}
+
+}  // namespace
 
 VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin)
     : box_(box), cutoff_(cutoff), skin_(skin) {
@@ -95,9 +126,34 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   }
   const double radius2 = list_radius() * list_radius();
 
-  // Visits every candidate j of particle i in a fixed order and calls emit(j, inside) for each,
-  // so that the caller can append without a data-dependent branch.
-  const auto visit = [&](std::size_t i, auto&& emit) {
+  // Positions in cell order, so that a run of neighbouring cells along x is one contiguous run of
+  // candidates: the distance test below is a vectorised loop over contiguous memory. rank[i] is
+  // particle i's place in that order.
+  std::array<std::vector<double>, 3> sorted;
+  for (int d = 0; d < Dim; ++d) {
+    sorted[d].resize(n);
+    for (std::size_t k = 0; k < n; ++k) sorted[d][k] = positions.x[d][cell_members[k]];
+  }
+  std::vector<std::uint32_t> rank(n);
+  for (std::size_t k = 0; k < n; ++k) rank[cell_members[k]] = static_cast<std::uint32_t>(k);
+
+  // Pruning: a cell whose nearest point is farther than the list radius from x_i holds no
+  // neighbour, so rows of cells (fixed y, z offsets) beyond the radius are skipped and the x cells
+  // of a row are cut to the chord the sphere leaves in it. Only with centred offsets (at least
+  // 2 reach + 1 cells per direction, where each offset is the nearest periodic image); the margin
+  // covers the rounding of cell bounds against the cell assignment, so the list is unchanged.
+  bool prune = true;
+  for (int d = 0; d < Dim; ++d) prune = prune && cells_[d] >= 2 * kCellsPerRadius + 1;
+  std::array<double, 3> cell_size{};
+  for (int d = 0; d < Dim; ++d) cell_size[d] = box_.length[d] / cells_[d];
+  const double radius = list_radius();
+  const double margin = 1e-9 * radius;
+
+  // Visits every candidate j of particle i in a fixed order (z, y, x cell offsets ascending, the
+  // members of a cell in ascending index) and appends those within the list radius to `out`,
+  // returning their number. The cells of one (z, y) offset are scanned as at most two contiguous
+  // runs (two when the x offsets wrap around the box); `keep` is scratch space.
+  const auto visit = [&](std::size_t i, std::uint32_t* out, std::vector<std::uint8_t>& keep) {
     std::array<int, 3> ci{0, 0, 0};
     {
       std::uint32_t c = cell[i];
@@ -106,34 +162,86 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
         c /= static_cast<std::uint32_t>(cells_[d]);
       }
     }
-    double xi[Dim];
+    double xi[3] = {0.0, 0.0, 0.0};
     for (int d = 0; d < Dim; ++d) xi[d] = positions.x[d][i];
-    const auto scan_cell = [&](std::size_t c) {
-      for (std::size_t k = cell_start[c]; k < cell_start[c + 1]; ++k) {
-        const std::uint32_t j = cell_members[k];
-        double r2 = 0.0;
-        for (int d = 0; d < Dim; ++d) {
-          const double dx = minimum_image(xi[d] - positions.x[d][j], length[d], half_length[d]);
-          r2 += dx * dx;
+    // Distance from x_i to the slab of the cell at offset o along axis d (0 inside it).
+    const auto slab_distance = [&](int d, int o) {
+      const double lo = (ci[d] + o) * cell_size[d];
+      return std::max({0.0, lo - xi[d], xi[d] - (lo + cell_size[d])});
+    };
+    std::size_t used = 0;
+    const std::uint32_t self = rank[i];
+    const auto scan = [&](std::size_t begin, std::size_t end) {
+      const std::size_t count = end - begin;
+      if (keep.size() < count) keep.resize(count);
+      std::uint8_t* inside = keep.data();
+      const double* sx = sorted[0].data() + begin;
+      const double* sy = sorted[1].data() + begin;
+      const double* sz = sorted[Dim == 3 ? 2 : 0].data() + begin;
+#pragma omp simd
+      for (std::size_t k = 0; k < count; ++k) {
+        const double dx = minimum_image(xi[0] - sx[k], length[0], half_length[0]);
+        const double dy = minimum_image(xi[1] - sy[k], length[1], half_length[1]);
+        double r2 = dx * dx + dy * dy;
+        if constexpr (Dim == 3) {
+          const double dz = minimum_image(xi[2] - sz[k], length[2], half_length[2]);
+          r2 += dz * dz;
         }
-        emit(j, r2 < radius2 && j != i);
+        inside[k] = r2 < radius2 ? 0xFF : 0x00;
       }
+      if (self >= begin && self < end) inside[self - begin] = 0x00;  // j != i
+      used += append_selected(cell_members.data() + begin, inside, count, out + used);
     };
     const auto wrap_cell = [&](int d, int k) { return (k + cells_[d]) % cells_[d]; };
+    // The x cells of one row in visiting order, as runs of consecutive cells; with pruning only
+    // those within `reach` (the chord's half-length) of x_i.
+    const auto scan_row = [&](std::size_t row_start, double reach) {
+      const std::vector<int>& xs = offsets[0];
+      std::size_t k = 0;
+      const auto wanted = [&](std::size_t m) { return !prune || slab_distance(0, xs[m]) <= reach; };
+      while (k < xs.size()) {
+        if (!wanted(k)) {
+          ++k;
+          continue;
+        }
+        const int first = wrap_cell(0, ci[0] + xs[k]);
+        int last = first;
+        while (k + 1 < xs.size() && wanted(k + 1) && wrap_cell(0, ci[0] + xs[k + 1]) == last + 1) {
+          ++last;
+          ++k;
+        }
+        ++k;
+        scan(cell_start[row_start + static_cast<std::size_t>(first)],
+             cell_start[row_start + static_cast<std::size_t>(last) + 1]);
+      }
+    };
+    // The half-chord left for x once y (and z) are at least `transverse` away; < 0: none.
+    const auto chord = [&](double transverse2) {
+      const double left = radius2 - transverse2;
+      return left < 0.0 ? -1.0 : std::sqrt(left) + margin;
+    };
     if constexpr (Dim == 2) {
-      for (int oy : offsets[1])
-        for (int ox : offsets[0])
-          scan_cell(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0] +
-                    static_cast<std::size_t>(wrap_cell(0, ci[0] + ox)));
+      for (int oy : offsets[1]) {
+        const double dy = prune ? std::max(0.0, slab_distance(1, oy) - margin) : 0.0;
+        const double reach = chord(dy * dy);
+        if (reach < 0.0) continue;
+        scan_row(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0], reach);
+      }
     } else {
-      for (int oz : offsets[2])
-        for (int oy : offsets[1])
-          for (int ox : offsets[0])
-            scan_cell((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells_[1] +
-                       static_cast<std::size_t>(wrap_cell(1, ci[1] + oy))) *
-                          cells_[0] +
-                      static_cast<std::size_t>(wrap_cell(0, ci[0] + ox)));
+      for (int oz : offsets[2]) {
+        const double dz = prune ? std::max(0.0, slab_distance(2, oz) - margin) : 0.0;
+        for (int oy : offsets[1]) {
+          const double dy = prune ? std::max(0.0, slab_distance(1, oy) - margin) : 0.0;
+          const double reach = chord(dy * dy + dz * dz);
+          if (reach < 0.0) continue;
+          scan_row((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells_[1] +
+                    static_cast<std::size_t>(wrap_cell(1, ci[1] + oy))) *
+                       cells_[0],
+                   reach);
+        }
+      }
     }
+    return used;
   };
 
   // One scan per particle: each thread fills a buffer for a contiguous range of particles, the
@@ -143,8 +251,10 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   if (!list_ || list_.use_count() > 1) list_ = std::make_shared<NeighbourList>();
   NeighbourList& list = *list_;
   list.offsets.assign(n + 1, 0);
-  std::vector<std::vector<std::uint32_t>> buffers(static_cast<std::size_t>(omp_get_max_threads()));
+  std::vector<std::vector<std::uint32_t>>& buffers = buffers_;
+  buffers.resize(static_cast<std::size_t>(omp_get_max_threads()));
   std::vector<std::size_t> range_begin(buffers.size() + 1, n);
+  std::vector<std::size_t> range_used(buffers.size(), 0);
 #pragma omp parallel
   {
     const auto thread = static_cast<std::size_t>(omp_get_thread_num());
@@ -152,31 +262,29 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
     const std::size_t begin = n * thread / threads, end = n * (thread + 1) / threads;
     range_begin[thread] = begin;
     // `buffer` is kept at least max_candidates longer than the entries in use, so candidates are
-    // written unconditionally and kept by advancing `used` by 0 or 1.
+    // written unconditionally and kept by advancing `used`. It only grows: its pages stay
+    // mapped from one build to the next.
     std::vector<std::uint32_t>& buffer = buffers[thread];
+    std::vector<std::uint8_t> keep;
     std::size_t used = 0;
     for (std::size_t i = begin; i < end; ++i) {
       if (buffer.size() < used + max_candidates) buffer.resize(2 * (used + max_candidates));
-      std::uint32_t* out = buffer.data();
-      const std::size_t before = used;
-      visit(i, [&](std::uint32_t j, bool inside) {
-        out[used] = j;
-        used += inside;
-      });
-      list.offsets[i + 1] = used - before;
+      const std::size_t found = visit(i, buffer.data() + used, keep);
+      list.offsets[i + 1] = found;
+      used += found;
     }
-    buffer.resize(used);
+    range_used[thread] = used;
   }
   for (std::size_t i = 0; i < n; ++i) list.offsets[i + 1] += list.offsets[i];
   list.indices.resize(list.offsets[n]);
   const auto num_buffers = static_cast<std::ptrdiff_t>(buffers.size());
 #pragma omp parallel for schedule(static, 1)
   for (std::ptrdiff_t t = 0; t < num_buffers; ++t) {
-    const std::vector<std::uint32_t>& buffer = buffers[static_cast<std::size_t>(t)];
-    if (!buffer.empty())
-      std::copy(buffer.begin(), buffer.end(),
-                list.indices.begin() + static_cast<std::ptrdiff_t>(
-                                           list.offsets[range_begin[static_cast<std::size_t>(t)]]));
+    const auto thread = static_cast<std::size_t>(t);
+    const std::uint32_t* buffer = buffers[thread].data();
+    std::copy(
+        buffer, buffer + range_used[thread],
+        list.indices.begin() + static_cast<std::ptrdiff_t>(list.offsets[range_begin[thread]]));
   }
 
   for (int d = 0; d < Dim; ++d) reference_positions_[d].assign(positions.x[d], positions.x[d] + n);

@@ -95,6 +95,8 @@ class VerletNeighbourSearch {
   static inline const NeighbourList kEmptyList{};
   std::array<std::vector<double>, 3> reference_positions_;
   std::size_t num_builds_ = 0;
+  /// Per-thread candidate buffers of build(), kept between builds (their pages stay mapped).
+  std::vector<std::vector<std::uint32_t>> buffers_;
 };
 
 }  // namespace sphles::sim

@@ -36,8 +36,9 @@ double background_force(const KernelT& kernel, const PeriodicBox& box,
                         const VerletNeighbourSearch& search, double spacing, ParticleArrays& p) {
   constexpr int Dim = KernelT::dimension;
   const FluidParameters fluid = background_fluid();
-  density_pass<Dim>(kernel, box, search.list(), fluid, p);
-  force_pass<Dim>(kernel, box, search.list(), fluid, view_velocity(p), p);
+  InteractionList pairs;
+  density_pass<Dim>(kernel, box, search.list(), fluid, p, &pairs);
+  force_pass<Dim>(kernel, box, pairs, fluid, view_velocity(p), p);
   // a_i = -2 p_b Σ_j ∇W_ij V_j / ρ_i with 2 p_b = 1, hence |Σ ∇W V| = |a_i| ρ_i.
   return spacing * std::sqrt(parallel_max(p.size(), [&](std::size_t i) {
            double a2 = 0.0;
@@ -73,8 +74,11 @@ std::string cache_key(const Scene& s) {
   key << "dim=" << s.dimension() << ";n=" << s.particles_per_side
       << ";kernel=" << kernel_name(s.kernel) << ";dk=" << s.kernel_diameter_over_spacing
       << ";L=" << s.box_length() << ";perturbation=" << s.packing.perturbation
-      << ";seed=" << s.packing.seed << ";tol=" << s.packing.tolerance
-      << ";maxit=" << s.packing.max_iterations;
+      << ";seed=" << s.packing.seed << ";tol=" << s.packing.tolerance << ";maxit="
+      << s.packing.max_iterations
+      // The arithmetic of the packing's passes: a packing made by another summation order is
+      // equally packed but not bitwise the state this build would make.
+      << ";sums=" << pair_loop_summation();
   return key.str();
 }
 

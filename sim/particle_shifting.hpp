@@ -11,7 +11,7 @@
 // C2 with support 2h) is the kernel's support radius D_K/2, Δx the particle spacing Δl, c_0 the
 // sound speed c_s, and Ma c_0 the reference velocity U = Ma c_s (scheme.shifting_mach).
 //
-// The ALE terms. Density stays by summation (density_pass, SPEC (5.2), constant masses): the
+// The ALE terms. Density stays by summation (density_pass, SPEC (A.1)-(A.2), constant masses): the
 // density of a particle follows its volume along the shifted path, dρ_i/dt = -ρ_i ∇·(v + δv),
 // so the continuity ALE term -ρ ∇·δv is implicit in the positions; the mass flux ∇·(ρ δv) the
 // papers add to their continuity equation is not there (a particle keeps its mass). The velocity
@@ -26,7 +26,8 @@
 //    but -v ∇·(ρ δv) has no antisymmetric pair form (its integral over a periodic box is not
 //    zero), so Σ M v is not conserved.
 // Pressure (A.9) and viscous term (A.14) are the thesis model's (ThesisScheme::forces). The
-// passes are in gather form like physics.hpp, so results do not depend on the thread count.
+// passes are evaluators of the pair loop (sim/pair_loop.hpp), in gather form, so results do not
+// depend on the thread count.
 #pragma once
 
 #include <array>
@@ -35,6 +36,7 @@
 #include <vector>
 
 #include "sim/neighbour_search.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
 
@@ -113,85 +115,129 @@ inline double shifting_ale_full_term(double density_i, double velocity_i,
          velocity_i * (density_i * shift_dot_gradient_i + density_j * shift_dot_gradient_j);
 }
 
-/// The shifting velocity δv_i = -Ma c_0 (2h) Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j, limited to
-/// |δv_i| ≤ speed_limit (overwrites `shift`, whose arrays must have p.size() entries for each
-/// dimension). Requires density_pass on the same positions (V_j).
+/// The shifting velocity's pair sum Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j as an evaluator of the
+/// pair loop; finish scales it by -Ma c_0 (2h) and limits it to |δv_i| ≤ speed_limit.
 template <int Dim, class KernelT>
-void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box,
-                            const NeighbourList& neighbours, const ShiftingParameters& parameters,
-                            const ParticleArrays& p, std::array<std::vector<double>, 3>& shift) {
-  const double support2 = kernel.support_radius() * kernel.support_radius();
-  double* dv[Dim];
-  for (int d = 0; d < Dim; ++d) dv[d] = shift[d].data();
-  const double* volume = p.volume.data();
-  const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    double sum[Dim] = {};
-    for_each_pair_in_support<Dim>(
-        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
-          const double r = std::sqrt(r2);
-          const double scale = shifting_pair_factor(kernel.value(r), parameters.reference_kernel) *
-                               kernel.gradient_over_r(r) * volume[j];
-          for (int d = 0; d < Dim; ++d) sum[d] += scale * dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
-        });
+struct ShiftingVelocity {
+  static constexpr int outputs = Dim;
+  static constexpr bool coincident_pairs = false;
+  struct Own {};
+
+  ShiftingVelocity(const KernelT& kernel, const ShiftingParameters& parameters,
+                   const ParticleArrays& p, std::array<std::vector<double>, 3>& shift)
+      : kernel_(kernel), parameters_(parameters), volume_(p.volume.data()) {
+    for (int d = 0; d < Dim; ++d) dv_[d] = shift[d].data();
+  }
+
+  Own own(std::size_t) const { return {}; }
+  void pair(const Own&, const Pair<Dim>& q, double (&out)[outputs]) const {
+    const double scale = shifting_pair_factor(kernel_.value(q.r), parameters_.reference_kernel) *
+                         kernel_.gradient_over_r(q.r) * volume_[q.j];
+    for (int d = 0; d < Dim; ++d) out[d] = scale * q.dx[d];  // ∇W_ij = (1/r)(dW/dr) x_ij
+  }
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    double shift[Dim];
     double speed2 = 0.0;
     for (int d = 0; d < Dim; ++d) {
-      sum[d] *= -parameters.coefficient;
-      speed2 += sum[d] * sum[d];
+      shift[d] = -parameters_.coefficient * sum[d];
+      speed2 += shift[d] * shift[d];
     }
-    const double limiter = shifting_limiter_scale(std::sqrt(speed2), parameters.speed_limit);
-    for (int d = 0; d < Dim; ++d) dv[d][i] = limiter * sum[d];
+    const double limiter = shifting_limiter_scale(std::sqrt(speed2), parameters_.speed_limit);
+    for (int d = 0; d < Dim; ++d) dv_[d][i] = limiter * shift[d];
   }
+
+ private:
+  KernelT kernel_;
+  ShiftingParameters parameters_;
+  const double* volume_;
+  double* dv_[Dim];
+};
+
+/// The shifting velocity δv_i = -Ma c_0 (2h) Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j, limited to
+/// |δv_i| ≤ speed_limit (overwrites `shift`, whose arrays must have p.size() entries for each
+/// dimension). Requires density_pass on the same positions (V_j); `pairs` is the Verlet list or
+/// the InteractionList of that density pass.
+template <int Dim, class KernelT, class List>
+void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
+                            const ShiftingParameters& parameters, const ParticleArrays& p,
+                            std::array<std::vector<double>, 3>& shift) {
+  pair_pass<Dim>(ShiftingVelocity<Dim, KernelT>(kernel, parameters, p, shift),
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
 }
+
+/// The ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (Conservative), or
+/// Sun et al. 2019's full form (Full), as an evaluator of the pair loop; finish adds it to the
+/// acceleration.
+template <int Dim, AleCorrection Ale, class KernelT>
+struct ShiftingAle {
+  static constexpr int outputs = Dim;
+  static constexpr bool coincident_pairs = false;
+  struct Own {
+    double v[Dim];
+    double dv[Dim];
+    double density;
+  };
+
+  ShiftingAle(const KernelT& kernel, const VelocityView& velocity, const VelocityView& shift,
+              ParticleArrays& p)
+      : kernel_(kernel), volume_(p.volume.data()), density_(p.density.data()) {
+    for (int d = 0; d < Dim; ++d) {
+      v_[d] = velocity.v[d];
+      dv_[d] = shift.v[d];
+      a_[d] = p.acceleration[d].data();
+    }
+  }
+
+  Own own(std::size_t i) const {
+    Own o;
+    for (int d = 0; d < Dim; ++d) {
+      o.v[d] = v_[d][i];
+      o.dv[d] = dv_[d][i];
+    }
+    o.density = density_[i];
+    return o;
+  }
+  void pair(const Own& o, const Pair<Dim>& q, double (&out)[outputs]) const {
+    const std::uint32_t j = q.j;
+    const double g = kernel_.gradient_over_r(q.r);  // ∇W_ij = g x_ij
+    double shift_i = 0.0, shift_j = 0.0;            // δv · ∇W_ij
+    for (int d = 0; d < Dim; ++d) {
+      shift_i += o.dv[d] * g * q.dx[d];
+      shift_j += dv_[d][j] * g * q.dx[d];
+    }
+    const double rho_j = density_[j];
+    const double vol_j = volume_[j];
+    for (int d = 0; d < Dim; ++d) {
+      if constexpr (Ale == AleCorrection::Full)
+        out[d] =
+            vol_j * shifting_ale_full_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
+      else
+        out[d] = vol_j * shifting_ale_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
+    }
+  }
+  void finish(std::size_t i, const Own& o, const double (&sum)[outputs]) const {
+    const double inv_density = 1.0 / o.density;
+    for (int d = 0; d < Dim; ++d) a_[d][i] += sum[d] * inv_density;
+  }
+
+ private:
+  KernelT kernel_;
+  const double* v_[Dim];
+  const double* dv_[Dim];
+  double* a_[Dim];
+  const double* volume_;
+  const double* density_;
+};
 
 /// Adds the ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (the
 /// discrete (1/ρ) ∇·(ρ v ⊗ δv), Sun et al. 2019), with Full less (v_i/ρ_i) Σ_j (ρ_i δv_i +
 /// ρ_j δv_j)·∇W_ij V_j, at the given velocities and shifting velocities to p.acceleration.
-/// Requires density_pass on the same positions.
-template <int Dim, AleCorrection Ale, class KernelT>
-void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box,
-                       const NeighbourList& neighbours, const VelocityView& velocity,
-                       const VelocityView& shift, ParticleArrays& p) {
-  const double support2 = kernel.support_radius() * kernel.support_radius();
-  const double* v[Dim];
-  const double* dv[Dim];
-  double* a[Dim];
-  for (int d = 0; d < Dim; ++d) {
-    v[d] = velocity.v[d];
-    dv[d] = shift.v[d];
-    a[d] = p.acceleration[d].data();
-  }
-  const double* volume = p.volume.data();
-  const double* density = p.density.data();
-  const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    double sum[Dim] = {};
-    const double rho_i = density[i];
-    for_each_pair_in_support<Dim>(
-        support2, box, neighbours, p, i, [&](std::uint32_t j, const double* dx, double r2) {
-          const double g = kernel.gradient_over_r(std::sqrt(r2));  // ∇W_ij = g x_ij
-          double shift_i = 0.0, shift_j = 0.0;                     // δv · ∇W_ij
-          for (int d = 0; d < Dim; ++d) {
-            shift_i += dv[d][i] * g * dx[d];
-            shift_j += dv[d][j] * g * dx[d];
-          }
-          const double rho_j = density[j];
-          const double vol_j = volume[j];
-          for (int d = 0; d < Dim; ++d) {
-            if constexpr (Ale == AleCorrection::Full)
-              sum[d] +=
-                  vol_j * shifting_ale_full_term(rho_i, v[d][i], shift_i, rho_j, v[d][j], shift_j);
-            else
-              sum[d] += vol_j * shifting_ale_term(rho_i, v[d][i], shift_i, rho_j, v[d][j], shift_j);
-          }
-        });
-    const double inv_density = 1.0 / rho_i;
-    for (int d = 0; d < Dim; ++d) a[d][i] += sum[d] * inv_density;
-  }
+/// Requires density_pass on the same positions; `pairs` as for shifting_velocity_pass.
+template <int Dim, AleCorrection Ale, class KernelT, class List>
+void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
+                       const VelocityView& velocity, const VelocityView& shift, ParticleArrays& p) {
+  pair_pass<Dim>(ShiftingAle<Dim, Ale, KernelT>(kernel, velocity, shift, p),
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
 }
 
 }  // namespace sphles::sim

@@ -21,6 +21,7 @@
 #include <vector>
 
 #include "sim/neighbour_search.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/particle_shifting.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
@@ -61,6 +62,10 @@ struct SchemeFields {
   /// current evaluation (viscous_correction_pass), a function of the positions.
   ViscousOperator viscous_operator = ViscousOperator::Thesis;
   std::vector<double> viscous_weights;
+  /// The pairs inside the kernel support at the positions of the current evaluation, recorded
+  /// by its density pass; every later pass of the evaluation (and the sub-filter model's) loops
+  /// over these instead of the Verlet list.
+  InteractionList interactions;
 };
 
 inline VelocityView view_of(const std::array<std::vector<double>, 3>& arrays, int dimension) {
@@ -80,21 +85,21 @@ struct ThesisScheme {
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
-    density_pass<Dim>(kernel, box, neighbours, fluid, p);
-    forces<Dim>(kernel, box, neighbours, fluid, velocity, fields, p);
+    density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
+    forces<Dim>(kernel, box, fluid, velocity, fields, p);
   }
 
-  /// Pressure (A.9) and viscous term (A.14 or its corrected form) after density_pass.
+  /// Pressure (A.9) and viscous term (A.14 or its corrected form) after density_pass, over the
+  /// pairs it recorded.
   template <int Dim, class KernelT>
-  static void forces(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& neighbours,
-                     const FluidParameters& fluid, const VelocityView& velocity,
-                     SchemeFields& fields, ParticleArrays& p) {
+  static void forces(const KernelT& kernel, const PeriodicBox& box, const FluidParameters& fluid,
+                     const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
     const double* weights = nullptr;
     if (fields.viscous_operator == ViscousOperator::Corrected) {
-      viscous_correction_pass<Dim>(kernel, box, neighbours, p, fields.viscous_weights);
+      viscous_correction_pass<Dim>(kernel, box, fields.interactions, p, fields.viscous_weights);
       weights = fields.viscous_weights.data();
     }
-    force_pass<Dim>(kernel, box, neighbours, fluid, velocity, p, weights);
+    force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity, p, weights);
   }
 };
 
@@ -113,8 +118,8 @@ struct TransportVelocityScheme {
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
-    density_pass<Dim>(kernel, box, neighbours, fluid, p);
-    transport_velocity_force_pass<Dim>(kernel, box, neighbours, fluid, velocity,
+    density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
+    transport_velocity_force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity,
                                        view_of(fields.transport_shift, Dim), fields.drift_source,
                                        p);
   }
@@ -136,15 +141,15 @@ struct ParticleShiftingScheme {
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
-    density_pass<Dim>(kernel, box, neighbours, fluid, p);
-    shifting_velocity_pass<Dim>(kernel, box, neighbours, fields.shifting, p, fields.drift_source);
-    ThesisScheme::forces<Dim>(kernel, box, neighbours, fluid, velocity, fields, p);
+    density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
+    const InteractionList& pairs = fields.interactions;
+    shifting_velocity_pass<Dim>(kernel, box, pairs, fields.shifting, p, fields.drift_source);
+    ThesisScheme::forces<Dim>(kernel, box, fluid, velocity, fields, p);
     const VelocityView shift = view_of(fields.drift_source, Dim);
     if (fields.shifting.ale == AleCorrection::Full)
-      shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, neighbours, velocity, shift, p);
+      shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, pairs, velocity, shift, p);
     else
-      shifting_ale_pass<Dim, AleCorrection::Conservative>(kernel, box, neighbours, velocity, shift,
-                                                          p);
+      shifting_ale_pass<Dim, AleCorrection::Conservative>(kernel, box, pairs, velocity, shift, p);
   }
 };
 

@@ -263,7 +263,7 @@ class SphSolver final : public Simulation {
 
   /// Explicit model: gradient (A.20), ν_t (A.21/A.22), then force (A.18) or (A.23).
   void add_subfilter_force(const VelocityView& velocity) {
-    const NeighbourList& list = search_.list();
+    const InteractionList& list = fields_.interactions;  // this evaluation's pairs
     velocity_gradient_pass<Dim>(kernel_, config_.box, list, velocity, particles_, gradient_);
     std::vector<double>& nu_t = particles_.eddy_viscosity;
     nu_t.resize(particles_.size());
@@ -273,10 +273,12 @@ class SphSolver final : public Simulation {
     for (std::ptrdiff_t i = 0; i < n; ++i)
       nu_t[static_cast<std::size_t>(i)] = eddy_viscosity(config_.subfilter, kernel_diameter,
                                                          gradient_[static_cast<std::size_t>(i)]);
-    if (config_.subfilter.model == SubfilterModel::SmagorinskyMcg)
-      subfilter_mcg_pass<Dim>(kernel_, config_.box, list, velocity, nu_t, particles_);
-    else
-      subfilter_divergence_pass<Dim>(kernel_, config_.box, list, gradient_, nu_t, particles_);
+    visit_subfilter_model(config_.subfilter.model, [&](auto model) {
+      if constexpr (decltype(model)::force == SubfilterForce::Central)
+        subfilter_mcg_pass<Dim>(kernel_, config_.box, list, velocity, nu_t, particles_);
+      else if constexpr (decltype(model)::force == SubfilterForce::Divergence)
+        subfilter_divergence_pass<Dim>(kernel_, config_.box, list, gradient_, nu_t, particles_);
+    });
   }
 
   void update_diagnostics(double dt) {

@@ -1,6 +1,7 @@
 #include "sim/subfilter.hpp"
 
-#include <Eigen/Eigenvalues>
+#include "sim/eigen.hpp"
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -9,28 +10,30 @@
 namespace sphles::sim {
 
 namespace {
-constexpr std::array<std::pair<SubfilterModel, std::string_view>, 4> kModelNames{{
-    {SubfilterModel::Implicit, "implicit"},
-    {SubfilterModel::Smagorinsky, "smag"},
-    {SubfilterModel::Sigma, "sigma"},
-    {SubfilterModel::SmagorinskyMcg, "smag_mcg"},
-}};
+
+template <class... Models>
+std::string all_names(SubfilterModelList<Models...>) {
+  std::string valid;
+  ((valid += (valid.empty() ? "" : ", ") + std::string(Models::name)), ...);
+  return valid;
+}
+
+template <class... Models>
+bool type_of(std::string_view name, SubfilterModel& type, SubfilterModelList<Models...>) {
+  return ((Models::name == name ? (type = Models::type, true) : false) || ...);
+}
+
 }  // namespace
 
 std::string_view subfilter_model_name(SubfilterModel model) {
-  for (const auto& [m, name] : kModelNames)
-    if (m == model) return name;
-  return "unknown";
+  return visit_subfilter_model(model, [](auto m) { return decltype(m)::name; });
 }
 
 SubfilterModel subfilter_model_from_name(std::string_view name) {
-  std::string valid;
-  for (const auto& [m, n] : kModelNames) {
-    if (n == name) return m;
-    valid += (valid.empty() ? "" : ", ") + std::string(n);
-  }
+  SubfilterModel model{};
+  if (type_of(name, model, SubfilterRegistry{})) return model;
   throw std::invalid_argument("unknown sub-filter model '" + std::string(name) +
-                              "' (valid: " + valid + ")");
+                              "' (valid: " + all_names(SubfilterRegistry{}) + ")");
 }
 
 double smagorinsky_viscosity(const VelocityGradient& j, double scale) {
@@ -44,12 +47,15 @@ double smagorinsky_viscosity(const VelocityGradient& j, double scale) {
 }
 
 double sigma_viscosity(const VelocityGradient& j, double scale) {
-  Eigen::Matrix3d g;
+  // 64-byte aligned, so that Eigen's address-dependent loop splitting is the same on every
+  // thread's stack (thread-count determinism; see directional_weight in viscous_operator.hpp).
+  alignas(64) Eigen::Matrix3d g;
   for (int a = 0; a < 3; ++a)
     for (int b = 0; b < 3; ++b) g(a, b) = j[a][b];
+  alignas(64) const Eigen::Matrix3d gram = g.transpose() * g;
   // Singular values of J are the square roots of the eigenvalues of JᵀJ (ascending here).
-  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(g.transpose() * g,
-                                                              Eigen::EigenvaluesOnly);
+  alignas(64) const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> solver(gram,
+                                                                          Eigen::EigenvaluesOnly);
   const Eigen::Vector3d lambda = solver.eigenvalues();
   const double s3 = std::sqrt(std::max(lambda(0), 0.0));
   const double s2 = std::sqrt(std::max(lambda(1), 0.0));
@@ -62,20 +68,8 @@ double sigma_viscosity(const VelocityGradient& j, double scale) {
 double eddy_viscosity(const SubfilterConfig& c, double kernel_diameter,
                       const VelocityGradient& gradient) {
   const double width = c.filter_width > 0.0 ? c.filter_width : kernel_diameter;
-  switch (c.model) {
-    case SubfilterModel::Implicit:
-      return 0.0;
-    case SubfilterModel::Smagorinsky:
-    case SubfilterModel::SmagorinskyMcg: {
-      const double cs_delta = c.smagorinsky_constant * width;
-      return smagorinsky_viscosity(gradient, cs_delta * cs_delta);
-    }
-    case SubfilterModel::Sigma: {
-      const double c_delta = c.sigma_constant * width;
-      return sigma_viscosity(gradient, c_delta * c_delta);
-    }
-  }
-  return 0.0;
+  return visit_subfilter_model(
+      c.model, [&](auto model) { return decltype(model)::eddy_viscosity(c, width, gradient); });
 }
 
 }  // namespace sphles::sim

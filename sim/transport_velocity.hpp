@@ -10,7 +10,8 @@
 // fluid.reference_pressure) acts only through ã. Density by summation, V_i = 1/Σ_j W_ij,
 // ρ_i = M_i/V_i, as in the paper and the thesis model (A.1, A.2): density_pass.
 //
-// The pass is in gather form like physics.hpp, so results do not depend on the thread count.
+// The pass is an evaluator of the pair loop (sim/pair_loop.hpp), in gather form, so results do
+// not depend on the thread count.
 // Every pair term of M_i a_i is antisymmetric in i and j (the weights V_i² + V_j², p̃_ij and
 // A_i + A_j are symmetric, ∇W_ij and v_ij antisymmetric), so Σ M a = 0 to round-off.
 #pragma once
@@ -21,6 +22,7 @@
 #include <vector>
 
 #include "sim/neighbour_search.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics.hpp"
 
@@ -78,87 +80,112 @@ inline double transport_velocity_background_acceleration(double background_press
   return -background_pressure / mass * pair_sum;
 }
 
+/// The TVF's pair terms as an evaluator of the pair loop (sim/pair_loop.hpp): outputs 0..Dim-1
+/// are Σ_j (V_i² + V_j²) [-p̃_ij ∇W_ij + ½ (A_i + A_j)·∇W_ij + η̃_ij (1/r)(∂W/∂r) v_ij] (eq. 8),
+/// outputs Dim..2Dim-1 the pair sum S_i = Σ_j (V_i² + V_j²) ∇W_ij of eq. (13).
+template <int Dim, class KernelT>
+struct TransportVelocityMomentum {
+  static constexpr int outputs = 2 * Dim;
+  static constexpr bool coincident_pairs = false;
+  struct Own {
+    double v[Dim];
+    double dv[Dim];
+    double density;
+    double pressure;
+    double volume;
+  };
+
+  TransportVelocityMomentum(const KernelT& kernel, const FluidParameters& fluid,
+                            const VelocityView& velocity, const VelocityView& shift,
+                            std::array<std::vector<double>, 3>& background, ParticleArrays& p)
+      : kernel_(kernel),
+        fluid_(fluid),
+        eta_(transport_velocity_averaged_viscosity(fluid.dynamic_viscosity,
+                                                   fluid.dynamic_viscosity)),  // eq. (6)
+        volume_(p.volume.data()),
+        density_(p.density.data()),
+        mass_(p.mass.data()) {
+    for (int d = 0; d < Dim; ++d) {
+      v_[d] = velocity.v[d];
+      dv_[d] = shift.v[d];
+      a_[d] = p.acceleration[d].data();
+      a_background_[d] = background[d].data();
+    }
+  }
+
+  Own own(std::size_t i) const {
+    Own o;
+    for (int d = 0; d < Dim; ++d) {
+      o.v[d] = v_[d][i];
+      o.dv[d] = dv_[d][i];
+    }
+    o.density = density_[i];
+    o.pressure = transport_velocity_momentum_pressure(o.density, fluid_);
+    o.volume = volume_[i];
+    return o;
+  }
+
+  void pair(const Own& o, const Pair<Dim>& q, double (&out)[outputs]) const {
+    const std::uint32_t j = q.j;
+    const double g = kernel_.gradient_over_r(q.r);  // ∇W_ij = g x_ij
+    const double rho_j = density_[j];
+    const double weight = transport_velocity_pair_weight(o.volume, volume_[j]);
+    const double pressure = transport_velocity_pressure_coefficient(
+        weight,
+        transport_velocity_averaged_pressure(o.density, rho_j, o.pressure,
+                                             transport_velocity_momentum_pressure(rho_j, fluid_)));
+    const double viscous = transport_velocity_viscous_coefficient(weight, eta_, g);
+    double shift_i = 0.0, shift_j = 0.0;  // δv · ∇W_ij
+    for (int d = 0; d < Dim; ++d) {
+      shift_i += o.dv[d] * g * q.dx[d];
+      shift_j += dv_[d][j] * g * q.dx[d];
+    }
+    for (int d = 0; d < Dim; ++d) {
+      const double gradient = g * q.dx[d];
+      const double stress =
+          transport_velocity_stress_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
+      out[d] = pressure * gradient + weight * stress + viscous * (o.v[d] - v_[d][j]);
+      out[Dim + d] = weight * gradient;
+    }
+  }
+
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    const double inv_mass = 1.0 / mass_[i];
+    for (int d = 0; d < Dim; ++d) {
+      a_[d][i] = sum[d] * inv_mass;  // eq. (8)
+      a_background_[d][i] = transport_velocity_background_acceleration(
+          fluid_.reference_pressure, mass_[i], sum[Dim + d]);  // eq. (13)
+    }
+  }
+
+ private:
+  KernelT kernel_;
+  FluidParameters fluid_;
+  double eta_;
+  const double* v_[Dim];
+  const double* dv_[Dim];
+  double* a_[Dim];
+  double* a_background_[Dim];
+  const double* volume_;
+  const double* density_;
+  const double* mass_;
+};
+
 /// One TVF force evaluation: the acceleration (1/M_i) Σ_j (V_i² + V_j²) [-p̃_ij ∇W_ij +
 /// ½ (A_i + A_j)·∇W_ij + η̃_ij (1/r)(∂W/∂r) v_ij] of eq. (8) at the given velocities and transport
 /// shifts δv = ṽ - v (overwrites p.acceleration), and the background acceleration ã of eq. (13)
 /// (overwrites `background`, whose arrays must have p.size() entries for each dimension).
-/// Requires density_pass on the same positions.
-template <int Dim, class KernelT>
-void transport_velocity_force_pass(const KernelT& kernel, const PeriodicBox& box,
-                                   const NeighbourList& neighbours, const FluidParameters& fluid,
-                                   const VelocityView& velocity, const VelocityView& shift,
+/// Requires density_pass on the same positions; `pairs` is the Verlet list or the
+/// InteractionList of that density pass.
+template <int Dim, class KernelT, class List>
+void transport_velocity_force_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
+                                   const FluidParameters& fluid, const VelocityView& velocity,
+                                   const VelocityView& shift,
                                    std::array<std::vector<double>, 3>& background,
                                    ParticleArrays& p) {
-  const double support2 = kernel.support_radius() * kernel.support_radius();
-  const double eta = transport_velocity_averaged_viscosity(fluid.dynamic_viscosity,
-                                                           fluid.dynamic_viscosity);  // eq. (6)
-  double length[Dim], half_length[Dim];
-  const double* x[Dim];
-  const double* v[Dim];
-  const double* dv[Dim];
-  double* a[Dim];
-  double* a_background[Dim];
-  for (int d = 0; d < Dim; ++d) {
-    length[d] = box.length[d];
-    half_length[d] = 0.5 * box.length[d];
-    x[d] = p.position[d].data();
-    v[d] = velocity.v[d];
-    dv[d] = shift.v[d];
-    a[d] = p.acceleration[d].data();
-    a_background[d] = background[d].data();
-  }
-  const double* volume = p.volume.data();
-  const double* density = p.density.data();
-  const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    double xi[Dim], vi[Dim], dvi[Dim], force[Dim], background_sum[Dim];
-    for (int d = 0; d < Dim; ++d) {
-      xi[d] = x[d][i];
-      vi[d] = v[d][i];
-      dvi[d] = dv[d][i];
-      force[d] = 0.0;
-      background_sum[d] = 0.0;
-    }
-    const double rho_i = density[i];
-    const double p_i = transport_velocity_momentum_pressure(rho_i, fluid);
-    const double vol_i = volume[i];
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double dx[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        dx[d] = minimum_image(xi[d] - x[d][j], length[d], half_length[d]);
-        r2 += dx[d] * dx[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double g = kernel.gradient_over_r(std::sqrt(r2));  // ∇W_ij = g x_ij
-      const double rho_j = density[j];
-      const double weight = transport_velocity_pair_weight(vol_i, volume[j]);
-      const double pressure = transport_velocity_pressure_coefficient(
-          weight, transport_velocity_averaged_pressure(
-                      rho_i, rho_j, p_i, transport_velocity_momentum_pressure(rho_j, fluid)));
-      const double viscous = transport_velocity_viscous_coefficient(weight, eta, g);
-      double shift_i = 0.0, shift_j = 0.0;  // δv · ∇W_ij
-      for (int d = 0; d < Dim; ++d) {
-        shift_i += dvi[d] * g * dx[d];
-        shift_j += dv[d][j] * g * dx[d];
-      }
-      for (int d = 0; d < Dim; ++d) {
-        const double gradient = g * dx[d];
-        const double stress =
-            transport_velocity_stress_term(rho_i, vi[d], shift_i, rho_j, v[d][j], shift_j);
-        force[d] += pressure * gradient + weight * stress + viscous * (vi[d] - v[d][j]);
-        background_sum[d] += weight * gradient;
-      }
-    }
-    const double inv_mass = 1.0 / p.mass[i];
-    for (int d = 0; d < Dim; ++d) {
-      a[d][i] = force[d] * inv_mass;  // eq. (8)
-      a_background[d][i] = transport_velocity_background_acceleration(
-          fluid.reference_pressure, p.mass[i], background_sum[d]);  // eq. (13)
-    }
-  }
+  pair_pass<Dim>(
+      TransportVelocityMomentum<Dim, KernelT>(kernel, fluid, velocity, shift, background, p),
+      PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
 }
 
 }  // namespace sphles::sim

@@ -28,10 +28,9 @@
 #include <string_view>
 #include <vector>
 
-#include <Eigen/Cholesky>
-#include <Eigen/Core>
-
+#include "sim/eigen.hpp"
 #include "sim/neighbour_search.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::sim {
@@ -117,11 +116,16 @@ typename QuarticBasis<Dim>::Values directional_weight(const MomentMatrix<Dim>& m
   using Basis = QuarticBasis<Dim>;
   constexpr int K = Basis::size;
   const typename Basis::Values means = Basis::sphere_means();
-  Eigen::Matrix<double, K, 1> rhs;
+  // Every object of the solve is 64-byte aligned: Eigen splits its loops over blocks of these
+  // small matrices into a scalar head and a vector body by the runtime address, so on an AVX-512
+  // machine two threads' stacks (aligned differently mod 64) summed in different orders and the
+  // weights differed with the thread count in the last bit.
+  alignas(64) Eigen::Matrix<double, K, 1> rhs;
   for (int k = 0; k < K; ++k) rhs(k) = Dim * means[static_cast<std::size_t>(k)];  // -(-n⟨μ⟩)
-  const Eigen::LLT<MomentMatrix<Dim>> llt(-moments);
+  alignas(64) const MomentMatrix<Dim> negated = -moments;
+  alignas(64) const Eigen::LLT<MomentMatrix<Dim>> llt(negated);
   if (llt.info() != Eigen::Success) return Basis::unit();
-  const Eigen::Matrix<double, K, 1> g = llt.solve(rhs);
+  alignas(64) const Eigen::Matrix<double, K, 1> g = llt.solve(rhs);
   typename Basis::Values out;
   for (int k = 0; k < K; ++k) {
     if (!std::isfinite(g(k))) return Basis::unit();
@@ -147,49 +151,55 @@ inline double pair_weight(const double* g_i, const double* g_j,
   return std::clamp(0.5 * sum, 0.0, kMaxViscousPairWeight);
 }
 
-/// g_i of every particle (QuarticBasis<Dim>::size coefficients per particle, particle-major);
-/// requires the volumes V_j of density_pass on the same positions.
+/// The moment system A_mk = Σ_j w_ij μ_m(e_ij) μ_k(e_ij), w_ij = x_ij·∇W_ij V_j, as an
+/// evaluator of the pair loop (outputs: the upper triangle, row by row); finish solves it for
+/// g_i (directional_weight).
 template <int Dim, class KernelT>
-void viscous_correction_pass(const KernelT& kernel, const PeriodicBox& box,
-                             const NeighbourList& neighbours, const ParticleArrays& p,
-                             std::vector<double>& coefficients) {
+struct ViscousMoments {
   using Basis = QuarticBasis<Dim>;
-  constexpr int K = Basis::size;
-  const double support2 = kernel.support_radius() * kernel.support_radius();
-  double length[Dim], half_length[Dim];
-  const double* x[Dim];
-  for (int d = 0; d < Dim; ++d) {
-    length[d] = box.length[d];
-    half_length[d] = 0.5 * box.length[d];
-    x[d] = p.position[d].data();
-  }
-  coefficients.resize(p.size() * K);
-  const auto n = static_cast<std::ptrdiff_t>(p.size());
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    MomentMatrix<Dim> moments = MomentMatrix<Dim>::Zero();
-    for (const std::uint32_t j : neighbours.of(i)) {
-      double e[Dim];
-      double r2 = 0.0;
-      for (int d = 0; d < Dim; ++d) {
-        e[d] = minimum_image(x[d][i] - x[d][j], length[d], half_length[d]);
-        r2 += e[d] * e[d];
-      }
-      if (!(r2 < support2 && r2 > 0.0)) continue;
-      const double r = std::sqrt(r2);
-      for (int d = 0; d < Dim; ++d) e[d] /= r;
-      const double w = r2 * kernel.gradient_over_r(r) * p.volume[j];  // x_ij·∇W_ij V_j
-      const typename Basis::Values mu = Basis::monomials(e);
-      for (int a = 0; a < K; ++a)
-        for (int b = a; b < K; ++b)
-          moments(a, b) += w * mu[static_cast<std::size_t>(a)] * mu[static_cast<std::size_t>(b)];
-    }
+  static constexpr int K = Basis::size;
+  static constexpr int outputs = K * (K + 1) / 2;
+  static constexpr bool coincident_pairs = false;
+  struct Own {};
+
+  ViscousMoments(const KernelT& kernel, const ParticleArrays& p, std::vector<double>& coefficients)
+      : kernel_(kernel), volume_(p.volume.data()), coefficients_(coefficients.data()) {}
+
+  Own own(std::size_t) const { return {}; }
+  void pair(const Own&, const Pair<Dim>& q, double (&out)[outputs]) const {
+    double e[Dim];
+    for (int d = 0; d < Dim; ++d) e[d] = q.dx[d] / q.r;
+    const double w = q.r2 * kernel_.gradient_over_r(q.r) * volume_[q.j];  // x_ij·∇W_ij V_j
+    const typename Basis::Values mu = Basis::monomials(e);
+    int slot = 0;
     for (int a = 0; a < K; ++a)
-      for (int b = 0; b < a; ++b) moments(a, b) = moments(b, a);
-    const typename Basis::Values g = directional_weight<Dim>(moments);
-    for (int k = 0; k < K; ++k) coefficients[i * K + static_cast<std::size_t>(k)] = g[k];
+      for (int b = a; b < K; ++b)
+        out[slot++] = w * mu[static_cast<std::size_t>(a)] * mu[static_cast<std::size_t>(b)];
   }
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    alignas(64) MomentMatrix<Dim> moments;
+    int slot = 0;
+    for (int a = 0; a < K; ++a)
+      for (int b = a; b < K; ++b) moments(a, b) = moments(b, a) = sum[slot++];
+    const typename Basis::Values g = directional_weight<Dim>(moments);
+    for (int k = 0; k < K; ++k) coefficients_[i * K + static_cast<std::size_t>(k)] = g[k];
+  }
+
+ private:
+  KernelT kernel_;
+  const double* volume_;
+  double* coefficients_;
+};
+
+/// g_i of every particle (QuarticBasis<Dim>::size coefficients per particle, particle-major);
+/// requires the volumes V_j of density_pass on the same positions. `pairs`: a Verlet list, or
+/// the InteractionList of that density pass.
+template <int Dim, class KernelT, class List>
+void viscous_correction_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
+                             const ParticleArrays& p, std::vector<double>& coefficients) {
+  coefficients.resize(p.size() * QuarticBasis<Dim>::size);
+  pair_pass<Dim>(ViscousMoments<Dim, KernelT>(kernel, p, coefficients),
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
 }
 
 }  // namespace sphles::sim

@@ -3,6 +3,8 @@
 
 #include <cmath>
 #include <numbers>
+#include <stdexcept>
+#include <string>
 
 #include "sim/kernels.hpp"
 
@@ -18,12 +20,36 @@ struct Case {
 template <class C>
 class KernelTest : public ::testing::Test {};
 
-using AllKernels =
-    ::testing::Types<Case<kernel_shape::WendlandC2, 2>, Case<kernel_shape::WendlandC2, 3>,
-                     Case<kernel_shape::WendlandC4, 2>, Case<kernel_shape::WendlandC4, 3>,
-                     Case<kernel_shape::WendlandC6, 2>, Case<kernel_shape::WendlandC6, 3>,
-                     Case<kernel_shape::QuinticSpline, 2>, Case<kernel_shape::QuinticSpline, 3>>;
+/// Every registered kernel (sim::KernelRegistry) in 2D and 3D: a kernel added to the registry is
+/// tested without touching this file.
+template <class... Shapes>
+::testing::Types<Case<Shapes, 2>..., Case<Shapes, 3>...> all_cases(KernelShapeList<Shapes...>);
+using AllKernels = decltype(all_cases(KernelRegistry{}));
 TYPED_TEST_SUITE(KernelTest, AllKernels);
+
+// Names round-trip for every registered kernel, and an unknown name lists the valid ones.
+template <class Shape>
+void check_name() {
+  EXPECT_EQ(kernel_from_name(Shape::name), Shape::type);
+  EXPECT_EQ(kernel_name(Shape::type), Shape::name);
+}
+template <class... Shapes>
+void check_names(KernelShapeList<Shapes...>) {
+  (check_name<Shapes>(), ...);
+}
+TEST(KernelRegistry, NamesRoundTripAndUnknownNamesListTheValidOnes) {
+  check_names(KernelRegistry{});
+  try {
+    kernel_from_name("gaussian");
+    FAIL() << "an unknown kernel was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find(
+                  "unknown kernel 'gaussian' (valid: wendland_c2, wendland_c4, wendland_c6, "
+                  "quintic_spline)"),
+              std::string::npos)
+        << e.what();
+  }
+}
 
 /// Composite Simpson rule on [a, b] with n (even) intervals.
 template <class F>

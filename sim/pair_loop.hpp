@@ -1,0 +1,303 @@
+// The neighbour loop of every SPH pass, written once (docs/performance.md, "The pair loop").
+//
+// A pass is an evaluator, a small struct of pure functions over plain data (sim/physics/), run
+// by pair_pass: for each particle i of an owned range, in gather form, the evaluator's `pair`
+// gives the contribution of every neighbour j inside the kernel support, the loop sums them,
+// and the evaluator's `finish` writes the sums. The loop owns what is not physics:
+//  - the pair geometry: x_ij = x_i - x_j through a geometry policy (PeriodicGeometry: the minimum
+//    image of the periodic box; a halo geometry can take its place), r² and r;
+//  - the support test 0 < r < H (r = 0 too for evaluators with coincident_pairs, the density);
+//  - the threading: OpenMP over i, each i summed by one thread in a fixed order, so results do
+//    not depend on the thread count;
+//  - the vectorisation: OpenMP SIMD over j with a reduction in lanes (Summation::Lanes), or the
+//    sum in list order (Summation::Ordered, SPHLES_SIMD=OFF); both are deterministic, and they
+//    agree to round-off.
+//
+// An evaluator E provides
+//   static constexpr int outputs;            doubles summed per particle
+//   static constexpr bool coincident_pairs;  whether pairs at r = 0 (j != i) contribute
+//   struct Own;                              what the pairs read of particle i
+//   Own own(std::size_t i) const;
+//   void pair(const Own&, const Pair<Dim>&, double (&out)[outputs]) const;
+//   void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const;
+// `pair` is evaluated for every list entry and masked by the support test, so it must be
+// finite-valued or harmless outside the support (kernel functions are zero there) and must not
+// write anything itself.
+//
+// An evaluator that reduces by something other than a sum (the pairing statistics' two nearest
+// distances) also provides
+//   static constexpr double identity;   the value of a masked entry and the start of the reduction
+//   static void accumulate(double (&acc)[outputs], const double (&c)[outputs]);
+// and is reduced in list order.
+#pragma once
+
+#include <cmath>
+#include <concepts>
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <type_traits>
+#include <vector>
+
+#include "sim/neighbour_search.hpp"
+#include "sim/particles.hpp"
+
+namespace sphles::sim {
+
+/// One pair as an evaluator sees it: j, x_ij = x_i - x_j, r² = |x_ij|², r = |x_ij|.
+template <int Dim>
+struct Pair {
+  std::uint32_t j;
+  double dx[Dim];
+  double r2;
+  double r;
+};
+
+/// x_ij under the minimum image of the periodic box.
+template <int Dim>
+class PeriodicGeometry {
+ public:
+  PeriodicGeometry(const PeriodicBox& box, const ParticleArrays& p) {
+    for (int d = 0; d < Dim; ++d) {
+      x_[d] = p.position[d].data();
+      length_[d] = box.length[d];
+      half_length_[d] = 0.5 * box.length[d];
+    }
+  }
+  void position(std::size_t i, double (&xi)[Dim]) const {
+    for (int d = 0; d < Dim; ++d) xi[d] = x_[d][i];
+  }
+  /// x_i - x_j (minimum image) into dx; returns |x_ij|².
+  double separation(const double (&xi)[Dim], std::uint32_t j, double (&dx)[Dim]) const {
+    double r2 = 0.0;
+    for (int d = 0; d < Dim; ++d) {
+      dx[d] = minimum_image(xi[d] - x_[d][j], length_[d], half_length_[d]);
+      r2 += dx[d] * dx[d];
+    }
+    return r2;
+  }
+
+ private:
+  const double* x_[Dim];
+  double length_[Dim];
+  double half_length_[Dim];
+};
+
+/// The pairs inside the kernel support (0 < r < H) of every particle, in Verlet-list order: the
+/// list the passes after the density pass of a force evaluation loop over (no support test, 40 %
+/// fewer entries than the Verlet list). Built by density pass (compacting_pair_pass) at the
+/// positions of that evaluation; valid until the positions change. The entries of i sit at the
+/// start of i's segment of the Verlet list it was built from.
+class InteractionList {
+ public:
+  std::size_t num_particles() const { return count_.size(); }
+  std::span<const std::uint32_t> of(std::size_t i) const {
+    return {indices_.data() + offsets_[i], count_[i]};
+  }
+  /// Pairs in the list (Σ_i of(i).size()).
+  std::size_t num_pairs() const;
+
+  /// Makes room for the segments of `verlet` (called by compacting_pair_pass).
+  void prepare(const NeighbourList& verlet) {
+    offsets_ = verlet.offsets;  // a copy: the Verlet list may be rebuilt while this one is read
+    indices_.resize(verlet.indices.size());
+    count_.assign(verlet.num_particles(), 0);
+  }
+  std::uint32_t* segment(std::size_t i) { return indices_.data() + offsets_[i]; }
+  void set_count(std::size_t i, std::uint32_t count) { count_[i] = count; }
+
+ private:
+  std::vector<std::size_t> offsets_;
+  std::vector<std::uint32_t> indices_;
+  std::vector<std::uint32_t> count_;
+};
+
+inline std::size_t InteractionList::num_pairs() const {
+  std::size_t total = 0;
+  for (const std::uint32_t c : count_) total += c;
+  return total;
+}
+
+/// How a particle's contributions are summed: in SIMD lanes (the vectorised loop) or in list
+/// order. The build's default is Lanes, or Ordered with SPHLES_SIMD=OFF (SPHLES_NO_SIMD); a
+/// caller may ask for either (the tests compare them).
+enum class Summation { Lanes, Ordered };
+#ifdef SPHLES_NO_SIMD
+inline constexpr Summation kDefaultSummation = Summation::Ordered;
+#else
+inline constexpr Summation kDefaultSummation = Summation::Lanes;
+#endif
+
+namespace pair_loop_detail {
+
+/// Evaluators with more outputs than this are summed in list order without vectors.
+inline constexpr int kMaxVectorOutputs = 12;
+
+/// Whether E reduces by its own accumulate (and identity) rather than by a sum.
+template <class E>
+concept CustomReduction = requires(double (&acc)[E::outputs], const double (&c)[E::outputs]) {
+  { E::identity } -> std::convertible_to<double>;
+  E::accumulate(acc, c);
+};
+
+template <class E>
+constexpr double reduction_identity() {
+  if constexpr (CustomReduction<E>)
+    return E::identity;
+  else
+    return 0.0;
+}
+
+template <int O, int K>
+inline void add(double& sum, const double (&c)[K]) {
+  if constexpr (O < K) sum += c[O];
+}
+
+/// Σ over one particle's list of the evaluator's masked contributions (the loop body shared by
+/// both passes). With Record, keep_out[k] says whether entry k lies inside the support,
+/// 0 < r < H (for the compaction).
+template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
+inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
+                      const typename E::Own& own_ref, const double (&xi_ref)[Dim],
+                      std::span<const std::uint32_t> js, double support2, double (&sum)[E::outputs],
+                      std::uint8_t* keep_out) {
+  constexpr int K = E::outputs;
+  // Local copies: their members (array pointers, constants) are then known not to change in the
+  // loop, so the loads become gathers from invariant bases and the loop vectorises.
+  const E e = evaluator;
+  const Geometry geometry = geometry_ref;
+  const typename E::Own own = own_ref;
+  double xi[Dim];
+  for (int d = 0; d < Dim; ++d) xi[d] = xi_ref[d];
+  const std::size_t count = js.size();
+  const std::uint32_t* index = js.data();
+  // The contribution of entry k, zero outside the support. The sums stay in the loops below
+  // (a lambda capturing `sum` would bypass the SIMD reduction's private copies).
+  const auto contribution = [&](std::size_t k, double(&c)[K]) {
+    Pair<Dim> pair;
+    pair.j = index[k];
+    pair.r2 = geometry.separation(xi, pair.j, pair.dx);
+    pair.r = std::sqrt(pair.r2);
+    // Non-short-circuit & on the comparisons: && would be control flow, which GCC does not
+    // vectorise.
+    const bool in_support = pair.r2 < support2;
+    const bool separate = pair.r2 > 0.0;
+    if constexpr (Record) keep_out[k] = static_cast<std::uint8_t>(in_support & separate);
+    e.pair(own, pair, c);
+    const bool inside = !TestSupport || (in_support & (E::coincident_pairs || separate));
+    for (int o = 0; o < K; ++o) c[o] = inside ? c[o] : reduction_identity<E>();
+  };
+  if constexpr (CustomReduction<E>) {
+    for (std::size_t k = 0; k < count; ++k) {
+      double c[K];
+      contribution(k, c);
+      E::accumulate(sum, c);
+    }
+  } else if constexpr (S == Summation::Lanes && K <= kMaxVectorOutputs) {
+    // Named scalar accumulators: GCC 12 vectorises a reduction over scalars, not over an array
+    // section (sum[:K] gave 2-wide code with scalar gathers). Those beyond K are never touched.
+    double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0, s4 = 0.0, s5 = 0.0, s6 = 0.0, s7 = 0.0, s8 = 0.0,
+           s9 = 0.0, s10 = 0.0, s11 = 0.0;
+#pragma omp simd reduction(+ : s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11)
+    for (std::size_t k = 0; k < count; ++k) {
+      double c[K];
+      contribution(k, c);
+      add<0>(s0, c), add<1>(s1, c), add<2>(s2, c), add<3>(s3, c), add<4>(s4, c), add<5>(s5, c);
+      add<6>(s6, c), add<7>(s7, c), add<8>(s8, c), add<9>(s9, c), add<10>(s10, c), add<11>(s11, c);
+    }
+    const double lanes[kMaxVectorOutputs] = {s0, s1, s2, s3, s4, s5, s6, s7, s8, s9, s10, s11};
+    for (int o = 0; o < K; ++o) sum[o] += lanes[o];
+  } else {
+    for (std::size_t k = 0; k < count; ++k) {
+      double c[K];
+      contribution(k, c);
+      for (int o = 0; o < K; ++o) sum[o] += c[o];
+    }
+  }
+}
+
+}  // namespace pair_loop_detail
+
+/// How this build sums a particle's pairs: "simd<W>" (lanes of W doubles, the widest vector the
+/// build targets) or "ordered" (list order, SPHLES_SIMD=OFF). Results of two builds agree
+/// bitwise only when this agrees.
+inline const char* pair_loop_summation() {
+  if constexpr (kDefaultSummation == Summation::Ordered) return "ordered";
+#if defined(__AVX512F__)
+  return "simd8";
+#elif defined(__AVX__)
+  return "simd4";
+#else
+  return "simd2";
+#endif
+}
+
+namespace pair_loop_detail {
+
+/// One particle's whole pass: its own values, the sum over its pairs, the evaluator's finish.
+/// With Record, keep[k] marks list entry k as inside the support (keep has list.of(i).size()).
+template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
+inline void evaluate_particle(const E& e, const Geometry& geometry,
+                              std::span<const std::uint32_t> js, std::size_t i, double support2,
+                              std::uint8_t* keep) {
+  const typename E::Own own = e.own(i);
+  double xi[Dim];
+  geometry.position(i, xi);
+  double sum[E::outputs];
+  for (double& s : sum) s = reduction_identity<E>();
+  sum_pairs<Dim, S, TestSupport, Record>(e, geometry, own, xi, js, support2, sum, keep);
+  e.finish(i, own, sum);
+}
+
+}  // namespace pair_loop_detail
+
+/// Runs evaluator e over the particles [begin, end) and the pairs of `list` (a NeighbourList,
+/// tested against the support radius, or an InteractionList, whose pairs all lie inside it).
+template <int Dim, Summation S = kDefaultSummation, class E, class List, class Geometry>
+void pair_pass(const E& e, const Geometry& geometry, const List& list, double support_radius,
+               std::size_t begin, std::size_t end) {
+  constexpr bool kTestSupport = !std::is_same_v<List, InteractionList>;
+  const double support2 = support_radius * support_radius;
+  const auto first = static_cast<std::ptrdiff_t>(begin);
+  const auto last = static_cast<std::ptrdiff_t>(end);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t si = first; si < last; ++si) {
+    const auto i = static_cast<std::size_t>(si);
+    pair_loop_detail::evaluate_particle<Dim, S, kTestSupport, false>(e, geometry, list.of(i), i,
+                                                                     support2, nullptr);
+  }
+}
+
+/// pair_pass over a Verlet list that also records the pairs inside the support (0 < r < H) of
+/// every particle in `interactions`, for the passes that follow at the same positions.
+template <int Dim, Summation S = kDefaultSummation, class E, class Geometry>
+void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourList& list,
+                          double support_radius, std::size_t begin, std::size_t end,
+                          InteractionList& interactions) {
+  const double support2 = support_radius * support_radius;
+  interactions.prepare(list);
+  const auto first = static_cast<std::ptrdiff_t>(begin);
+  const auto last = static_cast<std::ptrdiff_t>(end);
+#pragma omp parallel
+  {
+    std::vector<std::uint8_t> keep;
+#pragma omp for schedule(dynamic, 256)
+    for (std::ptrdiff_t si = first; si < last; ++si) {
+      const auto i = static_cast<std::size_t>(si);
+      const std::span<const std::uint32_t> js = list.of(i);
+      keep.resize(js.size());
+      pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support2,
+                                                              keep.data());
+      // Branch-free compaction: every entry is written, the count advances for those inside.
+      std::uint32_t* out = interactions.segment(i);
+      std::uint32_t kept = 0;
+      for (std::size_t k = 0; k < js.size(); ++k) {
+        out[kept] = js[k];
+        kept += keep[k];
+      }
+      interactions.set_count(i, kept);
+    }
+  }
+}
+
+}  // namespace sphles::sim
