@@ -4,6 +4,7 @@
 // pass over the Verlet list.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstring>
@@ -248,6 +249,62 @@ TEST(PairLoop, InteractionListIsTheVerletListCutToTheSupport) {
             0)
             << dim << "D axis " << d;
     });
+  }
+}
+
+/// A reduction other than a sum: the largest r² inside the support and the count of pairs there
+/// (a max and a sum through one accumulate), identity -1 for entries outside it.
+template <int Dim>
+struct FarthestInSupport {
+  static constexpr int outputs = 2;
+  static constexpr bool coincident_pairs = false;
+  static constexpr double identity = -1.0;
+  struct Own {};
+  static void accumulate(double (&acc)[outputs], const double (&c)[outputs]) {
+    acc[0] = std::max(acc[0], c[0]);
+    if (c[1] > 0.0) acc[1] = (acc[1] < 0.0 ? 0.0 : acc[1]) + 1.0;
+  }
+  Own own(std::size_t) const { return {}; }
+  void pair(const Own&, const Pair<Dim>& q, double (&out)[outputs]) const {
+    out[0] = q.r2;
+    out[1] = 1.0;
+  }
+  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
+    farthest[i] = sum[0];
+    count[i] = sum[1];
+  }
+  double* farthest;
+  double* count;
+};
+
+// Custom reductions (identity + accumulate) see exactly the in-support pairs; a particle with
+// none keeps the identity.
+TEST(PairLoop, CustomReductionsSeeTheSupportAndStartFromTheIdentity) {
+  testing::RandomFlow flow = prepared_flow(3, 10, 4);
+  const SolverConfig& c = flow.config;
+  const ParticleArrays& p = flow.particles;
+  VerletNeighbourSearch search(c.box, c.support_radius, 0.2 * c.support_radius);
+  search.build(view_positions(p));
+  const PeriodicGeometry<3> geometry(c.box, p);
+  for (const double radius : {c.support_radius, 0.5 * c.support_radius, 1e-9}) {
+    std::vector<double> farthest(p.size()), count(p.size());
+    pair_pass<3>(FarthestInSupport<3>{farthest.data(), count.data()}, geometry, search.list(),
+                 radius, 0, p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      double expected = -1.0, n = -1.0;
+      for (const std::uint32_t j : search.list().of(i)) {
+        double dx[3];
+        double xi[3];
+        geometry.position(i, xi);
+        const double r2 = geometry.separation(xi, j, dx);
+        if (r2 < radius * radius && r2 > 0.0) {
+          expected = std::max(expected, r2);
+          n = (n < 0.0 ? 0.0 : n) + 1.0;
+        }
+      }
+      ASSERT_EQ(farthest[i], expected) << "radius " << radius << " particle " << i;
+      ASSERT_EQ(count[i], n) << "radius " << radius << " particle " << i;
+    }
   }
 }
 
