@@ -96,8 +96,7 @@ PairingStatistics pairing_statistics(const ParticleArrays& p, const NeighbourLis
                                      const HealthThresholds& thresholds) {
   PairingStatistics result;
   const std::size_t n = std::min(p.size(), list.num_particles());
-  constexpr double kNone = kNoNeighbour;
-  std::vector<double> nearest2(n, kNone), second2(n, kNone);
+  std::vector<double> nearest2(n), second2(n);  // every entry written by NearestTwo::finish
   // Every entry of the list counts (an infinite "support"), as in a plain scan of the list.
   const double everywhere = std::numeric_limits<double>::infinity();
   if (p.dimension == 2)
@@ -109,7 +108,7 @@ PairingStatistics pairing_statistics(const ParticleArrays& p, const NeighbourLis
   const double distance2 = thresholds.pairing_distance * thresholds.pairing_distance;
   const double ratio2 = thresholds.pairing_ratio * thresholds.pairing_ratio;
   const double spacing2 = spacing * spacing;
-  double min2 = kNone;
+  double min2 = kNoNeighbour;
   for (std::size_t i = 0; i < n; ++i) {
     min2 = std::min(min2, nearest2[i]);
     if (nearest2[i] < distance2 * spacing2 && nearest2[i] < ratio2 * second2[i])
