@@ -10,32 +10,28 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/select.hpp"
+
 namespace sphles::sim {
 
 namespace {
 
-/// Appends members[k] for every k < count with selected[k] != 0 (0x00 or 0xFF) to `out`, in
-/// order; returns how many. May write up to 16 entries past the last appended one, but never
-/// past out + count.
-std::size_t append_selected(const std::uint32_t* members, const std::uint8_t* selected,
-                            std::size_t count, std::uint32_t* out) {
-  std::size_t used = 0, k = 0;
-#if defined(__AVX512F__)
-  // 16 candidates at a time: the selection bytes' sign bits form the mask of a compress.
-  for (; k + 16 <= count; k += 16) {
-    const __m128i bytes = _mm_loadu_si128(reinterpret_cast<const __m128i*>(selected + k));
-    const auto mask = static_cast<__mmask16>(_mm_movemask_epi8(bytes));
-    const __m512i indices = _mm512_loadu_si512(members + k);
-    _mm512_storeu_si512(out + used, _mm512_maskz_compress_epi32(mask, indices));
-    used += static_cast<std::size_t>(__builtin_popcount(mask));
-  }
-#endif
-  // Branch-free: every candidate is written, the count advances for those selected.
-  for (; k < count; ++k) {
-    out[used] = members[k];
-    used += selected[k] & 1u;
-  }
-  return used;
+/// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
+constexpr std::size_t kStoreSlack = 8;
+
+/// Particle indices sorted by cell into `members`, ascending index within a cell (a stable
+/// counting sort), and where each cell's members begin into `start` (num_cells + 1 entries).
+void counting_sort_by_cell(const std::vector<std::uint32_t>& cell, std::size_t num_cells,
+                           std::vector<std::uint32_t>& members, std::vector<std::size_t>& start) {
+  start.assign(num_cells + 1, 0);
+  for (const std::uint32_t c : cell) ++start[c + 1];
+  for (std::size_t c = 0; c < num_cells; ++c) start[c + 1] += start[c];
+  members.resize(cell.size());
+  for (std::size_t i = 0; i < cell.size(); ++i)
+    members[start[cell[i]]++] = static_cast<std::uint32_t>(i);
+  // start[c] now holds where cell c ends, the start of c + 1: shift back.
+  for (std::size_t c = num_cells; c > 0; --c) start[c] = start[c - 1];
+  start[0] = 0;
 }
 
 }  // namespace
@@ -60,9 +56,13 @@ VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cuto
   }
 }
 
-std::vector<std::uint32_t> VerletNeighbourSearch::cell_of(const PositionsView& positions) const {
-  std::vector<std::uint32_t> cell(positions.size);
-  for (std::size_t i = 0; i < positions.size; ++i) {
+void VerletNeighbourSearch::cell_of(const PositionsView& positions,
+                                    std::vector<std::uint32_t>& cell) const {
+  cell.resize(positions.size);
+  const auto n = static_cast<std::ptrdiff_t>(positions.size);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t si = 0; si < n; ++si) {
+    const auto i = static_cast<std::size_t>(si);
     std::uint32_t c = 0;
     for (int d = positions.dimension - 1; d >= 0; --d) {
       int k = static_cast<int>(positions.x[d][i] * inv_cell_size_[d]);
@@ -71,36 +71,28 @@ std::vector<std::uint32_t> VerletNeighbourSearch::cell_of(const PositionsView& p
     }
     cell[i] = c;
   }
-  return cell;
 }
 
 std::vector<std::uint32_t> VerletNeighbourSearch::locality_order(
     const PositionsView& positions) const {
-  const std::vector<std::uint32_t> cell = cell_of(positions);
-  std::vector<std::uint32_t> order(positions.size);
-  for (std::uint32_t i = 0; i < order.size(); ++i) order[i] = i;
-  std::stable_sort(order.begin(), order.end(),
-                   [&](std::uint32_t a, std::uint32_t b) { return cell[a] < cell[b]; });
+  std::vector<std::uint32_t> cell, order;
+  std::vector<std::size_t> start;
+  cell_of(positions, cell);
+  counting_sort_by_cell(cell, num_cells(), order, start);
   return order;
 }
 
 template <int Dim>
 void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   const std::size_t n = positions.size;
-  const std::vector<std::uint32_t> cell = cell_of(positions);
-  std::size_t num_cells = 1;
-  for (int d = 0; d < Dim; ++d) num_cells *= static_cast<std::size_t>(cells_[d]);
-
-  // Counting sort of particle indices by cell (stable: ascending index within a cell).
-  std::vector<std::size_t> cell_start(num_cells + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) ++cell_start[cell[i] + 1];
-  for (std::size_t c = 0; c < num_cells; ++c) cell_start[c + 1] += cell_start[c];
-  std::vector<std::uint32_t> cell_members(n);
-  {
-    std::vector<std::size_t> fill(cell_start.begin(), cell_start.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-      cell_members[fill[cell[i]]++] = static_cast<std::uint32_t>(i);
-  }
+  // Scratch kept between builds (BuildScratch): fresh vectors of this size would be mapped and
+  // zeroed page by page at every build.
+  std::vector<std::uint32_t>& cell = scratch_.cell;
+  std::vector<std::size_t>& cell_start = scratch_.cell_start;
+  std::vector<std::uint32_t>& cell_members = scratch_.cell_members;
+  cell_of(positions, cell);
+  const std::size_t num_cells = this->num_cells();
+  counting_sort_by_cell(cell, num_cells, cell_members, cell_start);
 
   // Distinct cell offsets per direction: -reach..reach, reduced modulo the number of cells when
   // a direction has fewer than 2 reach + 1 cells, so that no cell is visited twice.
@@ -129,13 +121,17 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   // Positions in cell order, so that a run of neighbouring cells along x is one contiguous run of
   // candidates: the distance test below is a vectorised loop over contiguous memory. rank[i] is
   // particle i's place in that order.
-  std::array<std::vector<double>, 3> sorted;
-  for (int d = 0; d < Dim; ++d) {
-    sorted[d].resize(n);
-    for (std::size_t k = 0; k < n; ++k) sorted[d][k] = positions.x[d][cell_members[k]];
+  std::array<std::vector<double>, 3>& sorted = scratch_.sorted;
+  for (int d = 0; d < Dim; ++d) sorted[d].resize(n);
+  std::vector<std::uint32_t>& rank = scratch_.rank;
+  rank.resize(n);
+  const auto signed_n = static_cast<std::ptrdiff_t>(n);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t sk = 0; sk < signed_n; ++sk) {
+    const auto k = static_cast<std::size_t>(sk);
+    for (int d = 0; d < Dim; ++d) sorted[d][k] = positions.x[d][cell_members[k]];
+    rank[cell_members[k]] = static_cast<std::uint32_t>(k);
   }
-  std::vector<std::uint32_t> rank(n);
-  for (std::size_t k = 0; k < n; ++k) rank[cell_members[k]] = static_cast<std::uint32_t>(k);
 
   // Pruning: a cell whose nearest point is farther than the list radius from x_i holds no
   // neighbour, so rows of cells (fixed y, z offsets) beyond the radius are skipped and the x cells
@@ -173,6 +169,49 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
     const std::uint32_t self = rank[i];
     const auto scan = [&](std::size_t begin, std::size_t end) {
       const std::size_t count = end - begin;
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+      // 8 candidates per vector, the last block masked (the runs are short: a few cells of a
+      // row, so a scalar remainder would cost as much as the vector part). The same operations
+      // in the same order as the portable loop (#else), so the list is the same.
+      (void)keep;
+      const __m512d xi0 = _mm512_set1_pd(xi[0]), xi1 = _mm512_set1_pd(xi[1]),
+                    xi2 = _mm512_set1_pd(xi[Dim == 3 ? 2 : 0]);
+      const auto image = [](__m512d dx, double len, double half) {
+        const __m512d l = _mm512_set1_pd(len);
+        dx =
+            _mm512_mask_sub_pd(dx, _mm512_cmp_pd_mask(dx, _mm512_set1_pd(half), _CMP_GT_OQ), dx, l);
+        return _mm512_mask_add_pd(dx, _mm512_cmp_pd_mask(dx, _mm512_set1_pd(-half), _CMP_LT_OQ), dx,
+                                  l);
+      };
+      const __m512d r2_limit = _mm512_set1_pd(radius2);
+      for (std::size_t k = 0; k < count; k += 8) {
+        const std::size_t left = count - k;
+        const auto live = static_cast<__mmask8>(left >= 8 ? 0xFF : (1u << left) - 1u);
+        const std::size_t at = begin + k;
+        const __m512d dx =
+            image(_mm512_sub_pd(xi0, _mm512_maskz_loadu_pd(live, sorted[0].data() + at)), length[0],
+                  half_length[0]);
+        const __m512d dy =
+            image(_mm512_sub_pd(xi1, _mm512_maskz_loadu_pd(live, sorted[1].data() + at)), length[1],
+                  half_length[1]);
+        __m512d r2 = _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy));
+        if constexpr (Dim == 3) {
+          const __m512d dz =
+              image(_mm512_sub_pd(xi2, _mm512_maskz_loadu_pd(live, sorted[2].data() + at)),
+                    length[2], half_length[2]);
+          r2 = _mm512_add_pd(r2, _mm512_mul_pd(dz, dz));
+        }
+        auto inside =
+            static_cast<unsigned>(_mm512_mask_cmp_pd_mask(live, r2, r2_limit, _CMP_LT_OQ));
+        if (self >= at && self < at + 8) inside &= ~(1u << (self - at));  // j != i
+        const __m256i members = _mm256_maskz_loadu_epi32(live, cell_members.data() + at);
+        // Compress in a register and store all 8 lanes (a masked compress-store is slow on some
+        // cores); the lanes past the kept ones are overwritten by the next block or ignored.
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + used),
+                            _mm256_maskz_compress_epi32(static_cast<__mmask8>(inside), members));
+        used += static_cast<std::size_t>(__builtin_popcount(inside));
+      }
+#else
       if (keep.size() < count) keep.resize(count);
       std::uint8_t* inside = keep.data();
       const double* sx = sorted[0].data() + begin;
@@ -191,6 +230,7 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
       }
       if (self >= begin && self < end) inside[self - begin] = 0x00;  // j != i
       used += append_selected(cell_members.data() + begin, inside, count, out + used);
+#endif
     };
     const auto wrap_cell = [&](int d, int k) { return (k + cells_[d]) % cells_[d]; };
     // The x cells of one row in visiting order, as runs of consecutive cells; with pruning only
@@ -261,14 +301,16 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
     const auto threads = static_cast<std::size_t>(omp_get_num_threads());
     const std::size_t begin = n * thread / threads, end = n * (thread + 1) / threads;
     range_begin[thread] = begin;
-    // `buffer` is kept at least max_candidates longer than the entries in use, so candidates are
+    // `buffer` is kept at least max_candidates (+ the vector stores' overshoot) longer than the
+    // entries in use, so candidates are
     // written unconditionally and kept by advancing `used`. It only grows: its pages stay
     // mapped from one build to the next.
     std::vector<std::uint32_t>& buffer = buffers[thread];
     std::vector<std::uint8_t> keep;
     std::size_t used = 0;
     for (std::size_t i = begin; i < end; ++i) {
-      if (buffer.size() < used + max_candidates) buffer.resize(2 * (used + max_candidates));
+      if (buffer.size() < used + max_candidates + kStoreSlack)
+        buffer.resize(2 * (used + max_candidates + kStoreSlack));
       const std::size_t found = visit(i, buffer.data() + used, keep);
       list.offsets[i + 1] = found;
       used += found;

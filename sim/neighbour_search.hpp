@@ -84,7 +84,11 @@ class VerletNeighbourSearch {
  private:
   template <int Dim>
   void build_impl(const PositionsView& positions);
-  std::vector<std::uint32_t> cell_of(const PositionsView& positions) const;
+  void cell_of(const PositionsView& positions, std::vector<std::uint32_t>& cell) const;
+  std::size_t num_cells() const {
+    return static_cast<std::size_t>(cells_[0]) * static_cast<std::size_t>(cells_[1]) *
+           static_cast<std::size_t>(cells_[2]);
+  }
 
   PeriodicBox box_;
   double cutoff_;
@@ -97,6 +101,12 @@ class VerletNeighbourSearch {
   std::size_t num_builds_ = 0;
   /// Per-thread candidate buffers of build(), kept between builds (their pages stay mapped).
   std::vector<std::vector<std::uint32_t>> buffers_;
+  /// The other per-particle scratch of build(), kept for the same reason.
+  struct BuildScratch {
+    std::vector<std::uint32_t> cell, cell_members, rank;
+    std::vector<std::size_t> cell_start;
+    std::array<std::vector<double>, 3> sorted;
+  } scratch_;
 };
 
 }  // namespace sphles::sim

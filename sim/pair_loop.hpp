@@ -41,6 +41,7 @@
 
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
+#include "sim/select.hpp"
 
 namespace sphles::sim {
 
@@ -154,8 +155,8 @@ inline void add(double& sum, const double (&c)[K]) {
 }
 
 /// Σ over one particle's list of the evaluator's masked contributions (the loop body shared by
-/// both passes). With Record, keep_out[k] says whether entry k lies inside the support,
-/// 0 < r < H (for the compaction).
+/// both passes). With Record, keep_out[k] is 0xFF when entry k lies inside the support,
+/// 0 < r < H, else 0 (for the compaction).
 template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
 inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
                       const typename E::Own& own_ref, const double (&xi_ref)[Dim],
@@ -182,7 +183,7 @@ inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
     // vectorise.
     const bool in_support = pair.r2 < support2;
     const bool separate = pair.r2 > 0.0;
-    if constexpr (Record) keep_out[k] = static_cast<std::uint8_t>(in_support & separate);
+    if constexpr (Record) keep_out[k] = (in_support & separate) ? 0xFF : 0x00;
     e.pair(own, pair, c);
     const bool inside = !TestSupport || (in_support & (E::coincident_pairs || separate));
     for (int o = 0; o < K; ++o) c[o] = inside ? c[o] : reduction_identity<E>();
@@ -235,7 +236,8 @@ inline const char* pair_loop_summation() {
 namespace pair_loop_detail {
 
 /// One particle's whole pass: its own values, the sum over its pairs, the evaluator's finish.
-/// With Record, keep[k] marks list entry k as inside the support (keep has list.of(i).size()).
+/// With Record, keep[k] is 0xFF for a list entry k inside the support, else 0 (keep has
+/// list.of(i).size()).
 template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
 inline void evaluate_particle(const E& e, const Geometry& geometry,
                               std::span<const std::uint32_t> js, std::size_t i, double support2,
@@ -288,14 +290,9 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
       keep.resize(js.size());
       pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support2,
                                                               keep.data());
-      // Branch-free compaction: every entry is written, the count advances for those inside.
-      std::uint32_t* out = interactions.segment(i);
-      std::uint32_t kept = 0;
-      for (std::size_t k = 0; k < js.size(); ++k) {
-        out[kept] = js[k];
-        kept += keep[k];
-      }
-      interactions.set_count(i, kept);
+      const std::size_t kept =
+          append_selected(js.data(), keep.data(), js.size(), interactions.segment(i));
+      interactions.set_count(i, static_cast<std::uint32_t>(kept));
     }
   }
 }

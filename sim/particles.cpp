@@ -27,7 +27,10 @@ void permute(std::vector<T>& values, std::span<const std::uint32_t> order,
              std::vector<T>& scratch) {
   if (values.empty()) return;
   scratch.resize(values.size());
-  for (std::size_t k = 0; k < order.size(); ++k) scratch[k] = values[order[k]];
+  const auto n = static_cast<std::ptrdiff_t>(order.size());
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t k = 0; k < n; ++k)
+    scratch[static_cast<std::size_t>(k)] = values[order[static_cast<std::size_t>(k)]];
   values.swap(scratch);
 }
 }  // namespace

@@ -79,6 +79,31 @@ TEST_P(NeighbourSearchTest, EqualsBruteForce) {
   }
 }
 
+// The build keeps its scratch from one build to the next and scans candidates in cell order
+// whatever order the particles are stored in: one search object, particles not reordered, then
+// a set of another size, then the first set again.
+TEST_P(NeighbourSearchTest, EqualsBruteForceUnsortedAndAcrossRebuildsOfOtherSizes) {
+  const SearchCase c = GetParam();
+  PeriodicBox box{c.dim, c.length};
+  VerletNeighbourSearch search(box, c.cutoff, c.skin);
+  for (const auto& [seed, count] :
+       {std::pair<std::uint64_t, std::size_t>{4, c.count}, {5, c.count / 3 + 1}, {4, c.count}}) {
+    SearchCase sized = c;
+    sized.count = count;
+    const ParticleArrays p = random_particles(sized, seed);
+    search.build(view_positions(p));
+    const auto expected = brute_force(p, box, search.list_radius());
+    const NeighbourList& list = search.list();
+    ASSERT_EQ(list.num_particles(), p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const auto span = list.of(i);
+      const std::set<std::uint32_t> found(span.begin(), span.end());
+      EXPECT_EQ(found.size(), span.size()) << "duplicate neighbour of particle " << i;
+      EXPECT_EQ(found, expected[i]) << "particle " << i << " of " << count << ", seed " << seed;
+    }
+  }
+}
+
 INSTANTIATE_TEST_SUITE_P(
     Boxes, NeighbourSearchTest,
     ::testing::Values(SearchCase{3, {1.0, 1.0, 1.0}, 0.12, 0.02, 1500},  // many cells
