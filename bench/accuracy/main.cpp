@@ -33,6 +33,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <map>
@@ -259,6 +260,16 @@ int main(int argc, char** argv) {
   std::vector<int> sides_3d;
   for (const std::string& s : split(refine_3d_sides)) sides_3d.push_back(std::atoi(s.c_str()));
   omp_set_num_threads(threads);
+  // Before any run: a result that cannot be written would be lost after hours of runs.
+  if (!list_only) {
+    std::error_code error;
+    std::filesystem::create_directories(out_dir, error);
+    if (error) {
+      std::cerr << "--out: cannot create directory '" << out_dir << "': " << error.message()
+                << '\n';
+      return 1;
+    }
+  }
 
   for (const std::string& study : split(only)) {
     std::vector<ac::RunSpec> runs;
