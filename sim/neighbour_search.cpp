@@ -302,9 +302,8 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
     const std::size_t begin = n * thread / threads, end = n * (thread + 1) / threads;
     range_begin[thread] = begin;
     // `buffer` is kept at least max_candidates (+ the vector stores' overshoot) longer than the
-    // entries in use, so candidates are
-    // written unconditionally and kept by advancing `used`. It only grows: its pages stay
-    // mapped from one build to the next.
+    // entries in use, so candidates are written unconditionally and kept by advancing `used`.
+    // It only grows: its pages stay mapped from one build to the next.
     std::vector<std::uint32_t>& buffer = buffers[thread];
     std::vector<std::uint8_t> keep;
     std::size_t used = 0;

@@ -13,7 +13,7 @@ namespace sphles::sim {
 
 /// Appends members[k] for every k < count with selected[k] != 0 (each 0x00 or 0xFF) to `out`,
 /// in order; returns how many. May write up to 16 entries past the last appended one, but never
-/// past out + count, so `out` may alias `members` (out <= members).
+/// past out + count.
 inline std::size_t append_selected(const std::uint32_t* members, const std::uint8_t* selected,
                                    std::size_t count, std::uint32_t* out) {
   std::size_t used = 0, k = 0;
