@@ -35,6 +35,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "sim/ale_correction.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
@@ -49,16 +50,6 @@ inline constexpr int kShiftingClusteringExponent = 4;
 /// The limiter on the shifting velocity: |δv_i| ≤ kShiftingSpeedLimit · Ma c_0 (Sun et al. 2019
 /// limit the shift to half the reference velocity).
 inline constexpr double kShiftingSpeedLimit = 0.5;
-
-/// The discrete ALE correction of the momentum equation (scheme.ale_correction).
-enum class AleCorrection {
-  /// (1/ρ) ∇·(ρ v ⊗ δv) alone: antisymmetric pair terms, Σ M a = 0 to round-off; not Galilean
-  /// invariant (a uniform U adds (U/ρ) ∇·(ρ δv)).
-  Conservative,
-  /// Sun et al. 2019's (1/ρ) [∇·(ρ v ⊗ δv) - v ∇·(ρ δv)] = δv·∇v: Galilean invariant; the
-  /// -v_i ∇·(ρ δv)_i term is not antisymmetric, so Σ M v drifts.
-  Full,
-};
 
 /// The scheme's constants for one run (SchemeFields::shifting), formed once from the
 /// configuration.
@@ -92,27 +83,6 @@ inline double shifting_pair_factor(double kernel_value, double reference_kernel)
 /// Scale applied to the unlimited δv of magnitude `speed` so that |δv| ≤ `limit` (1 below it).
 inline double shifting_limiter_scale(double speed, double limit) {
   return speed > limit ? limit / speed : 1.0;
-}
-
-/// Component a of the pair term of ∇·(ρ v ⊗ δv) in Sun et al. 2019's symmetric form,
-/// ρ_i v_i,a (δv_i·∇W_ij) + ρ_j v_j,a (δv_j·∇W_ij), with `shift_dot_gradient_*` = δv·∇W_ij.
-/// Symmetric in i and j; times V_j ∇W_ij-antisymmetry it makes the pair term of M_i a_i
-/// antisymmetric.
-inline double shifting_ale_term(double density_i, double velocity_i, double shift_dot_gradient_i,
-                                double density_j, double velocity_j, double shift_dot_gradient_j) {
-  return density_i * velocity_i * shift_dot_gradient_i +
-         density_j * velocity_j * shift_dot_gradient_j;
-}
-
-/// Component a of the pair term of Sun et al. 2019's full correction ∇·(ρ v ⊗ δv) - v_i ∇·(ρ δv):
-/// the conservative term less v_i,a (ρ_i δv_i·∇W_ij + ρ_j δv_j·∇W_ij), i.e.
-/// ρ_j (v_j,a - v_i,a)(δv_j·∇W_ij): unchanged by a uniform velocity added to v_i and v_j.
-inline double shifting_ale_full_term(double density_i, double velocity_i,
-                                     double shift_dot_gradient_i, double density_j,
-                                     double velocity_j, double shift_dot_gradient_j) {
-  return shifting_ale_term(density_i, velocity_i, shift_dot_gradient_i, density_j, velocity_j,
-                           shift_dot_gradient_j) -
-         velocity_i * (density_i * shift_dot_gradient_i + density_j * shift_dot_gradient_j);
 }
 
 /// The shifting velocity's pair sum Σ_j [1 + R (W_ij/W(Δx))^n] ∇W_ij V_j as an evaluator of the
@@ -207,13 +177,8 @@ struct ShiftingAle {
     }
     const double rho_j = density_[j];
     const double vol_j = volume_[j];
-    for (int d = 0; d < Dim; ++d) {
-      if constexpr (Ale == AleCorrection::Full)
-        out[d] =
-            vol_j * shifting_ale_full_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
-      else
-        out[d] = vol_j * shifting_ale_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
-    }
+    for (int d = 0; d < Dim; ++d)
+      out[d] = vol_j * ale_term<Ale>(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
   }
   void finish(std::size_t i, const Own& o, const double (&sum)[outputs]) const {
     const double inv_density = 1.0 / o.density;

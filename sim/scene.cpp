@@ -267,10 +267,10 @@ Scene parse_scene(const json& input) {
       throw SceneError("scene: 'scheme.ale_correction' " + std::string(e.what()));
     }
     if (s.scheme.ale_correction != SchemeConfig{}.ale_correction &&
-        s.scheme.type != SchemeType::ParticleShifting)
+        !scheme_uses_transport_velocity(s.scheme.type))
       throw SceneError(
-          "scene: 'scheme.ale_correction' applies to scheme.type particle_shifting "
-          "only");
+          "scene: 'scheme.ale_correction' applies to scheme.type transport_velocity and "
+          "particle_shifting only");
     sc.reject_unknown();
   }
   {

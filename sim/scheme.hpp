@@ -41,7 +41,8 @@ struct SchemeConfig {
   /// in units of the sound speed, U = Ma c_s (particle_shifting.hpp). Default: the weakly
   /// compressible c_s = 10 U_max.
   double shifting_mach = 0.1;
-  /// Particle shifting: the discrete ALE correction of the momentum equation.
+  /// Transport velocity and particle shifting: the discrete ALE correction of the momentum
+  /// equation (ale_correction.hpp; for the TVF its extra stress).
   AleCorrection ale_correction = AleCorrection::Conservative;
 };
 
@@ -56,7 +57,8 @@ struct SchemeFields {
   /// δv_i = ṽ_i - v_i of the step being taken (TVF (dt/2) ã^n_i, read by its force
   /// evaluation; particle shifting δv^n_i).
   std::array<std::vector<double>, 3> transport_shift;
-  /// Particle shifting: Ma c_0 (2h), W(Δx) and the limiter (particle_shifting.hpp).
+  /// Particle shifting: Ma c_0 (2h), W(Δx) and the limiter (particle_shifting.hpp); both
+  /// transport-velocity schemes: the ALE correction (`ale`).
   ShiftingParameters shifting;
   /// The thesis scheme with ViscousOperator::Corrected: the operator, and its g_i of the
   /// current evaluation (viscous_correction_pass), a function of the positions.
@@ -120,8 +122,8 @@ struct TransportVelocityScheme {
                        const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
     transport_velocity_force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity,
-                                       view_of(fields.transport_shift, Dim), fields.drift_source,
-                                       p);
+                                       view_of(fields.transport_shift, Dim), fields.drift_source, p,
+                                       fields.shifting.ale);
   }
 };
 

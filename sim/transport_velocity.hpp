@@ -14,6 +14,10 @@
 // not depend on the thread count.
 // Every pair term of M_i a_i is antisymmetric in i and j (the weights V_i² + V_j², p̃_ij and
 // A_i + A_j are symmetric, ∇W_ij and v_ij antisymmetric), so Σ M a = 0 to round-off.
+// A holds v itself, so eq. (8) is not Galilean invariant: a uniform U adds U ∇·(ρ δv). With
+// scheme.ale_correction = full the extra stress is the full ALE term of Sun et al. 2019,
+// ∇·(ρ v ⊗ δv) - v ∇·(ρ δv) = ρ δv·∇v (ale_correction.hpp): Galilean invariant, but no longer
+// antisymmetric, so Σ M v drifts.
 #pragma once
 
 #include <array>
@@ -21,6 +25,7 @@
 #include <cstddef>
 #include <vector>
 
+#include "sim/ale_correction.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
@@ -65,12 +70,14 @@ inline double transport_velocity_pressure_coefficient(double weight, double aver
 
 /// Component a of the extra-stress term of eq. (8), ½ (A_i + A_j) · ∇W_ij with
 /// A = ρ v ⊗ (ṽ - v), i.e. ½ (ρ_i v_i,a (δv_i · ∇W_ij) + ρ_j v_j,a (δv_j · ∇W_ij)) with
-/// δv = ṽ - v. `shift_dot_gradient_*` are δv · ∇W_ij; the sum is symmetric in i and j.
+/// δv = ṽ - v (Conservative; symmetric in i and j), or half the full ALE term
+/// ½ ρ_j (v_j,a - v_i,a)(δv_j·∇W_ij) (Full). `shift_dot_gradient_*` are δv · ∇W_ij.
+template <AleCorrection Ale = AleCorrection::Conservative>
 inline double transport_velocity_stress_term(double density_i, double velocity_i,
                                              double shift_dot_gradient_i, double density_j,
                                              double velocity_j, double shift_dot_gradient_j) {
-  return 0.5 * (density_i * velocity_i * shift_dot_gradient_i +
-                density_j * velocity_j * shift_dot_gradient_j);
+  return 0.5 * ale_term<Ale>(density_i, velocity_i, shift_dot_gradient_i, density_j, velocity_j,
+                             shift_dot_gradient_j);
 }
 
 /// Acceleration of the background pressure, eq. (13): ã_i = -(p_b / M_i) Σ_j (V_i² + V_j²)
@@ -82,8 +89,9 @@ inline double transport_velocity_background_acceleration(double background_press
 
 /// The TVF's pair terms as an evaluator of the pair loop (sim/pair_loop.hpp): outputs 0..Dim-1
 /// are Σ_j (V_i² + V_j²) [-p̃_ij ∇W_ij + ½ (A_i + A_j)·∇W_ij + η̃_ij (1/r)(∂W/∂r) v_ij] (eq. 8),
-/// outputs Dim..2Dim-1 the pair sum S_i = Σ_j (V_i² + V_j²) ∇W_ij of eq. (13).
-template <int Dim, class KernelT>
+/// outputs Dim..2Dim-1 the pair sum S_i = Σ_j (V_i² + V_j²) ∇W_ij of eq. (13). `Ale` chooses the
+/// extra stress (transport_velocity_stress_term).
+template <int Dim, class KernelT, AleCorrection Ale = AleCorrection::Conservative>
 struct TransportVelocityMomentum {
   static constexpr int outputs = 2 * Dim;
   static constexpr bool coincident_pairs = false;
@@ -143,7 +151,7 @@ struct TransportVelocityMomentum {
     for (int d = 0; d < Dim; ++d) {
       const double gradient = g * q.dx[d];
       const double stress =
-          transport_velocity_stress_term(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
+          transport_velocity_stress_term<Ale>(o.density, o.v[d], shift_i, rho_j, v_[d][j], shift_j);
       out[d] = pressure * gradient + weight * stress + viscous * (o.v[d] - v_[d][j]);
       out[Dim + d] = weight * gradient;
     }
@@ -172,20 +180,27 @@ struct TransportVelocityMomentum {
 };
 
 /// One TVF force evaluation: the acceleration (1/M_i) Σ_j (V_i² + V_j²) [-p̃_ij ∇W_ij +
-/// ½ (A_i + A_j)·∇W_ij + η̃_ij (1/r)(∂W/∂r) v_ij] of eq. (8) at the given velocities and transport
-/// shifts δv = ṽ - v (overwrites p.acceleration), and the background acceleration ã of eq. (13)
-/// (overwrites `background`, whose arrays must have p.size() entries for each dimension).
-/// Requires density_pass on the same positions; `pairs` is the Verlet list or the
-/// InteractionList of that density pass.
+/// ½ (A_i + A_j)·∇W_ij + η̃_ij (1/r)(∂W/∂r) v_ij] of eq. (8) (with the extra stress chosen by
+/// `ale`) at the given velocities and transport shifts δv = ṽ - v (overwrites p.acceleration),
+/// and the background acceleration ã of eq. (13) (overwrites `background`, whose arrays must have
+/// p.size() entries for each dimension). Requires density_pass on the same positions; `pairs` is
+/// the Verlet list or the InteractionList of that density pass.
 template <int Dim, class KernelT, class List>
 void transport_velocity_force_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
                                    const FluidParameters& fluid, const VelocityView& velocity,
                                    const VelocityView& shift,
                                    std::array<std::vector<double>, 3>& background,
-                                   ParticleArrays& p) {
-  pair_pass<Dim>(
-      TransportVelocityMomentum<Dim, KernelT>(kernel, fluid, velocity, shift, background, p),
-      PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                                   ParticleArrays& p,
+                                   AleCorrection ale = AleCorrection::Conservative) {
+  const PeriodicGeometry<Dim> geometry(box, p);
+  if (ale == AleCorrection::Full)
+    pair_pass<Dim>(TransportVelocityMomentum<Dim, KernelT, AleCorrection::Full>(
+                       kernel, fluid, velocity, shift, background, p),
+                   geometry, pairs, kernel.support_radius(), 0, p.size());
+  else
+    pair_pass<Dim>(TransportVelocityMomentum<Dim, KernelT, AleCorrection::Conservative>(
+                       kernel, fluid, velocity, shift, background, p),
+                   geometry, pairs, kernel.support_radius(), 0, p.size());
 }
 
 }  // namespace sphles::sim

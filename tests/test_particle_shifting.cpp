@@ -71,19 +71,19 @@ TEST(ParticleShiftingPairs, FactorAleTermAndLimiter) {
   EXPECT_DOUBLE_EQ(shifting_pair_factor(0.7, 0.7), 1.0 + kShiftingClusteringAmplitude);
   EXPECT_EQ(shifting_pair_factor(0.0, 0.7), 1.0);
   EXPECT_DOUBLE_EQ(shifting_pair_factor(1.4, 0.7), 1.0 + kShiftingClusteringAmplitude * 16.0);
-  EXPECT_EQ(shifting_ale_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4),
-            shifting_ale_term(0.9, -0.7, 0.4, 1.1, 0.3, -0.2));
-  EXPECT_DOUBLE_EQ(shifting_ale_term(2.0, 3.0, 0.5, 1.0, 4.0, 0.25), 4.0);
+  EXPECT_EQ(ale_conservative_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4),
+            ale_conservative_term(0.9, -0.7, 0.4, 1.1, 0.3, -0.2));
+  EXPECT_DOUBLE_EQ(ale_conservative_term(2.0, 3.0, 0.5, 1.0, 4.0, 0.25), 4.0);
   EXPECT_EQ(shifting_limiter_scale(0.1, 0.5), 1.0);
   EXPECT_DOUBLE_EQ(shifting_limiter_scale(2.0, 0.5), 0.25);
   // The full correction is unchanged by a uniform velocity U added to v_i and v_j (Galilean);
   // the conservative one changes by U (ρ_i δv_i + ρ_j δv_j)·∇W_ij.
   const double uniform = 1.7;
-  EXPECT_NEAR(shifting_ale_full_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4),
-              shifting_ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 1e-15);
-  EXPECT_DOUBLE_EQ(shifting_ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 0.9 * (-1.0) * 0.4);
-  EXPECT_NEAR(shifting_ale_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4) -
-                  shifting_ale_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4),
+  EXPECT_NEAR(ale_full_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4),
+              ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 1e-15);
+  EXPECT_DOUBLE_EQ(ale_full_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4), 0.9 * (-1.0) * 0.4);
+  EXPECT_NEAR(ale_conservative_term(1.1, 0.3 + uniform, -0.2, 0.9, -0.7 + uniform, 0.4) -
+                  ale_conservative_term(1.1, 0.3, -0.2, 0.9, -0.7, 0.4),
               uniform * (1.1 * -0.2 + 0.9 * 0.4), 1e-15);
   const ShiftingParameters p = shifting_parameters(2.0, 0.3, 5.0);
   EXPECT_DOUBLE_EQ(p.coefficient, 0.6);  // Ma c_0 (2h)
@@ -282,8 +282,12 @@ TEST(ParticleShiftingScene, ParsedWrittenAndBadValuesRejectedNamingTheField) {
             std::string::npos)
       << bad_ale;
   EXPECT_NE(scene_error({{"scheme", {{"type", "thesis"}, {"ale_correction", "full"}}}})
-                .find("'scheme.ale_correction' applies to scheme.type particle_shifting only"),
+                .find("'scheme.ale_correction' applies to scheme.type transport_velocity and "
+                      "particle_shifting only"),
             std::string::npos);
+  EXPECT_EQ(parse_scene({{"scheme", {{"type", "transport_velocity"}, {"ale_correction", "full"}}}})
+                .scheme.ale_correction,
+            AleCorrection::Full);
 
   for (const double bad : {0.0, -0.1}) {
     const std::string e =
