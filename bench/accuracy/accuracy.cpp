@@ -310,7 +310,8 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
     // transport-velocity scheme at background pressures around PySPH's p_b = ρ c_s² = 100, and
     // particle shifting (Sun et al. 2019) at the δ⁺-SPH p_ref = 0 and at the thesis' p_ref = 1,
     // and with the full (Galilean-invariant) ALE correction at p_ref = 0; the TVF also with the
-    // wider kernels D_K = 10Δl and 12Δl (WC4), which halve its L1 error (docs/accuracy.md).
+    // wider kernels D_K = 10Δl and 12Δl (WC4), which halve its L1 error (docs/accuracy.md), and
+    // with the full ALE form of its extra stress.
     // Quick: the thesis model and TVF at p_b = 100, 50².
     struct PeersConfig {
       const char* name;
@@ -325,6 +326,7 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
     const json tvf = {{"type", "transport_velocity"}};
     const json shifting = {{"type", "particle_shifting"}};
     const json shifting_full = {{"type", "particle_shifting"}, {"ale_correction", "full"}};
+    const json tvf_full = {{"type", "transport_velocity"}, {"ale_correction", "full"}};
     const PeersConfig configs[] = {
         {"thesis p_ref=1 lattice", thesis, "lattice", 1.0, true},
         {"thesis p_ref=1 summation", thesis, "summation", 1.0, false},
@@ -336,6 +338,8 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
         {"shifting p_ref=0 summation", shifting, "summation", 0.0, false},
         {"shifting p_ref=1 summation", shifting, "summation", 1.0, false},
         {"shifting-full p_ref=0 summation", shifting_full, "summation", 0.0, false},
+        {"tvf-full p_b=100 summation", tvf_full, "summation", 100.0, false},
+        {"tvf-full p_b=100 summation D_K=12dl", tvf_full, "summation", 100.0, false, 12.0},
     };
     for (const PeersConfig& c : configs)
       for (const int n : {50, 100}) {
