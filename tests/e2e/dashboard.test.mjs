@@ -179,6 +179,10 @@ async function run() {
   await page.fill('#create-end', String(END_TIME));
   await page.check('#create-live');
   await page.fill('#create-every', String(ANALYSIS_EVERY));
+  // A scheme and its options from the form (issue 16): the transport-velocity formulation with
+  // the Galilean-invariant ALE form of its extra stress; checked in the run's scene below.
+  await page.selectOption('#create-scheme', 'transport_velocity');
+  await page.selectOption('#create-ale', 'full');
   await page.fill('#create-name', 'e2e-tgv2d');
   await page.check('#create-start');
   await page.click('#create-submit');
@@ -259,6 +263,11 @@ async function run() {
   const runs = await (await fetch(`${base}/api/runs`)).json();
   const created = runs.find((r) => r.name === 'e2e-tgv2d');
   if (!created) fail('the created run is not in GET /api/runs');
+  const detail = await (await fetch(`${base}/api/runs/${created.id}`)).json();
+  const scheme = detail.scene?.scheme ?? {};
+  if (scheme.type !== 'transport_velocity' || scheme.ale_correction !== 'full')
+    fail(`the run's scheme is not the form's choice: ${JSON.stringify(scheme)}`);
+  pass('scheme and ALE correction chosen in the form are the run\'s');
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the run detail to close after delete', async () => page.locator('#run-detail').isHidden(), 10_000);
