@@ -38,18 +38,26 @@ void permute(std::vector<T>& values, std::span<const std::uint32_t> order,
 void ParticleArrays::reorder(std::span<const std::uint32_t> order) {
   if (order.size() != size()) throw std::invalid_argument("reorder: permutation size mismatch");
   std::vector<double> scratch;
-  for (int d = 0; d < dimension; ++d) {
-    permute(position[d], order, scratch);
-    permute(velocity[d], order, scratch);
-    permute(acceleration[d], order, scratch);
-  }
-  permute(mass, order, scratch);
-  permute(volume, order, scratch);
-  permute(density, order, scratch);
-  permute(pressure, order, scratch);
-  permute(eddy_viscosity, order, scratch);
+  for (std::vector<double>* field : double_fields()) permute(*field, order, scratch);
   std::vector<std::uint64_t> id_scratch;
   permute(id, order, id_scratch);
+}
+
+std::vector<std::vector<double>*> ParticleArrays::double_fields() {
+  std::vector<std::vector<double>*> fields;
+  for (int d = 0; d < dimension; ++d) fields.push_back(&position[d]);
+  for (int d = 0; d < dimension; ++d) fields.push_back(&velocity[d]);
+  for (int d = 0; d < dimension; ++d) fields.push_back(&acceleration[d]);
+  for (std::vector<double>* f : {&mass, &volume, &density, &pressure}) fields.push_back(f);
+  if (!eddy_viscosity.empty()) fields.push_back(&eddy_viscosity);
+  return fields;
+}
+
+std::vector<const std::vector<double>*> ParticleArrays::double_fields() const {
+  std::vector<const std::vector<double>*> fields;
+  for (std::vector<double>* f : const_cast<ParticleArrays*>(this)->double_fields())
+    fields.push_back(f);
+  return fields;
 }
 
 }  // namespace sphles::sim

@@ -70,6 +70,13 @@ struct ParticleArrays {
   /// Applies a permutation to every per-particle array: new[k] = old[order[k]].
   /// The single place where particles are reordered.
   void reorder(std::span<const std::uint32_t> order);
+
+  /// Every per-particle array of doubles that holds values, positions first: x, v and a for
+  /// each dimension, M, V, ρ, p, and ν_t when present. For code that moves whole particles
+  /// (reorder; the halo exchange and migration between MPI ranks, par/). `id` is the one
+  /// per-particle array that is not in it.
+  std::vector<std::vector<double>*> double_fields();
+  std::vector<const std::vector<double>*> double_fields() const;
 };
 
 }  // namespace sphles::sim

@@ -1,0 +1,203 @@
+#include "par/halo.hpp"
+
+#include <cstring>
+#include <limits>
+#include <string>
+
+namespace sphles::par {
+
+namespace {
+
+/// Makes the field set the same on every rank: ν_t is there on all ranks when it is on one (a
+/// rank without particles has no values of it).
+void agree_on_fields(const Decomposition& d, sim::ParticleArrays& p) {
+  int has = p.eddy_viscosity.empty() ? 0 : 1;
+  int any = 0;
+  MPI_Allreduce(&has, &any, 1, MPI_INT, MPI_MAX, d.comm());
+  if (any && p.eddy_viscosity.size() != p.size()) p.eddy_viscosity.resize(p.size(), 0.0);
+}
+
+int checked_count(std::size_t n) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::length_error("halo exchange: a message of " + std::to_string(n) +
+                            " doubles exceeds MPI's int count");
+  return static_cast<int>(n);
+}
+
+/// Sends `out` to rank `to` and receives what rank `from` sends with the same tag into `in`.
+void send_receive(MPI_Comm comm, const std::vector<double>& out, int to, std::vector<double>& in,
+                  int from, int tag) {
+  unsigned long long out_count = out.size(), in_count = 0;
+  MPI_Sendrecv(&out_count, 1, MPI_UNSIGNED_LONG_LONG, to, tag, &in_count, 1, MPI_UNSIGNED_LONG_LONG,
+               from, tag, comm, MPI_STATUS_IGNORE);
+  in.resize(static_cast<std::size_t>(in_count));
+  MPI_Sendrecv(out.data(), checked_count(out.size()), MPI_DOUBLE, to, tag + 1, in.data(),
+               checked_count(in.size()), MPI_DOUBLE, from, tag + 1, comm, MPI_STATUS_IGNORE);
+}
+
+double id_bits(std::uint64_t id) {
+  double bits;
+  std::memcpy(&bits, &id, sizeof bits);
+  return bits;
+}
+std::uint64_t id_of(double bits) {
+  std::uint64_t id;
+  std::memcpy(&id, &bits, sizeof id);
+  return id;
+}
+
+/// Whole particles as one message: per particle every field of `fields`, then the id's bits;
+/// the position along `axis` (fields[axis]) gets `shift` added.
+void pack(const std::vector<const std::vector<double>*>& fields, const sim::ParticleArrays& p,
+          std::span<const std::uint32_t> indices, int axis, double shift,
+          std::vector<double>& out) {
+  const std::size_t stride = fields.size() + 1;
+  out.resize(indices.size() * stride);
+  for (std::size_t k = 0; k < indices.size(); ++k) {
+    double* record = out.data() + k * stride;
+    const std::uint32_t i = indices[k];
+    for (std::size_t f = 0; f < fields.size(); ++f) record[f] = (*fields[f])[i];
+    record[axis] += shift;
+    record[fields.size()] = id_bits(p.id[i]);
+  }
+}
+
+/// Appends the particles of a message made by pack.
+void append(const std::vector<std::vector<double>*>& fields, sim::ParticleArrays& p,
+            const std::vector<double>& in) {
+  const std::size_t stride = fields.size() + 1;
+  const std::size_t count = in.size() / stride;
+  for (std::size_t k = 0; k < count; ++k) {
+    const double* record = in.data() + k * stride;
+    for (std::size_t f = 0; f < fields.size(); ++f) fields[f]->push_back(record[f]);
+    p.id.push_back(id_of(record[fields.size()]));
+  }
+}
+
+std::vector<const std::vector<double>*> as_const(const std::vector<std::vector<double>*>& fields) {
+  return {fields.begin(), fields.end()};
+}
+
+constexpr int kHaloTag = 100;
+constexpr int kUpdateTag = 200;
+constexpr int kMigrateTag = 300;
+
+}  // namespace
+
+Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p) {
+  agree_on_fields(d, p);
+  Halo halo;
+  halo.owned_ = p.size();
+  const double width = d.halo_width();
+  std::vector<double> out, in;
+  for (int a = 0; a < d.dimension(); ++a) {
+    const auto axis = static_cast<std::size_t>(a);
+    const double length = d.box().length[axis];
+    const int n = d.dims()[axis];
+    const int c = d.coords()[axis];
+    // Candidates: owned particles and the halo of the earlier axes (edges, corners).
+    const std::size_t candidates = p.size();
+    const std::vector<double>& x = p.position[axis];
+    Stage down, up;  // to the rank below (particles near the lower face), to the rank above
+    down.axis = up.axis = a;
+    down.to = up.from = d.neighbour(a, -1);
+    down.from = up.to = d.neighbour(a, +1);
+    down.tag = kHaloTag + 4 * a;
+    up.tag = down.tag + 2;
+    down.shift = c == 0 ? length : 0.0;     // across the periodic face at 0
+    up.shift = c == n - 1 ? -length : 0.0;  // across the periodic face at L
+    const double low = d.lower(a) + width, high = d.upper(a) - width;
+    for (std::size_t i = 0; i < candidates; ++i) {
+      if (x[i] < low) down.send.push_back(static_cast<std::uint32_t>(i));
+      if (x[i] >= high) up.send.push_back(static_cast<std::uint32_t>(i));
+    }
+    for (Stage* stage : {&down, &up}) {
+      const auto fields = p.double_fields();
+      pack(as_const(fields), p, stage->send, a, stage->shift, out);
+      halo.bytes_sent_ += out.size() * sizeof(double);
+      send_receive(d.comm(), out, stage->to, in, stage->from, stage->tag);
+      stage->receive_begin = p.size();
+      append(fields, p, in);
+      stage->receive_count = p.size() - stage->receive_begin;
+      halo.stages_.push_back(std::move(*stage));
+    }
+  }
+  halo.received_ = p.size() - halo.owned_;
+  return halo;
+}
+
+void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> fields) const {
+  std::vector<double> out, in;
+  const std::size_t width = fields.size();
+  for (const Stage& stage : stages_) {
+    out.resize(stage.send.size() * width);
+    for (std::size_t k = 0; k < stage.send.size(); ++k)
+      for (std::size_t f = 0; f < width; ++f) out[k * width + f] = (*fields[f])[stage.send[k]];
+    send_receive(d.comm(), out, stage.to, in, stage.from, kUpdateTag + stage.tag);
+    if (in.size() != stage.receive_count * width)
+      throw std::logic_error("halo update: the neighbour sent " + std::to_string(in.size()) +
+                             " values for " + std::to_string(stage.receive_count) +
+                             " halo particles");
+    for (std::size_t k = 0; k < stage.receive_count; ++k)
+      for (std::size_t f = 0; f < width; ++f)
+        (*fields[f])[stage.receive_begin + k] = in[k * width + f];
+  }
+}
+
+std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p) {
+  agree_on_fields(d, p);
+  std::size_t sent = 0;
+  std::vector<double> out_down, out_up, in;
+  for (int a = 0; a < d.dimension(); ++a) {
+    const auto axis = static_cast<std::size_t>(a);
+    const double length = d.box().length[axis];
+    const int n = d.dims()[axis];
+    const int c = d.coords()[axis];
+    std::vector<std::uint32_t> keep, down, up;
+    int too_far = 0;
+    std::uint64_t far_id = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      double& x = p.position[axis][i];
+      x = sim::wrap_periodic(x, length);
+      const int owner = d.coordinate_of(a, x);
+      if (owner == c) {
+        keep.push_back(static_cast<std::uint32_t>(i));
+      } else if (owner == (c + n - 1) % n) {
+        down.push_back(static_cast<std::uint32_t>(i));
+      } else if (owner == (c + 1) % n) {
+        up.push_back(static_cast<std::uint32_t>(i));
+      } else if (!too_far) {
+        too_far = 1;
+        far_id = p.id[i];
+      }
+    }
+    int any_far = 0;
+    MPI_Allreduce(&too_far, &any_far, 1, MPI_INT, MPI_MAX, d.comm());
+    if (any_far)
+      throw MigrationError(
+          std::string("migration: a particle") +
+          (too_far ? " (id " + std::to_string(far_id) + ")" : std::string(" of another rank")) +
+          " moved more than one sub-box along axis " + std::to_string(a) +
+          " since the last migration");
+    const auto fields = p.double_fields();
+    // A periodic wrap is already in the positions, so nothing is shifted.
+    pack(as_const(fields), p, down, a, 0.0, out_down);
+    pack(as_const(fields), p, up, a, 0.0, out_up);
+    sent += down.size() + up.size();
+    // Keep the rest in order (keep is increasing, so the copy never overwrites a later source).
+    for (std::vector<double>* f : fields) {
+      for (std::size_t k = 0; k < keep.size(); ++k) (*f)[k] = (*f)[keep[k]];
+      f->resize(keep.size());
+    }
+    for (std::size_t k = 0; k < keep.size(); ++k) p.id[k] = p.id[keep[k]];
+    p.id.resize(keep.size());
+    const int tag = kMigrateTag + 4 * a;
+    send_receive(d.comm(), out_down, d.neighbour(a, -1), in, d.neighbour(a, +1), tag);
+    append(fields, p, in);
+    send_receive(d.comm(), out_up, d.neighbour(a, +1), in, d.neighbour(a, -1), tag + 2);
+    append(fields, p, in);
+  }
+  return sent;
+}
+
+}  // namespace sphles::par

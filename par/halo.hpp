@@ -1,0 +1,77 @@
+// Halo exchange and migration of particles between the ranks of a Decomposition (issue 19).
+//
+// A rank's ParticleArrays hold its owned particles at [0, owned) and, after Halo::build, the
+// halo behind them: copies of every particle (of other ranks, or this rank's own periodic
+// images) whose position lies within the halo width of the sub-box, in this rank's frame
+// (shifted by the box length across the periodic boundary), so the pair loop needs no minimum
+// image. The exchange is staged: along x, then y (forwarding the x halo), then z, so edge and
+// corner particles arrive in two or three hops, each rank talking to its 2 (4, 6) face
+// neighbours only. A rank alone along an axis exchanges with itself.
+//
+// Determinism: what a rank sends, and the order it appends what it receives, depend only on the
+// particles' order and positions, never on timing.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <span>
+#include <stdexcept>
+#include <vector>
+
+#include "par/decomposition.hpp"
+#include "sim/particles.hpp"
+
+namespace sphles::par {
+
+/// A particle moved further than one sub-box along an axis between two migrations.
+class MigrationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// The halo of one rank and the plan to refresh it.
+class Halo {
+ public:
+  /// Appends the halo of width d.halo_width() to p, whose particles must all be owned (inside
+  /// this rank's sub-box): positions, every field of ParticleArrays::double_fields() and the
+  /// ids. Collective over d.comm().
+  static Halo build(const Decomposition& d, sim::ParticleArrays& p);
+
+  /// Sends the current values of `fields` (per-particle arrays of p.size() entries, not the
+  /// positions) along the same stages, overwriting their halo entries: the exchange after a pass
+  /// whose results the next pass reads of neighbours (V and p after the density pass).
+  /// Collective over d.comm().
+  void update(const Decomposition& d, std::span<std::vector<double>* const> fields) const;
+
+  /// Particles owned by this rank: the halo is [owned(), owned() + size()).
+  std::size_t owned() const { return owned_; }
+  std::size_t size() const { return received_; }
+  /// Bytes this rank sent in build (positions, fields and ids).
+  std::size_t bytes_sent() const { return bytes_sent_; }
+
+ private:
+  struct Stage {
+    int axis = 0;
+    int to = 0;
+    int from = 0;
+    int tag = 0;
+    double shift = 0.0;  // added to the sent positions along `axis`
+    std::vector<std::uint32_t> send;
+    std::size_t receive_begin = 0;
+    std::size_t receive_count = 0;
+  };
+  std::vector<Stage> stages_;
+  std::size_t owned_ = 0;
+  std::size_t received_ = 0;
+  std::size_t bytes_sent_ = 0;
+};
+
+/// Sends every particle of p (owned particles only, no halo) that has left this rank's sub-box to
+/// the rank that owns it now, positions wrapped into the box. Staged along x, y, z like the halo,
+/// so a particle may move at most one sub-box along each axis between two calls (a list rebuild
+/// comes long before). Kept particles stay in their order, received ones follow. Returns the
+/// number of particles this rank sent. Collective over d.comm(); throws MigrationError (on every
+/// rank) when a particle moved further.
+std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p);
+
+}  // namespace sphles::par
