@@ -3,6 +3,7 @@
 #include <cstring>
 #include <limits>
 #include <string>
+#include <unordered_set>
 
 namespace sphles::par {
 
@@ -62,15 +63,20 @@ void pack(const std::vector<const std::vector<double>*>& fields, const sim::Part
   }
 }
 
-/// Appends the particles of a message made by pack.
+/// Appends the particles of a message made by pack. With `present` (the ids already here), a
+/// particle already present is skipped; the appended records' numbers go to `kept`.
 void append(const std::vector<std::vector<double>*>& fields, sim::ParticleArrays& p,
-            const std::vector<double>& in) {
+            const std::vector<double>& in, std::unordered_set<std::uint64_t>* present = nullptr,
+            std::vector<std::uint32_t>* kept = nullptr) {
   const std::size_t stride = fields.size() + 1;
   const std::size_t count = in.size() / stride;
   for (std::size_t k = 0; k < count; ++k) {
     const double* record = in.data() + k * stride;
+    const std::uint64_t id = id_of(record[fields.size()]);
+    if (present && !present->insert(id).second) continue;
     for (std::size_t f = 0; f < fields.size(); ++f) fields[f]->push_back(record[f]);
-    p.id.push_back(id_of(record[fields.size()]));
+    p.id.push_back(id);
+    if (kept) kept->push_back(static_cast<std::uint32_t>(k));
   }
 }
 
@@ -84,17 +90,21 @@ constexpr int kMigrateTag = 300;
 
 }  // namespace
 
-Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p) {
+Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p, HaloPositions positions) {
   agree_on_fields(d, p);
   Halo halo;
   halo.owned_ = p.size();
   const double width = d.halo_width();
+  const bool wrapped = positions == HaloPositions::Wrapped;
+  std::unordered_set<std::uint64_t> present;
+  if (wrapped) present.insert(p.id.begin(), p.id.end());
   std::vector<double> out, in;
   for (int a = 0; a < d.dimension(); ++a) {
     const auto axis = static_cast<std::size_t>(a);
     const double length = d.box().length[axis];
     const int n = d.dims()[axis];
     const int c = d.coords()[axis];
+    if (wrapped && n == 1) continue;
     // Candidates: owned particles and the halo of the earlier axes (edges, corners).
     const std::size_t candidates = p.size();
     const std::vector<double>& x = p.position[axis];
@@ -104,8 +114,10 @@ Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p) {
     down.from = up.to = d.neighbour(a, +1);
     down.tag = kHaloTag + 4 * a;
     up.tag = down.tag + 2;
-    down.shift = c == 0 ? length : 0.0;     // across the periodic face at 0
-    up.shift = c == n - 1 ? -length : 0.0;  // across the periodic face at L
+    if (!wrapped) {
+      down.shift = c == 0 ? length : 0.0;     // across the periodic face at 0
+      up.shift = c == n - 1 ? -length : 0.0;  // across the periodic face at L
+    }
     const double low = d.lower(a) + width, high = d.upper(a) - width;
     for (std::size_t i = 0; i < candidates; ++i) {
       if (x[i] < low) down.send.push_back(static_cast<std::uint32_t>(i));
@@ -117,7 +129,11 @@ Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p) {
       halo.bytes_sent_ += out.size() * sizeof(double);
       send_receive(d.comm(), out, stage->to, in, stage->from, stage->tag);
       stage->receive_begin = p.size();
-      append(fields, p, in);
+      stage->deduplicated = wrapped;
+      if (wrapped)
+        append(fields, p, in, &present, &stage->kept);
+      else
+        append(fields, p, in);
       stage->receive_count = p.size() - stage->receive_begin;
       halo.stages_.push_back(std::move(*stage));
     }
@@ -134,13 +150,18 @@ void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> 
     for (std::size_t k = 0; k < stage.send.size(); ++k)
       for (std::size_t f = 0; f < width; ++f) out[k * width + f] = (*fields[f])[stage.send[k]];
     send_receive(d.comm(), out, stage.to, in, stage.from, kUpdateTag + stage.tag);
-    if (in.size() != stage.receive_count * width)
-      throw std::logic_error("halo update: the neighbour sent " + std::to_string(in.size()) +
-                             " values for " + std::to_string(stage.receive_count) +
+    const std::size_t records = width > 0 ? in.size() / width : 0;
+    const bool fits = stage.deduplicated ? stage.kept.empty() || stage.kept.back() < records
+                                         : width == 0 || records == stage.receive_count;
+    if (!fits)
+      throw std::logic_error("halo update: the neighbour sent " + std::to_string(records) +
+                             " records for " + std::to_string(stage.receive_count) +
                              " halo particles");
-    for (std::size_t k = 0; k < stage.receive_count; ++k)
+    for (std::size_t k = 0; k < stage.receive_count; ++k) {
+      const std::size_t record = stage.deduplicated ? stage.kept[k] : k;
       for (std::size_t f = 0; f < width; ++f)
-        (*fields[f])[stage.receive_begin + k] = in[k * width + f];
+        (*fields[f])[stage.receive_begin + k] = in[record * width + f];
+    }
   }
 }
 

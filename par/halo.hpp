@@ -29,13 +29,26 @@ class MigrationError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// Where the halo copies sit.
+enum class HaloPositions {
+  /// In this rank's frame, shifted by the box length across the periodic boundary: every copy
+  /// an image of its own, for a geometry without minimum image.
+  Shifted,
+  /// At the particles' own positions in [0, L), one copy per particle, for the minimum-image
+  /// geometry of one process (sim::PeriodicGeometry, sim::VerletNeighbourSearch): pair
+  /// distances are then bitwise those of one process. Axes this rank is alone along are
+  /// skipped (the minimum image finds those neighbours in its own particles).
+  Wrapped,
+};
+
 /// The halo of one rank and the plan to refresh it.
 class Halo {
  public:
   /// Appends the halo of width d.halo_width() to p, whose particles must all be owned (inside
   /// this rank's sub-box): positions, every field of ParticleArrays::double_fields() and the
   /// ids. Collective over d.comm().
-  static Halo build(const Decomposition& d, sim::ParticleArrays& p);
+  static Halo build(const Decomposition& d, sim::ParticleArrays& p,
+                    HaloPositions positions = HaloPositions::Shifted);
 
   /// Sends the current values of `fields` (per-particle arrays of p.size() entries, not the
   /// positions) along the same stages, overwriting their halo entries: the exchange after a pass
@@ -59,6 +72,10 @@ class Halo {
     std::vector<std::uint32_t> send;
     std::size_t receive_begin = 0;
     std::size_t receive_count = 0;
+    /// HaloPositions::Wrapped drops a second copy of a particle already here: then `kept` holds
+    /// the numbers of the received records that were appended, in order.
+    bool deduplicated = false;
+    std::vector<std::uint32_t> kept;
   };
   std::vector<Stage> stages_;
   std::size_t owned_ = 0;

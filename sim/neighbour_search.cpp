@@ -19,16 +19,22 @@ namespace {
 /// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
 constexpr std::size_t kStoreSlack = 8;
 
-/// Particle indices sorted by cell into `members`, ascending index within a cell (a stable
-/// counting sort), and where each cell's members begin into `start` (num_cells + 1 entries).
+/// Particle indices sorted by cell into `members`, and where each cell's members begin into
+/// `start` (num_cells + 1 entries). Within a cell, members follow `visit` when it is not empty (a
+/// permutation of the indices), else ascending index (a stable counting sort).
 void counting_sort_by_cell(const std::vector<std::uint32_t>& cell, std::size_t num_cells,
-                           std::vector<std::uint32_t>& members, std::vector<std::size_t>& start) {
+                           std::vector<std::uint32_t>& members, std::vector<std::size_t>& start,
+                           std::span<const std::uint32_t> visit = {}) {
   start.assign(num_cells + 1, 0);
   for (const std::uint32_t c : cell) ++start[c + 1];
   for (std::size_t c = 0; c < num_cells; ++c) start[c + 1] += start[c];
   members.resize(cell.size());
-  for (std::size_t i = 0; i < cell.size(); ++i)
-    members[start[cell[i]]++] = static_cast<std::uint32_t>(i);
+  if (visit.empty()) {
+    for (std::size_t i = 0; i < cell.size(); ++i)
+      members[start[cell[i]]++] = static_cast<std::uint32_t>(i);
+  } else {
+    for (const std::uint32_t i : visit) members[start[cell[i]]++] = i;
+  }
   // start[c] now holds where cell c ends, the start of c + 1: shift back.
   for (std::size_t c = num_cells; c > 0; --c) start[c] = start[c - 1];
   start[0] = 0;
@@ -83,7 +89,8 @@ std::vector<std::uint32_t> VerletNeighbourSearch::locality_order(
 }
 
 template <int Dim>
-void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
+void VerletNeighbourSearch::build_impl(const PositionsView& positions,
+                                       std::span<const std::uint32_t> cell_order) {
   const std::size_t n = positions.size;
   // Scratch kept between builds (BuildScratch): fresh vectors of this size would be mapped and
   // zeroed page by page at every build.
@@ -92,7 +99,7 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   std::vector<std::uint32_t>& cell_members = scratch_.cell_members;
   cell_of(positions, cell);
   const std::size_t num_cells = this->num_cells();
-  counting_sort_by_cell(cell, num_cells, cell_members, cell_start);
+  counting_sort_by_cell(cell, num_cells, cell_members, cell_start, cell_order);
 
   // Distinct cell offsets per direction: -reach..reach, reduced modulo the number of cells when
   // a direction has fewer than 2 reach + 1 cells, so that no cell is visited twice.
@@ -332,15 +339,18 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions) {
   ++num_builds_;
 }
 
-void VerletNeighbourSearch::build(const PositionsView& positions) {
+void VerletNeighbourSearch::build(const PositionsView& positions,
+                                  std::span<const std::uint32_t> cell_order) {
   if (positions.dimension != box_.dimension)
     throw std::invalid_argument("neighbour search: dimension of positions and box differ");
   if (positions.size >= (std::size_t{1} << 32))
     throw std::invalid_argument("neighbour search: more than 2^32 particles");
+  if (!cell_order.empty() && cell_order.size() != positions.size)
+    throw std::invalid_argument("neighbour search: cell order does not match the particles");
   if (positions.dimension == 2)
-    build_impl<2>(positions);
+    build_impl<2>(positions, cell_order);
   else
-    build_impl<3>(positions);
+    build_impl<3>(positions, cell_order);
 }
 
 bool VerletNeighbourSearch::needs_rebuild(const PositionsView& positions) const {

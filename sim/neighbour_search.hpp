@@ -62,8 +62,14 @@ class VerletNeighbourSearch {
   /// Cell-major order (stable within a cell) for memory locality. Positions must lie in the box.
   std::vector<std::uint32_t> locality_order(const PositionsView& positions) const;
 
-  /// Builds the list for the given positions and remembers them for needs_rebuild().
-  void build(const PositionsView& positions);
+  /// Builds the list for the given positions and remembers them for needs_rebuild(). Each
+  /// particle's neighbours come cell by cell in a fixed stencil order and, within a cell, in
+  /// index order, or in the order of `cell_order` (a permutation of the indices) when given: with
+  /// the indices sorted by a global key (the particle id), the list of a particle names the same
+  /// neighbours in the same order whatever other particles the arrays hold and in whatever
+  /// order, which makes the sums of a particle distributed over ranks (par/) bitwise those of
+  /// one process.
+  void build(const PositionsView& positions, std::span<const std::uint32_t> cell_order = {});
 
   /// True when the list was never built, the particle count changed, or some particle moved more
   /// than skin/2 (minimum image) since the last build.
@@ -83,7 +89,7 @@ class VerletNeighbourSearch {
 
  private:
   template <int Dim>
-  void build_impl(const PositionsView& positions);
+  void build_impl(const PositionsView& positions, std::span<const std::uint32_t> cell_order);
   void cell_of(const PositionsView& positions, std::vector<std::uint32_t>& cell) const;
   std::size_t num_cells() const {
     return static_cast<std::size_t>(cells_[0]) * static_cast<std::size_t>(cells_[1]) *

@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <random>
 #include <set>
 
@@ -116,6 +117,54 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<SearchCase>& info) {
       return std::to_string(info.param.dim) + "D_case" + std::to_string(info.index);
     });
+
+// With a cell order by id, a particle's list names the same neighbours in the same order
+// whatever the order of the arrays (what makes a distributed particle's sums those of one
+// process, par/): here the arrays shuffled, and a subset holding every neighbour of the first
+// quarter of the particles.
+TEST_P(NeighbourSearchTest, CellOrderByIdMakesListsIndependentOfTheArrayOrder) {
+  const SearchCase c = GetParam();
+  const PeriodicBox box{c.dim, c.length};
+  const ParticleArrays p = random_particles(c, 23);
+  auto ids_of_lists = [&](const ParticleArrays& q) {
+    std::vector<std::uint32_t> by_id(q.size());
+    for (std::uint32_t k = 0; k < q.size(); ++k) by_id[k] = k;
+    std::sort(by_id.begin(), by_id.end(),
+              [&](std::uint32_t a, std::uint32_t b) { return q.id[a] < q.id[b]; });
+    VerletNeighbourSearch search(box, c.cutoff, c.skin);
+    search.build(view_positions(q), by_id);
+    std::vector<std::vector<std::uint64_t>> lists(p.size());
+    for (std::size_t i = 0; i < q.size(); ++i)
+      for (const std::uint32_t j : search.list().of(i)) lists[q.id[i]].push_back(q.id[j]);
+    return lists;
+  };
+  const auto reference = ids_of_lists(p);
+
+  std::vector<std::uint32_t> shuffle(p.size());
+  for (std::uint32_t k = 0; k < p.size(); ++k) shuffle[k] = k;
+  std::shuffle(shuffle.begin(), shuffle.end(), std::mt19937_64(3));
+  ParticleArrays shuffled = p;
+  shuffled.reorder(shuffle);
+  EXPECT_EQ(ids_of_lists(shuffled), reference);
+
+  // The first quarter and their neighbours, in reverse id order.
+  std::set<std::uint64_t> keep;
+  for (std::uint64_t g = 0; g < p.size() / 4; ++g) {
+    keep.insert(g);
+    keep.insert(reference[g].begin(), reference[g].end());
+  }
+  std::vector<std::uint32_t> subset(keep.rbegin(), keep.rend());
+  ParticleArrays part;
+  part.dimension = p.dimension;
+  part.resize(subset.size());
+  auto to = part.double_fields();
+  const auto from = p.double_fields();
+  for (std::size_t f = 0; f < to.size(); ++f)
+    for (std::size_t k = 0; k < subset.size(); ++k) (*to[f])[k] = (*from[f])[subset[k]];
+  for (std::size_t k = 0; k < subset.size(); ++k) part.id[k] = subset[k];
+  const auto lists = ids_of_lists(part);
+  for (std::uint64_t g = 0; g < p.size() / 4; ++g) EXPECT_EQ(lists[g], reference[g]) << g;
+}
 
 TEST(NeighbourSearch, RejectsBoxSmallerThanSupportDiameter) {
   PeriodicBox box{3, {1.0, 1.0, 0.5}};
