@@ -3,7 +3,12 @@
 #pragma once
 
 #include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <span>
 #include <vector>
 
 namespace sphles::sim {
@@ -38,6 +43,132 @@ double parallel_max(std::size_t n, Value&& value) {
   for (std::ptrdiff_t i = 0; i < signed_n; ++i)
     result = std::max(result, value(static_cast<std::size_t>(i)));
   return result;
+}
+
+/// An exact sum of doubles: every added value is kept to its last bit in a fixed-point number
+/// wide enough for the whole double range (a long accumulator after Kulisch), so the result
+/// depends only on the set of values added, not on their order or on how they were split into
+/// partial sums (threads, MPI ranks: par/). value() rounds the exact sum to the nearest double
+/// (ties to even) when it is a normal number. Non-finite values are summed apart, as IEEE
+/// addition does (∞ + (−∞) = NaN, NaN spreads).
+class ExactSum {
+  __extension__ using Uint128 = unsigned __int128;
+
+ public:
+  /// 32-bit digits held in 64-bit limbs, so that a limb takes 2^31 additions before a carry.
+  static constexpr int kLimbs = 72;
+  /// Exponent of the lowest limb's lowest bit: below the smallest subnormal's 2^-1126 mantissa
+  /// position (frexp scales it to a 53-bit integer), a multiple of 32.
+  static constexpr int kLowestExponent = -1152;
+
+  void add(double x) {
+    if (x == 0.0) return;
+    if (!std::isfinite(x)) {
+      special_ += x;
+      return;
+    }
+    int exponent = 0;
+    const double fraction = std::frexp(x, &exponent);  // x = fraction 2^exponent, ½ ≤ |f| < 1
+    const auto mantissa = static_cast<std::int64_t>(std::ldexp(fraction, 53));  // exact
+    const int offset = exponent - 53 - kLowestExponent;  // bit position of the mantissa's unit
+    const auto magnitude = static_cast<Uint128>(mantissa < 0 ? -mantissa : mantissa)
+                           << (offset % 32);
+    const int k = offset / 32;
+    const std::int64_t sign = mantissa < 0 ? -1 : 1;
+    limbs_[static_cast<std::size_t>(k)] += sign * static_cast<std::int64_t>(magnitude & kDigit);
+    limbs_[static_cast<std::size_t>(k) + 1] +=
+        sign * static_cast<std::int64_t>((magnitude >> 32) & kDigit);
+    limbs_[static_cast<std::size_t>(k) + 2] += sign * static_cast<std::int64_t>(magnitude >> 64);
+    if (++pending_ == kCarryInterval) normalize();
+  }
+
+  /// Adds another exact sum (a partial sum of other values).
+  void add(const ExactSum& other) {
+    ExactSum o = other;
+    o.normalize();
+    normalize();
+    for (std::size_t k = 0; k < limbs_.size(); ++k) limbs_[k] += o.limbs_[k];
+    special_ += o.special_;
+    normalize();
+  }
+
+  /// The digits in their unique normalised form (every limb but the top one in [0, 2^32), the
+  /// top one signed), for combining sums across processes (par/); from_limbs takes them back.
+  std::span<const std::int64_t, kLimbs> normalized_limbs() {
+    normalize();
+    return limbs_;
+  }
+  double special() const { return special_; }
+  static ExactSum from_limbs(std::span<const std::int64_t, kLimbs> limbs, double special) {
+    ExactSum s;
+    std::copy(limbs.begin(), limbs.end(), s.limbs_.begin());
+    s.special_ = special;
+    s.normalize();
+    return s;
+  }
+
+  /// The sum rounded to a double (a function of the exact sum only).
+  double value() const {
+    if (special_ != 0.0) return special_;  // ±∞ or NaN (NaN != 0 too)
+    ExactSum s = *this;
+    s.normalize();
+    const bool negative = s.limbs_.back() < 0;
+    if (negative) {
+      for (std::int64_t& l : s.limbs_) l = -l;
+      s.normalize();
+    }
+    int top = kLimbs - 1;
+    while (top >= 0 && s.limbs_[static_cast<std::size_t>(top)] == 0) --top;
+    if (top < 0) return 0.0;
+    // The top four digits as a 128-bit integer; any lower digit only as a sticky bit, far below
+    // the rounding position (the top digit is nonzero, so the integer has more than 96 bits).
+    const int low = std::max(top - 3, 0);
+    Uint128 head = 0;
+    for (int k = top; k >= low; --k)
+      head = (head << 32) | static_cast<std::uint64_t>(s.limbs_[static_cast<std::size_t>(k)]);
+    bool sticky = false;
+    for (int k = 0; k < low; ++k) sticky = sticky || s.limbs_[static_cast<std::size_t>(k)] != 0;
+    if (sticky) head |= 1u;
+    const double magnitude = std::ldexp(static_cast<double>(head), 32 * low + kLowestExponent);
+    return negative ? -magnitude : magnitude;
+  }
+
+ private:
+  static constexpr std::int64_t kDigit = 0xffffffff;
+  static constexpr int kCarryInterval = 1 << 30;
+
+  /// Carries every limb's excess into the next: afterwards limbs 0..K-2 are in [0, 2^32).
+  void normalize() {
+    for (std::size_t k = 0; k + 1 < limbs_.size(); ++k) {
+      const std::int64_t carry = limbs_[k] >> 32;  // floor division by 2^32
+      limbs_[k] -= carry * (std::int64_t{1} << 32);
+      limbs_[k + 1] += carry;
+    }
+    pending_ = 0;
+  }
+
+  std::array<std::int64_t, kLimbs> limbs_{};
+  double special_ = 0.0;
+  int pending_ = 0;
+};
+
+/// Σ_{i<n} term(i) summed exactly (ExactSum), on all threads: the same bits for any thread
+/// count, any order of the terms and any split of them over processes.
+template <class Term>
+ExactSum exact_sum(std::size_t n, Term&& term) {
+  const std::size_t num_blocks = (n + kReductionBlock - 1) / kReductionBlock;
+  std::vector<ExactSum> block_sum(num_blocks);
+  const auto signed_blocks = static_cast<std::ptrdiff_t>(num_blocks);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t b = 0; b < signed_blocks; ++b) {
+    const std::size_t begin = static_cast<std::size_t>(b) * kReductionBlock;
+    const std::size_t end = std::min(n, begin + kReductionBlock);
+    ExactSum& s = block_sum[static_cast<std::size_t>(b)];
+    for (std::size_t i = begin; i < end; ++i) s.add(term(i));
+  }
+  ExactSum total;
+  for (const ExactSum& s : block_sum) total.add(s);
+  return total;
 }
 
 }  // namespace sphles::sim
