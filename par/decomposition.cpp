@@ -46,7 +46,8 @@ Decomposition::Decomposition(MPI_Comm comm, const sim::PeriodicBox& box, double 
             << " (kernel support radius + Verlet skin). With " << dims[a] << " ranks along "
             << axis_name(a) << " that needs at least " << needed
             << " particles per side (the scene has " << per_side << "); at " << per_side
-            << " per side use at most " << max_ranks << " ranks along an axis";
+            << " per side use at most " << max_ranks << (max_ranks == 1 ? " rank" : " ranks")
+            << " along an axis";
     throw DecompositionError(message.str());
   }
 
