@@ -42,6 +42,21 @@ void counting_sort_by_cell(const std::vector<std::uint32_t>& cell, std::size_t n
 
 }  // namespace
 
+std::vector<std::uint32_t> order_by_key(std::span<const std::uint64_t> keys) {
+  const std::size_t n = keys.size();
+  std::vector<std::uint32_t> order(n);
+  const bool permutation =
+      std::all_of(keys.begin(), keys.end(), [n](std::uint64_t k) { return k < n; });
+  if (permutation) {  // unique keys below n: each index's place is its key
+    for (std::size_t i = 0; i < n; ++i) order[keys[i]] = static_cast<std::uint32_t>(i);
+    return order;
+  }
+  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
+  std::sort(order.begin(), order.end(),
+            [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
+  return order;
+}
+
 VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin)
     : box_(box), cutoff_(cutoff), skin_(skin) {
   if (!(cutoff > 0.0)) throw std::invalid_argument("neighbour search: cutoff must be > 0");

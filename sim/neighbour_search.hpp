@@ -44,6 +44,10 @@ inline PositionsView view_positions(const ParticleArrays& p) {
   return v;
 }
 
+/// The indices 0..n-1 sorted by their keys (unique), for VerletNeighbourSearch::build's cell
+/// order: O(n) when the keys are a permutation of 0..n-1 (the ids of one process), else a sort.
+std::vector<std::uint32_t> order_by_key(std::span<const std::uint64_t> keys);
+
 class VerletNeighbourSearch {
  public:
   /// Cells per list radius: 2 scans (5/2)^n list-radius volumes instead of 3^n.

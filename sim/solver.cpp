@@ -87,7 +87,7 @@ class SphSolver final : public Simulation {
         throw std::invalid_argument("solver: list reference positions do not match the particles");
       reference.x[d] = state.list_reference_positions[d].data();
     }
-    search_.build(reference);
+    search_.build(reference, order_by_key(particles_.id));
     search_.set_num_builds(state.neighbour_builds);
     allocate_scheme_fields();
     if (transport_velocity_) recompute_scheme_fields();
@@ -204,7 +204,9 @@ class SphSolver final : public Simulation {
     // The shift of the step being taken follows its particles (ã is rewritten before use).
     if (transport_velocity_)
       for (int d = 0; d < Dim; ++d) reorder_array(fields_.transport_shift[d], order);
-    search_.build(view_positions(particles_));
+    // Neighbours within a cell in id order: a particle's list, and so every sum over it, does
+    // not depend on where the particles sit in the arrays (the same on MPI ranks, par/).
+    search_.build(view_positions(particles_), order_by_key(particles_.id));
   }
 
   void reorder_array(std::vector<double>& values, std::span<const std::uint32_t> order) {
