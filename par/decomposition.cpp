@@ -38,16 +38,16 @@ Decomposition::Decomposition(MPI_Comm comm, const sim::PeriodicBox& box, double 
     const auto needed = static_cast<long>(std::ceil(dims[a] * halo_width / particle_spacing));
     const auto max_ranks = static_cast<long>(std::floor(length / halo_width));
     std::ostringstream message;
-    message << "decomposition: " << size << " MPI ranks split the box " << dims[0] << " x "
-            << dims[1];
+    message << "decomposition: " << size << (size == 1 ? " MPI rank" : " MPI ranks")
+            << " split the box " << dims[0] << " x " << dims[1];
     if (dim == 3) message << " x " << dims[2];
     message << "; along " << axis_name(a) << " a sub-box is " << width
             << " wide, narrower than the halo width " << halo_width
-            << " (kernel support radius + Verlet skin). With " << dims[a] << " ranks along "
-            << axis_name(a) << " that needs at least " << needed
-            << " particles per side (the scene has " << per_side << "); at " << per_side
-            << " per side use at most " << max_ranks << (max_ranks == 1 ? " rank" : " ranks")
-            << " along an axis";
+            << " (kernel support radius + Verlet skin). With " << dims[a]
+            << (dims[a] == 1 ? " rank along " : " ranks along ") << axis_name(a)
+            << " that needs at least " << needed << " particles per side (the scene has "
+            << per_side << "); at " << per_side << " per side use at most " << max_ranks
+            << (max_ranks == 1 ? " rank" : " ranks") << " along an axis";
     throw DecompositionError(message.str());
   }
 

@@ -91,6 +91,18 @@ constexpr int kMigrateTag = 300;
 }  // namespace
 
 Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p, HaloPositions positions) {
+  // A particle outside the sub-box would be sent to the wrong ranks or not at all: refuse on
+  // every rank (migrate first).
+  std::uint64_t outside = 0, first_outside = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (!d.owns(p, i) && outside++ == 0) first_outside = p.id[i];
+  unsigned long long mine = outside, all = 0;
+  MPI_Allreduce(&mine, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, d.comm());
+  if (all > 0)
+    throw std::invalid_argument(
+        "halo: " + std::to_string(all) + " particle(s) lie outside their rank's sub-box" +
+        (outside ? " (here id " + std::to_string(first_outside) + ")" : std::string()) +
+        "; migrate them first");
   agree_on_fields(d, p);
   Halo halo;
   halo.owned_ = p.size();

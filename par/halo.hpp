@@ -46,7 +46,8 @@ class Halo {
  public:
   /// Appends the halo of width d.halo_width() to p, whose particles must all be owned (inside
   /// this rank's sub-box): positions, every field of ParticleArrays::double_fields() and the
-  /// ids. Collective over d.comm().
+  /// ids. Collective over d.comm(); throws std::invalid_argument on every rank when a particle
+  /// of some rank lies outside its sub-box.
   static Halo build(const Decomposition& d, sim::ParticleArrays& p,
                     HaloPositions positions = HaloPositions::Shifted);
 

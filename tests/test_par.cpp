@@ -142,7 +142,10 @@ TEST(Decomposition, SubBoxNarrowerThanTheHaloIsRefusedNamingRanksAndParticles) {
     if (world_size() > 1 || too_wide > kLength) FAIL() << "no error";
   } catch (const DecompositionError& e) {
     const std::string m = e.what();
-    EXPECT_NE(m.find(std::to_string(world_size()) + " MPI ranks"), std::string::npos) << m;
+    EXPECT_NE(
+        m.find(std::to_string(world_size()) + (world_size() == 1 ? " MPI rank" : " MPI ranks")),
+        std::string::npos)
+        << m;
     EXPECT_NE(m.find("halo width"), std::string::npos) << m;
     EXPECT_NE(m.find("particles per side (the scene has 32)"), std::string::npos) << m;
   }
@@ -199,6 +202,21 @@ INSTANTIATE_TEST_SUITE_P(WidthsAndDimensions, HaloTest,
                            return std::to_string(std::get<0>(info.param)) + "D_width" +
                                   std::to_string(static_cast<int>(100 * std::get<1>(info.param)));
                          });
+
+// A halo built from particles that are not all inside their sub-box is refused on every rank.
+TEST(HaloBuild, ParticleOutsideItsSubBoxIsRefusedOnEveryRank) {
+  const Decomposition d(MPI_COMM_WORLD, box_of(2), 0.1, 0.1);
+  sim::ParticleArrays p = owned_part(d, global_set(2, 400, 3));
+  if (d.rank() == 0 && p.size() > 0)
+    p.position[0][0] = d.upper(0) < kLength ? d.upper(0) : -1.0;  // just outside (or off the box)
+  try {
+    Halo::build(d, p);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("outside their rank's sub-box"), std::string::npos)
+        << e.what();
+  }
+}
 
 // Particles displaced by up to 0.45 of a sub-box along each axis end up on the rank that owns
 // their new position, each once, with their values.
