@@ -49,7 +49,7 @@ std::uint64_t id_of(double bits) {
 
 /// Whole particles as one message: per particle every field of `fields`, then the id's bits;
 /// the position along `axis` (fields[axis]) gets `shift` added.
-void pack(const std::vector<const std::vector<double>*>& fields, const sim::ParticleArrays& p,
+void pack(const std::vector<std::vector<double>*>& fields, const sim::ParticleArrays& p,
           std::span<const std::uint32_t> indices, int axis, double shift,
           std::vector<double>& out) {
   const std::size_t stride = fields.size() + 1;
@@ -78,10 +78,6 @@ void append(const std::vector<std::vector<double>*>& fields, sim::ParticleArrays
     p.id.push_back(id);
     if (kept) kept->push_back(static_cast<std::uint32_t>(k));
   }
-}
-
-std::vector<const std::vector<double>*> as_const(const std::vector<std::vector<double>*>& fields) {
-  return {fields.begin(), fields.end()};
 }
 
 constexpr int kHaloTag = 100;
@@ -137,7 +133,7 @@ Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p, HaloPositions p
     }
     for (Stage* stage : {&down, &up}) {
       const auto fields = p.double_fields();
-      pack(as_const(fields), p, stage->send, a, stage->shift, out);
+      pack(fields, p, stage->send, a, stage->shift, out);
       halo.bytes_sent_ += out.size() * sizeof(double);
       send_receive(d.comm(), out, stage->to, in, stage->from, stage->tag);
       stage->receive_begin = p.size();
@@ -214,8 +210,8 @@ std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p) {
           " since the last migration");
     const auto fields = p.double_fields();
     // A periodic wrap is already in the positions, so nothing is shifted.
-    pack(as_const(fields), p, down, a, 0.0, out_down);
-    pack(as_const(fields), p, up, a, 0.0, out_up);
+    pack(fields, p, down, a, 0.0, out_down);
+    pack(fields, p, up, a, 0.0, out_up);
     sent += down.size() + up.size();
     // Keep the rest in order (keep is increasing, so the copy never overwrites a later source).
     for (std::vector<double>* f : fields) {

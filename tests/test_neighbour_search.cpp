@@ -127,12 +127,8 @@ TEST_P(NeighbourSearchTest, CellOrderByIdMakesListsIndependentOfTheArrayOrder) {
   const PeriodicBox box{c.dim, c.length};
   const ParticleArrays p = random_particles(c, 23);
   auto ids_of_lists = [&](const ParticleArrays& q) {
-    std::vector<std::uint32_t> by_id(q.size());
-    for (std::uint32_t k = 0; k < q.size(); ++k) by_id[k] = k;
-    std::sort(by_id.begin(), by_id.end(),
-              [&](std::uint32_t a, std::uint32_t b) { return q.id[a] < q.id[b]; });
     VerletNeighbourSearch search(box, c.cutoff, c.skin);
-    search.build(view_positions(q), by_id);
+    search.build(view_positions(q), order_by_key(q.id));
     std::vector<std::vector<std::uint64_t>> lists(p.size());
     for (std::size_t i = 0; i < q.size(); ++i)
       for (const std::uint32_t j : search.list().of(i)) lists[q.id[i]].push_back(q.id[j]);

@@ -8,7 +8,6 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
-#include <numeric>
 #include <random>
 #include <string>
 #include <tuple>
@@ -331,11 +330,7 @@ void distributed_forces_equal_one_process(int per_side) {
   sim::ParticleArrays p = owned_part(d, all);
   const std::size_t owned = p.size();
   const Halo halo = Halo::build(d, p, HaloPositions::Wrapped);
-  std::vector<std::uint32_t> by_id(p.size());
-  std::iota(by_id.begin(), by_id.end(), 0u);
-  std::sort(by_id.begin(), by_id.end(),
-            [&](std::uint32_t a, std::uint32_t b) { return p.id[a] < p.id[b]; });
-  search.build(sim::view_positions(p), by_id);
+  search.build(sim::view_positions(p), sim::order_by_key(p.id));
   const sim::PeriodicGeometry<Dim> geometry(box, p);
   sim::InteractionList pairs;
   sim::compacting_pair_pass<Dim>(sim::SummationDensity<Dim, KernelT>(kernel, fluid, p), geometry,
