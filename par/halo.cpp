@@ -151,12 +151,35 @@ Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p, HaloPositions p
 }
 
 void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> fields) const {
+  // Values per particle of each field, and where each field's values start in a record.
+  const std::size_t particles = owned_ + received_;
+  std::vector<std::size_t> values(fields.size()), start(fields.size() + 1, 0);
+  for (std::size_t f = 0; f < fields.size(); ++f) {
+    const std::size_t size = fields[f]->size();
+    if (particles == 0 ? size != 0 : size % particles != 0)
+      throw std::logic_error("halo update: a field of " + std::to_string(size) +
+                             " values does not hold the same number for each of the " +
+                             std::to_string(particles) + " particles");
+    values[f] = particles == 0 ? 0 : size / particles;
+    start[f + 1] = start[f] + values[f];
+  }
+  const std::size_t width = start.back();
+  // Copies record r's values of particle i from (or into) the fields.
+  const auto gather = [&](std::size_t i, double* record) {
+    for (std::size_t f = 0; f < fields.size(); ++f)
+      for (std::size_t v = 0; v < values[f]; ++v)
+        record[start[f] + v] = (*fields[f])[i * values[f] + v];
+  };
+  const auto scatter = [&](std::size_t i, const double* record) {
+    for (std::size_t f = 0; f < fields.size(); ++f)
+      for (std::size_t v = 0; v < values[f]; ++v)
+        (*fields[f])[i * values[f] + v] = record[start[f] + v];
+  };
   std::vector<double> out, in;
-  const std::size_t width = fields.size();
   for (const Stage& stage : stages_) {
     out.resize(stage.send.size() * width);
     for (std::size_t k = 0; k < stage.send.size(); ++k)
-      for (std::size_t f = 0; f < width; ++f) out[k * width + f] = (*fields[f])[stage.send[k]];
+      gather(stage.send[k], out.data() + k * width);
     send_receive(d.comm(), out, stage.to, in, stage.from, kUpdateTag + stage.tag);
     const std::size_t records = width > 0 ? in.size() / width : 0;
     const bool fits = stage.deduplicated ? stage.kept.empty() || stage.kept.back() < records
@@ -167,14 +190,19 @@ void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> 
                              " halo particles");
     for (std::size_t k = 0; k < stage.receive_count; ++k) {
       const std::size_t record = stage.deduplicated ? stage.kept[k] : k;
-      for (std::size_t f = 0; f < width; ++f)
-        (*fields[f])[stage.receive_begin + k] = in[record * width + f];
+      scatter(stage.receive_begin + k, in.data() + record * width);
     }
   }
 }
 
-std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p) {
+std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p,
+                    std::span<std::vector<double>* const> carried) {
   agree_on_fields(d, p);
+  for (const std::vector<double>* values : carried)
+    if (values->size() != p.size())
+      throw std::invalid_argument("migration: a carried field has " +
+                                  std::to_string(values->size()) + " values for " +
+                                  std::to_string(p.size()) + " particles");
   std::size_t sent = 0;
   std::vector<double> out_down, out_up, in;
   for (int a = 0; a < d.dimension(); ++a) {
@@ -208,7 +236,8 @@ std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p) {
           (too_far ? " (id " + std::to_string(far_id) + ")" : std::string(" of another rank")) +
           " moved more than one sub-box along axis " + std::to_string(a) +
           " since the last migration");
-    const auto fields = p.double_fields();
+    auto fields = p.double_fields();
+    fields.insert(fields.end(), carried.begin(), carried.end());
     // A periodic wrap is already in the positions, so nothing is shifted.
     pack(fields, p, down, a, 0.0, out_down);
     pack(fields, p, up, a, 0.0, out_up);

@@ -51,10 +51,11 @@ class Halo {
   static Halo build(const Decomposition& d, sim::ParticleArrays& p,
                     HaloPositions positions = HaloPositions::Shifted);
 
-  /// Sends the current values of `fields` (per-particle arrays of p.size() entries, not the
-  /// positions) along the same stages, overwriting their halo entries: the exchange after a pass
-  /// whose results the next pass reads of neighbours (V and p after the density pass).
-  /// Collective over d.comm().
+  /// Sends the current values of `fields` along the same stages, overwriting their halo entries:
+  /// the exchange after a pass whose results the next pass reads of neighbours (V and p after
+  /// the density pass). Each field holds w values per particle of p (w = its size / p.size(),
+  /// particle-major). Positions are sent unshifted, so they may be among the fields of a
+  /// HaloPositions::Wrapped halo only. Collective over d.comm().
   void update(const Decomposition& d, std::span<std::vector<double>* const> fields) const;
 
   /// Particles owned by this rank: the halo is [owned(), owned() + size()).
@@ -87,9 +88,11 @@ class Halo {
 /// Sends every particle of p (owned particles only, no halo) that has left this rank's sub-box to
 /// the rank that owns it now, positions wrapped into the box. Staged along x, y, z like the halo,
 /// so a particle may move at most one sub-box along each axis between two calls (a list rebuild
-/// comes long before). Kept particles stay in their order, received ones follow. Returns the
-/// number of particles this rank sent. Collective over d.comm(); throws MigrationError (on every
-/// rank) when a particle moved further.
-std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p);
+/// comes long before). Kept particles stay in their order, received ones follow; `carried`
+/// (per-particle arrays of p.size() values kept alongside p) move with their particles. Returns
+/// the number of particles this rank sent. Collective over d.comm(); throws MigrationError (on
+/// every rank) when a particle moved further.
+std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p,
+                    std::span<std::vector<double>* const> carried = {});
 
 }  // namespace sphles::par

@@ -1,7 +1,9 @@
 #include "par/reduce.hpp"
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
+#include <vector>
 
 namespace sphles::par {
 
@@ -15,6 +17,24 @@ sim::ExactSum allreduce(const Decomposition& d, sim::ExactSum partial) {
   const double my_special = partial.special();
   MPI_Allreduce(&my_special, &special, 1, MPI_DOUBLE, MPI_SUM, d.comm());
   return sim::ExactSum::from_limbs(limbs, special);
+}
+
+void allreduce(const Decomposition& d, std::span<sim::ExactSum> partial) {
+  constexpr std::size_t K = sim::ExactSum::kLimbs;
+  const std::size_t n = partial.size();
+  std::vector<std::int64_t> mine(n * K), all(n * K);
+  std::vector<double> my_special(n), special(n);
+  for (std::size_t s = 0; s < n; ++s) {
+    const auto limbs = partial[s].normalized_limbs();
+    std::copy(limbs.begin(), limbs.end(), mine.begin() + static_cast<std::ptrdiff_t>(s * K));
+    my_special[s] = partial[s].special();
+  }
+  MPI_Allreduce(mine.data(), all.data(), static_cast<int>(n * K), MPI_INT64_T, MPI_SUM, d.comm());
+  MPI_Allreduce(my_special.data(), special.data(), static_cast<int>(n), MPI_DOUBLE, MPI_SUM,
+                d.comm());
+  for (std::size_t s = 0; s < n; ++s)
+    partial[s] = sim::ExactSum::from_limbs(std::span<const std::int64_t, K>(all.data() + s * K, K),
+                                           special[s]);
 }
 
 }  // namespace sphles::par

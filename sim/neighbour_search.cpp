@@ -105,7 +105,8 @@ std::vector<std::uint32_t> VerletNeighbourSearch::locality_order(
 
 template <int Dim>
 void VerletNeighbourSearch::build_impl(const PositionsView& positions,
-                                       std::span<const std::uint32_t> cell_order) {
+                                       std::span<const std::uint32_t> cell_order,
+                                       std::size_t listed) {
   const std::size_t n = positions.size;
   // Scratch kept between builds (BuildScratch): fresh vectors of this size would be mapped and
   // zeroed page by page at every build.
@@ -312,16 +313,16 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
   // A list still held by a reader (an analysis snapshot) is left intact: build into a new one.
   if (!list_ || list_.use_count() > 1) list_ = std::make_shared<NeighbourList>();
   NeighbourList& list = *list_;
-  list.offsets.assign(n + 1, 0);
+  list.offsets.assign(listed + 1, 0);
   std::vector<std::vector<std::uint32_t>>& buffers = buffers_;
   buffers.resize(static_cast<std::size_t>(omp_get_max_threads()));
-  std::vector<std::size_t> range_begin(buffers.size() + 1, n);
+  std::vector<std::size_t> range_begin(buffers.size() + 1, listed);
   std::vector<std::size_t> range_used(buffers.size(), 0);
 #pragma omp parallel
   {
     const auto thread = static_cast<std::size_t>(omp_get_thread_num());
     const auto threads = static_cast<std::size_t>(omp_get_num_threads());
-    const std::size_t begin = n * thread / threads, end = n * (thread + 1) / threads;
+    const std::size_t begin = listed * thread / threads, end = listed * (thread + 1) / threads;
     range_begin[thread] = begin;
     // `buffer` is kept at least max_candidates (+ the vector stores' overshoot) longer than the
     // entries in use, so candidates are written unconditionally and kept by advancing `used`.
@@ -338,8 +339,8 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     }
     range_used[thread] = used;
   }
-  for (std::size_t i = 0; i < n; ++i) list.offsets[i + 1] += list.offsets[i];
-  list.indices.resize(list.offsets[n]);
+  for (std::size_t i = 0; i < listed; ++i) list.offsets[i + 1] += list.offsets[i];
+  list.indices.resize(list.offsets[listed]);
   const auto num_buffers = static_cast<std::ptrdiff_t>(buffers.size());
 #pragma omp parallel for schedule(static, 1)
   for (std::ptrdiff_t t = 0; t < num_buffers; ++t) {
@@ -355,23 +356,25 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
 }
 
 void VerletNeighbourSearch::build(const PositionsView& positions,
-                                  std::span<const std::uint32_t> cell_order) {
+                                  std::span<const std::uint32_t> cell_order, std::size_t listed) {
   if (positions.dimension != box_.dimension)
     throw std::invalid_argument("neighbour search: dimension of positions and box differ");
   if (positions.size >= (std::size_t{1} << 32))
     throw std::invalid_argument("neighbour search: more than 2^32 particles");
   if (!cell_order.empty() && cell_order.size() != positions.size)
     throw std::invalid_argument("neighbour search: cell order does not match the particles");
+  listed = std::min(listed, positions.size);
   if (positions.dimension == 2)
-    build_impl<2>(positions, cell_order);
+    build_impl<2>(positions, cell_order, listed);
   else
-    build_impl<3>(positions, cell_order);
+    build_impl<3>(positions, cell_order, listed);
 }
 
-bool VerletNeighbourSearch::needs_rebuild(const PositionsView& positions) const {
+bool VerletNeighbourSearch::needs_rebuild(const PositionsView& positions,
+                                          std::size_t checked) const {
   if (num_builds_ == 0 || reference_positions_[0].size() != positions.size) return true;
   const double limit2 = 0.25 * skin_ * skin_;
-  const auto signed_n = static_cast<std::ptrdiff_t>(positions.size);
+  const auto signed_n = static_cast<std::ptrdiff_t>(std::min(checked, positions.size));
   bool moved_too_far = false;
 #pragma omp parallel for reduction(|| : moved_too_far)
   for (std::ptrdiff_t i = 0; i < signed_n; ++i) {

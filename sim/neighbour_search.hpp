@@ -11,6 +11,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <span>
 #include <vector>
@@ -72,12 +73,15 @@ class VerletNeighbourSearch {
   /// the indices sorted by a global key (the particle id), the list of a particle names the same
   /// neighbours in the same order whatever other particles the arrays hold and in whatever
   /// order, which makes the sums of a particle distributed over ranks (par/) bitwise those of
-  /// one process.
-  void build(const PositionsView& positions, std::span<const std::uint32_t> cell_order = {});
+  /// one process. Only the first `listed` particles get a list (a distributed run lists its
+  /// owned particles, not the halo copies behind them); all are candidates.
+  void build(const PositionsView& positions, std::span<const std::uint32_t> cell_order = {},
+             std::size_t listed = std::numeric_limits<std::size_t>::max());
 
-  /// True when the list was never built, the particle count changed, or some particle moved more
-  /// than skin/2 (minimum image) since the last build.
-  bool needs_rebuild(const PositionsView& positions) const;
+  /// True when the list was never built, the particle count changed, or one of the first
+  /// `checked` particles moved more than skin/2 (minimum image) since the last build.
+  bool needs_rebuild(const PositionsView& positions,
+                     std::size_t checked = std::numeric_limits<std::size_t>::max()) const;
 
   const NeighbourList& list() const { return list_ ? *list_ : kEmptyList; }
   /// The current list for readers that outlive this build (analysis snapshots). It stays valid
@@ -93,7 +97,8 @@ class VerletNeighbourSearch {
 
  private:
   template <int Dim>
-  void build_impl(const PositionsView& positions, std::span<const std::uint32_t> cell_order);
+  void build_impl(const PositionsView& positions, std::span<const std::uint32_t> cell_order,
+                  std::size_t listed);
   void cell_of(const PositionsView& positions, std::vector<std::uint32_t>& cell) const;
   std::size_t num_cells() const {
     return static_cast<std::size_t>(cells_[0]) * static_cast<std::size_t>(cells_[1]) *

@@ -132,7 +132,8 @@ void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box, const
                             const ShiftingParameters& parameters, const ParticleArrays& p,
                             std::array<std::vector<double>, 3>& shift) {
   pair_pass<Dim>(ShiftingVelocity<Dim, KernelT>(kernel, parameters, p, shift),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                 pairs.num_particles());
 }
 
 /// The ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (Conservative), or
@@ -202,7 +203,8 @@ template <int Dim, AleCorrection Ale, class KernelT, class List>
 void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
                        const VelocityView& velocity, const VelocityView& shift, ParticleArrays& p) {
   pair_pass<Dim>(ShiftingAle<Dim, Ale, KernelT>(kernel, velocity, shift, p),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                 pairs.num_particles());
 }
 
 }  // namespace sphles::sim

@@ -21,6 +21,12 @@ void ParticleArrays::resize(std::size_t n) {
   std::iota(id.begin(), id.end(), std::uint64_t{0});
 }
 
+void ParticleArrays::truncate(std::size_t n) {
+  if (n > size()) throw std::invalid_argument("particles: cannot truncate to more than size()");
+  for (std::vector<double>* f : double_fields()) f->resize(n);
+  id.resize(n);
+}
+
 namespace {
 template <class T>
 void permute(std::vector<T>& values, std::span<const std::uint32_t> order,

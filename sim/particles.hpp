@@ -71,6 +71,10 @@ struct ParticleArrays {
   /// The single place where particles are reordered.
   void reorder(std::span<const std::uint32_t> order);
 
+  /// Keeps the first n particles (n <= size()), every array, their values unchanged: drops the
+  /// halo copies a distributed run keeps behind its owned particles (sim/exchange.hpp).
+  void truncate(std::size_t n);
+
   /// Every per-particle array of doubles that holds values, positions first: x, v and a for
   /// each dimension, M, V, ρ, p, and ν_t when present. For code that moves whole particles
   /// (reorder; the halo exchange and migration between MPI ranks, par/). `id` is the one

@@ -32,10 +32,11 @@ void density_pass(const KernelT& kernel, const PeriodicBox& box, const Neighbour
   const SummationDensity<Dim, KernelT> density(kernel, fluid, p);
   const PeriodicGeometry<Dim> geometry(box, p);
   if (interactions)
-    compacting_pair_pass<Dim>(density, geometry, neighbours, kernel.support_radius(), 0, p.size(),
-                              *interactions);
+    compacting_pair_pass<Dim>(density, geometry, neighbours, kernel.support_radius(), 0,
+                              neighbours.num_particles(), *interactions);
   else
-    pair_pass<Dim>(density, geometry, neighbours, kernel.support_radius(), 0, p.size());
+    pair_pass<Dim>(density, geometry, neighbours, kernel.support_radius(), 0,
+                   neighbours.num_particles());
 }
 
 /// Acceleration (F^p + F^visc)/ρ_i of (3.25) with (A.9) and (A.14), evaluated at the given
@@ -50,10 +51,10 @@ void force_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs
   const PeriodicGeometry<Dim> geometry(box, p);
   if (viscous_weights)
     pair_pass<Dim>(ThesisMomentum<Dim, KernelT, true>(kernel, fluid, velocity, p, viscous_weights),
-                   geometry, pairs, kernel.support_radius(), 0, p.size());
+                   geometry, pairs, kernel.support_radius(), 0, pairs.num_particles());
   else
     pair_pass<Dim>(ThesisMomentum<Dim, KernelT, false>(kernel, fluid, velocity, p, nullptr),
-                   geometry, pairs, kernel.support_radius(), 0, p.size());
+                   geometry, pairs, kernel.support_radius(), 0, pairs.num_particles());
 }
 
 }  // namespace sphles::sim

@@ -171,4 +171,28 @@ ExactSum exact_sum(std::size_t n, Term&& term) {
   return total;
 }
 
+/// K exact sums in one sweep: sums[k] = Σ_{i<n} t_k(i), where term(i, t) writes t_0..t_{K-1}
+/// of particle i into t (a std::array<double, K>&). Same guarantees as exact_sum.
+template <std::size_t K, class Term>
+std::array<ExactSum, K> exact_sums(std::size_t n, Term&& term) {
+  const std::size_t num_blocks = (n + kReductionBlock - 1) / kReductionBlock;
+  std::vector<std::array<ExactSum, K>> block_sum(num_blocks);
+  const auto signed_blocks = static_cast<std::ptrdiff_t>(num_blocks);
+#pragma omp parallel for schedule(static)
+  for (std::ptrdiff_t b = 0; b < signed_blocks; ++b) {
+    const std::size_t begin = static_cast<std::size_t>(b) * kReductionBlock;
+    const std::size_t end = std::min(n, begin + kReductionBlock);
+    std::array<ExactSum, K>& s = block_sum[static_cast<std::size_t>(b)];
+    std::array<double, K> t{};
+    for (std::size_t i = begin; i < end; ++i) {
+      term(i, t);
+      for (std::size_t k = 0; k < K; ++k) s[k].add(t[k]);
+    }
+  }
+  std::array<ExactSum, K> total;
+  for (const std::array<ExactSum, K>& s : block_sum)
+    for (std::size_t k = 0; k < K; ++k) total[k].add(s[k]);
+  return total;
+}
+
 }  // namespace sphles::sim

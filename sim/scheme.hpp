@@ -8,18 +8,24 @@
 //   static double drift_shift(double dt, double source);  (transport_velocity only) δv of the
 //       step being taken from SchemeFields::drift_source of the last force evaluation
 //   template <int Dim, class KernelT> static void evaluate(kernel, box, list, fluid, velocity,
-//                                                          fields, particles);
+//                                                          fields, particles, exchange);
 // where evaluate is one force evaluation (density, pressure, accelerations) at the current
-// positions and the given velocity. Adding a scheme is its struct, its enum value and one line
-// in SchemeRegistry below; the solver dispatches once per force evaluation (visit_scheme).
+// positions and the given velocity, of the particles `list` lists. Between two passes, where a
+// pass reads neighbours' values an earlier pass of the evaluation wrote, it calls
+// exchange.refresh on them (the halo of a distributed run, sim/exchange.hpp; the positions,
+// velocities and the transport shift the solver refreshes before the evaluation). Adding a scheme
+// is its struct, its enum value and one line in SchemeRegistry below; the solver dispatches once
+// per force evaluation (visit_scheme).
 #pragma once
 
 #include <array>
+#include <span>
 #include <stdexcept>
 #include <string_view>
 #include <utility>
 #include <vector>
 
+#include "sim/exchange.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particle_shifting.hpp"
@@ -76,6 +82,12 @@ inline VelocityView view_of(const std::array<std::vector<double>, 3>& arrays, in
   return view;
 }
 
+/// The exchange point after a density pass: V, ρ and p of the neighbours.
+inline void refresh_density(const Exchange& exchange, ParticleArrays& p) {
+  std::vector<double>* written[] = {&p.volume, &p.density, &p.pressure};
+  exchange.refresh(written);
+}
+
 /// The thesis model of SPEC §2: pressure (A.9) with p_i + p_j and the viscous term (A.14)
 /// (or its corrected form, SchemeFields::viscous_operator); particles move with v.
 struct ThesisScheme {
@@ -86,19 +98,24 @@ struct ThesisScheme {
   template <int Dim, class KernelT>
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
-                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
+                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p,
+                       const Exchange& exchange) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
-    forces<Dim>(kernel, box, fluid, velocity, fields, p);
+    refresh_density(exchange, p);
+    forces<Dim>(kernel, box, fluid, velocity, fields, p, exchange);
   }
 
   /// Pressure (A.9) and viscous term (A.14 or its corrected form) after density_pass, over the
   /// pairs it recorded.
   template <int Dim, class KernelT>
   static void forces(const KernelT& kernel, const PeriodicBox& box, const FluidParameters& fluid,
-                     const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
+                     const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p,
+                     const Exchange& exchange) {
     const double* weights = nullptr;
     if (fields.viscous_operator == ViscousOperator::Corrected) {
       viscous_correction_pass<Dim>(kernel, box, fields.interactions, p, fields.viscous_weights);
+      std::vector<double>* written[] = {&fields.viscous_weights};  // g_j of the force pass
+      exchange.refresh(written);
       weights = fields.viscous_weights.data();
     }
     force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity, p, weights);
@@ -119,8 +136,10 @@ struct TransportVelocityScheme {
   template <int Dim, class KernelT>
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
-                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
+                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p,
+                       const Exchange& exchange) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
+    refresh_density(exchange, p);
     transport_velocity_force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity,
                                        view_of(fields.transport_shift, Dim), fields.drift_source, p,
                                        fields.shifting.ale);
@@ -142,11 +161,16 @@ struct ParticleShiftingScheme {
   template <int Dim, class KernelT>
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
                        const NeighbourList& neighbours, const FluidParameters& fluid,
-                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p) {
+                       const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p,
+                       const Exchange& exchange) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
+    refresh_density(exchange, p);
     const InteractionList& pairs = fields.interactions;
     shifting_velocity_pass<Dim>(kernel, box, pairs, fields.shifting, p, fields.drift_source);
-    ThesisScheme::forces<Dim>(kernel, box, fluid, velocity, fields, p);
+    std::vector<double>* written[] = {&fields.drift_source[0], &fields.drift_source[1],
+                                      &fields.drift_source[2]};  // δv_j of the ALE pass
+    exchange.refresh(std::span(written, static_cast<std::size_t>(Dim)));
+    ThesisScheme::forces<Dim>(kernel, box, fluid, velocity, fields, p, exchange);
     const VelocityView shift = view_of(fields.drift_source, Dim);
     if (fields.shifting.ale == AleCorrection::Full)
       shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, pairs, velocity, shift, p);

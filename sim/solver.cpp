@@ -17,12 +17,18 @@ constexpr std::array<std::pair<ViscousOperator, std::string_view>, 2> kViscousOp
     {ViscousOperator::Corrected, "corrected"},
 }};
 
-void validate(const SolverConfig& c, const ParticleArrays& p) {
+void validate(const SolverConfig& c, const ParticleArrays& p, const Exchange& exchange) {
   if (c.box.dimension != 2 && c.box.dimension != 3)
     throw std::invalid_argument("solver: dimension must be 2 or 3");
   if (p.dimension != c.box.dimension)
     throw std::invalid_argument("solver: particle and box dimensions differ");
-  if (p.size() == 0) throw std::invalid_argument("solver: no particles");
+  // A process of a distributed run may own no particle; the run as a whole must have some.
+  if (exchange.sum(std::uint64_t{p.size()}) == 0)
+    throw std::invalid_argument("solver: no particles");
+  if (exchange.distributed() && c.subfilter.model != SubfilterModel::Implicit)
+    throw std::invalid_argument(
+        "solver: subfilter.model '" + std::string(subfilter_model_name(c.subfilter.model)) +
+        "' is not yet available in a distributed run (MPI ranks > 1); use 'implicit'");
   if (!(c.support_radius > 0.0)) throw std::invalid_argument("solver: support radius must be > 0");
   if (!(c.particle_spacing > 0.0))
     throw std::invalid_argument("solver: particle spacing must be > 0");
@@ -47,15 +53,16 @@ class SphSolver final : public Simulation {
 
  public:
   SphSolver(const KernelT& kernel, const SolverConfig& config, ParticleArrays initial,
-            double start_time, std::uint64_t start_step)
+            double start_time, std::uint64_t start_step, std::shared_ptr<Exchange> exchange)
       : config_(config),
         kernel_(kernel),
         search_(config.box, config.support_radius, config.neighbour_skin * config.support_radius),
         particles_(std::move(initial)),
+        exchange_(std::move(exchange)),
+        owned_(particles_.size()),
         time_(start_time),
         step_(start_step) {
     for (int d = 0; d < Dim; ++d) {
-      predicted_velocity_[d].resize(particles_.size());
       particles_.acceleration[d].resize(particles_.size());
       for (double& x : particles_.position[d]) x = wrap_periodic(x, config_.box.length[d]);
     }
@@ -76,6 +83,8 @@ class SphSolver final : public Simulation {
         kernel_(kernel),
         search_(config.box, config.support_radius, config.neighbour_skin * config.support_radius),
         particles_(std::move(state.particles)),
+        exchange_(std::make_shared<LocalExchange>()),
+        owned_(particles_.size()),
         time_(state.time),
         step_(state.step) {
     for (int d = 0; d < Dim; ++d) predicted_velocity_[d].resize(particles_.size());
@@ -101,6 +110,11 @@ class SphSolver final : public Simulation {
     SolverState s;
     s.particles = particles_;
     s.list_reference_positions = search_.reference_positions();
+    if (owned_ < particles_.size()) {  // this process' own particles, without the halo
+      s.particles.truncate(owned_);
+      for (std::vector<double>& x : s.list_reference_positions)
+        x.resize(std::min(x.size(), owned_));
+    }
     s.time = time_;
     s.step = step_;
     s.neighbour_builds = search_.num_builds();
@@ -111,13 +125,15 @@ class SphSolver final : public Simulation {
     const double dt = std::min(stable_time_step(), max_dt);
     if (!(dt > 0.0)) throw std::invalid_argument("solver: time step must be > 0");
     const double half_dt = 0.5 * dt;
-    const std::size_t n = particles_.size();
     // Kick and drift: with v^{n+1/2}, or with the transport velocity v^{n+1/2} + δv, δv formed
     // by the scheme from the field of the last force evaluation (TVF: dt/2 ã^n, Adami et al.
     // 2013, eqs. 14-16; particle shifting: δv^n, Sun et al. 2019).
     visit_scheme(config_.scheme.type, [&](auto scheme) { kick_drift<decltype(scheme)>(dt); });
-    if (search_.needs_rebuild(view_positions(particles_))) rebuild_neighbours();
+    // Every process rebuilds when a particle of any moved too far (the decision of one process).
+    const bool rebuild = exchange_->any(search_.needs_rebuild(view_positions(particles_), owned_));
+    if (rebuild) rebuild_neighbours();
     // Predicted end-of-step velocity for the velocity-dependent forces.
+    const std::size_t n = owned_;
     VelocityView predicted;
     for (int d = 0; d < Dim; ++d) {
       const double* v = particles_.velocity[d].data();
@@ -127,6 +143,7 @@ class SphSolver final : public Simulation {
       for (std::size_t i = 0; i < n; ++i) vp[i] = v[i] + half_dt * a[i];
       predicted.v[d] = vp;
     }
+    refresh_halo(!rebuild);
     time_ += dt;
     ++step_;
     evaluate_acceleration(predicted, time_);
@@ -143,6 +160,9 @@ class SphSolver final : public Simulation {
 
   double time() const override {
     return time_;
+  }
+  std::size_t owned_count() const override {
+    return owned_;
   }
   std::uint64_t step_count() const override {
     return step_;
@@ -173,7 +193,7 @@ class SphSolver final : public Simulation {
   template <class Scheme>
   void kick_drift(double dt) {
     const double half_dt = 0.5 * dt;
-    const std::size_t n = particles_.size();
+    const std::size_t n = owned_;
     for (int d = 0; d < Dim; ++d) {
       double* v = particles_.velocity[d].data();
       double* x = particles_.position[d].data();
@@ -198,15 +218,47 @@ class SphSolver final : public Simulation {
     }
   }
 
+  /// Lists (and, distributed, the particles each process owns and its halo) for the current
+  /// positions. The shift of the step being taken follows its particles (the drift source is
+  /// rewritten before use).
   void rebuild_neighbours() {
+    std::vector<std::vector<double>*> carried;
+    if (transport_velocity_)
+      for (int d = 0; d < Dim; ++d) carried.push_back(&fields_.transport_shift[d]);
+    if (exchange_->distributed()) {
+      particles_.truncate(owned_);  // drop the halo: migrate and reorder owned particles only
+      for (std::vector<double>* values : carried) values->resize(owned_);
+      exchange_->migrate(particles_, carried);
+    }
     const auto order = search_.locality_order(view_positions(particles_));
     particles_.reorder(order);
-    // The shift of the step being taken follows its particles (ã is rewritten before use).
-    if (transport_velocity_)
-      for (int d = 0; d < Dim; ++d) reorder_array(fields_.transport_shift[d], order);
-    // Neighbours within a cell in id order: a particle's list, and so every sum over it, does
-    // not depend on where the particles sit in the arrays (the same on MPI ranks, par/).
-    search_.build(view_positions(particles_), order_by_key(particles_.id));
+    for (std::vector<double>* values : carried) reorder_array(*values, order);
+    owned_ = particles_.size();
+    exchange_->build_halo(particles_);
+    for (int d = 0; d < Dim; ++d) {
+      predicted_velocity_[d].resize(particles_.size());
+      if (transport_velocity_) {
+        fields_.transport_shift[d].resize(particles_.size());
+        fields_.drift_source[d].resize(particles_.size());
+      }
+    }
+    // Lists for the owned particles, neighbours within a cell in id order: a particle's list,
+    // and so every sum over it, does not depend on where the particles sit in the arrays or on
+    // which process holds them (par/).
+    search_.build(view_positions(particles_), order_by_key(particles_.id), owned_);
+  }
+
+  /// Before a force evaluation: the halo copies take their owners' positions (unless a rebuild
+  /// just placed them), predicted velocities and transport shifts.
+  void refresh_halo(bool positions) {
+    if (!exchange_->distributed()) return;
+    std::vector<std::vector<double>*> fields;
+    for (int d = 0; d < Dim; ++d) {
+      if (positions) fields.push_back(&particles_.position[d]);
+      fields.push_back(&predicted_velocity_[d]);
+      if (transport_velocity_) fields.push_back(&fields_.transport_shift[d]);
+    }
+    exchange_->refresh(fields);
   }
 
   void reorder_array(std::vector<double>& values, std::span<const std::uint32_t> order) {
@@ -236,7 +288,8 @@ class SphSolver final : public Simulation {
     const std::array<std::vector<double>, 3> stored = particles_.acceleration;
     visit_scheme(config_.scheme.type, [&](auto scheme) {
       decltype(scheme)::template evaluate<Dim>(kernel_, config_.box, search_.list(), config_.fluid,
-                                               view_velocity(particles_), fields_, particles_);
+                                               view_velocity(particles_), fields_, particles_,
+                                               *exchange_);
     });
     particles_.acceleration = stored;
   }
@@ -246,7 +299,7 @@ class SphSolver final : public Simulation {
   void evaluate_acceleration(const VelocityView& velocity, double time) {
     visit_scheme(config_.scheme.type, [&](auto scheme) {
       decltype(scheme)::template evaluate<Dim>(kernel_, config_.box, search_.list(), config_.fluid,
-                                               velocity, fields_, particles_);
+                                               velocity, fields_, particles_, *exchange_);
     });
     if (config_.subfilter.model != SubfilterModel::Implicit) add_subfilter_force(velocity);
     if (config_.external) config_.external(time, particles_, velocity, particles_.acceleration);
@@ -254,12 +307,12 @@ class SphSolver final : public Simulation {
   }
 
   void update_max_acceleration() {
-    max_acceleration_ = parallel_max(particles_.size(), [&](std::size_t i) {
+    max_acceleration_ = exchange_->max(parallel_max(owned_, [&](std::size_t i) {
       double a2 = 0.0;
       for (int d = 0; d < Dim; ++d)
         a2 += particles_.acceleration[d][i] * particles_.acceleration[d][i];
       return a2;
-    });
+    }));
     max_acceleration_ = std::sqrt(max_acceleration_);
   }
 
@@ -283,37 +336,38 @@ class SphSolver final : public Simulation {
     });
   }
 
+  /// Sums are exact (ExactSum), so they are the same bits however the particles are ordered
+  /// and split over threads and processes.
   void update_diagnostics(double dt) {
     const ParticleArrays& p = particles_;
-    const std::size_t n = p.size();
+    const std::size_t n = owned_;
     StepDiagnostics& diag = diagnostics_;
     diag.time = time_;
     diag.step = step_;
     diag.dt = dt;
-    diag.total_mass = deterministic_sum(n, [&](std::size_t i) { return p.mass[i]; });
-    const double twice_energy = deterministic_sum(n, [&](std::size_t i) {
+    // Σ M, Σ M v², Σ M v_d.
+    std::array<ExactSum, 2 + Dim> sums = exact_sums<2 + Dim>(n, [&](std::size_t i, auto& term) {
       double v2 = 0.0;
       for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
-      return p.mass[i] * v2;
+      term[0] = p.mass[i];
+      term[1] = p.mass[i] * v2;
+      for (int d = 0; d < Dim; ++d) term[2 + d] = p.mass[i] * p.velocity[d][i];
     });
-    diag.kinetic_energy = 0.5 * twice_energy / diag.total_mass;  // (5.3)
-    for (int d = 0; d < 3; ++d) {
-      diag.momentum[d] =
-          d < Dim
-              ? deterministic_sum(n, [&](std::size_t i) { return p.mass[i] * p.velocity[d][i]; })
-              : 0.0;
-    }
+    exchange_->sum(sums);
+    diag.total_mass = sums[0].value();
+    diag.kinetic_energy = 0.5 * sums[1].value() / diag.total_mass;  // (5.3)
+    for (int d = 0; d < 3; ++d) diag.momentum[d] = d < Dim ? sums[2 + d].value() : 0.0;
     const double rho_ref = config_.fluid.reference_density;
-    diag.max_density_deviation =
-        parallel_max(n, [&](std::size_t i) { return std::abs(p.density[i] - rho_ref) / rho_ref; });
-    diag.max_speed = std::sqrt(parallel_max(n, [&](std::size_t i) {
+    diag.max_density_deviation = exchange_->max(
+        parallel_max(n, [&](std::size_t i) { return std::abs(p.density[i] - rho_ref) / rho_ref; }));
+    diag.max_speed = std::sqrt(exchange_->max(parallel_max(n, [&](std::size_t i) {
       double v2 = 0.0;
       for (int d = 0; d < Dim; ++d) v2 += p.velocity[d][i] * p.velocity[d][i];
       return v2;
-    }));
+    })));
     diag.neighbour_builds = search_.num_builds();
-    diag.mean_neighbours =
-        static_cast<double>(search_.list().indices.size()) / static_cast<double>(n);
+    diag.mean_neighbours = static_cast<double>(exchange_->sum(search_.list().indices.size())) /
+                           static_cast<double>(exchange_->sum(std::uint64_t{n}));
   }
 
   /// Reference of the runaway test, from the energy of the state the solver starts from.
@@ -327,7 +381,7 @@ class SphSolver final : public Simulation {
   /// never reach the e_v sum. During a run positions only change through velocities, which
   /// check_blow_up covers.
   void check_initial_state() const {
-    if (find_non_finite(particles_)) report_non_finite();
+    if (exchange_->any(find_non_finite(particles_).has_value())) report_non_finite();
     check_blow_up();
   }
 
@@ -382,7 +436,9 @@ class SphSolver final : public Simulation {
   SolverConfig config_;
   KernelT kernel_;
   VerletNeighbourSearch search_;
-  ParticleArrays particles_;
+  ParticleArrays particles_;            // owned particles at [0, owned_), then the halo copies
+  std::shared_ptr<Exchange> exchange_;  // the other processes (LocalExchange: none)
+  std::size_t owned_;
   std::array<std::vector<double>, 3> predicted_velocity_;
   SchemeFields fields_;                     // the scheme's fields (empty for the thesis model)
   bool transport_velocity_ = false;         // particles drift with v + δv (SchemeFields)
@@ -434,7 +490,7 @@ std::string_view TimeStepLimits::binding() const {
 }
 
 std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state) {
-  validate(config, state.particles);
+  validate(config, state.particles, LocalExchange{});
   const std::size_t n = state.particles.size();
   const ParticleArrays& p = state.particles;
   bool complete =
@@ -452,13 +508,16 @@ std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, Solve
 }
 
 std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
-                                            double start_time, std::uint64_t start_step) {
-  validate(config, initial);
+                                            double start_time, std::uint64_t start_step,
+                                            std::shared_ptr<Exchange> exchange) {
+  if (!exchange) exchange = std::make_shared<LocalExchange>();
+  validate(config, initial, *exchange);
   return with_kernel(config.kernel, config.box.dimension, config.support_radius,
                      [&](const auto& kernel) -> std::unique_ptr<Simulation> {
                        using KernelT = std::decay_t<decltype(kernel)>;
-                       return std::make_unique<SphSolver<KernelT>>(
-                           kernel, config, std::move(initial), start_time, start_step);
+                       return std::make_unique<SphSolver<KernelT>>(kernel, config,
+                                                                   std::move(initial), start_time,
+                                                                   start_step, std::move(exchange));
                      });
 }
 

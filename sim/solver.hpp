@@ -21,6 +21,7 @@
 #include <string_view>
 #include <utility>
 
+#include "sim/exchange.hpp"
 #include "sim/health.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
@@ -158,7 +159,10 @@ class Simulation {
   virtual double time() const = 0;
   virtual std::uint64_t step_count() const = 0;
   virtual const StepDiagnostics& diagnostics() const = 0;
+  /// The particles this process holds: every particle of a one-process run; in a distributed
+  /// run (sim/exchange.hpp) the owned ones at [0, owned_count()), then halo copies.
   virtual const ParticleArrays& particles() const = 0;
+  virtual std::size_t owned_count() const = 0;
   virtual const SolverConfig& config() const = 0;
   /// Verlet list of the current state (all pairs closer than the kernel support are in it, with
   /// indices into particles()); shared read-only, never modified after this call.
@@ -170,12 +174,17 @@ class Simulation {
 };
 
 /// Builds a solver for the configured dimension and kernel. `initial` needs positions, velocities
-/// and masses; volume, density, pressure and acceleration are computed here.
+/// and masses; volume, density, pressure and acceleration are computed here. With a distributed
+/// `exchange` (par/), this process' share of the particles: each process passes the particles
+/// of its part of the box (or within one part of it; they migrate to their owner first), and
+/// the run's particle states are bitwise those of one process holding them all. Collective
+/// then; a scene with an explicit sub-filter model is refused (not yet distributed).
 std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
-                                            double start_time = 0.0, std::uint64_t start_step = 0);
+                                            double start_time = 0.0, std::uint64_t start_step = 0,
+                                            std::shared_ptr<Exchange> exchange = nullptr);
 
-/// Continues from a saved state: no force evaluation, no reordering; the next step() is
-/// bitwise identical to the step the saving run took next. Throws std::invalid_argument if the
+/// Continues from a saved state (one process): no force evaluation, no reordering; the next step()
+/// is bitwise identical to the step the saving run took next. Throws std::invalid_argument if the
 /// state does not fit the configuration.
 std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state);
 

@@ -188,7 +188,8 @@ void velocity_gradient_pass(const KernelT& kernel, const PeriodicBox& box, const
                             std::vector<VelocityGradient>& gradient) {
   gradient.resize(p.size());
   pair_pass<Dim>(VelocityGradientSum<Dim, KernelT>(kernel, velocity, p, gradient),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                 pairs.num_particles());
 }
 
 /// F^sfs/ρ_i of (A.18), F^sfs_i = -Σ_j (τ_i + τ_j) ∇W_ij V_j, as an evaluator of the pair loop
@@ -244,7 +245,7 @@ void subfilter_divergence_pass(const KernelT& kernel, const PeriodicBox& box, co
         tau[(i * Dim + a) * Dim + b] =
             -eddy_viscosity[i] * p.density[i] * (gradient[i][a][b] + gradient[i][b][a]);
   pair_pass<Dim>(SubfilterDivergence<Dim, KernelT>(kernel, tau, p), PeriodicGeometry<Dim>(box, p),
-                 pairs, kernel.support_radius(), 0, count);
+                 pairs, kernel.support_radius(), 0, pairs.num_particles());
 }
 
 /// F^sfs/ρ_i of (A.23) (SMAG-MCG) as an evaluator of the pair loop (finish adds it to the
@@ -310,7 +311,8 @@ void subfilter_mcg_pass(const KernelT& kernel, const PeriodicBox& box, const Lis
                         const VelocityView& velocity, const std::vector<double>& eddy_viscosity,
                         ParticleArrays& p) {
   pair_pass<Dim>(SubfilterMcg<Dim, KernelT>(kernel, velocity, eddy_viscosity, p),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                 pairs.num_particles());
 }
 
 }  // namespace sphles::sim

@@ -196,11 +196,11 @@ void transport_velocity_force_pass(const KernelT& kernel, const PeriodicBox& box
   if (ale == AleCorrection::Full)
     pair_pass<Dim>(TransportVelocityMomentum<Dim, KernelT, AleCorrection::Full>(
                        kernel, fluid, velocity, shift, background, p),
-                   geometry, pairs, kernel.support_radius(), 0, p.size());
+                   geometry, pairs, kernel.support_radius(), 0, pairs.num_particles());
   else
     pair_pass<Dim>(TransportVelocityMomentum<Dim, KernelT, AleCorrection::Conservative>(
                        kernel, fluid, velocity, shift, background, p),
-                   geometry, pairs, kernel.support_radius(), 0, p.size());
+                   geometry, pairs, kernel.support_radius(), 0, pairs.num_particles());
 }
 
 }  // namespace sphles::sim

@@ -199,7 +199,8 @@ void viscous_correction_pass(const KernelT& kernel, const PeriodicBox& box, cons
                              const ParticleArrays& p, std::vector<double>& coefficients) {
   coefficients.resize(p.size() * QuarticBasis<Dim>::size);
   pair_pass<Dim>(ViscousMoments<Dim, KernelT>(kernel, p, coefficients),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0, p.size());
+                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                 pairs.num_particles());
 }
 
 }  // namespace sphles::sim
