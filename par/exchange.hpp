@@ -13,6 +13,22 @@
 
 namespace sphles::par {
 
+/// What an MpiExchange did on this rank since it was made (for benchmarks and logs).
+struct ExchangeStats {
+  double migrate_seconds = 0.0;     // migration (MPI_Wtime)
+  double halo_build_seconds = 0.0;  // halo builds
+  double refresh_seconds = 0.0;     // halo refreshes
+  double reduce_seconds = 0.0;      // global maxima, sums and the rebuild decision
+  std::size_t migrated = 0;         // particles sent by migration
+  std::size_t halo_builds = 0;
+  std::size_t build_bytes = 0;    // sent by halo builds
+  std::size_t refresh_bytes = 0;  // sent by halo refreshes
+  std::size_t halo_copies = 0;    // copies in the current halo
+  double seconds() const {
+    return migrate_seconds + halo_build_seconds + refresh_seconds + reduce_seconds;
+  }
+};
+
 class MpiExchange final : public sim::Exchange {
  public:
   /// `decomposition` must outlive this exchange; its halo width must be at least the solver's
@@ -30,13 +46,12 @@ class MpiExchange final : public sim::Exchange {
 
   /// The halo of the last build (none before the first).
   const Halo* halo() const { return halo_ ? &*halo_ : nullptr; }
-  /// Particles this rank sent by migration since it was made.
-  std::size_t migrated() const { return migrated_; }
+  const ExchangeStats& stats() const { return stats_; }
 
  private:
   const Decomposition& d_;
   std::optional<Halo> halo_;
-  std::size_t migrated_ = 0;
+  mutable ExchangeStats stats_;
 };
 
 }  // namespace sphles::par

@@ -150,7 +150,8 @@ Halo Halo::build(const Decomposition& d, sim::ParticleArrays& p, HaloPositions p
   return halo;
 }
 
-void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> fields) const {
+std::size_t Halo::update(const Decomposition& d,
+                         std::span<std::vector<double>* const> fields) const {
   // Values per particle of each field, and where each field's values start in a record.
   const std::size_t particles = owned_ + received_;
   std::vector<std::size_t> values(fields.size()), start(fields.size() + 1, 0);
@@ -176,8 +177,10 @@ void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> 
         (*fields[f])[i * values[f] + v] = record[start[f] + v];
   };
   std::vector<double> out, in;
+  std::size_t bytes = 0;
   for (const Stage& stage : stages_) {
     out.resize(stage.send.size() * width);
+    bytes += out.size() * sizeof(double);
     for (std::size_t k = 0; k < stage.send.size(); ++k)
       gather(stage.send[k], out.data() + k * width);
     send_receive(d.comm(), out, stage.to, in, stage.from, kUpdateTag + stage.tag);
@@ -193,6 +196,7 @@ void Halo::update(const Decomposition& d, std::span<std::vector<double>* const> 
       scatter(stage.receive_begin + k, in.data() + record * width);
     }
   }
+  return bytes;
 }
 
 std::size_t migrate(const Decomposition& d, sim::ParticleArrays& p,

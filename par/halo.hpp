@@ -56,7 +56,8 @@ class Halo {
   /// the density pass). Each field holds w values per particle of p (w = its size / p.size(),
   /// particle-major). Positions are sent unshifted, so they may be among the fields of a
   /// HaloPositions::Wrapped halo only. Collective over d.comm().
-  void update(const Decomposition& d, std::span<std::vector<double>* const> fields) const;
+  /// Returns the bytes this rank sent.
+  std::size_t update(const Decomposition& d, std::span<std::vector<double>* const> fields) const;
 
   /// Particles owned by this rank: the halo is [owned(), owned() + size()).
   std::size_t owned() const { return owned_; }

@@ -78,25 +78,41 @@ class SphSolver final : public Simulation {
   }
 
   /// Restart from a saved state (see restore_simulation).
-  SphSolver(const KernelT& kernel, const SolverConfig& config, SolverState state)
+  SphSolver(const KernelT& kernel, const SolverConfig& config, SolverState state,
+            std::shared_ptr<Exchange> exchange)
       : config_(config),
         kernel_(kernel),
         search_(config.box, config.support_radius, config.neighbour_skin * config.support_radius),
         particles_(std::move(state.particles)),
-        exchange_(std::make_shared<LocalExchange>()),
+        exchange_(std::move(exchange)),
         owned_(particles_.size()),
         time_(state.time),
         step_(state.step) {
-    for (int d = 0; d < Dim; ++d) predicted_velocity_[d].resize(particles_.size());
-    PositionsView reference;
-    reference.dimension = Dim;
-    reference.size = particles_.size();
-    for (int d = 0; d < Dim; ++d) {
-      if (state.list_reference_positions[d].size() != particles_.size())
-        throw std::invalid_argument("solver: list reference positions do not match the particles");
-      reference.x[d] = state.list_reference_positions[d].data();
+    if (exchange_->distributed()) {
+      // The halo and lists of the saving run's last rebuild: placed and built at the reference
+      // positions (this process owns the particles whose reference positions lie in its part,
+      // par::share_of), then every particle takes its current position.
+      std::array<std::vector<double>, 3> current;
+      for (int d = 0; d < Dim; ++d) {
+        current[d].swap(particles_.position[d]);
+        particles_.position[d] = state.list_reference_positions[d];
+      }
+      exchange_->build_halo(particles_);
+      search_.build(view_positions(particles_), order_by_key(particles_.id), owned_);
+      std::vector<std::vector<double>*> positions;
+      for (int d = 0; d < Dim; ++d) {
+        std::copy(current[d].begin(), current[d].end(), particles_.position[d].begin());
+        positions.push_back(&particles_.position[d]);
+      }
+      exchange_->refresh(positions);
+    } else {
+      PositionsView reference;
+      reference.dimension = Dim;
+      reference.size = particles_.size();
+      for (int d = 0; d < Dim; ++d) reference.x[d] = state.list_reference_positions[d].data();
+      search_.build(reference, order_by_key(particles_.id));
     }
-    search_.build(reference, order_by_key(particles_.id));
+    for (int d = 0; d < Dim; ++d) predicted_velocity_[d].resize(particles_.size());
     search_.set_num_builds(state.neighbour_builds);
     allocate_scheme_fields();
     if (transport_velocity_) recompute_scheme_fields();
@@ -489,8 +505,10 @@ std::string_view TimeStepLimits::binding() const {
   return viscous <= force ? "viscous" : "force";
 }
 
-std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state) {
-  validate(config, state.particles, LocalExchange{});
+std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state,
+                                               std::shared_ptr<Exchange> exchange) {
+  if (!exchange) exchange = std::make_shared<LocalExchange>();
+  validate(config, state.particles, *exchange);
   const std::size_t n = state.particles.size();
   const ParticleArrays& p = state.particles;
   bool complete =
@@ -498,12 +516,16 @@ std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, Solve
   for (int d = 0; d < p.dimension; ++d)
     complete = complete && p.position[d].size() == n && p.velocity[d].size() == n &&
                p.acceleration[d].size() == n;
-  if (!complete) throw std::invalid_argument("solver: restart state has arrays of unequal length");
+  for (int d = 0; d < p.dimension; ++d)
+    complete = complete && state.list_reference_positions[d].size() == n;
+  // Every process throws when one has a bad share (the others would wait for it).
+  if (exchange->any(!complete))
+    throw std::invalid_argument("solver: restart state has arrays of unequal length");
   return with_kernel(config.kernel, config.box.dimension, config.support_radius,
                      [&](const auto& kernel) -> std::unique_ptr<Simulation> {
                        using KernelT = std::decay_t<decltype(kernel)>;
-                       return std::make_unique<SphSolver<KernelT>>(kernel, config,
-                                                                   std::move(state));
+                       return std::make_unique<SphSolver<KernelT>>(kernel, config, std::move(state),
+                                                                   std::move(exchange));
                      });
 }
 

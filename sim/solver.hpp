@@ -183,9 +183,12 @@ std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, Particle
                                             double start_time = 0.0, std::uint64_t start_step = 0,
                                             std::shared_ptr<Exchange> exchange = nullptr);
 
-/// Continues from a saved state (one process): no force evaluation, no reordering; the next step()
-/// is bitwise identical to the step the saving run took next. Throws std::invalid_argument if the
-/// state does not fit the configuration.
-std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state);
+/// Continues from a saved state: no force evaluation, no reordering; the next step() is
+/// bitwise identical to the step the saving run took next. With a distributed `exchange`,
+/// `state` is this process' share (par::share_of) of a state of all particles, written by any
+/// number of processes (par::gather_state), and the run continues bitwise as well. Throws
+/// std::invalid_argument if the state does not fit the configuration.
+std::unique_ptr<Simulation> restore_simulation(const SolverConfig& config, SolverState state,
+                                               std::shared_ptr<Exchange> exchange = nullptr);
 
 }  // namespace sphles::sim

@@ -1,0 +1,154 @@
+// Steps of a distributed run (issue 19, docs/scaling.md): the 3D TGV of bench_solver (WC4 8Δl,
+// lattice displaced at random by 0.05 Δl, packing skipped) over the MPI ranks it is started on,
+// each rank with the OpenMP threads OMP_NUM_THREADS gives it. Prints, on rank 0, the median wall
+// time per step (the slowest rank's), the share of it the exchange took on the rank where it
+// took most (migration, halo builds and refreshes, global reductions, including the wait for
+// other ranks), the bytes sent per step and the halo size.
+//
+//   mpiexec -n 2 build/bench/bench_distributed [--per_side=48] [--steps=40] [--warmup=5]
+//   OMP_NUM_THREADS=2 mpiexec -n 1 build/bench/bench_distributed   (the one-rank reference)
+#include <mpi.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <memory>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "par/decomposition.hpp"
+#include "par/exchange.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/neighbour_search.hpp"
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace {
+
+using namespace sphles;
+
+struct Options {
+  int per_side = 48;
+  int steps = 40;
+  int warmup = 5;
+};
+
+Options parse(int argc, char** argv) {
+  Options o;
+  for (int k = 1; k < argc; ++k) {
+    const auto value = [&](const char* flag) -> const char* {
+      const std::size_t n = std::strlen(flag);
+      return std::strncmp(argv[k], flag, n) == 0 ? argv[k] + n : nullptr;
+    };
+    if (const char* v = value("--per_side="))
+      o.per_side = std::atoi(v);
+    else if (const char* v = value("--steps="))
+      o.steps = std::atoi(v);
+    else if (const char* v = value("--warmup="))
+      o.warmup = std::atoi(v);
+    else
+      throw std::invalid_argument(std::string("unknown option '") + argv[k] +
+                                  "' (--per_side=N, --steps=N, --warmup=N)");
+  }
+  if (o.per_side < 8 || o.steps < 1 || o.warmup < 0)
+    throw std::invalid_argument("--per_side must be >= 8, --steps >= 1, --warmup >= 0");
+  return o;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+int run(const Options& o) {
+  int rank = 0, ranks = 1;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  const sim::Scene scene =
+      sim::parse_scene({{"case", "tgv3d"},
+                        {"particles_per_side", o.per_side},
+                        {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+                        {"packing", {{"enabled", false}}}});
+  sim::RunSetup setup = sim::setup_run(scene);
+  sim::ParticleArrays& all = setup.particles;
+  std::mt19937_64 rng(5);  // the displacement of bench_solver
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  for (int d = 0; d < 3; ++d)
+    for (double& x : all.position[d])
+      x = sim::wrap_periodic(x + 0.05 * scene.particle_spacing() * u(rng), scene.box_length());
+  const sim::SolverConfig& config = setup.solver;
+  const sim::VerletNeighbourSearch search(config.box, config.support_radius,
+                                          config.neighbour_skin * config.support_radius);
+  const par::Decomposition d(MPI_COMM_WORLD, config.box, search.list_radius(),
+                             config.particle_spacing);
+  // This rank's particles (every rank made the whole lattice: fine at benchmark sizes).
+  std::vector<std::uint32_t> order, others;  // this rank's particles first
+  for (std::size_t i = 0; i < all.size(); ++i)
+    (d.owns(all, i) ? order : others).push_back(static_cast<std::uint32_t>(i));
+  const std::size_t mine = order.size();
+  order.insert(order.end(), others.begin(), others.end());
+  sim::ParticleArrays owned = all;
+  owned.reorder(order);
+  owned.truncate(mine);
+  const std::size_t total = all.size();
+  all = sim::ParticleArrays{};
+  const auto exchange = std::make_shared<par::MpiExchange>(d);
+  const auto simulation = sim::make_simulation(config, std::move(owned), 0.0, 0, exchange);
+  for (int s = 0; s < o.warmup; ++s) simulation->step();
+
+  const par::ExchangeStats before = exchange->stats();
+  std::vector<double> step_seconds;
+  double wall = 0.0;
+  for (int s = 0; s < o.steps; ++s) {
+    MPI_Barrier(MPI_COMM_WORLD);
+    const double start = MPI_Wtime();
+    simulation->step();
+    double seconds = MPI_Wtime() - start, slowest = 0.0;
+    MPI_Allreduce(&seconds, &slowest, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    step_seconds.push_back(slowest);
+    wall += slowest;
+  }
+  const par::ExchangeStats& after = exchange->stats();
+  const double exchange_share = (after.seconds() - before.seconds()) / wall;
+  double max_share = 0.0;
+  MPI_Reduce(&exchange_share, &max_share, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+  const double bytes = static_cast<double>(after.build_bytes + after.refresh_bytes -
+                                           before.build_bytes - before.refresh_bytes) /
+                       o.steps;
+  double all_bytes = 0.0;
+  MPI_Reduce(&bytes, &all_bytes, 1, MPI_DOUBLE, MPI_SUM, 0, MPI_COMM_WORLD);
+  const double copies_per_owned =
+      static_cast<double>(after.halo_copies) / static_cast<double>(simulation->owned_count());
+  double max_copies = 0.0;
+  MPI_Reduce(&copies_per_owned, &max_copies, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
+  const auto builds = static_cast<double>(after.halo_builds - before.halo_builds);
+  if (rank == 0) {
+    std::printf(
+        "particles %zu  ranks %d (%d x %d x %d)  threads per rank %d  steps %d (after %d)\n"
+        "median step %.1f ms  mean step %.1f ms  exchange share (max over ranks) %.1f %%\n"
+        "bytes sent per step, all ranks: %.2f MB  halo copies per owned particle (max) %.2f  "
+        "list rebuilds per step %.2f\n",
+        total, ranks, d.dims()[0], d.dims()[1], d.dims()[2], omp_get_max_threads(), o.steps,
+        o.warmup, 1e3 * median(step_seconds), 1e3 * wall / o.steps, 100.0 * max_share,
+        all_bytes / 1e6, max_copies, builds / o.steps);
+  }
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  MPI_Init(&argc, &argv);
+  int rc = 0;
+  try {
+    rc = run(parse(argc, argv));
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "bench_distributed: %s\n", e.what());
+    MPI_Abort(MPI_COMM_WORLD, 2);  // other ranks may wait in a collective
+  }
+  MPI_Finalize();
+  return rc;
+}

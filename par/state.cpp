@@ -1,0 +1,124 @@
+#include "par/state.hpp"
+
+#include <cstring>
+#include <limits>
+#include <stdexcept>
+#include <string>
+
+namespace sphles::par {
+
+namespace {
+
+int checked_int(std::size_t n) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::length_error("state gather: " + std::to_string(n) +
+                            " values exceed MPI's int count; gather fewer particles per rank");
+  return static_cast<int>(n);
+}
+
+/// The per-particle arrays of a state, in a fixed order: the particle fields, then the list
+/// reference positions (pointers to const for a const state).
+template <class State>
+auto fields_of(State& s) {
+  auto fields = s.particles.double_fields();
+  for (int a = 0; a < s.particles.dimension; ++a)
+    fields.push_back(&s.list_reference_positions[static_cast<std::size_t>(a)]);
+  return fields;
+}
+
+}  // namespace
+
+sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& local, int root) {
+  const auto fields = fields_of(local);
+  const std::size_t stride = fields.size() + 1;  // + the id
+  const std::size_t n = local.particles.size();
+  std::vector<double> out(n * stride);
+  for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t f = 0; f < fields.size(); ++f) out[i * stride + f] = (*fields[f])[i];
+    std::memcpy(&out[i * stride + fields.size()], &local.particles.id[i], sizeof(double));
+  }
+  const int ranks = d.size();
+  const bool everywhere = root == kEveryRank;
+  const bool receiving = everywhere || d.rank() == root;
+  int count = checked_int(out.size());
+  std::vector<int> counts(static_cast<std::size_t>(ranks), 0), displacements(counts.size(), 0);
+  if (everywhere)
+    MPI_Allgather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, d.comm());
+  else
+    MPI_Gather(&count, 1, MPI_INT, counts.data(), 1, MPI_INT, root, d.comm());
+  std::size_t total = 0;
+  for (std::size_t r = 0; r < counts.size(); ++r) {
+    displacements[r] = checked_int(total);
+    total += static_cast<std::size_t>(counts[r]);
+  }
+  std::vector<double> in(receiving ? total : 0);
+  if (everywhere)
+    MPI_Allgatherv(out.data(), count, MPI_DOUBLE, in.data(), counts.data(), displacements.data(),
+                   MPI_DOUBLE, d.comm());
+  else
+    MPI_Gatherv(out.data(), count, MPI_DOUBLE, in.data(), counts.data(), displacements.data(),
+                MPI_DOUBLE, root, d.comm());
+
+  sim::SolverState whole;
+  whole.time = local.time;
+  whole.step = local.step;
+  whole.neighbour_builds = local.neighbour_builds;
+  whole.particles.dimension = local.particles.dimension;
+  if (!receiving) return whole;
+  const std::size_t particles = in.size() / stride;
+  whole.particles.resize(particles);
+  if (!local.particles.eddy_viscosity.empty()) whole.particles.eddy_viscosity.resize(particles);
+  for (int a = 0; a < whole.particles.dimension; ++a)
+    whole.list_reference_positions[static_cast<std::size_t>(a)].resize(particles);
+  const auto to = fields_of(whole);
+  for (std::size_t i = 0; i < particles; ++i) {
+    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[i] = in[i * stride + f];
+    std::memcpy(&whole.particles.id[i], &in[i * stride + to.size()], sizeof(double));
+  }
+  // In id order: reorder the particles and the reference positions by one permutation.
+  const std::vector<std::uint32_t> order = sim::order_by_key(whole.particles.id);
+  whole.particles.reorder(order);
+  std::vector<double> scratch(particles);
+  for (int a = 0; a < whole.particles.dimension; ++a) {
+    std::vector<double>& x = whole.list_reference_positions[static_cast<std::size_t>(a)];
+    for (std::size_t k = 0; k < particles; ++k) scratch[k] = x[order[k]];
+    x.swap(scratch);
+  }
+  return whole;
+}
+
+sim::SolverState share_of(const Decomposition& d, const sim::SolverState& whole) {
+  const sim::ParticleArrays& p = whole.particles;
+  const std::size_t n = p.size();
+  for (int a = 0; a < p.dimension; ++a)
+    if (whole.list_reference_positions[static_cast<std::size_t>(a)].size() != n)
+      throw std::invalid_argument(
+          "state share: list reference positions do not match the particles");
+  std::vector<std::uint32_t> mine;
+  for (std::size_t i = 0; i < n; ++i) {
+    bool owned = true;
+    for (int a = 0; a < p.dimension && owned; ++a) {
+      const double x = whole.list_reference_positions[static_cast<std::size_t>(a)][i];
+      owned = d.coordinate_of(a, x) == d.coords()[static_cast<std::size_t>(a)];
+    }
+    if (owned) mine.push_back(static_cast<std::uint32_t>(i));
+  }
+  sim::SolverState share;
+  share.time = whole.time;
+  share.step = whole.step;
+  share.neighbour_builds = whole.neighbour_builds;
+  share.particles.dimension = p.dimension;
+  share.particles.resize(mine.size());
+  if (!p.eddy_viscosity.empty()) share.particles.eddy_viscosity.resize(mine.size());
+  for (int a = 0; a < p.dimension; ++a)
+    share.list_reference_positions[static_cast<std::size_t>(a)].resize(mine.size());
+  const auto from = fields_of(whole);
+  const auto to = fields_of(share);
+  for (std::size_t k = 0; k < mine.size(); ++k) {
+    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[k] = (*from[f])[mine[k]];
+    share.particles.id[k] = p.id[mine[k]];
+  }
+  return share;
+}
+
+}  // namespace sphles::par

@@ -1,0 +1,23 @@
+// A distributed run's solver state as one state in particle-id order, and one rank's share of
+// such a state (issue 19): what a checkpoint of N ranks holds and how M ranks restart from it.
+#pragma once
+
+#include "par/decomposition.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::par {
+
+/// Every rank's `local` state (sim::Simulation::state() of a distributed run: its owned
+/// particles) combined into one state with the particles in id order, on rank `root`, or on
+/// every rank with root = kEveryRank. The other ranks get the time, step and build counter with
+/// no particles. Collective over d.comm().
+inline constexpr int kEveryRank = -1;
+sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& local, int root = 0);
+
+/// The particles of `whole` (a state of every particle, in any order) whose list reference
+/// positions lie in this rank's sub-box: this rank's share, for sim::restore_simulation with a
+/// par::MpiExchange over `d`. The saving run owned them there at its last list rebuild, so the
+/// restarted run rebuilds that list exactly, on any rank count.
+sim::SolverState share_of(const Decomposition& d, const sim::SolverState& whole);
+
+}  // namespace sphles::par
