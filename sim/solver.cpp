@@ -25,10 +25,6 @@ void validate(const SolverConfig& c, const ParticleArrays& p, const Exchange& ex
   // A process of a distributed run may own no particle; the run as a whole must have some.
   if (exchange.sum(std::uint64_t{p.size()}) == 0)
     throw std::invalid_argument("solver: no particles");
-  if (exchange.distributed() && c.subfilter.model != SubfilterModel::Implicit)
-    throw std::invalid_argument(
-        "solver: subfilter.model '" + std::string(subfilter_model_name(c.subfilter.model)) +
-        "' is not yet available in a distributed run (MPI ranks > 1); use 'implicit'");
   if (!(c.support_radius > 0.0)) throw std::invalid_argument("solver: support radius must be > 0");
   if (!(c.particle_spacing > 0.0))
     throw std::invalid_argument("solver: particle spacing must be > 0");
@@ -339,17 +335,34 @@ class SphSolver final : public Simulation {
     std::vector<double>& nu_t = particles_.eddy_viscosity;
     nu_t.resize(particles_.size());
     const double kernel_diameter = 2.0 * config_.support_radius;
-    const auto n = static_cast<std::ptrdiff_t>(particles_.size());
+    const auto n = static_cast<std::ptrdiff_t>(owned_);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t i = 0; i < n; ++i)
       nu_t[static_cast<std::size_t>(i)] = eddy_viscosity(config_.subfilter, kernel_diameter,
                                                          gradient_[static_cast<std::size_t>(i)]);
+    if (exchange_->distributed()) refresh_subfilter_fields();
     visit_subfilter_model(config_.subfilter.model, [&](auto model) {
       if constexpr (decltype(model)::force == SubfilterForce::Central)
         subfilter_mcg_pass<Dim>(kernel_, config_.box, list, velocity, nu_t, particles_);
       else if constexpr (decltype(model)::force == SubfilterForce::Divergence)
         subfilter_divergence_pass<Dim>(kernel_, config_.box, list, gradient_, nu_t, particles_);
     });
+  }
+
+  /// The exchange point of the explicit models: the neighbours' J (the divergence form builds
+  /// τ_j of it, A.19) and ν_t (both forms), through a flat copy of J.
+  void refresh_subfilter_fields() {
+    constexpr std::size_t kValues = 9;  // a VelocityGradient
+    std::vector<double>& flat = scratch_;
+    flat.resize(kValues * particles_.size());
+    for (std::size_t i = 0; i < owned_; ++i)
+      for (std::size_t a = 0; a < 3; ++a)
+        for (std::size_t b = 0; b < 3; ++b) flat[kValues * i + 3 * a + b] = gradient_[i][a][b];
+    std::vector<double>* fields[] = {&flat, &particles_.eddy_viscosity};
+    exchange_->refresh(fields);
+    for (std::size_t i = owned_; i < particles_.size(); ++i)
+      for (std::size_t a = 0; a < 3; ++a)
+        for (std::size_t b = 0; b < 3; ++b) gradient_[i][a][b] = flat[kValues * i + 3 * a + b];
   }
 
   /// Sums are exact (ExactSum), so they are the same bits however the particles are ordered

@@ -176,9 +176,9 @@ class Simulation {
 /// Builds a solver for the configured dimension and kernel. `initial` needs positions, velocities
 /// and masses; volume, density, pressure and acceleration are computed here. With a distributed
 /// `exchange` (par/), this process' share of the particles: each process passes the particles
-/// of its part of the box (or within one part of it; they migrate to their owner first), and
-/// the run's particle states are bitwise those of one process holding them all. Collective
-/// then; a scene with an explicit sub-filter model is refused (not yet distributed).
+/// of its part of the box (those at most one part away along each axis migrate to their owner
+/// first), and the run's particle states are bitwise those of one process holding them all.
+/// Collective then.
 std::unique_ptr<Simulation> make_simulation(const SolverConfig& config, ParticleArrays initial,
                                             double start_time = 0.0, std::uint64_t start_step = 0,
                                             std::shared_ptr<Exchange> exchange = nullptr);

@@ -400,6 +400,7 @@ struct DistributedRun {
   sim::SchemeType scheme;
   sim::ViscousOperator viscous;
   int steps;
+  sim::SubfilterModel subfilter = sim::SubfilterModel::Implicit;
 };
 
 class DistributedRunTest : public ::testing::TestWithParam<DistributedRun> {};
@@ -423,6 +424,7 @@ TEST_P(DistributedRunTest, ParticleStatesEqualOneProcessBitForBit) {
                   .dynamic_viscosity = 0.01};
   config.scheme.type = run.scheme;
   config.scheme.viscous_operator = run.viscous;
+  config.subfilter.model = run.subfilter;
   sim::ParticleArrays all = perturbed_lattice(run.dimension, run.per_side, 29);
   for (int a = 0; a < run.dimension; ++a)
     for (double& v : all.velocity[static_cast<std::size_t>(a)]) v += 1.5 - 0.5 * a;
@@ -461,21 +463,24 @@ TEST_P(DistributedRunTest, ParticleStatesEqualOneProcessBitForBit) {
   }
 }
 
-INSTANTIATE_TEST_SUITE_P(TaylorGreen, DistributedRunTest,
-                         ::testing::Values(DistributedRun{2, 40, sim::SchemeType::Thesis,
-                                                          sim::ViscousOperator::Thesis, 50},
-                                           DistributedRun{3, 24, sim::SchemeType::Thesis,
-                                                          sim::ViscousOperator::Thesis, 50},
-                                           DistributedRun{2, 40, sim::SchemeType::TransportVelocity,
-                                                          sim::ViscousOperator::Thesis, 50},
-                                           DistributedRun{2, 40, sim::SchemeType::ParticleShifting,
-                                                          sim::ViscousOperator::Corrected, 50}),
-                         [](const ::testing::TestParamInfo<DistributedRun>& info) {
-                           return std::to_string(info.param.dimension) + "D_" +
-                                  std::string(sim::scheme_name(info.param.scheme)) + "_" +
-                                  std::string(sim::viscous_operator_name(info.param.viscous)) +
-                                  "_viscous";
-                         });
+INSTANTIATE_TEST_SUITE_P(
+    TaylorGreen, DistributedRunTest,
+    ::testing::Values(
+        DistributedRun{2, 40, sim::SchemeType::Thesis, sim::ViscousOperator::Thesis, 50},
+        DistributedRun{3, 24, sim::SchemeType::Thesis, sim::ViscousOperator::Thesis, 50},
+        DistributedRun{2, 40, sim::SchemeType::TransportVelocity, sim::ViscousOperator::Thesis, 50},
+        DistributedRun{2, 40, sim::SchemeType::ParticleShifting, sim::ViscousOperator::Corrected,
+                       50},
+        DistributedRun{2, 40, sim::SchemeType::Thesis, sim::ViscousOperator::Thesis, 50,
+                       sim::SubfilterModel::Smagorinsky},
+        DistributedRun{2, 40, sim::SchemeType::Thesis, sim::ViscousOperator::Thesis, 50,
+                       sim::SubfilterModel::SmagorinskyMcg}),
+    [](const ::testing::TestParamInfo<DistributedRun>& info) {
+      return std::to_string(info.param.dimension) + "D_" +
+             std::string(sim::scheme_name(info.param.scheme)) + "_" +
+             std::string(sim::viscous_operator_name(info.param.viscous)) + "_viscous_" +
+             std::string(sim::subfilter_model_name(info.param.subfilter));
+    });
 
 /// The 2D TGV of DistributedRunTest with the transport-velocity scheme (whose restart recomputes
 /// its background acceleration) and a drift across the ranks.
