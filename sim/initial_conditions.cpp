@@ -90,13 +90,17 @@ std::vector<std::string> case_diagnostic_names(const Scene& scene) {
 std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& p) {
   if (scene.case_type != CaseType::Kolmogorov2D) return {};
   const double k = scene.forcing_wavenumber();
-  const double mass = deterministic_sum(p.size(), [&](std::size_t i) { return p.mass[i]; });
-  const double injection = deterministic_sum(p.size(), [&](std::size_t i) {
-    return p.mass[i] * scene.forcing.amplitude * std::sin(k * p.position[1][i]) * p.velocity[0][i];
-  });
-  const double v2 = deterministic_sum(p.size(), [&](std::size_t i) {
-    return p.mass[i] * (p.velocity[0][i] * p.velocity[0][i] + p.velocity[1][i] * p.velocity[1][i]);
-  });
+  // Exact sums: the same bits in whatever order the particles come (one process, or gathered
+  // from MPI ranks in id order).
+  const double mass = exact_sum(p.size(), [&](std::size_t i) { return p.mass[i]; }).value();
+  const double injection = exact_sum(p.size(), [&](std::size_t i) {
+                             return p.mass[i] * scene.forcing.amplitude *
+                                    std::sin(k * p.position[1][i]) * p.velocity[0][i];
+                           }).value();
+  const double v2 = exact_sum(p.size(), [&](std::size_t i) {
+                      return p.mass[i] * (p.velocity[0][i] * p.velocity[0][i] +
+                                          p.velocity[1][i] * p.velocity[1][i]);
+                    }).value();
   return {injection / mass, scene.forcing.friction * v2 / mass, std::sqrt(v2 / mass)};  // (4.3)
 }
 
