@@ -1,14 +1,17 @@
+#include <mpi.h>
 #include <pthread.h>
 #include <signal.h>
 
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
 #include <optional>
 #include <thread>
 
 #include "app/commands.hpp"
 #include "control/run.hpp"
 #include "io/checkpoint.hpp"
+#include "par/driver.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -81,11 +84,32 @@ RunOptions parse_run_options(const std::vector<std::string>& args) {
 /// Stops the run on SIGINT/SIGTERM: it finishes its step, writes a checkpoint and exits.
 std::atomic<control::Run*> g_interruptible_run{nullptr};
 
-int run_command(const std::vector<std::string>& args) {
+/// Ranks of the MPI job this process was started in by mpirun or mpiexec (OpenMPI, or an MPI
+/// using PMI such as MPICH or Slurm's srun), 1 when it was started alone.
+int launched_ranks() {
+  for (const char* name : {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"})
+    if (const char* value = std::getenv(name)) {
+      const int n = std::atoi(value);
+      if (n > 1) return n;
+    }
+  return 1;
+}
+
+/// The run on this process; with a driver, its solver spans the MPI ranks (rank 0 only).
+int run_here(const std::vector<std::string>& args, par::Driver* driver) {
   RunOptions options;
   std::unique_ptr<control::Run> run;
   control::RunOptions run_options;
   run_options.log_progress = true;
+  if (driver) {
+    run_options.make_simulation = [driver](const sim::Scene& scene, sim::ParticleArrays all) {
+      return driver->make(scene, std::move(all));
+    };
+    run_options.restore_simulation = [driver](const sim::Scene& scene, sim::SolverState state) {
+      return driver->restore(scene, std::move(state));
+    };
+    std::fprintf(stderr, "sphles run: the solver spans %d MPI ranks\n", driver->ranks());
+  }
   try {
     options = parse_run_options(args);
     run_options.threads = options.threads;
@@ -182,6 +206,32 @@ int run_command(const std::vector<std::string>& args) {
     return kExitFailure;
   }
   return kExitOk;
+}
+
+int run_command(const std::vector<std::string>& args) {
+  if (launched_ranks() <= 1) return run_here(args, nullptr);
+  // Under mpirun: rank 0 runs as one process would, with the solver over every rank; the others
+  // serve it. mpirun forwards SIGINT and SIGTERM to every rank: they are blocked on all ranks
+  // before MPI starts its threads, so rank 0 alone acts on them (it stops after the step and
+  // writes a checkpoint, with every rank) and the others wait for its word.
+  sigset_t signals;
+  sigemptyset(&signals);
+  sigaddset(&signals, SIGINT);
+  sigaddset(&signals, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  int provided = 0;
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  int rc = kExitOk;
+  if (rank == 0) {
+    par::Driver driver(MPI_COMM_WORLD);
+    rc = run_here(args, &driver);
+  } else {
+    par::serve_commands(MPI_COMM_WORLD);
+  }
+  MPI_Finalize();
+  return rc;
 }
 
 }  // namespace sphles::app

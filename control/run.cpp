@@ -783,6 +783,11 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   }
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
   const std::filesystem::path frames_dir = directory / "frames";
+  const auto restore_solver = [this](const sim::Scene& scene, sim::SolverState state) {
+    return options.restore_simulation
+               ? options.restore_simulation(scene, std::move(state))
+               : sim::restore_simulation(sim::make_solver_config(scene), std::move(state));
+  };
   // Temporaries of a write that a crash interrupted are never valid checkpoints: remove them.
   if (std::filesystem::exists(checkpoint_dir))
     for (const auto& entry : std::filesystem::directory_iterator(checkpoint_dir))
@@ -820,8 +825,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                  scene0.kernel_diameter_over_spacing, omp_get_max_threads(), directory.c_str());
   if (checkpoint) {
     packing = checkpoint->metadata.packing;
-    simulation =
-        sim::restore_simulation(sim::make_solver_config(scene0), std::move(checkpoint->state));
+    simulation = restore_solver(scene0, std::move(checkpoint->state));
     truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
     RenderSink::truncate_index_after(frames_dir, simulation->time());
   } else {
@@ -854,7 +858,9 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                    setup.packing.final_residual, setup_seconds,
                    setup.packing.cache_file.empty() ? "" : ", cache ",
                    setup.packing.cache_file.c_str());
-    simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
+    simulation = options.make_simulation
+                     ? options.make_simulation(scene0, std::move(setup.particles))
+                     : sim::make_simulation(setup.solver, std::move(setup.particles));
   }
 
   // Every output goes to the run directory: if it is deleted or replaced while the run goes on,
@@ -893,8 +899,11 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     last_flush = Clock::now();
   };
   const auto record = [&](const sim::StepDiagnostics& d) {
+    // particles() gathers a distributed run's particles: only for a case that has such values.
     const std::vector<double> values =
-        sim::case_diagnostics(current.run.scene, simulation->particles());
+        sim::case_diagnostic_names(current.run.scene).empty()
+            ? std::vector<double>{}
+            : sim::case_diagnostics(current.run.scene, simulation->particles());
     const double epsilon = dissipation.add(d.time, d.kinetic_energy);
     latest_dissipation = epsilon;
     timeseries.write(d, epsilon, values);
@@ -1028,9 +1037,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
         end_time = spec.run.scene.end_time;
         current = spec;
         lock.unlock();
-        if (scope.solver)
-          simulation = sim::restore_simulation(sim::make_solver_config(current.run.scene),
-                                               simulation->state());
+        if (scope.solver) simulation = restore_solver(current.run.scene, simulation->state());
         if (scope.analysis && pipeline) pipeline->set_config(current.run.analysis);
         if (scope.render && renderer) renderer->set_config(current.render);
         ensure_consumers();

@@ -25,6 +25,8 @@
 #include "analysis/config.hpp"
 #include "analysis/products.hpp"
 #include "render/config.hpp"
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
 
 namespace sphles::control {
 
@@ -135,6 +137,13 @@ struct RunOptions {
   /// Called with the document a live change would give, before it is made; throws
   /// AdmissionError to refuse it (the run manager checks the resource estimate).
   std::function<void(const RunSpec&)> admit;
+  /// Builds the solver of a fresh start and of a restart or live change; empty: one process
+  /// (sim::make_simulation, sim::restore_simulation). `sphles run` under mpirun sets them to
+  /// the distributed solver (par::Driver), which Run then drives like any other.
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)>
+      make_simulation;
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)>
+      restore_simulation;
 };
 
 /// A run name as a single path component: letters, digits, '-', '_' and '.' (others become '-'),

@@ -1,0 +1,231 @@
+#include "par/driver.hpp"
+
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "par/decomposition.hpp"
+#include "par/exchange.hpp"
+#include "par/state.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/neighbour_search.hpp"
+
+namespace sphles::par {
+
+namespace {
+
+enum class Command : int { Finish = 0, Make = 1, Restore = 2, Step = 3, Gather = 4 };
+
+/// Rank 0 tells every rank what comes next: the command and one number (the step's max_dt).
+void send_command(MPI_Comm comm, Command command, double value = 0.0) {
+  double header[2] = {static_cast<double>(command), value};
+  MPI_Bcast(header, 2, MPI_DOUBLE, 0, comm);
+}
+
+int checked_int(std::size_t n) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::length_error("driver: " + std::to_string(n) + " values exceed MPI's int count");
+  return static_cast<int>(n);
+}
+
+void broadcast_string(MPI_Comm comm, std::string& text) {
+  unsigned long long size = text.size();
+  MPI_Bcast(&size, 1, MPI_UNSIGNED_LONG_LONG, 0, comm);
+  text.resize(static_cast<std::size_t>(size));
+  MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, comm);
+}
+
+/// Rank 0's state of every particle to every rank.
+void broadcast_state(MPI_Comm comm, sim::SolverState& s) {
+  double head[4] = {static_cast<double>(s.particles.dimension),
+                    static_cast<double>(s.particles.size()),
+                    s.particles.eddy_viscosity.empty() ? 0.0 : 1.0, s.time};
+  MPI_Bcast(head, 4, MPI_DOUBLE, 0, comm);
+  unsigned long long counters[2] = {s.step, s.neighbour_builds};
+  MPI_Bcast(counters, 2, MPI_UNSIGNED_LONG_LONG, 0, comm);
+  const auto n = static_cast<std::size_t>(head[1]);
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  if (rank != 0) {
+    s.particles.dimension = static_cast<int>(head[0]);
+    s.particles.resize(n);
+    if (head[2] != 0.0) s.particles.eddy_viscosity.resize(n);
+    s.time = head[3];
+    s.step = counters[0];
+    s.neighbour_builds = counters[1];
+  }
+  std::vector<std::vector<double>*> fields = s.particles.double_fields();
+  for (int a = 0; a < s.particles.dimension; ++a) {
+    std::vector<double>& x = s.list_reference_positions[static_cast<std::size_t>(a)];
+    x.resize(n);  // empty for a fresh start: rank 0 sends zeros, unused
+    fields.push_back(&x);
+  }
+  for (std::vector<double>* f : fields) MPI_Bcast(f->data(), checked_int(n), MPI_DOUBLE, 0, comm);
+  MPI_Bcast(s.particles.id.data(), checked_int(n), MPI_UINT64_T, 0, comm);
+}
+
+/// One rank's part of a distributed solver.
+struct Member {
+  sim::SolverConfig config;
+  std::unique_ptr<Decomposition> decomposition;
+  std::shared_ptr<MpiExchange> exchange;
+  std::unique_ptr<sim::Simulation> local;
+};
+
+/// Every rank: the solver of `scene_json` over the ranks of `comm`, each keeping its share of
+/// `whole` (by position for a fresh start, by list reference position for a restart).
+std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
+                                    sim::SolverState whole, bool restore) {
+  auto m = std::make_unique<Member>();
+  const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(scene_json));
+  m->config = sim::make_solver_config(scene);
+  const sim::SolverConfig& c = m->config;
+  const sim::VerletNeighbourSearch search(c.box, c.support_radius,
+                                          c.neighbour_skin * c.support_radius);
+  m->decomposition =
+      std::make_unique<Decomposition>(comm, c.box, search.list_radius(), c.particle_spacing);
+  m->exchange = std::make_shared<MpiExchange>(*m->decomposition);
+  if (restore) {
+    m->local = sim::restore_simulation(c, share_of(*m->decomposition, whole), m->exchange);
+  } else {
+    // A fresh start: owned by position (wrapped into the box, as the solver does).
+    for (int a = 0; a < whole.particles.dimension; ++a) {
+      const auto axis = static_cast<std::size_t>(a);
+      std::vector<double>& x = whole.particles.position[axis];
+      for (double& v : x) v = sim::wrap_periodic(v, c.box.length[axis]);
+      whole.list_reference_positions[axis] = x;
+    }
+    sim::SolverState share = share_of(*m->decomposition, whole);
+    m->local =
+        sim::make_simulation(c, std::move(share.particles), whole.time, whole.step, m->exchange);
+  }
+  return m;
+}
+
+/// The distributed solver as rank 0's Run sees it.
+class DistributedSimulation final : public sim::Simulation {
+ public:
+  DistributedSimulation(MPI_Comm comm, std::unique_ptr<Member> member)
+      : comm_(comm), m_(std::move(member)) {}
+
+  void step(double max_dt) override {
+    send_command(comm_, Command::Step, max_dt);
+    m_->local->step(max_dt);
+  }
+  double time() const override { return m_->local->time(); }
+  std::uint64_t step_count() const override { return m_->local->step_count(); }
+  // Time step, diagnostics and maxima are global on every rank already.
+  const sim::StepDiagnostics& diagnostics() const override { return m_->local->diagnostics(); }
+  const sim::SolverConfig& config() const override { return m_->config; }
+  double stable_time_step() const override { return m_->local->stable_time_step(); }
+
+  const sim::ParticleArrays& particles() const override { return gathered().particles; }
+  std::size_t owned_count() const override { return particles().size(); }
+  sim::SolverState state() const override { return gathered(); }
+
+  /// A list over the gathered particles (for the analysis), built once per step asked for.
+  std::shared_ptr<const sim::NeighbourList> neighbour_list() const override {
+    const sim::ParticleArrays& p = particles();
+    if (!search_ || list_step_ != step_count()) {
+      const sim::SolverConfig& c = m_->config;
+      search_ = std::make_unique<sim::VerletNeighbourSearch>(c.box, c.support_radius,
+                                                             c.neighbour_skin * c.support_radius);
+      search_->build(sim::view_positions(p));
+      list_step_ = step_count();
+    }
+    return search_->shared_list();
+  }
+
+ private:
+  const sim::SolverState& gathered() const {
+    if (!gathered_ || gathered_step_ != step_count()) {
+      send_command(comm_, Command::Gather);
+      gathered_ = gather_state(*m_->decomposition, m_->local->state(), 0);
+      gathered_step_ = step_count();
+    }
+    return *gathered_;
+  }
+
+  MPI_Comm comm_;
+  std::unique_ptr<Member> m_;
+  mutable std::optional<sim::SolverState> gathered_;
+  mutable std::uint64_t gathered_step_ = 0;
+  mutable std::unique_ptr<sim::VerletNeighbourSearch> search_;
+  mutable std::uint64_t list_step_ = 0;
+};
+
+}  // namespace
+
+Driver::Driver(MPI_Comm comm) : comm_(comm) {
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  if (rank != 0) throw std::logic_error("par::Driver belongs on rank 0");
+}
+
+Driver::~Driver() {
+  send_command(comm_, Command::Finish);
+}
+
+int Driver::ranks() const {
+  int size = 1;
+  MPI_Comm_size(comm_, &size);
+  return size;
+}
+
+std::unique_ptr<sim::Simulation> Driver::make(const sim::Scene& scene, sim::ParticleArrays all) {
+  send_command(comm_, Command::Make);
+  std::string json = sim::scene_to_json(scene).dump();
+  broadcast_string(comm_, json);
+  sim::SolverState whole;
+  whole.particles = std::move(all);
+  broadcast_state(comm_, whole);
+  return std::make_unique<DistributedSimulation>(comm_,
+                                                 make_member(comm_, json, std::move(whole), false));
+}
+
+std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::SolverState whole) {
+  send_command(comm_, Command::Restore);
+  std::string json = sim::scene_to_json(scene).dump();
+  broadcast_string(comm_, json);
+  broadcast_state(comm_, whole);
+  return std::make_unique<DistributedSimulation>(comm_,
+                                                 make_member(comm_, json, std::move(whole), true));
+}
+
+void serve_commands(MPI_Comm comm) {
+  std::unique_ptr<Member> member;
+  for (;;) {
+    double header[2] = {0.0, 0.0};
+    MPI_Bcast(header, 2, MPI_DOUBLE, 0, comm);
+    const auto command = static_cast<Command>(static_cast<int>(header[0]));
+    try {
+      switch (command) {
+        case Command::Finish:
+          return;
+        case Command::Make:
+        case Command::Restore: {
+          std::string json;
+          broadcast_string(comm, json);
+          sim::SolverState whole;
+          broadcast_state(comm, whole);
+          // The new solver first, then the old one goes: the order rank 0's Run follows.
+          auto fresh = make_member(comm, json, std::move(whole), command == Command::Restore);
+          member = std::move(fresh);
+          break;
+        }
+        case Command::Step:
+          if (member) member->local->step(header[1]);
+          break;
+        case Command::Gather:
+          if (member) gather_state(*member->decomposition, member->local->state(), 0);
+          break;
+      }
+    } catch (const std::exception&) {
+      // The same error stopped rank 0's command (every check is collective); rank 0 reports it.
+    }
+  }
+}
+
+}  // namespace sphles::par

@@ -1,0 +1,50 @@
+// A distributed run driven from rank 0 (issue 19: `mpirun -n N sphles run SCENE.json`).
+//
+// Rank 0 runs the program as one process would (control::Run: outputs, analysis, checkpoints)
+// with a sim::Simulation that is the distributed solver seen whole: each step() is one step of
+// the solver on every rank, and particles() and state() gather the ranks' particles to rank 0 in
+// id order when asked (at outputs, analysis snapshots and checkpoints; cached per step). The
+// other ranks serve rank 0's commands (serve_commands) until the Driver on rank 0 is destroyed.
+// Rank 0 holds every particle at such gathers, so this suits runs whose state fits one node's
+// memory; analysis where the particles live is still to come (docs/scaling.md).
+#pragma once
+
+#include <mpi.h>
+
+#include <memory>
+
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::par {
+
+/// Rank 0's end of the command channel: makes distributed solvers; ends the other ranks' service
+/// when destroyed.
+class Driver {
+ public:
+  /// `comm`: the ranks of the run, rank 0 being this process.
+  explicit Driver(MPI_Comm comm);
+  ~Driver();
+  Driver(const Driver&) = delete;
+  Driver& operator=(const Driver&) = delete;
+
+  /// A solver over all ranks for `scene` (sim::make_solver_config) starting from `all`, every
+  /// particle of the run (each rank keeps those of its sub-box). Replaces the solver the other
+  /// ranks held; the Simulation returned must not outlive this Driver.
+  std::unique_ptr<sim::Simulation> make(const sim::Scene& scene, sim::ParticleArrays all);
+  /// The same from a state of every particle (a checkpoint, or state() of a solver made here):
+  /// continues bitwise on this rank count whatever count wrote it (par::share_of).
+  std::unique_ptr<sim::Simulation> restore(const sim::Scene& scene, sim::SolverState whole);
+
+  int ranks() const;
+
+ private:
+  MPI_Comm comm_;
+};
+
+/// The other ranks: carries out rank 0's commands until its Driver ends. A solver error (a
+/// blow-up, a decomposition too fine for the scene) ends the command on every rank alike; rank 0
+/// reports it and this rank waits for the next command. Returns when told to stop.
+void serve_commands(MPI_Comm comm);
+
+}  // namespace sphles::par
