@@ -9,6 +9,7 @@
 //   OMP_NUM_THREADS=2 mpiexec -n 1 build/bench/bench_distributed   (the one-rank reference)
 #include <mpi.h>
 #include <omp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
@@ -58,6 +59,17 @@ Options parse(int argc, char** argv) {
   return o;
 }
 
+/// Resident memory of this process now [bytes] (/proc/self/statm), 0 where it cannot be read.
+double resident_bytes() {
+  std::FILE* f = std::fopen("/proc/self/statm", "r");
+  if (!f) return 0.0;
+  unsigned long long size = 0, resident = 0;
+  const int read = std::fscanf(f, "%llu %llu", &size, &resident);
+  std::fclose(f);
+  return read == 2 ? static_cast<double>(resident) * static_cast<double>(sysconf(_SC_PAGESIZE))
+                   : 0.0;
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v[v.size() / 2];
@@ -95,9 +107,17 @@ int run(const Options& o) {
   owned.truncate(mine);
   const std::size_t total = all.size();
   all = sim::ParticleArrays{};
+  // Memory of the solver: resident memory after the warm-up (with its list rebuilds) less that
+  // before the solver, with the set-up's lattice freed.
+  const double resident_before = resident_bytes();
   const auto exchange = std::make_shared<par::MpiExchange>(d);
   const auto simulation = sim::make_simulation(config, std::move(owned), 0.0, 0, exchange);
   for (int s = 0; s < o.warmup; ++s) simulation->step();
+  const double solver_bytes_per_owned = (resident_bytes() - resident_before) /
+                                        static_cast<double>(simulation->owned_count());
+  double max_solver_bytes = 0.0;
+  MPI_Reduce(&solver_bytes_per_owned, &max_solver_bytes, 1, MPI_DOUBLE, MPI_MAX, 0,
+             MPI_COMM_WORLD);
 
   const par::ExchangeStats before = exchange->stats();
   std::vector<double> step_seconds;
@@ -130,10 +150,11 @@ int run(const Options& o) {
         "particles %zu  ranks %d (%d x %d x %d)  threads per rank %d  steps %d (after %d)\n"
         "median step %.1f ms  mean step %.1f ms  exchange share (max over ranks) %.1f %%\n"
         "bytes sent per step, all ranks: %.2f MB  halo copies per owned particle (max) %.2f  "
-        "list rebuilds per step %.2f\n",
+        "list rebuilds per step %.2f\nsolver memory per owned particle (max over ranks, "
+        "resident growth over the solver's set-up and warm-up) %.0f B\n",
         total, ranks, d.dims()[0], d.dims()[1], d.dims()[2], omp_get_max_threads(), o.steps,
         o.warmup, 1e3 * median(step_seconds), 1e3 * wall / o.steps, 100.0 * max_share,
-        all_bytes / 1e6, max_copies, builds / o.steps);
+        all_bytes / 1e6, max_copies, builds / o.steps, max_solver_bytes);
   }
   return 0;
 }
