@@ -37,35 +37,6 @@ void broadcast_string(MPI_Comm comm, std::string& text) {
   MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, comm);
 }
 
-/// Rank 0's state of every particle to every rank.
-void broadcast_state(MPI_Comm comm, sim::SolverState& s) {
-  double head[4] = {static_cast<double>(s.particles.dimension),
-                    static_cast<double>(s.particles.size()),
-                    s.particles.eddy_viscosity.empty() ? 0.0 : 1.0, s.time};
-  MPI_Bcast(head, 4, MPI_DOUBLE, 0, comm);
-  unsigned long long counters[2] = {s.step, s.neighbour_builds};
-  MPI_Bcast(counters, 2, MPI_UNSIGNED_LONG_LONG, 0, comm);
-  const auto n = static_cast<std::size_t>(head[1]);
-  int rank = 0;
-  MPI_Comm_rank(comm, &rank);
-  if (rank != 0) {
-    s.particles.dimension = static_cast<int>(head[0]);
-    s.particles.resize(n);
-    if (head[2] != 0.0) s.particles.eddy_viscosity.resize(n);
-    s.time = head[3];
-    s.step = counters[0];
-    s.neighbour_builds = counters[1];
-  }
-  std::vector<std::vector<double>*> fields = s.particles.double_fields();
-  for (int a = 0; a < s.particles.dimension; ++a) {
-    std::vector<double>& x = s.list_reference_positions[static_cast<std::size_t>(a)];
-    x.resize(n);  // empty for a fresh start: rank 0 sends zeros, unused
-    fields.push_back(&x);
-  }
-  for (std::vector<double>* f : fields) MPI_Bcast(f->data(), checked_int(n), MPI_DOUBLE, 0, comm);
-  MPI_Bcast(s.particles.id.data(), checked_int(n), MPI_UINT64_T, 0, comm);
-}
-
 /// One rank's part of a distributed solver.
 struct Member {
   sim::SolverConfig config;
@@ -74,8 +45,9 @@ struct Member {
   std::unique_ptr<sim::Simulation> local;
 };
 
-/// Every rank: the solver of `scene_json` over the ranks of `comm`, each keeping its share of
-/// `whole` (by position for a fresh start, by list reference position for a restart).
+/// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
+/// `whole` (read on rank 0 only): by position for a fresh start, by list reference position for
+/// a restart.
 std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
                                     sim::SolverState whole, bool restore) {
   auto m = std::make_unique<Member>();
@@ -87,9 +59,7 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
   m->decomposition =
       std::make_unique<Decomposition>(comm, c.box, search.list_radius(), c.particle_spacing);
   m->exchange = std::make_shared<MpiExchange>(*m->decomposition);
-  if (restore) {
-    m->local = sim::restore_simulation(c, share_of(*m->decomposition, whole), m->exchange);
-  } else {
+  if (!restore) {
     // A fresh start: owned by position (wrapped into the box, as the solver does).
     for (int a = 0; a < whole.particles.dimension; ++a) {
       const auto axis = static_cast<std::size_t>(a);
@@ -97,10 +67,14 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
       for (double& v : x) v = sim::wrap_periodic(v, c.box.length[axis]);
       whole.list_reference_positions[axis] = x;
     }
-    sim::SolverState share = share_of(*m->decomposition, whole);
-    m->local =
-        sim::make_simulation(c, std::move(share.particles), whole.time, whole.step, m->exchange);
   }
+  sim::SolverState share = scatter_state(*m->decomposition, whole, 0);
+  whole = sim::SolverState{};  // rank 0 keeps its share only
+  if (restore)
+    m->local = sim::restore_simulation(c, std::move(share), m->exchange);
+  else
+    m->local =
+        sim::make_simulation(c, std::move(share.particles), share.time, share.step, m->exchange);
   return m;
 }
 
@@ -180,7 +154,6 @@ std::unique_ptr<sim::Simulation> Driver::make(const sim::Scene& scene, sim::Part
   broadcast_string(comm_, json);
   sim::SolverState whole;
   whole.particles = std::move(all);
-  broadcast_state(comm_, whole);
   return std::make_unique<DistributedSimulation>(comm_,
                                                  make_member(comm_, json, std::move(whole), false));
 }
@@ -189,7 +162,6 @@ std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::S
   send_command(comm_, Command::Restore);
   std::string json = sim::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
-  broadcast_state(comm_, whole);
   return std::make_unique<DistributedSimulation>(comm_,
                                                  make_member(comm_, json, std::move(whole), true));
 }
@@ -208,10 +180,8 @@ void serve_commands(MPI_Comm comm) {
         case Command::Restore: {
           std::string json;
           broadcast_string(comm, json);
-          sim::SolverState whole;
-          broadcast_state(comm, whole);
           // The new solver first, then the old one goes: the order rank 0's Run follows.
-          auto fresh = make_member(comm, json, std::move(whole), command == Command::Restore);
+          auto fresh = make_member(comm, json, sim::SolverState{}, command == Command::Restore);
           member = std::move(fresh);
           break;
         }

@@ -29,11 +29,12 @@ class Driver {
   Driver& operator=(const Driver&) = delete;
 
   /// A solver over all ranks for `scene` (sim::make_solver_config) starting from `all`, every
-  /// particle of the run (each rank keeps those of its sub-box). Replaces the solver the other
+  /// particle of the run (each rank receives those of its sub-box). Replaces the solver the other
   /// ranks held; the Simulation returned must not outlive this Driver.
   std::unique_ptr<sim::Simulation> make(const sim::Scene& scene, sim::ParticleArrays all);
   /// The same from a state of every particle (a checkpoint, or state() of a solver made here):
-  /// continues bitwise on this rank count whatever count wrote it (par::share_of).
+  /// continues bitwise on this rank count whatever count wrote it (par::scatter_state sends each
+  /// rank its share).
   std::unique_ptr<sim::Simulation> restore(const sim::Scene& scene, sim::SolverState whole);
 
   int ranks() const;

@@ -121,4 +121,82 @@ sim::SolverState share_of(const Decomposition& d, const sim::SolverState& whole)
   return share;
 }
 
+sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& whole, int root) {
+  // The shape of the state (dimension, ν_t or not), the time and the counters, from the root.
+  double head[3] = {static_cast<double>(whole.particles.dimension),
+                    whole.particles.eddy_viscosity.empty() ? 0.0 : 1.0, whole.time};
+  MPI_Bcast(head, 3, MPI_DOUBLE, root, d.comm());
+  unsigned long long counters[2] = {whole.step, whole.neighbour_builds};
+  MPI_Bcast(counters, 2, MPI_UNSIGNED_LONG_LONG, root, d.comm());
+  sim::SolverState share;
+  share.time = head[2];
+  share.step = counters[0];
+  share.neighbour_builds = counters[1];
+  share.particles.dimension = static_cast<int>(head[0]);
+  const bool eddy_viscosity = head[1] != 0.0;
+
+  // The root packs each rank's particles as records (fields, then the id's bits).
+  const std::size_t stride = static_cast<std::size_t>(
+      3 * share.particles.dimension + 4 + (eddy_viscosity ? 1 : 0) + share.particles.dimension + 1);
+  const int ranks = d.size();
+  std::vector<int> counts(static_cast<std::size_t>(ranks), 0), displacements(counts.size(), 0);
+  std::vector<double> out;
+  // A malformed state is refused on every rank (the others would wait in the scatter).
+  int malformed = 0;
+  if (d.rank() == root) {
+    const auto fields = fields_of(whole);
+    malformed = fields.size() + 1 != stride ? 1 : 0;
+    for (const std::vector<double>* f : fields)
+      if (f->size() != whole.particles.size()) malformed = 1;
+  }
+  MPI_Bcast(&malformed, 1, MPI_INT, root, d.comm());
+  if (malformed)
+    throw std::invalid_argument(
+        "state scatter: the state's arrays are of unequal length or do not match its shape");
+  if (d.rank() == root) {
+    const sim::ParticleArrays& p = whole.particles;
+    const std::size_t n = p.size();
+    const auto fields = fields_of(whole);
+    std::vector<int> owner(n);
+    std::vector<std::size_t> per_rank(static_cast<std::size_t>(ranks), 0);
+    for (std::size_t i = 0; i < n; ++i) {
+      int coords[3] = {0, 0, 0};
+      for (int a = 0; a < p.dimension; ++a)
+        coords[a] =
+            d.coordinate_of(a, whole.list_reference_positions[static_cast<std::size_t>(a)][i]);
+      MPI_Cart_rank(d.comm(), coords, &owner[i]);
+      ++per_rank[static_cast<std::size_t>(owner[i])];
+    }
+    std::vector<std::size_t> next(per_rank.size(), 0);
+    for (std::size_t r = 1; r < per_rank.size(); ++r) next[r] = next[r - 1] + per_rank[r - 1];
+    for (std::size_t r = 0; r < per_rank.size(); ++r) {
+      counts[r] = checked_int(per_rank[r] * stride);
+      displacements[r] = checked_int(next[r] * stride);
+    }
+    out.resize(n * stride);
+    for (std::size_t i = 0; i < n; ++i) {
+      double* record = out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride;
+      for (std::size_t f = 0; f < fields.size(); ++f) record[f] = (*fields[f])[i];
+      std::memcpy(&record[fields.size()], &p.id[i], sizeof(double));
+    }
+  }
+  int count = 0;
+  MPI_Scatter(counts.data(), 1, MPI_INT, &count, 1, MPI_INT, root, d.comm());
+  std::vector<double> in(static_cast<std::size_t>(count));
+  MPI_Scatterv(out.data(), counts.data(), displacements.data(), MPI_DOUBLE, in.data(), count,
+               MPI_DOUBLE, root, d.comm());
+
+  const std::size_t mine = in.size() / stride;
+  share.particles.resize(mine);
+  if (eddy_viscosity) share.particles.eddy_viscosity.resize(mine);
+  for (int a = 0; a < share.particles.dimension; ++a)
+    share.list_reference_positions[static_cast<std::size_t>(a)].resize(mine);
+  const auto to = fields_of(share);
+  for (std::size_t k = 0; k < mine; ++k) {
+    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[k] = in[k * stride + f];
+    std::memcpy(&share.particles.id[k], &in[k * stride + to.size()], sizeof(double));
+  }
+  return share;
+}
+
 }  // namespace sphles::par

@@ -20,4 +20,10 @@ sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& lo
 /// restarted run rebuilds that list exactly, on any rank count.
 sim::SolverState share_of(const Decomposition& d, const sim::SolverState& whole);
 
+/// The same shares sent out from one rank: `whole` is read on rank `root` only (the others pass
+/// an empty state), and each rank receives the particles whose list reference positions lie in
+/// its sub-box, in the order they have in `whole`, with its time, step and build counter. Every
+/// rank then holds its share only, never the whole state. Collective over d.comm().
+sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& whole, int root = 0);
+
 }  // namespace sphles::par

@@ -574,6 +574,39 @@ TEST(DistributedRestart, StateOfNRanksRestartsBitwiseOnMRanksAndOnOne) {
   }
 }
 
+// Shares sent out from rank 0 (scatter_state) are the shares each rank would pick from the
+// whole state itself (share_of): the same particles in the same order, every array bit for bit.
+TEST(StateScatter, EachRankReceivesItsShareOfTheWholeState) {
+  sim::SolverState whole;
+  whole.particles = global_set(3, 2000, 41);
+  whole.particles.eddy_viscosity.assign(2000, 0.5);
+  whole.time = 1.25;
+  whole.step = 77;
+  whole.neighbour_builds = 9;
+  std::mt19937_64 rng(43);
+  std::uniform_real_distribution<double> u(-0.05, 0.05);
+  for (std::size_t a = 0; a < 3; ++a) {
+    whole.list_reference_positions[a] = whole.particles.position[a];
+    for (double& x : whole.list_reference_positions[a]) x = sim::wrap_periodic(x + u(rng), kLength);
+  }
+  const Decomposition d(MPI_COMM_WORLD, box_of(3), 0.3, 0.1);
+  const sim::SolverState mine = scatter_state(d, d.rank() == 0 ? whole : sim::SolverState{});
+  const sim::SolverState expected = share_of(d, whole);
+  EXPECT_EQ(mine.time, whole.time);
+  EXPECT_EQ(mine.step, whole.step);
+  EXPECT_EQ(mine.neighbour_builds, whole.neighbour_builds);
+  ASSERT_EQ(mine.particles.size(), expected.particles.size());
+  EXPECT_EQ(mine.particles.id, expected.particles.id);
+  const auto a = mine.particles.double_fields();
+  const auto b = expected.particles.double_fields();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t f = 0; f < a.size(); ++f) EXPECT_EQ(*a[f], *b[f]) << "field " << f;
+  EXPECT_EQ(mine.list_reference_positions, expected.list_reference_positions);
+  unsigned long long count = mine.particles.size(), total = 0;
+  MPI_Allreduce(&count, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+  EXPECT_EQ(total, whole.particles.size());
+}
+
 // Diagnostics' global sums: each rank sums its own particles exactly, the exact sums are
 // combined across ranks, and the result is one process' exact sum bit for bit, for any rank
 // count (a plain double sum would depend on the split).
