@@ -372,6 +372,18 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
             runs.push_back(make_spec("start", name + " c_s=" + number_label(sound_speed), scene,
                                      kStartStudySample));
           }
+    // The consistent start with the quintic spline (D_K = 8Δl): the kernel whose operators leave
+    // the smallest floor at c_s = 10 (docs/accuracy.md).
+    if (!quick)
+      for (const double sound_speed : {10.0, 20.0, 40.0})
+        for (const int n : {32, 64}) {
+          json scene = tgv2d_scene(100.0, n, "quintic_spline", 8.0);
+          scene["fluid"]["sound_speed"] = sound_speed;
+          scene["initial"]["mass"] = "summation";
+          scene["time"]["end"] = kStartStudyEnd;
+          runs.push_back(make_spec("start", "thesis summation QS8 c_s=" + number_label(sound_speed),
+                                   scene, kStartStudySample));
+        }
   } else if (study == "schemes") {
     // The head-to-head of issue 16: every scheme on the same cases and resolutions, the thesis
     // model with its own start first (the baseline rows). The TVF's background pressure is
