@@ -113,11 +113,10 @@ int run(const Options& o) {
   const auto exchange = std::make_shared<par::MpiExchange>(d);
   const auto simulation = sim::make_simulation(config, std::move(owned), 0.0, 0, exchange);
   for (int s = 0; s < o.warmup; ++s) simulation->step();
-  const double solver_bytes_per_owned = (resident_bytes() - resident_before) /
-                                        static_cast<double>(simulation->owned_count());
+  const double solver_bytes_per_owned =
+      (resident_bytes() - resident_before) / static_cast<double>(simulation->owned_count());
   double max_solver_bytes = 0.0;
-  MPI_Reduce(&solver_bytes_per_owned, &max_solver_bytes, 1, MPI_DOUBLE, MPI_MAX, 0,
-             MPI_COMM_WORLD);
+  MPI_Reduce(&solver_bytes_per_owned, &max_solver_bytes, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
 
   const par::ExchangeStats before = exchange->stats();
   std::vector<double> step_seconds;

@@ -26,6 +26,31 @@ auto fields_of(State& s) {
   return fields;
 }
 
+/// Particle i of a state as one record: its arrays (fields_of order), then the id's bits.
+template <class Fields>
+void pack_record(const Fields& fields, const sim::ParticleArrays& p, std::size_t i,
+                 double* record) {
+  for (std::size_t f = 0; f < fields.size(); ++f) record[f] = (*fields[f])[i];
+  std::memcpy(&record[fields.size()], &p.id[i], sizeof(double));
+}
+
+/// Fills `s` (dimension set) with the records of `in`, in order: `records` particles, ν_t when
+/// `eddy_viscosity`.
+void unpack_records(const std::vector<double>& in, std::size_t stride, bool eddy_viscosity,
+                    sim::SolverState& s) {
+  const std::size_t records = in.size() / stride;
+  s.particles.resize(records);
+  if (eddy_viscosity) s.particles.eddy_viscosity.resize(records);
+  for (int a = 0; a < s.particles.dimension; ++a)
+    s.list_reference_positions[static_cast<std::size_t>(a)].resize(records);
+  const auto to = fields_of(s);
+  for (std::size_t k = 0; k < records; ++k) {
+    const double* record = in.data() + k * stride;
+    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[k] = record[f];
+    std::memcpy(&s.particles.id[k], &record[to.size()], sizeof(double));
+  }
+}
+
 }  // namespace
 
 sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& local, int root) {
@@ -33,10 +58,7 @@ sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& lo
   const std::size_t stride = fields.size() + 1;  // + the id
   const std::size_t n = local.particles.size();
   std::vector<double> out(n * stride);
-  for (std::size_t i = 0; i < n; ++i) {
-    for (std::size_t f = 0; f < fields.size(); ++f) out[i * stride + f] = (*fields[f])[i];
-    std::memcpy(&out[i * stride + fields.size()], &local.particles.id[i], sizeof(double));
-  }
+  for (std::size_t i = 0; i < n; ++i) pack_record(fields, local.particles, i, &out[i * stride]);
   const int ranks = d.size();
   const bool everywhere = root == kEveryRank;
   const bool receiving = everywhere || d.rank() == root;
@@ -65,16 +87,8 @@ sim::SolverState gather_state(const Decomposition& d, const sim::SolverState& lo
   whole.neighbour_builds = local.neighbour_builds;
   whole.particles.dimension = local.particles.dimension;
   if (!receiving) return whole;
-  const std::size_t particles = in.size() / stride;
-  whole.particles.resize(particles);
-  if (!local.particles.eddy_viscosity.empty()) whole.particles.eddy_viscosity.resize(particles);
-  for (int a = 0; a < whole.particles.dimension; ++a)
-    whole.list_reference_positions[static_cast<std::size_t>(a)].resize(particles);
-  const auto to = fields_of(whole);
-  for (std::size_t i = 0; i < particles; ++i) {
-    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[i] = in[i * stride + f];
-    std::memcpy(&whole.particles.id[i], &in[i * stride + to.size()], sizeof(double));
-  }
+  unpack_records(in, stride, !local.particles.eddy_viscosity.empty(), whole);
+  const std::size_t particles = whole.particles.size();
   // In id order: reorder the particles and the reference positions by one permutation.
   const std::vector<std::uint32_t> order = sim::order_by_key(whole.particles.id);
   whole.particles.reorder(order);
@@ -174,11 +188,8 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
       displacements[r] = checked_int(next[r] * stride);
     }
     out.resize(n * stride);
-    for (std::size_t i = 0; i < n; ++i) {
-      double* record = out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride;
-      for (std::size_t f = 0; f < fields.size(); ++f) record[f] = (*fields[f])[i];
-      std::memcpy(&record[fields.size()], &p.id[i], sizeof(double));
-    }
+    for (std::size_t i = 0; i < n; ++i)
+      pack_record(fields, p, i, out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride);
   }
   int count = 0;
   MPI_Scatter(counts.data(), 1, MPI_INT, &count, 1, MPI_INT, root, d.comm());
@@ -186,16 +197,7 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
   MPI_Scatterv(out.data(), counts.data(), displacements.data(), MPI_DOUBLE, in.data(), count,
                MPI_DOUBLE, root, d.comm());
 
-  const std::size_t mine = in.size() / stride;
-  share.particles.resize(mine);
-  if (eddy_viscosity) share.particles.eddy_viscosity.resize(mine);
-  for (int a = 0; a < share.particles.dimension; ++a)
-    share.list_reference_positions[static_cast<std::size_t>(a)].resize(mine);
-  const auto to = fields_of(share);
-  for (std::size_t k = 0; k < mine; ++k) {
-    for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[k] = in[k * stride + f];
-    std::memcpy(&share.particles.id[k], &in[k * stride + to.size()], sizeof(double));
-  }
+  unpack_records(in, stride, eddy_viscosity, share);
   return share;
 }
 

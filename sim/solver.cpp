@@ -95,6 +95,7 @@ class SphSolver final : public Simulation {
       }
       exchange_->build_halo(particles_);
       search_.build(view_positions(particles_), order_by_key(particles_.id), owned_);
+      count_neighbours();
       std::vector<std::vector<double>*> positions;
       for (int d = 0; d < Dim; ++d) {
         std::copy(current[d].begin(), current[d].end(), particles_.position[d].begin());
@@ -107,6 +108,7 @@ class SphSolver final : public Simulation {
       reference.size = particles_.size();
       for (int d = 0; d < Dim; ++d) reference.x[d] = state.list_reference_positions[d].data();
       search_.build(reference, order_by_key(particles_.id));
+      count_neighbours();
     }
     for (int d = 0; d < Dim; ++d) predicted_velocity_[d].resize(particles_.size());
     search_.set_num_builds(state.neighbour_builds);
@@ -258,6 +260,14 @@ class SphSolver final : public Simulation {
     // and so every sum over it, does not depend on where the particles sit in the arrays or on
     // which process holds them (par/).
     search_.build(view_positions(particles_), order_by_key(particles_.id), owned_);
+    count_neighbours();
+  }
+
+  /// The mean list length over every process' owned particles, for the diagnostics: it changes
+  /// only when the lists are built.
+  void count_neighbours() {
+    mean_neighbours_ = static_cast<double>(exchange_->sum(search_.list().indices.size())) /
+                       static_cast<double>(exchange_->sum(std::uint64_t{owned_}));
   }
 
   /// Before a force evaluation: the halo copies take their owners' positions (unless a rebuild
@@ -395,8 +405,7 @@ class SphSolver final : public Simulation {
       return v2;
     })));
     diag.neighbour_builds = search_.num_builds();
-    diag.mean_neighbours = static_cast<double>(exchange_->sum(search_.list().indices.size())) /
-                           static_cast<double>(exchange_->sum(std::uint64_t{n}));
+    diag.mean_neighbours = mean_neighbours_;
   }
 
   /// Reference of the runaway test, from the energy of the state the solver starts from.
@@ -477,7 +486,9 @@ class SphSolver final : public Simulation {
   double time_;
   std::uint64_t step_;
   double max_acceleration_ = 0.0;
-  double reference_energy_ = 0.0;  // E_ref of the runaway test (BlowUpThresholds)
+  double reference_energy_ = 0.0;
+  double mean_neighbours_ = 0.0;  // of the current lists (count_neighbours)  // E_ref of the
+                                  // runaway test (BlowUpThresholds)
   StepDiagnostics diagnostics_;
 };
 
