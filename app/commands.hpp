@@ -33,9 +33,13 @@ int estimate_command(const std::vector<std::string>& args);
 
 /// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
 ///   [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]
-///   [--packing-cache DIR]
+///   [--packing-cache DIR] [--launcher CMD] [--max-ranks N]
 ///   [--start-run PRESET|SCENE.json [--set key=value ...]]
 int serve_command(const std::vector<std::string>& args);
+
+/// sphles worker --connect HOST:PORT --token TOKEN [--threads N]: a rank of the MPI job the
+/// service launches for a run with ranks > 1 (launch/job.hpp); not meant to be run by hand.
+int worker_command(const std::vector<std::string>& args);
 
 /// The scene document of a scene file, or of a preset name when no such file exists, with --set
 /// overrides applied (not yet validated). Throws sim::SceneError.

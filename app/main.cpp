@@ -31,9 +31,12 @@ constexpr const char* kUsage =
     "      of a run without running it\n"
     "  serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]\n"
     "        [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]\n"
-    "        [--packing-cache DIR] [--start-run PRESET|SCENE.json [--set key=value ...]]\n"
+    "        [--packing-cache DIR] [--launcher 'mpirun -n {ranks}'] [--max-ranks N]\n"
+    "        [--start-run PRESET|SCENE.json [--set key=value ...]]\n"
     "      the HTTP/WebSocket service and browser dashboard (docs/api.md); runs live in\n"
-    "      DIR/runs/ and survive restarts; prints 'sphles serve: listening on URL'\n"
+    "      DIR/runs/ and survive restarts; prints 'sphles serve: listening on URL'; a run\n"
+    "      created with \"ranks\": N > 1 runs its solver in an MPI job started by the\n"
+    "      launcher ('' : none; docs/scaling.md)\n"
     "  help       print this text\n"
     "  version    print the version\n";
 
@@ -56,6 +59,7 @@ int main(int argc, char** argv) {
   if (command == "calibrate") return sphles::app::calibrate_command(args);
   if (command == "estimate") return sphles::app::estimate_command(args);
   if (command == "serve") return sphles::app::serve_command(args);
+  if (command == "worker") return sphles::app::worker_command(args);
   if (command == "version" || command == "--version") {
     std::puts("sphles " SPHLES_VERSION);
     return sphles::app::kExitOk;

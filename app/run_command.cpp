@@ -1,4 +1,3 @@
-#include <mpi.h>
 #include <pthread.h>
 #include <signal.h>
 
@@ -219,19 +218,7 @@ int run_command(const std::vector<std::string>& args) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  int provided = 0;
-  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
-  int rank = 0;
-  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-  int rc = kExitOk;
-  if (rank == 0) {
-    par::Driver driver(MPI_COMM_WORLD);
-    rc = run_here(args, &driver);
-  } else {
-    par::serve_commands(MPI_COMM_WORLD);
-  }
-  MPI_Finalize();
-  return rc;
+  return par::drive_from_rank_zero([&](par::Driver& driver) { return run_here(args, &driver); });
 }
 
 }  // namespace sphles::app

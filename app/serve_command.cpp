@@ -14,6 +14,7 @@
 #include "app/commands.hpp"
 #include "control/resources.hpp"
 #include "control/run_manager.hpp"
+#include "launch/job.hpp"
 #include "server/http_server.hpp"
 #include "sim/scene.hpp"
 
@@ -29,8 +30,9 @@ class UsageError : public std::runtime_error {
 struct ServeOptions {
   server::ServerOptions server;
   control::ManagerOptions manager;
-  std::optional<std::string> start_run;  // preset name or scene file
-  std::vector<std::string> overrides;    // --set, for --start-run
+  std::string launcher = "mpirun -n {ranks}";  // runs with ranks > 1; empty: none
+  std::optional<std::string> start_run;        // preset name or scene file
+  std::vector<std::string> overrides;          // --set, for --start-run
 };
 
 int parse_int(const std::string& option, const std::string& text, int min, int max) {
@@ -104,6 +106,10 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
         throw UsageError("--packing-cache must not be empty");
     } else if (a == "--threads")
       o.manager.run_options.threads = parse_int(a, value(), 0, 1024);
+    else if (a == "--launcher")
+      o.launcher = value();
+    else if (a == "--max-ranks")
+      o.manager.max_ranks = parse_int(a, value(), 1, 1 << 20);
     else if (a == "--start-run")
       o.start_run = value();
     else if (a == "--set")
@@ -114,6 +120,31 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
   if (o.server.token.empty() && std::find(args.begin(), args.end(), "--token") != args.end())
     throw UsageError("--token must not be empty");
   if (!o.overrides.empty() && !o.start_run) throw UsageError("--set needs --start-run");
+  if (!o.launcher.empty()) {
+    launch::LaunchOptions launch;
+    launch.launcher = o.launcher;
+    std::error_code error;
+    launch.executable = std::filesystem::read_symlink("/proc/self/exe", error);
+    if (error) throw UsageError("cannot find the sphles program for MPI jobs: " + error.message());
+    launch.log_file = "job.log";
+    try {
+      launch::validate(launch);
+    } catch (const std::invalid_argument& e) {
+      throw UsageError(std::string("--") + e.what());
+    }
+    // A run created with ranks > 1: its solver in a job of its own, logging to job.log in the
+    // run directory, each rank with the --threads of the server's runs.
+    o.manager.distribute = [launch](control::RunOptions& run, int ranks,
+                                    const std::filesystem::path& directory) {
+      launch::LaunchOptions job = launch;
+      job.ranks = ranks;
+      job.threads = run.threads;
+      job.log_file = directory / "job.log";
+      launch::JobSolvers solvers = launch::job_solvers(std::move(job));
+      run.make_simulation = std::move(solvers.make);
+      run.restore_simulation = std::move(solvers.restore);
+    };
+  }
   return o;
 }
 
@@ -144,7 +175,8 @@ int serve_command(const std::vector<std::string>& args) {
                  "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
                  "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--max-queued N] "
                  "[--max-runs N] [--max-memory SIZE] [--threads N] [--packing-cache DIR] "
-                 "[--start-run PRESET|SCENE.json [--set key=value ...]]\n",
+                 "[--launcher 'mpirun -n {ranks}'] [--max-ranks N] [--start-run PRESET|SCENE.json "
+                 "[--set key=value ...]]\n",
                  e.what());
     return kExitUsage;
   }

@@ -311,7 +311,8 @@ struct Run::Impl {
               {"updated", utc_now()},
               {"time", time},
               {"step", step},
-              {"checkpoint", last_checkpoint}};
+              {"checkpoint", last_checkpoint},
+              {"ranks", options.ranks}};
     if (!outputs.is_null()) j["outputs"] = outputs;
     write_text_atomically(directory / "run.json", j.dump(2) + "\n");
   }
@@ -696,6 +697,19 @@ RunStatus Run::status() const {
   s.frames_rendered = r.frames_rendered;
   s.frames_skipped = r.frames_skipped;
   return s;
+}
+
+int Run::ranks() const {
+  return impl_->options.ranks;
+}
+
+int Run::recorded_ranks(const std::filesystem::path& directory) {
+  std::ifstream in(directory / "run.json");
+  if (!in) return 1;
+  const json record = json::parse(in, nullptr, false);
+  if (!record.is_object() || !record.contains("ranks") || !record["ranks"].is_number_integer())
+    return 1;
+  return std::max(1, record["ranks"].get<int>());
 }
 
 json Run::document() const {

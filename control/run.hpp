@@ -144,6 +144,10 @@ struct RunOptions {
       make_simulation;
   std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)>
       restore_simulation;
+  /// MPI ranks the solver spans, recorded in run.json: 1 for this process; more when the
+  /// factories above put the solver into an MPI job (`mpirun sphles run`; the service's runs
+  /// created with ranks > 1, launch/job.hpp).
+  int ranks = 1;
 };
 
 /// A run name as a single path component: letters, digits, '-', '_' and '.' (others become '-'),
@@ -171,6 +175,9 @@ class Run {
 
   const std::string& id() const { return id_; }
   const std::filesystem::path& directory() const { return directory_; }
+  int ranks() const;  // RunOptions::ranks
+  /// The rank count run.json of `directory` records (1 if it records none or cannot be read).
+  static int recorded_ranks(const std::filesystem::path& directory);
 
   /// created/queued → running; stopped/finished/failed → running, continuing from the newest
   /// checkpoint if the run has stepped (StateError if it has none, or if time.end is reached).

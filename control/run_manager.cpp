@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <limits>
 
 #include <sys/statvfs.h>
 
@@ -108,6 +109,14 @@ CreateRequest parse_create_request(const json& body) {
       if (!value.is_string() || value.get<std::string>().empty())
         throw SceneError("request: 'name' must be a non-empty string");
       request.name = value.get<std::string>();
+    } else if (key == "ranks") {
+      if (!value.is_number_integer() || value.get<long long>() < 1 ||
+          value.get<long long>() > std::numeric_limits<int>::max())
+        throw SceneError(
+            "request: 'ranks' must be an integer >= 1 (MPI ranks of the solver), "
+            "got " +
+            value.dump());
+      request.ranks = value.get<int>();
     } else if (key == "start") {
       if (!value.is_boolean())
         throw SceneError("request: 'start' must be true or false, got " +
@@ -115,7 +124,7 @@ CreateRequest parse_create_request(const json& body) {
       request.start = value.get<bool>();
     } else {
       throw SceneError("request: unknown key '" + key +
-                       "' (valid: preset, scene, patch, overrides, name, start)");
+                       "' (valid: preset, scene, patch, overrides, name, start, ranks)");
     }
   }
   if (request.preset.has_value() == request.scene.has_value())
@@ -158,7 +167,15 @@ RunManager::RunManager(ManagerOptions options)
   for (const auto& directory : directories) {
     const std::string id = directory.filename().string();
     try {
-      auto run = std::shared_ptr<Run>(Run::open(id, directory, options_.run_options));
+      int ranks = Run::recorded_ranks(directory);
+      if (ranks > 1 && !options_.distribute) {
+        std::fprintf(stderr,
+                     "sphles: run %s ran on %d MPI ranks; this server launches no MPI jobs, so "
+                     "it continues in this process (bitwise the same results)\n",
+                     id.c_str(), ranks);
+        ranks = 1;
+      }
+      auto run = std::shared_ptr<Run>(Run::open(id, directory, run_options_for(ranks, directory)));
       run->add_observer(slot_observer_);
       runs_.push_back(std::move(run));
     } catch (const std::exception& e) {
@@ -243,7 +260,21 @@ void RunManager::refuse_if_queue_full() const {
                         std::to_string(options_.max_queued) + "); try again later");
 }
 
+RunOptions RunManager::run_options_for(int ranks, const std::filesystem::path& directory) const {
+  RunOptions options = options_.run_options;
+  options.ranks = ranks;
+  if (ranks > 1) options_.distribute(options, ranks, directory);
+  return options;
+}
+
 std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
+  if (request.ranks > 1 && !options_.distribute)
+    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
+                     ": this server launches no MPI jobs (start it with --launcher); use 1");
+  if (request.ranks > options_.max_ranks)
+    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
+                     " exceeds this server's limit (--max-ranks " +
+                     std::to_string(options_.max_ranks) + ")");
   json document;
   if (request.preset) {
     const auto names = sim::preset_names();
@@ -281,8 +312,9 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
     char number[32];
     std::snprintf(number, sizeof number, "%04llu", static_cast<unsigned long long>(next_number_++));
     const std::string id = std::string(number) + "-" + directory_name(spec.run.scene.name);
-    run = std::make_shared<Run>(id, std::move(spec), options_.data_directory / "runs" / id,
-                                options_.run_options);
+    const std::filesystem::path directory = options_.data_directory / "runs" / id;
+    run = std::make_shared<Run>(id, std::move(spec), directory,
+                                run_options_for(request.ranks, directory));
     run->add_observer(slot_observer_);
     runs_.push_back(run);
   }

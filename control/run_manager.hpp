@@ -5,6 +5,7 @@
 
 #include <condition_variable>
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <nlohmann/json.hpp>
@@ -27,6 +28,13 @@ struct ManagerOptions {
   /// not beside the active runs queues. 0: default_memory_limit_bytes() (--max-memory).
   double max_memory_bytes = 0.0;
   RunOptions run_options;
+  /// Puts the solver of a run with ranks > 1 into an MPI job: sets `options`' solver factories
+  /// for a run in `run_directory` (the serve command: launch::job_solvers with its launcher).
+  /// Empty: such runs are refused, and runs a previous server ran on MPI continue in this
+  /// process (bitwise the same results).
+  std::function<void(RunOptions& options, int ranks, const std::filesystem::path& run_directory)>
+      distribute;
+  int max_ranks = 1024;  // ranks one run may ask for
 };
 
 /// What a client asks for when creating a run: a preset or a full scene (exactly one), then a
@@ -38,6 +46,7 @@ struct CreateRequest {
   std::vector<std::string> overrides;
   std::optional<std::string> name;  // replaces the scene's name
   bool start = true;
+  int ranks = 1;  // MPI ranks of the solver (ManagerOptions::distribute); 1: in the server
 };
 
 /// A scene document without "analysis" and "render" sections gets the live defaults: all
@@ -121,7 +130,9 @@ class RunManager {
   bool fits_now(const Run* run, double memory) const;
   void refuse_if_queue_full() const;                   // throws CapacityError
   void start_locked(const std::shared_ptr<Run>& run);  // caller holds schedule_mutex_
-  void start_queued();   // starts the oldest queued runs that fit; holds schedule_mutex_
+  void start_queued();  // starts the oldest queued runs that fit; holds schedule_mutex_
+  /// The options of a run in `directory` whose solver spans `ranks` MPI ranks.
+  RunOptions run_options_for(int ranks, const std::filesystem::path& directory) const;
   void schedule_loop();  // the scheduler thread
 
   ManagerOptions options_;

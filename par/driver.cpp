@@ -1,16 +1,18 @@
 #include "par/driver.hpp"
 
+#include <chrono>
 #include <cmath>
 #include <limits>
-#include <optional>
 #include <stdexcept>
 #include <string>
+#include <thread>
 
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
+#include "sim/state_view.hpp"
 
 namespace sphles::par {
 
@@ -18,10 +20,31 @@ namespace {
 
 enum class Command : int { Finish = 0, Make = 1, Restore = 2, Step = 3, Gather = 4 };
 
+/// A rank waiting for rank 0's next command tests for it without pause this long [s], then
+/// sleeps kIdleSleep between tests: a run paused, or busy with analysis and checkpoints on rank
+/// 0, does not keep the other ranks' cores spinning (MPI_Bcast would), while commands that
+/// follow each other closely (steps) are taken at once.
+constexpr std::chrono::milliseconds kIdleSpin{5};
+constexpr std::chrono::microseconds kIdleSleep{500};
+
+/// Broadcasts the command header from rank 0 (a non-blocking broadcast on every rank: they must
+/// match), waiting as above.
+void broadcast_header(MPI_Comm comm, double (&header)[2]) {
+  MPI_Request request = MPI_REQUEST_NULL;
+  MPI_Ibcast(header, 2, MPI_DOUBLE, 0, comm, &request);
+  const auto start = std::chrono::steady_clock::now();
+  for (int done = 0;;) {
+    MPI_Test(&request, &done, MPI_STATUS_IGNORE);
+    if (done) return;
+    if (std::chrono::steady_clock::now() - start > kIdleSpin)
+      std::this_thread::sleep_for(kIdleSleep);
+  }
+}
+
 /// Rank 0 tells every rank what comes next: the command and one number (the step's max_dt).
 void send_command(MPI_Comm comm, Command command, double value = 0.0) {
   double header[2] = {static_cast<double>(command), value};
-  MPI_Bcast(header, 2, MPI_DOUBLE, 0, comm);
+  broadcast_header(comm, header);
 }
 
 int checked_int(std::size_t n) {
@@ -101,33 +124,20 @@ class DistributedSimulation final : public sim::Simulation {
 
   /// A list over the gathered particles (for the analysis), built once per step asked for.
   std::shared_ptr<const sim::NeighbourList> neighbour_list() const override {
-    const sim::ParticleArrays& p = particles();
-    if (!search_ || list_step_ != step_count()) {
-      const sim::SolverConfig& c = m_->config;
-      search_ = std::make_unique<sim::VerletNeighbourSearch>(c.box, c.support_radius,
-                                                             c.neighbour_skin * c.support_radius);
-      search_->build(sim::view_positions(p));
-      list_step_ = step_count();
-    }
-    return search_->shared_list();
+    return view_.neighbour_list(step_count(), particles());
   }
 
  private:
   const sim::SolverState& gathered() const {
-    if (!gathered_ || gathered_step_ != step_count()) {
+    return view_.state(step_count(), [this] {
       send_command(comm_, Command::Gather);
-      gathered_ = gather_state(*m_->decomposition, m_->local->state(), 0);
-      gathered_step_ = step_count();
-    }
-    return *gathered_;
+      return gather_state(*m_->decomposition, m_->local->state(), 0);
+    });
   }
 
   MPI_Comm comm_;
   std::unique_ptr<Member> m_;
-  mutable std::optional<sim::SolverState> gathered_;
-  mutable std::uint64_t gathered_step_ = 0;
-  mutable std::unique_ptr<sim::VerletNeighbourSearch> search_;
-  mutable std::uint64_t list_step_ = 0;
+  sim::StateView view_{m_->config};
 };
 
 }  // namespace
@@ -170,7 +180,7 @@ void serve_commands(MPI_Comm comm) {
   std::unique_ptr<Member> member;
   for (;;) {
     double header[2] = {0.0, 0.0};
-    MPI_Bcast(header, 2, MPI_DOUBLE, 0, comm);
+    broadcast_header(comm, header);
     const auto command = static_cast<Command>(static_cast<int>(header[0]));
     try {
       switch (command) {
@@ -196,6 +206,22 @@ void serve_commands(MPI_Comm comm) {
       // The same error stopped rank 0's command (every check is collective); rank 0 reports it.
     }
   }
+}
+
+int drive_from_rank_zero(const std::function<int(Driver&)>& rank_zero) {
+  int provided = 0;
+  MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  int rc = 0;
+  if (rank == 0) {
+    Driver driver(MPI_COMM_WORLD);
+    rc = rank_zero(driver);
+  } else {
+    serve_commands(MPI_COMM_WORLD);
+  }
+  MPI_Finalize();
+  return rc;
 }
 
 }  // namespace sphles::par

@@ -11,6 +11,7 @@
 
 #include <mpi.h>
 
+#include <functional>
 #include <memory>
 
 #include "sim/scene.hpp"
@@ -47,5 +48,10 @@ class Driver {
 /// blow-up, a decomposition too fine for the scene) ends the command on every rank alike; rank 0
 /// reports it and this rank waits for the next command. Returns when told to stop.
 void serve_commands(MPI_Comm comm);
+
+/// A program's MPI life under mpirun: initialises MPI (funneled threads), runs `rank_zero` with a
+/// Driver over MPI_COMM_WORLD on rank 0 while the other ranks serve it, finalises MPI, and
+/// returns rank_zero's exit code on rank 0 (0 elsewhere).
+int drive_from_rank_zero(const std::function<int(Driver&)>& rank_zero);
 
 }  // namespace sphles::par

@@ -68,7 +68,8 @@ nlohmann::json run_summary_json(const control::Run& run, const control::RunStatu
           {"step", status.step},
           {"progress", progress},
           {"steps_per_second", status.steps_per_second},
-          {"wall_seconds", status.wall_seconds}};
+          {"wall_seconds", status.wall_seconds},
+          {"ranks", run.ranks()}};
 }
 
 nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& stream) {

@@ -260,6 +260,9 @@ function buildCreateRequest() {
   if (Object.keys(patch).length) body.patch = patch;
   const name = $('create-name').value.trim();
   if (name) body.name = name;
+  const ranks = Number($('create-ranks').value);
+  if (!Number.isInteger(ranks) || ranks < 1) throw new Error("'ranks' must be an integer >= 1");
+  if (ranks > 1) body.ranks = ranks;
   body.start = $('create-start').checked;
   return body;
 }
@@ -404,7 +407,7 @@ function renderHeader() {
   setText('run-step', s.step === undefined ? '–' : String(s.step));
   setText('run-rate', formatNumber(s.steps_per_second));
   setText('run-wall', fmtSeconds(s.wall_seconds));
-  setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}`);
+  setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}${s.ranks > 1 ? `, ${s.ranks} MPI ranks` : ''}`);
   const allowed = ALLOWED[s.state] ?? [];
   for (const b of document.querySelectorAll('.controls button[data-action]'))
     b.disabled = app.busy || !allowed.includes(b.dataset.action);

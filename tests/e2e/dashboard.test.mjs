@@ -82,11 +82,17 @@ function loadPlaywright() {
 /** Starts `sphles serve` and resolves with its base URL from the "listening on" line. */
 function startServer() {
   dataDir = mkdtempSync(join(tmpdir(), 'sphles-e2e-'));
-  const args = ['serve', '--port', '0', '--data', join(dataDir, 'data'), '--web', resolve(webDir)];
+  // Runs with ranks > 1 start as an MPI job: mpiexec, oversubscribed on CI's 2 cores (and as
+  // root in CI's containers, which OpenMPI refuses unless told).
+  const args = ['serve', '--port', '0', '--data', join(dataDir, 'data'), '--web', resolve(webDir),
+    '--launcher', 'mpiexec --oversubscribe --bind-to none -n {ranks}'];
   log(`starting ${sphles} ${args.join(' ')}`);
   server = spawn(sphles, args, {
     stdio: ['ignore', 'pipe', 'pipe'],
-    env: { ...process.env, XDG_CACHE_HOME: join(dataDir, 'cache') },
+    env: {
+      ...process.env, XDG_CACHE_HOME: join(dataDir, 'cache'), OMPI_ALLOW_RUN_AS_ROOT: '1',
+      OMPI_ALLOW_RUN_AS_ROOT_CONFIRM: '1', OMPI_MCA_mpi_yield_when_idle: '1',
+    },
   });
   return new Promise((resolvePromise, reject) => {
     const timer = setTimeout(() => reject(new CheckFailed('the server printed no "listening on" line within 20 s')), 20_000);
@@ -184,6 +190,7 @@ async function run() {
   await page.selectOption('#create-scheme', 'transport_velocity');
   await page.selectOption('#create-ale', 'full');
   await page.fill('#create-name', 'e2e-tgv2d');
+  await page.fill('#create-ranks', '2');  // the solver in a 2-rank MPI job (the server's --launcher)
   await page.check('#create-start');
   await page.click('#create-submit');
   await waitFor('the new run to be selected', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
@@ -268,6 +275,9 @@ async function run() {
   if (scheme.type !== 'transport_velocity' || scheme.ale_correction !== 'full')
     fail(`the run's scheme is not the form's choice: ${JSON.stringify(scheme)}`);
   pass('scheme and ALE correction chosen in the form are the run\'s');
+  if (detail.ranks !== 2) fail(`the run's rank count is not the form's 2: ${detail.ranks}`);
+  if (!(await text(page, '#run-case')).includes('2 MPI ranks')) fail('the run detail does not show its 2 MPI ranks');
+  pass('the run was created with the form\'s 2 MPI ranks and shows them');
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the run detail to close after delete', async () => page.locator('#run-detail').isHidden(), 10_000);

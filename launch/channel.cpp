@@ -1,0 +1,360 @@
+#include "launch/channel.hpp"
+
+#include <array>
+#include <bit>
+#include <boost/asio/connect.hpp>
+#include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/tcp.hpp>
+#include <boost/asio/read.hpp>
+#include <boost/asio/write.hpp>
+#include <chrono>
+#include <cstring>
+#include <limits>
+#include <optional>
+
+namespace sphles::launch {
+
+static_assert(std::endian::native == std::endian::little,
+              "the job channel sends values in the byte order of little-endian machines");
+
+namespace asio = boost::asio;
+using asio::ip::tcp;
+
+// ---------------------------------------------------------------------------------------------
+// Codec
+
+void Encoder::raw(const void* data, std::size_t size) {
+  const auto* begin = static_cast<const std::byte*>(data);
+  bytes_.insert(bytes_.end(), begin, begin + size);
+}
+void Encoder::u64(std::uint64_t value) {
+  raw(&value, sizeof value);
+}
+void Encoder::f64(double value) {
+  raw(&value, sizeof value);
+}
+void Encoder::string(const std::string& text) {
+  u64(text.size());
+  raw(text.data(), text.size());
+}
+void Encoder::doubles(std::span<const double> values) {
+  u64(values.size());
+  raw(values.data(), values.size_bytes());
+}
+void Encoder::u64s(std::span<const std::uint64_t> values) {
+  u64(values.size());
+  raw(values.data(), values.size_bytes());
+}
+
+void Decoder::raw(void* data, std::size_t size) {
+  if (size > bytes_.size() - at_)
+    throw ProtocolError("job channel: message truncated (" + std::to_string(size) +
+                        " bytes needed at offset " + std::to_string(at_) + " of " +
+                        std::to_string(bytes_.size()) + ")");
+  if (size > 0) std::memcpy(data, bytes_.data() + at_, size);
+  at_ += size;
+}
+std::size_t Decoder::count(std::size_t element_size) {
+  const std::uint64_t n = u64();
+  if (n > (bytes_.size() - at_) / element_size)
+    throw ProtocolError("job channel: a length of " + std::to_string(n) + " exceeds the message (" +
+                        std::to_string(bytes_.size() - at_) + " bytes left)");
+  return static_cast<std::size_t>(n);
+}
+std::uint64_t Decoder::u64() {
+  std::uint64_t value = 0;
+  raw(&value, sizeof value);
+  return value;
+}
+double Decoder::f64() {
+  double value = 0.0;
+  raw(&value, sizeof value);
+  return value;
+}
+std::string Decoder::string() {
+  std::string text(count(1), '\0');
+  raw(text.data(), text.size());
+  return text;
+}
+std::vector<double> Decoder::doubles() {
+  std::vector<double> values(count(sizeof(double)));
+  raw(values.data(), values.size() * sizeof(double));
+  return values;
+}
+std::vector<std::uint64_t> Decoder::u64s() {
+  std::vector<std::uint64_t> values(count(sizeof(std::uint64_t)));
+  raw(values.data(), values.size() * sizeof(std::uint64_t));
+  return values;
+}
+void Decoder::finish() const {
+  if (at_ != bytes_.size())
+    throw ProtocolError("job channel: " + std::to_string(bytes_.size() - at_) +
+                        " unread bytes at the end of a message");
+}
+
+namespace {
+
+/// The arrays of a particle set in the order they travel (explicit, so that arrays a fresh set
+/// leaves empty travel empty).
+template <class Particles>
+auto travelling_arrays(Particles& p) {
+  std::vector<decltype(&p.mass)> arrays;
+  for (int a = 0; a < p.dimension; ++a) arrays.push_back(&p.position[static_cast<std::size_t>(a)]);
+  for (int a = 0; a < p.dimension; ++a) arrays.push_back(&p.velocity[static_cast<std::size_t>(a)]);
+  for (int a = 0; a < p.dimension; ++a)
+    arrays.push_back(&p.acceleration[static_cast<std::size_t>(a)]);
+  for (auto* f : {&p.mass, &p.volume, &p.density, &p.pressure, &p.eddy_viscosity})
+    arrays.push_back(f);
+  return arrays;
+}
+
+int checked_dimension(std::uint64_t dimension) {
+  if (dimension != 2 && dimension != 3)
+    throw ProtocolError("job channel: particle dimension " + std::to_string(dimension) +
+                        " is neither 2 nor 3");
+  return static_cast<int>(dimension);
+}
+
+}  // namespace
+
+void encode(Encoder& e, const sim::ParticleArrays& p) {
+  e.u64(static_cast<std::uint64_t>(p.dimension));
+  for (const std::vector<double>* array : travelling_arrays(p)) e.doubles(*array);
+  e.u64s(p.id);
+}
+
+sim::ParticleArrays decode_particles(Decoder& d) {
+  sim::ParticleArrays p;
+  p.dimension = checked_dimension(d.u64());
+  for (std::vector<double>* array : travelling_arrays(p)) *array = d.doubles();
+  p.id = d.u64s();
+  return p;
+}
+
+void encode(Encoder& e, const sim::SolverState& s) {
+  encode(e, s.particles);
+  for (int a = 0; a < s.particles.dimension; ++a)
+    e.doubles(s.list_reference_positions[static_cast<std::size_t>(a)]);
+  e.f64(s.time);
+  e.u64(s.step);
+  e.u64(s.neighbour_builds);
+}
+
+sim::SolverState decode_state(Decoder& d) {
+  sim::SolverState s;
+  s.particles = decode_particles(d);
+  for (int a = 0; a < s.particles.dimension; ++a)
+    s.list_reference_positions[static_cast<std::size_t>(a)] = d.doubles();
+  s.time = d.f64();
+  s.step = d.u64();
+  s.neighbour_builds = d.u64();
+  return s;
+}
+
+void encode(Encoder& e, const sim::StepDiagnostics& g) {
+  e.f64(g.time);
+  e.u64(g.step);
+  for (const double v : {g.dt, g.kinetic_energy, g.max_density_deviation, g.max_speed, g.total_mass,
+                         g.momentum[0], g.momentum[1], g.momentum[2]})
+    e.f64(v);
+  e.u64(g.neighbour_builds);
+  e.f64(g.mean_neighbours);
+}
+
+sim::StepDiagnostics decode_diagnostics(Decoder& d) {
+  sim::StepDiagnostics g;
+  g.time = d.f64();
+  g.step = d.u64();
+  for (double* v : {&g.dt, &g.kinetic_energy, &g.max_density_deviation, &g.max_speed, &g.total_mass,
+                    &g.momentum[0], &g.momentum[1], &g.momentum[2]})
+    *v = d.f64();
+  g.neighbour_builds = static_cast<std::size_t>(d.u64());
+  g.mean_neighbours = d.f64();
+  return g;
+}
+
+void encode(Encoder& e, const SolverStatus& s) {
+  e.f64(s.time);
+  e.u64(s.step);
+  e.f64(s.stable_time_step);
+  encode(e, s.diagnostics);
+}
+
+SolverStatus decode_status(Decoder& d) {
+  SolverStatus s;
+  s.time = d.f64();
+  s.step = d.u64();
+  s.stable_time_step = d.f64();
+  s.diagnostics = decode_diagnostics(d);
+  return s;
+}
+
+namespace {
+enum class ErrorType : std::uint64_t { Other = 0, BlowUp = 1, InvalidArgument = 2 };
+}
+
+void encode_error(Encoder& e, const std::exception& error) {
+  if (const auto* blow_up = dynamic_cast<const sim::BlowUpError*>(&error)) {
+    e.u64(static_cast<std::uint64_t>(ErrorType::BlowUp));
+    e.string(blow_up->what());
+    e.f64(blow_up->time());
+    e.u64(blow_up->step());
+    e.string(blow_up->quantity());
+    e.f64(blow_up->value());
+    e.u64(blow_up->particle_id());
+    return;
+  }
+  const bool invalid = dynamic_cast<const std::invalid_argument*>(&error) != nullptr;
+  e.u64(static_cast<std::uint64_t>(invalid ? ErrorType::InvalidArgument : ErrorType::Other));
+  e.string(error.what());
+}
+
+void throw_error(Decoder& d) {
+  const std::uint64_t type = d.u64();
+  std::string what = d.string();
+  if (type == static_cast<std::uint64_t>(ErrorType::BlowUp)) {
+    const double time = d.f64();
+    const std::uint64_t step = d.u64();
+    std::string quantity = d.string();
+    const double value = d.f64();
+    const std::uint64_t particle = d.u64();
+    throw sim::BlowUpError(what, time, step, std::move(quantity), value, particle);
+  }
+  if (type == static_cast<std::uint64_t>(ErrorType::InvalidArgument))
+    throw std::invalid_argument(what);
+  throw sim::SimulationError(what);
+}
+
+// ---------------------------------------------------------------------------------------------
+// Channel
+
+namespace {
+constexpr std::size_t kHeaderBytes = sizeof(std::uint32_t) + sizeof(std::uint64_t);
+/// Larger bodies are refused as corrupt: 2^40 bytes is about 7·10⁹ particles' state.
+constexpr std::uint64_t kMaxBody = std::uint64_t{1} << 40;
+}  // namespace
+
+struct Channel::Impl {
+  asio::io_context context;
+  tcp::socket socket{context};
+  std::optional<tcp::acceptor> acceptor;
+
+  /// Runs the context until `done`, calling `check` every poll interval.
+  void run_until(const bool& done, const std::function<void()>& check, double poll_seconds) {
+    const auto poll = std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(poll_seconds));
+    context.restart();
+    while (!done) {
+      if (check) {
+        context.run_for(poll);
+        if (!done) check();
+      } else {
+        context.run_one();
+      }
+    }
+  }
+};
+
+Channel::Channel() : impl_(std::make_unique<Impl>()) {}
+
+Channel::~Channel() {
+  boost::system::error_code ignored;
+  impl_->socket.close(ignored);
+}
+
+unsigned short Channel::listen(const std::string& address) {
+  const tcp::endpoint endpoint(asio::ip::make_address(address), 0);
+  impl_->acceptor.emplace(impl_->context, endpoint);
+  return impl_->acceptor->local_endpoint().port();
+}
+
+void Channel::accept(const std::function<void()>& check, double poll_seconds) {
+  if (!impl_->acceptor) throw std::logic_error("Channel::accept before listen");
+  bool done = false;
+  boost::system::error_code error;
+  impl_->acceptor->async_accept(impl_->socket, [&](const boost::system::error_code& e) {
+    error = e;
+    done = true;
+  });
+  try {
+    impl_->run_until(done, check, poll_seconds);
+  } catch (...) {
+    impl_->acceptor->cancel();
+    impl_->context.restart();
+    impl_->context.run();  // the cancelled handler, before `done` and `error` go out of scope
+    throw;
+  }
+  impl_->acceptor.reset();  // one connection: nobody else may connect afterwards
+  if (error) throw ChannelClosed("job channel: accepting the job's connection: " + error.message());
+  impl_->socket.set_option(tcp::no_delay(true));
+}
+
+void Channel::connect(const std::string& host, unsigned short port) {
+  tcp::resolver resolver(impl_->context);
+  asio::connect(impl_->socket, resolver.resolve(host, std::to_string(port)));
+  impl_->socket.set_option(tcp::no_delay(true));
+}
+
+void Channel::send(MessageKind kind, const Encoder& body) {
+  std::array<std::byte, kHeaderBytes> header{};
+  const auto k = static_cast<std::uint32_t>(kind);
+  const std::uint64_t size = body.bytes().size();
+  std::memcpy(header.data(), &k, sizeof k);
+  std::memcpy(header.data() + sizeof k, &size, sizeof size);
+  const std::array<asio::const_buffer, 2> buffers{asio::buffer(header), asio::buffer(body.bytes())};
+  boost::system::error_code error;
+  asio::write(impl_->socket, buffers, error);
+  if (error) throw ChannelClosed("job channel: sending: " + error.message());
+}
+
+void Channel::send(MessageKind kind) {
+  send(kind, Encoder{});
+}
+
+Message Channel::receive(const std::function<void()>& check, double poll_seconds) {
+  Impl& s = *impl_;
+  std::array<std::byte, kHeaderBytes> header{};
+  Message message;
+  bool done = false;
+  boost::system::error_code error;
+  asio::async_read(s.socket, asio::buffer(header),
+                   [&](const boost::system::error_code& e, std::size_t) {
+                     if (e) {
+                       error = e;
+                       done = true;
+                       return;
+                     }
+                     std::uint32_t kind = 0;
+                     std::uint64_t size = 0;
+                     std::memcpy(&kind, header.data(), sizeof kind);
+                     std::memcpy(&size, header.data() + sizeof kind, sizeof size);
+                     if (size > kMaxBody) {
+                       error = asio::error::message_size;
+                       done = true;
+                       return;
+                     }
+                     message.kind = static_cast<MessageKind>(kind);
+                     message.body.resize(static_cast<std::size_t>(size));
+                     asio::async_read(s.socket, asio::buffer(message.body),
+                                      [&](const boost::system::error_code& e2, std::size_t) {
+                                        error = e2;
+                                        done = true;
+                                      });
+                   });
+  try {
+    s.run_until(done, check, poll_seconds);
+  } catch (...) {
+    // Give up: the connection is no longer in step with the messages; close it.
+    boost::system::error_code ignored;
+    s.socket.close(ignored);
+    s.context.restart();
+    s.context.run();
+    throw;
+  }
+  if (error == asio::error::message_size) throw ProtocolError("job channel: message too large");
+  if (error == asio::error::eof) throw ChannelClosed("the job's rank 0 closed its connection");
+  if (error) throw ChannelClosed("job channel: " + error.message());
+  return message;
+}
+
+}  // namespace sphles::launch

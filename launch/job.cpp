@@ -1,0 +1,460 @@
+#include "launch/job.hpp"
+
+#include <fcntl.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cerrno>
+#include <chrono>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <random>
+#include <thread>
+#include <vector>
+
+#include "launch/channel.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/state_view.hpp"
+
+extern char** environ;
+
+namespace sphles::launch {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+/// How often a waiting request looks whether the job has ended [s].
+constexpr double kPollSeconds = 0.2;
+/// After the connection broke: how long to wait for the launcher's exit status [s].
+constexpr double kExitStatusWaitSeconds = 5.0;
+/// After SIGTERM to the job's process group: how long before SIGKILL [s].
+constexpr double kTerminateGraceSeconds = 5.0;
+/// Lines of the job's log quoted in a failure.
+constexpr std::size_t kLogLinesQuoted = 6;
+constexpr std::size_t kLogCharactersQuoted = 800;
+
+std::string shell_quote(const std::string& text) {
+  std::string quoted = "'";
+  for (const char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return quoted + "'";
+}
+
+std::string random_token() {
+  std::random_device device;
+  std::string token;
+  char hex[9];
+  for (int k = 0; k < 4; ++k) {
+    std::snprintf(hex, sizeof hex, "%08x", device());
+    token += hex;
+  }
+  return token;
+}
+
+std::string describe_wait_status(int status) {
+  if (WIFEXITED(status)) return "exited with status " + std::to_string(WEXITSTATUS(status));
+  if (WIFSIGNALED(status)) return "was killed by signal " + std::to_string(WTERMSIG(status));
+  return "ended (wait status " + std::to_string(status) + ")";
+}
+
+/// The last non-empty lines of a log, joined by " | ".
+std::string log_tail(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) return "";
+  std::vector<std::string> lines;
+  // Lines of text only: not blank, not one of the launcher's rules of dashes.
+  for (std::string line; std::getline(in, line);)
+    if (line.find_first_not_of(" \t\r-=*") != std::string::npos) lines.push_back(line);
+  std::string tail;
+  const std::size_t first = lines.size() > kLogLinesQuoted ? lines.size() - kLogLinesQuoted : 0;
+  for (std::size_t k = first; k < lines.size(); ++k) tail += (tail.empty() ? "" : " | ") + lines[k];
+  if (tail.size() > kLogCharactersQuoted)
+    tail = "..." + tail.substr(tail.size() - kLogCharactersQuoted);
+  return tail;
+}
+
+/// The job ended (or broke its connection) while the service waited for it.
+class JobEnded : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// One launched job: its process (the launcher, in a process group of its own) and the channel
+/// to its rank 0. Used by one thread at a time (the run's solver thread).
+class Job {
+ public:
+  explicit Job(LaunchOptions options) : o_(std::move(options)) {
+    command_ = launch_command(o_);
+    try {
+      const unsigned short port = channel_.listen(o_.listen_address);
+      const std::string token = random_token();
+      std::string shell = "exec " + command_ + " " + shell_quote(o_.executable.string()) +
+                          " worker --connect " + shell_quote(o_.listen_address) + ":" +
+                          std::to_string(port) + " --token " + token;
+      if (o_.threads > 0) shell += " --threads " + std::to_string(o_.threads);
+      spawn(shell);
+      const auto started = Clock::now();
+      channel_.accept(
+          [&] {
+            check_alive("before its rank 0 connected");
+            if (std::chrono::duration<double>(Clock::now() - started).count() >
+                o_.connect_timeout_seconds)
+              throw JobEnded("its rank 0 did not connect within " +
+                             std::to_string(o_.connect_timeout_seconds) + " s");
+          },
+          kPollSeconds);
+      const Message hello =
+          channel_.receive([&] { check_alive("before it said hello"); }, kPollSeconds);
+      if (hello.kind != MessageKind::Hello) throw ProtocolError("the job's first message");
+      Decoder d(hello.body);
+      if (d.string() != token) throw ProtocolError("a connection without the job's token");
+      const std::uint64_t ranks = d.u64();
+      d.finish();
+      if (ranks != static_cast<std::uint64_t>(o_.ranks))
+        throw JobEnded("the job has " + std::to_string(ranks) + " ranks where the run asked for " +
+                       std::to_string(o_.ranks) + " (does the launcher place {ranks}?)");
+    } catch (const std::exception& e) {
+      broken_ = true;
+      end_process();
+      throw sim::SimulationError(diagnosis("could not start the MPI job", e.what()));
+    }
+  }
+
+  ~Job() {
+    if (!broken_) {
+      try {
+        channel_.send(MessageKind::Finish);
+      } catch (const std::exception&) {
+      }
+    }
+    end_process();
+  }
+
+  Job(const Job&) = delete;
+  Job& operator=(const Job&) = delete;
+
+  /// A new solver replaces the job's current one: solvers made before are stale.
+  std::uint64_t next_generation() { return ++generation_; }
+  void require_current(std::uint64_t generation) const {
+    if (generation != generation_)
+      throw std::logic_error("a solver of the MPI job was used after a newer one was made");
+  }
+
+  /// Sends a request and returns its reply; the job's errors are rethrown as their own type,
+  /// a job that ended as a SimulationError saying how.
+  Message request(MessageKind kind, const Encoder& body, const char* what) {
+    if (broken_) throw sim::SimulationError(diagnosis(what, "the job ended earlier"));
+    Message reply;
+    try {
+      channel_.send(kind, body);
+      reply =
+          channel_.receive([&] { check_alive("while the service waited for it"); }, kPollSeconds);
+    } catch (const std::exception& e) {
+      broken_ = true;
+      wait_for_exit(kExitStatusWaitSeconds);
+      end_process();
+      throw sim::SimulationError(diagnosis(what, e.what()));
+    }
+    if (reply.kind == MessageKind::Error) {
+      Decoder d(reply.body);
+      throw_error(d);
+    }
+    return reply;
+  }
+
+  SolverStatus status(MessageKind kind, const Encoder& body, const char* what) {
+    Message reply = request(kind, body, what);
+    if (reply.kind != MessageKind::Status) throw ProtocolError("expected a status reply");
+    Decoder d(reply.body);
+    SolverStatus s = decode_status(d);
+    d.finish();
+    return s;
+  }
+
+ private:
+  void spawn(const std::string& shell) {
+    posix_spawn_file_actions_t actions;
+    posix_spawnattr_t attributes;
+    posix_spawn_file_actions_init(&actions);
+    posix_spawnattr_init(&attributes);
+    posix_spawn_file_actions_addopen(&actions, STDIN_FILENO, "/dev/null", O_RDONLY, 0);
+    posix_spawn_file_actions_addopen(&actions, STDOUT_FILENO, o_.log_file.c_str(),
+                                     O_WRONLY | O_CREAT | O_APPEND, 0644);
+    posix_spawn_file_actions_adddup2(&actions, STDOUT_FILENO, STDERR_FILENO);
+    // A process group of its own: the terminal's Ctrl-C goes to the service alone (which stops
+    // its runs with checkpoints), and the whole job can be signalled at once.
+    sigset_t none, defaults;
+    sigemptyset(&none);
+    sigemptyset(&defaults);
+    for (const int s : {SIGINT, SIGTERM, SIGPIPE, SIGHUP}) sigaddset(&defaults, s);
+    posix_spawnattr_setsigmask(&attributes, &none);
+    posix_spawnattr_setsigdefault(&attributes, &defaults);
+    posix_spawnattr_setpgroup(&attributes, 0);
+    posix_spawnattr_setflags(
+        &attributes, POSIX_SPAWN_SETPGROUP | POSIX_SPAWN_SETSIGMASK | POSIX_SPAWN_SETSIGDEF);
+    std::string sh = "/bin/sh", dash_c = "-c", command = shell;
+    char* argv[] = {sh.data(), dash_c.data(), command.data(), nullptr};
+    const int error = posix_spawn(&pid_, "/bin/sh", &actions, &attributes, argv, environ);
+    posix_spawn_file_actions_destroy(&actions);
+    posix_spawnattr_destroy(&attributes);
+    if (error != 0) {
+      pid_ = -1;
+      throw JobEnded(std::string("the launcher could not be started: ") + std::strerror(error));
+    }
+  }
+
+  /// Throws JobEnded if the launcher has exited.
+  void check_alive(const std::string& when) {
+    if (exited()) throw JobEnded("the job " + exit_text_ + " " + when);
+  }
+
+  bool exited() {
+    if (pid_ <= 0) return true;
+    int status = 0;
+    const pid_t r = ::waitpid(pid_, &status, WNOHANG);
+    if (r == pid_ || (r < 0 && errno == ECHILD)) {
+      exit_text_ = r == pid_ ? describe_wait_status(status) : "ended";
+      pid_ = -1;
+      return true;
+    }
+    return false;
+  }
+
+  bool wait_for_exit(double seconds) {
+    const auto until = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                          std::chrono::duration<double>(seconds));
+    while (!exited()) {
+      if (Clock::now() > until) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    return true;
+  }
+
+  /// Waits for the job to end after Finish, then terminates (and kills) its process group.
+  void end_process() {
+    if (pid_ <= 0) return;
+    const pid_t group = pid_;
+    if (wait_for_exit(broken_ ? 0.0 : o_.finish_timeout_seconds)) return;
+    ::kill(-group, SIGTERM);
+    if (wait_for_exit(kTerminateGraceSeconds)) return;
+    ::kill(-group, SIGKILL);
+    int status = 0;
+    ::waitpid(group, &status, 0);
+    exit_text_ = describe_wait_status(status);
+    pid_ = -1;
+  }
+
+  std::string diagnosis(const std::string& what, const std::string& cause) const {
+    std::string text = "MPI job (" + std::to_string(o_.ranks) + " ranks, `" + command_ +
+                       "`): " + what + ": " + cause;
+    if (!exit_text_.empty() && cause.find(exit_text_) == std::string::npos)
+      text += "; the launcher " + exit_text_;
+    const std::string tail = log_tail(o_.log_file);
+    text += tail.empty() ? "; its log " + o_.log_file.filename().string() + " is empty"
+                         : "; last lines of " + o_.log_file.filename().string() + ": " + tail;
+    return text;
+  }
+
+  LaunchOptions o_;
+  std::string command_;
+  Channel channel_;
+  pid_t pid_ = -1;
+  std::string exit_text_;
+  bool broken_ = false;
+  std::uint64_t generation_ = 0;
+};
+
+/// The job's solver as the run sees it.
+class RemoteSimulation final : public sim::Simulation {
+ public:
+  RemoteSimulation(std::shared_ptr<Job> job, std::uint64_t generation, sim::SolverConfig config,
+                   SolverStatus status)
+      : job_(std::move(job)),
+        generation_(generation),
+        config_(std::move(config)),
+        status_(std::move(status)) {}
+
+  void step(double max_dt) override {
+    job_->require_current(generation_);
+    Encoder e;
+    e.f64(max_dt);
+    status_ = job_->status(MessageKind::Step, e, "a step failed");
+  }
+  double time() const override { return status_.time; }
+  std::uint64_t step_count() const override { return status_.step; }
+  const sim::StepDiagnostics& diagnostics() const override { return status_.diagnostics; }
+  const sim::SolverConfig& config() const override { return config_; }
+  double stable_time_step() const override { return status_.stable_time_step; }
+
+  const sim::ParticleArrays& particles() const override { return whole().particles; }
+  std::size_t owned_count() const override { return particles().size(); }
+  sim::SolverState state() const override { return whole(); }
+  std::shared_ptr<const sim::NeighbourList> neighbour_list() const override {
+    return view_.neighbour_list(step_count(), particles());
+  }
+
+ private:
+  const sim::SolverState& whole() const {
+    return view_.state(step_count(), [this] {
+      job_->require_current(generation_);
+      Message reply = job_->request(MessageKind::State, Encoder{}, "fetching the state failed");
+      if (reply.kind != MessageKind::SolverState) throw ProtocolError("expected a state reply");
+      Decoder d(reply.body);
+      sim::SolverState s = decode_state(d);
+      d.finish();
+      return s;
+    });
+  }
+
+  std::shared_ptr<Job> job_;
+  std::uint64_t generation_;
+  sim::SolverConfig config_;
+  SolverStatus status_;
+  sim::StateView view_{config_};
+};
+
+/// The job of a run while some solver of it exists; launched by the first solver made.
+class JobHolder {
+ public:
+  explicit JobHolder(LaunchOptions options) : options_(std::move(options)) {}
+
+  template <class Body>
+  std::unique_ptr<sim::Simulation> make(MessageKind kind, const sim::Scene& scene, Body&& body,
+                                        const char* what) {
+    std::shared_ptr<Job> job;
+    {
+      std::lock_guard lock(mutex_);
+      job = job_.lock();
+      if (!job) {
+        job = std::make_shared<Job>(options_);
+        job_ = job;
+      }
+    }
+    Encoder e;
+    e.string(sim::scene_to_json(scene).dump());
+    encode(e, body);
+    const std::uint64_t generation = job->next_generation();
+    SolverStatus status = job->status(kind, e, what);
+    return std::make_unique<RemoteSimulation>(std::move(job), generation,
+                                              sim::make_solver_config(scene), std::move(status));
+  }
+
+ private:
+  LaunchOptions options_;
+  std::mutex mutex_;
+  std::weak_ptr<Job> job_;
+};
+
+}  // namespace
+
+void validate(const LaunchOptions& o) {
+  if (o.launcher.find("{ranks}") == std::string::npos)
+    throw std::invalid_argument("launcher: '" + o.launcher +
+                                "' must contain {ranks} (it becomes the rank count)");
+  if (o.ranks < 1) throw std::invalid_argument("ranks: must be at least 1");
+  if (o.executable.empty()) throw std::invalid_argument("executable: empty");
+  if (o.log_file.empty()) throw std::invalid_argument("log_file: empty");
+  if (!(o.connect_timeout_seconds > 0.0) || !(o.finish_timeout_seconds > 0.0))
+    throw std::invalid_argument("timeouts: must be positive");
+}
+
+std::string launch_command(const LaunchOptions& o) {
+  std::string command = o.launcher;
+  const std::string placeholder = "{ranks}";
+  for (std::size_t at = command.find(placeholder); at != std::string::npos;
+       at = command.find(placeholder, at))
+    command.replace(at, placeholder.size(), std::to_string(o.ranks));
+  return command;
+}
+
+JobSolvers job_solvers(LaunchOptions options) {
+  validate(options);
+  auto holder = std::make_shared<JobHolder>(std::move(options));
+  JobSolvers solvers;
+  solvers.make = [holder](const sim::Scene& scene, sim::ParticleArrays particles) {
+    return holder->make(MessageKind::Make, scene, particles, "setting up the solver failed");
+  };
+  solvers.restore = [holder](const sim::Scene& scene, sim::SolverState state) {
+    return holder->make(MessageKind::Restore, scene, state, "restoring the solver failed");
+  };
+  return solvers;
+}
+
+void serve_job(const std::string& host, unsigned short port, const std::string& token,
+               const WorkerSolvers& solvers) {
+  Channel channel;
+  channel.connect(host, port);
+  Encoder hello;
+  hello.string(token);
+  hello.u64(static_cast<std::uint64_t>(solvers.ranks));
+  channel.send(MessageKind::Hello, hello);
+  std::unique_ptr<sim::Simulation> simulation;
+  const auto status = [&] {
+    Encoder e;
+    encode(e, SolverStatus{simulation->time(), simulation->step_count(),
+                           simulation->stable_time_step(), simulation->diagnostics()});
+    return e;
+  };
+  for (;;) {
+    Message request;
+    try {
+      request = channel.receive();
+    } catch (const ChannelClosed&) {
+      return;  // the service went away: the job ends
+    }
+    if (request.kind == MessageKind::Finish) return;
+    MessageKind kind = MessageKind::Status;
+    Encoder reply;
+    try {
+      Decoder d(request.body);
+      switch (request.kind) {
+        case MessageKind::Make:
+        case MessageKind::Restore: {
+          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          std::unique_ptr<sim::Simulation> fresh;
+          if (request.kind == MessageKind::Make) {
+            sim::ParticleArrays particles = decode_particles(d);
+            d.finish();
+            fresh = solvers.make(scene, std::move(particles));
+          } else {
+            sim::SolverState state = decode_state(d);
+            d.finish();
+            fresh = solvers.restore(scene, std::move(state));
+          }
+          simulation = std::move(fresh);  // the new solver first, then the old one goes
+          reply = status();
+          break;
+        }
+        case MessageKind::Step: {
+          const double max_dt = d.f64();
+          d.finish();
+          if (!simulation) throw std::logic_error("a step before the solver was made");
+          simulation->step(max_dt);
+          reply = status();
+          break;
+        }
+        case MessageKind::State:
+          if (!simulation) throw std::logic_error("a state before the solver was made");
+          kind = MessageKind::SolverState;
+          encode(reply, simulation->state());
+          break;
+        default:
+          throw ProtocolError("unexpected request kind " +
+                              std::to_string(static_cast<std::uint32_t>(request.kind)));
+      }
+    } catch (const std::exception& e) {
+      kind = MessageKind::Error;
+      reply = Encoder{};
+      encode_error(reply, e);
+    }
+    channel.send(kind, reply);
+  }
+}
+
+}  // namespace sphles::launch

@@ -1,0 +1,64 @@
+// A run's solver in an MPI job of its own (issue 19, "Launching"): the service starts
+// `LAUNCHER sphles worker --connect ...` (default launcher `mpirun -n {ranks}`; `srun -n {ranks}`
+// under Slurm), the job's rank 0 connects back over TCP, and the run drives the job's distributed
+// solver (par::Driver) through a sim::Simulation like any other. Everything else of the run
+// (analysis, rendering, checkpoints, live changes, pause, stop) stays in the service.
+//
+// One job per run while it is active: the first solver made launches it, a live change or a
+// restart made while a solver of the job exists reuses it, and the job ends when the run's last
+// solver goes (stop, end, failure). A job that ends unasked (a rank killed or out of memory:
+// mpirun then ends every rank) fails the step or request in progress with a SimulationError
+// naming the launcher's exit status and the last lines of the job's log.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "sim/scene.hpp"
+#include "sim/solver.hpp"
+
+namespace sphles::launch {
+
+struct LaunchOptions {
+  /// The command before the worker's, with {ranks} replaced by the rank count; run by /bin/sh.
+  std::string launcher = "mpirun -n {ranks}";
+  std::filesystem::path executable;  // the sphles program the ranks run
+  int ranks = 2;
+  int threads = 0;  // OpenMP threads per rank; 0 = the ranks' default
+  /// The job's standard output and error (appended).
+  std::filesystem::path log_file;
+  /// Address the service listens on for the job's rank 0 (it must reach it: on a cluster, an
+  /// address of the service's node).
+  std::string listen_address = "127.0.0.1";
+  double connect_timeout_seconds = 120.0;  // from the launch to rank 0's connection
+  double finish_timeout_seconds = 30.0;    // from Finish to the job's exit, then it is killed
+};
+
+/// Throws std::invalid_argument naming the field if the options cannot launch anything.
+void validate(const LaunchOptions& options);
+
+/// The shell command that starts the job (without the connection arguments).
+std::string launch_command(const LaunchOptions& options);
+
+/// Solver factories for control::RunOptions (make_simulation, restore_simulation) that put the
+/// solver into a job launched with `options`. The two share the job.
+struct JobSolvers {
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)> make;
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)> restore;
+};
+JobSolvers job_solvers(LaunchOptions options);
+
+/// The job's side, on rank 0 (app/worker_command.cpp): connects to the service, proves the
+/// token, and carries out requests with the given solver factories until told to finish or the
+/// service goes away. Returns normally in both cases.
+struct WorkerSolvers {
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)> make;
+  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)> restore;
+  int ranks = 1;
+};
+void serve_job(const std::string& host, unsigned short port, const std::string& token,
+               const WorkerSolvers& solvers);
+
+}  // namespace sphles::launch

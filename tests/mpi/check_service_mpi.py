@@ -1,0 +1,223 @@
+#!/usr/bin/env python3
+"""The service runs a run's solver as an MPI job (issue 19, docs/scaling.md "From the service").
+
+Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and real ranks:
+  1. a run created with "ranks": 2 finishes with the final checkpoint and the time series of the
+     same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra and
+     slices are served, and its job ended (no worker process left);
+  2. requests the server cannot honour are refused with 400 naming 'ranks';
+  3. a rank killed during a 2-rank run fails the run cleanly: state "failed", a reason naming the
+     launcher's report of the killed rank and the last valid checkpoint, the server still
+     answering, no rank left behind; resuming the failed run launches a new job that continues
+     from that checkpoint, a live change reaches it, and stop ends it with a checkpoint.
+Usage: check_service_mpi.py SPHLES MPIEXEC WORKDIR
+"""
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+
+import h5py
+import numpy as np
+
+SCENE = {"preset": "tgv2d",
+         "patch": {"particles_per_side": 40, "packing": {"enabled": False},
+                   "time": {"end": 0.2}, "checkpoint": {"every": 0.1, "keep": 10}}}
+
+
+def request(base, method, path, body=None):
+    data = None if body is None else json.dumps(body).encode()
+    req = urllib.request.Request(base + path, data=data, method=method,
+                                 headers={"Content-Type": "application/json"})
+    try:
+        with urllib.request.urlopen(req, timeout=60) as response:
+            raw = response.read()
+            return response.status, (json.loads(raw) if raw.startswith(b"{") or raw.startswith(b"[")
+                                     else raw)
+    except urllib.error.HTTPError as error:
+        return error.code, json.loads(error.read() or b"{}")
+
+
+def wait_for(base, run_id, predicate, what, timeout=180):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        status, run = request(base, "GET", f"/api/runs/{run_id}")
+        if status == 200 and predicate(run):
+            return run
+        time.sleep(0.2)
+    sys.exit(f"run {run_id}: {what} not reached within {timeout} s; last: {run}")
+
+
+def particles(checkpoint):
+    with h5py.File(checkpoint, "r") as f:
+        data = {name: f["particles"][name][()] for name in f["particles"]}
+    order = np.argsort(data["id"], kind="stable")
+    return {name: values[order] for name, values in data.items()}
+
+
+def newest_checkpoint(run_dir):
+    names = sorted(n for n in os.listdir(os.path.join(run_dir, "checkpoints")) if n.endswith(".h5"))
+    return os.path.join(run_dir, "checkpoints", names[-1])
+
+
+def worker_ranks(sphles):
+    """pid -> rank of every `sphles worker` process of this test's program."""
+    ranks = {}
+    for pid in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            with open(f"/proc/{pid}/cmdline", "rb") as f:
+                argv = f.read().split(b"\0")
+            if len(argv) < 2 or os.path.realpath(argv[0].decode()) != sphles \
+                    or argv[1] != b"worker":
+                continue
+            with open(f"/proc/{pid}/environ", "rb") as f:
+                env = dict(e.split(b"=", 1) for e in f.read().split(b"\0") if b"=" in e)
+            ranks[int(pid)] = int(env.get(b"OMPI_COMM_WORLD_RANK", b"-1"))
+        except (OSError, ValueError):
+            continue
+    return ranks
+
+
+def wait_no_workers(sphles, timeout=30):
+    deadline = time.time() + timeout
+    while time.time() < deadline:
+        if not worker_ranks(sphles):
+            return
+        time.sleep(0.2)
+    sys.exit(f"worker processes left behind: {worker_ranks(sphles)}")
+
+
+def main():
+    sphles, mpiexec, work = os.path.realpath(sys.argv[1]), sys.argv[2], sys.argv[3]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    env = dict(os.environ, OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
+               OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_mpi_yield_when_idle="1")
+    data = os.path.join(work, "data")
+    launcher = f"{mpiexec} --oversubscribe --bind-to none -n {{ranks}}"
+    server = subprocess.Popen(
+        [sphles, "serve", "--port", "0", "--data", data, "--threads", "1", "--max-running", "2",
+         "--max-ranks", "3", "--launcher", launcher],
+        env=env, stdout=subprocess.PIPE, stderr=open(os.path.join(work, "serve.log"), "w"),
+        text=True)
+    try:
+        line = server.stdout.readline()
+        match = re.search(r"listening on (http://\S+?)/?$", line.strip())
+        if not match:
+            sys.exit(f"no 'listening on' line: {line!r}")
+        base = match.group(1)
+
+        # 1. Two ranks against one, bit for bit.
+        ids = {}
+        for ranks in (2, 1):
+            status, run = request(base, "POST", "/api/runs",
+                                  dict(SCENE, name=f"ranks{ranks}", ranks=ranks))
+            if status != 201 or run.get("ranks") != ranks:
+                sys.exit(f"create with ranks {ranks}: {status} {run}")
+            ids[ranks] = run["id"]
+        for ranks, run_id in ids.items():
+            run = wait_for(base, run_id, lambda r: r["state"] in ("finished", "failed"), "the end")
+            if run["state"] != "finished":
+                sys.exit(f"the {ranks}-rank run {run_id} did not finish: {run['reason']}")
+        dirs = {r: os.path.join(data, "runs", i) for r, i in ids.items()}
+        a, b = particles(newest_checkpoint(dirs[1])), particles(newest_checkpoint(dirs[2]))
+        differing = [n for n in a if not np.array_equal(a[n], b[n])]
+        if sorted(a) != sorted(b) or differing:
+            sys.exit(f"2 ranks differ from 1: {differing or (sorted(a), sorted(b))}")
+        with open(os.path.join(dirs[1], "timeseries.csv")) as f1, \
+                open(os.path.join(dirs[2], "timeseries.csv")) as f2:
+            if f1.read() != f2.read():
+                sys.exit("the time series of 2 ranks differs from 1 rank's")
+        with open(os.path.join(dirs[2], "run.json")) as f:
+            if json.load(f).get("ranks") != 2:
+                sys.exit("run.json does not record ranks = 2")
+        status, spectrum = request(base, "GET", f"/api/runs/{ids[2]}/spectrum")
+        if status != 200 or not spectrum.get("energy"):
+            sys.exit(f"the 2-rank run serves no spectrum: {status} {str(spectrum)[:200]}")
+        status, image = request(base, "GET", f"/api/runs/{ids[2]}/images/omega2")
+        if status != 200 or not image.startswith(b"\x89PNG"):
+            sys.exit(f"the 2-rank run serves no omega2 image: {status}")
+        with open(os.path.join(dirs[2], "job.log")) as f:
+            if "rank 0 of 2 done" not in f.read():
+                sys.exit("job.log does not show the job's rank 0 finishing")
+        wait_no_workers(sphles)
+        print(f"2 ranks = 1 rank bit for bit ({len(a['id'])} particles, {len(a)} arrays)")
+
+        # 2. Refusals name the field.
+        for body, why in ((dict(SCENE, ranks=0), ">= 1"), (dict(SCENE, ranks=4), "--max-ranks"),
+                          (dict(SCENE, ranks="2"), ">= 1")):
+            status, answer = request(base, "POST", "/api/runs", body)
+            message = json.dumps(answer)
+            if status != 400 or "ranks" not in message or why not in message:
+                sys.exit(f"ranks={body['ranks']!r}: expected 400 naming 'ranks' ({why}), got "
+                         f"{status} {message}")
+        print("bad rank counts refused with 400")
+
+        # 3. A killed rank fails the run cleanly; resume continues from the checkpoint.
+        long_scene = {"preset": "tgv2d",
+                      "patch": {"particles_per_side": 40, "packing": {"enabled": False},
+                                "time": {"end": 1000.0}, "checkpoint": {"every": 0.5}}}
+        status, run = request(base, "POST", "/api/runs", dict(long_scene, name="killed", ranks=2))
+        if status != 201:
+            sys.exit(f"create: {status} {run}")
+        run_id = run["id"]
+        run_dir = os.path.join(data, "runs", run_id)
+        wait_for(base, run_id, lambda r: r["time"] > 1.2, "t > 1.2")
+        victims = [pid for pid, rank in worker_ranks(sphles).items() if rank == 1]
+        if len(victims) != 1:
+            sys.exit(f"expected one rank-1 worker, found {worker_ranks(sphles)}")
+        os.kill(victims[0], signal.SIGKILL)
+        failed = wait_for(base, run_id, lambda r: r["state"] != "running", "a state change", 60)
+        reason = failed["reason"]
+        print(f"after the kill: {failed['state']}: {reason}")
+        if failed["state"] != "failed" or "rank 1" not in reason or \
+                "last valid checkpoint: checkpoints/ckpt_" not in reason:
+            sys.exit("the run did not fail with a diagnosis naming rank 1 and the checkpoint")
+        status, _ = request(base, "GET", "/api/runs")
+        if status != 200:
+            sys.exit("the server does not answer after the job died")
+        wait_no_workers(sphles)
+        named = re.search(r"checkpoints/(ckpt_\d+\.h5)", reason).group(1)
+        with h5py.File(os.path.join(run_dir, "checkpoints", named), "r") as f:
+            checkpoint_time = float(f.attrs["time"])
+
+        status, run = request(base, "POST", f"/api/runs/{run_id}/resume")
+        if status != 200 or run["state"] != "running":
+            sys.exit(f"resume: {status} {run}")
+        # The new job continues from the named checkpoint: its time series restarts there.
+        wait_for(base, run_id, lambda r: r["state"] == "running" and
+                 r["time"] > checkpoint_time + 0.2, "running past the checkpoint")
+        with open(os.path.join(run_dir, "timeseries.csv")) as f:
+            times = [float(row.split(",")[0]) for row in f.read().splitlines()[1:]]
+        if any(t1 <= t0 for t0, t1 in zip(times, times[1:])):
+            sys.exit("the time series is not increasing after the resume")
+        status, changed = request(base, "PATCH", f"/api/runs/{run_id}/parameters",
+                                  {"fluid": {"dynamic_viscosity": 0.02}})
+        if status != 200:
+            sys.exit(f"live change on the resumed job: {status} {changed}")
+        time.sleep(1.0)
+        status, run = request(base, "POST", f"/api/runs/{run_id}/stop")
+        if status != 200 or run["state"] != "stopped":
+            sys.exit(f"stop: {status} {run}")
+        with open(os.path.join(run_dir, "scene.json")) as f:
+            if json.load(f)["fluid"]["dynamic_viscosity"] != 0.02:
+                sys.exit("the live change is not in scene.json")
+        wait_no_workers(sphles)
+        print(f"resumed from {named}, changed live, stopped at t = {run['time']:.3f}")
+    finally:
+        server.send_signal(signal.SIGTERM)
+        try:
+            server.wait(timeout=60)
+        except subprocess.TimeoutExpired:
+            server.kill()
+    print("ok")
+
+
+if __name__ == "__main__":
+    main()

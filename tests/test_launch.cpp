@@ -1,0 +1,344 @@
+// The channel to a run's MPI job and the job's solver (launch/, issue 19 "Launching"): values
+// cross a real TCP connection bit for bit, malformed messages and a vanished peer are refused
+// with clear errors, a launcher that fails is diagnosed from its exit status and log, and a
+// solver in a real 2-rank job (mpirun, `sphles worker`) steps bitwise like one process.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <thread>
+
+#include <unistd.h>
+#include "launch/channel.hpp"
+#include "launch/job.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::launch {
+namespace {
+
+std::filesystem::path fresh_directory(const std::string& name) {
+  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
+                                    ("sphles_launch_" + name + "_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+/// Particles with random bits in every array (NaN and infinities included), ν_t when asked.
+sim::ParticleArrays random_particles(int dimension, std::size_t n, bool eddy, std::uint64_t seed) {
+  std::mt19937_64 bits(seed);
+  sim::ParticleArrays p;
+  p.dimension = dimension;
+  p.resize(n);
+  if (eddy) p.eddy_viscosity.resize(n);
+  for (std::vector<double>* field : p.double_fields())
+    for (double& v : *field) {
+      const std::uint64_t b = bits();
+      std::memcpy(&v, &b, sizeof v);
+    }
+  for (auto& id : p.id) id = bits();
+  return p;
+}
+
+bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+void expect_same_particles(const sim::ParticleArrays& a, const sim::ParticleArrays& b) {
+  ASSERT_EQ(a.dimension, b.dimension);
+  const auto fa = a.double_fields();
+  const auto fb = b.double_fields();
+  ASSERT_EQ(fa.size(), fb.size());
+  for (std::size_t f = 0; f < fa.size(); ++f) EXPECT_TRUE(same_bits(*fa[f], *fb[f])) << f;
+  EXPECT_EQ(a.id, b.id);
+}
+
+/// A connected pair of channels over 127.0.0.1.
+struct ConnectedPair {
+  Channel service;
+  std::unique_ptr<Channel> job_end = std::make_unique<Channel>();
+  Channel& job = *job_end;
+  ConnectedPair() {
+    const unsigned short port = service.listen("127.0.0.1");
+    std::thread connector([&] { job.connect("127.0.0.1", port); });
+    service.accept({}, 0.05);
+    connector.join();
+  }
+};
+
+TEST(JobChannel, StatesAndDiagnosticsCrossTheConnectionBitForBit) {
+  ConnectedPair pair;
+  for (const int dimension : {2, 3})
+    for (const bool eddy : {false, true}) {
+      sim::SolverState state;
+      state.particles = random_particles(dimension, 1000, eddy, 17 + dimension);
+      for (int a = 0; a < dimension; ++a)
+        state.list_reference_positions[static_cast<std::size_t>(a)] =
+            random_particles(dimension, 1000, false, 99 + a).mass;
+      state.time = 0.1 + 0.2;
+      state.step = 123456789012345ull;
+      state.neighbour_builds = 42;
+      sim::StepDiagnostics g;
+      g.time = state.time;
+      g.step = state.step;
+      g.dt = std::numeric_limits<double>::quiet_NaN();
+      g.kinetic_energy = std::numeric_limits<double>::denorm_min();
+      g.momentum = {1e-300, -0.0, std::numeric_limits<double>::infinity()};
+      g.neighbour_builds = 7;
+      g.mean_neighbours = 123.25;
+
+      Encoder e;
+      encode(e, state);
+      encode(e, SolverStatus{state.time, state.step, 0.003, g});
+      pair.service.send(MessageKind::State, e);
+      const Message m = pair.job.receive();
+      ASSERT_EQ(m.kind, MessageKind::State);
+      Decoder d(m.body);
+      const sim::SolverState back = decode_state(d);
+      const SolverStatus status = decode_status(d);
+      d.finish();
+      expect_same_particles(state.particles, back.particles);
+      for (int a = 0; a < dimension; ++a)
+        EXPECT_TRUE(same_bits(state.list_reference_positions[static_cast<std::size_t>(a)],
+                              back.list_reference_positions[static_cast<std::size_t>(a)]));
+      EXPECT_EQ(back.time, state.time);
+      EXPECT_EQ(back.step, state.step);
+      EXPECT_EQ(back.neighbour_builds, state.neighbour_builds);
+      EXPECT_EQ(status.stable_time_step, 0.003);
+      EXPECT_TRUE(std::isnan(status.diagnostics.dt));
+      EXPECT_EQ(status.diagnostics.kinetic_energy, g.kinetic_energy);
+      EXPECT_TRUE(std::signbit(status.diagnostics.momentum[1]));
+      EXPECT_EQ(status.diagnostics.momentum[2], g.momentum[2]);
+      EXPECT_EQ(status.diagnostics.neighbour_builds, 7u);
+      EXPECT_EQ(status.diagnostics.mean_neighbours, 123.25);
+    }
+}
+
+TEST(JobChannel, AFreshParticleSetKeepsItsEmptyArrays) {
+  sim::ParticleArrays p;
+  p.dimension = 2;
+  p.position[0] = {0.5, 1.5};
+  p.position[1] = {2.5, 3.5};
+  p.velocity[0] = {1.0, 2.0};
+  p.velocity[1] = {3.0, 4.0};
+  p.mass = {0.25, 0.25};
+  p.id = {4, 9};
+  Encoder e;
+  encode(e, p);
+  Decoder d(e.bytes());
+  const sim::ParticleArrays back = decode_particles(d);
+  d.finish();
+  EXPECT_EQ(back.position[0], p.position[0]);
+  EXPECT_EQ(back.velocity[1], p.velocity[1]);
+  EXPECT_EQ(back.mass, p.mass);
+  EXPECT_TRUE(back.volume.empty());
+  EXPECT_TRUE(back.acceleration[0].empty());
+  EXPECT_TRUE(back.eddy_viscosity.empty());
+  EXPECT_EQ(back.id, p.id);
+}
+
+TEST(JobChannel, ErrorsKeepTheirTypeAndFacts) {
+  const auto round_trip = [](const std::exception& error) {
+    Encoder e;
+    encode_error(e, error);
+    Decoder d(e.bytes());
+    throw_error(d);
+  };
+  try {
+    round_trip(sim::BlowUpError("blew up at t = 1", 1.0, 77, "velocity[0]", 1e300, 4242));
+    FAIL() << "no throw";
+  } catch (const sim::BlowUpError& e) {
+    EXPECT_STREQ(e.what(), "blew up at t = 1");
+    EXPECT_EQ(e.time(), 1.0);
+    EXPECT_EQ(e.step(), 77u);
+    EXPECT_EQ(e.quantity(), "velocity[0]");
+    EXPECT_EQ(e.value(), 1e300);
+    EXPECT_EQ(e.particle_id(), 4242u);
+  }
+  EXPECT_THROW(round_trip(std::invalid_argument("state does not fit")), std::invalid_argument);
+  try {
+    round_trip(std::runtime_error("decomposition too fine"));
+    FAIL() << "no throw";
+  } catch (const sim::SimulationError& e) {
+    EXPECT_STREQ(e.what(), "decomposition too fine");
+  }
+}
+
+TEST(JobChannel, TruncatedAndOversizedMessagesAreRefused) {
+  Encoder e;
+  encode(e, random_particles(3, 10, false, 5));
+  std::vector<std::byte> bytes = e.bytes();
+  bytes.resize(bytes.size() - 1);
+  Decoder truncated(bytes);
+  EXPECT_THROW(decode_particles(truncated), ProtocolError);
+
+  Encoder huge;
+  huge.u64(3);
+  huge.u64(std::uint64_t{1} << 60);  // a length far beyond the message
+  Decoder lying(huge.bytes());
+  EXPECT_THROW(decode_particles(lying), ProtocolError);
+
+  Encoder wrong_dimension;
+  wrong_dimension.u64(4);
+  Decoder four(wrong_dimension.bytes());
+  EXPECT_THROW(decode_particles(four), ProtocolError);
+
+  Encoder extra;
+  extra.f64(1.0);
+  extra.u64(2);
+  Decoder left_over(extra.bytes());
+  left_over.f64();
+  EXPECT_THROW(left_over.finish(), ProtocolError);
+}
+
+TEST(JobChannel, APeerThatGoesAwayEndsTheWait) {
+  ConnectedPair pair;
+  std::thread closer([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    pair.job_end.reset();  // the job's end closes its socket
+  });
+  EXPECT_THROW(pair.service.receive({}, 0.05), ChannelClosed);
+  closer.join();
+}
+
+TEST(JobChannel, AWaitGivesUpWhenTheCheckThrows) {
+  ConnectedPair pair;
+  int checks = 0;
+  EXPECT_THROW(pair.service.receive(
+                   [&] {
+                     if (++checks == 3) throw std::runtime_error("the job ended");
+                   },
+                   0.01),
+               std::runtime_error);
+  EXPECT_EQ(checks, 3);
+}
+
+sim::Scene small_tgv2d() {
+  return sim::parse_scene({{"preset", "tgv2d"},
+                           {"particles_per_side", 32},
+                           {"packing", {{"enabled", false}}},
+                           {"time", {{"end", 1.0}}}});
+}
+
+LaunchOptions options_for(const std::string& launcher, const std::filesystem::path& log) {
+  // The job inherits this process' environment: OpenMPI refuses root (CI's containers) unless
+  // told, and its ranks should yield when they wait on CI's 2 oversubscribed cores.
+  for (const char* name :
+       {"OMPI_ALLOW_RUN_AS_ROOT", "OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "OMPI_MCA_mpi_yield_when_idle"})
+    ::setenv(name, "1", 0);
+  LaunchOptions o;
+  o.launcher = launcher;
+  o.executable = SPHLES_BINARY;
+  o.ranks = 2;
+  o.threads = 1;
+  o.log_file = log;
+  o.connect_timeout_seconds = 60.0;
+  return o;
+}
+
+TEST(JobSolvers, ALauncherWithoutTheRankCountIsRefused) {
+  LaunchOptions o = options_for("mpirun -n 2", "job.log");
+  try {
+    validate(o);
+    FAIL() << "no throw";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("{ranks}"), std::string::npos) << e.what();
+  }
+}
+
+TEST(JobSolvers, ALauncherThatFailsIsDiagnosedFromItsStatusAndLog) {
+  const auto dir = fresh_directory("launch_failing");
+  const std::filesystem::path log = dir / "job.log";
+  const sim::Scene scene = small_tgv2d();
+  JobSolvers solvers =
+      job_solvers(options_for("/bin/sh -c 'echo cannot place {ranks} ranks >&2; exit 3'", log));
+  try {
+    solvers.make(scene, sim::setup_run(scene).particles);
+    FAIL() << "no throw";
+  } catch (const sim::SimulationError& e) {
+    const std::string what = e.what();
+    EXPECT_NE(what.find("exited with status 3"), std::string::npos) << what;
+    EXPECT_NE(what.find("before its rank 0 connected"), std::string::npos) << what;
+    EXPECT_NE(what.find("cannot place 2 ranks"), std::string::npos) << what;
+  }
+}
+
+TEST(JobSolvers, AJobWithAnotherRankCountIsRefused) {
+  const auto dir = fresh_directory("launch_ranks");
+  const sim::Scene scene = small_tgv2d();
+  // A launcher that ignores the rank count: one rank where the run asked for two.
+  JobSolvers solvers = job_solvers(options_for(
+      "mpiexec --oversubscribe --bind-to none -n 1 env SPHLES_IGNORED={ranks}", dir / "job.log"));
+  try {
+    solvers.make(scene, sim::setup_run(scene).particles);
+    FAIL() << "no throw";
+  } catch (const sim::SimulationError& e) {
+    EXPECT_NE(std::string(e.what()).find("the job has 1 ranks where the run asked for 2"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+/// Bitwise equality of two states by particle id.
+void expect_same_by_id(const sim::ParticleArrays& a, const sim::ParticleArrays& b) {
+  ASSERT_EQ(a.size(), b.size());
+  std::vector<std::size_t> where(a.size());
+  for (std::size_t k = 0; k < b.size(); ++k) where[b.id[k]] = k;
+  const auto fa = a.double_fields();
+  const auto fb = b.double_fields();
+  ASSERT_EQ(fa.size(), fb.size());
+  std::size_t differing = 0;
+  for (std::size_t i = 0; i < a.size(); ++i)
+    for (std::size_t f = 0; f < fa.size(); ++f)
+      if (std::memcmp(&(*fa[f])[i], &(*fb[f])[where[a.id[i]]], sizeof(double)) != 0) {
+        ++differing;
+        break;
+      }
+  EXPECT_EQ(differing, 0u);
+}
+
+TEST(JobSolvers, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
+  const auto dir = fresh_directory("launch_job");
+  const sim::Scene scene = small_tgv2d();
+  sim::RunSetup setup = sim::setup_run(scene);
+  auto local = sim::make_simulation(setup.solver, setup.particles);
+  JobSolvers solvers = job_solvers(
+      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  std::unique_ptr<sim::Simulation> remote = solvers.make(scene, setup.particles);
+  EXPECT_EQ(remote->diagnostics().kinetic_energy, local->diagnostics().kinetic_energy);
+  for (int s = 0; s < 20; ++s) {
+    local->step();
+    remote->step();
+  }
+  EXPECT_EQ(remote->time(), local->time());
+  EXPECT_EQ(remote->step_count(), 20u);
+  EXPECT_EQ(remote->stable_time_step(), local->stable_time_step());
+  EXPECT_EQ(remote->diagnostics().kinetic_energy, local->diagnostics().kinetic_energy);
+  expect_same_by_id(local->particles(), remote->particles());
+  EXPECT_EQ(remote->neighbour_list()->num_particles(), local->particles().size());
+
+  // A live change: the job's solver replaced from a state, the old one stale, the job the same.
+  std::unique_ptr<sim::Simulation> changed = solvers.restore(scene, remote->state());
+  EXPECT_THROW(remote->step(), std::logic_error);
+  remote.reset();
+  auto local_again = sim::restore_simulation(setup.solver, local->state());
+  for (int s = 0; s < 10; ++s) {
+    local_again->step();
+    changed->step();
+  }
+  expect_same_by_id(local_again->particles(), changed->particles());
+  changed.reset();  // the job finishes
+
+  std::ifstream in(dir / "job.log");
+  const std::string log((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(log.find("rank 0 of 2 done"), std::string::npos) << log;
+}
+
+}  // namespace
+}  // namespace sphles::launch
