@@ -33,7 +33,7 @@ int estimate_command(const std::vector<std::string>& args);
 
 /// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
 ///   [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]
-///   [--packing-cache DIR] [--launcher CMD] [--max-ranks N]
+///   [--packing-cache DIR] [--launcher CMD] [--job-address IP] [--max-ranks N]
 ///   [--start-run PRESET|SCENE.json [--set key=value ...]]
 int serve_command(const std::vector<std::string>& args);
 

@@ -1,6 +1,7 @@
 // sphles serve: the HTTP/WebSocket service (server/) over a run manager (control/).
 #include <algorithm>
 #include <boost/asio/io_context.hpp>
+#include <boost/asio/ip/address.hpp>
 #include <boost/asio/signal_set.hpp>
 #include <cmath>
 #include <csignal>
@@ -31,6 +32,7 @@ struct ServeOptions {
   server::ServerOptions server;
   control::ManagerOptions manager;
   std::string launcher = "mpirun -n {ranks}";  // runs with ranks > 1; empty: none
+  std::string job_address = "127.0.0.1";       // where the jobs' rank 0 connects back
   std::optional<std::string> start_run;        // preset name or scene file
   std::vector<std::string> overrides;          // --set, for --start-run
 };
@@ -108,6 +110,8 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
       o.manager.run_options.threads = parse_int(a, value(), 0, 1024);
     else if (a == "--launcher")
       o.launcher = value();
+    else if (a == "--job-address")
+      o.job_address = value();
     else if (a == "--max-ranks")
       o.manager.max_ranks = parse_int(a, value(), 1, 1 << 20);
     else if (a == "--start-run")
@@ -127,6 +131,12 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
     launch.executable = std::filesystem::read_symlink("/proc/self/exe", error);
     if (error) throw UsageError("cannot find the sphles program for MPI jobs: " + error.message());
     launch.log_file = "job.log";
+    launch.listen_address = o.job_address;
+    boost::system::error_code invalid;
+    boost::asio::ip::make_address(o.job_address, invalid);
+    if (invalid)
+      throw UsageError("--job-address must be an IP address of this host, got '" + o.job_address +
+                       "'");
     try {
       launch::validate(launch);
     } catch (const std::invalid_argument& e) {
@@ -175,7 +185,8 @@ int serve_command(const std::vector<std::string>& args) {
                  "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
                  "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--max-queued N] "
                  "[--max-runs N] [--max-memory SIZE] [--threads N] [--packing-cache DIR] "
-                 "[--launcher 'mpirun -n {ranks}'] [--max-ranks N] [--start-run PRESET|SCENE.json "
+                 "[--launcher 'mpirun -n {ranks}'] [--job-address IP] [--max-ranks N] [--start-run "
+                 "PRESET|SCENE.json "
                  "[--set key=value ...]]\n",
                  e.what());
     return kExitUsage;

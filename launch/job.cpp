@@ -79,6 +79,17 @@ std::string log_tail(const std::filesystem::path& file) {
   return tail;
 }
 
+/// Where rank 0 connects to reach a service listening on `address`: the address itself, or this
+/// host's name when the service listens on every interface.
+std::string connect_host(const std::string& address) {
+  if (address != "0.0.0.0" && address != "::") return address;
+  char name[256] = {};
+  if (::gethostname(name, sizeof name - 1) != 0 || name[0] == '\0')
+    throw std::runtime_error("the job address " + address +
+                             " needs this host's name, which gethostname does not give");
+  return name;
+}
+
 /// The job ended (or broke its connection) while the service waited for it.
 class JobEnded : public std::runtime_error {
  public:
@@ -95,8 +106,8 @@ class Job {
       const unsigned short port = channel_.listen(o_.listen_address);
       const std::string token = random_token();
       std::string shell = "exec " + command_ + " " + shell_quote(o_.executable.string()) +
-                          " worker --connect " + shell_quote(o_.listen_address) + ":" +
-                          std::to_string(port) + " --token " + token;
+                          " worker --connect " + shell_quote(connect_host(o_.listen_address)) +
+                          ":" + std::to_string(port) + " --token " + token;
       if (o_.threads > 0) shell += " --threads " + std::to_string(o_.threads);
       spawn(shell);
       const auto started = Clock::now();

@@ -29,8 +29,9 @@ struct LaunchOptions {
   int threads = 0;  // OpenMP threads per rank; 0 = the ranks' default
   /// The job's standard output and error (appended).
   std::filesystem::path log_file;
-  /// Address the service listens on for the job's rank 0 (it must reach it: on a cluster, an
-  /// address of the service's node).
+  /// Address the service listens on for the job's rank 0, which must reach it: on a cluster,
+  /// an address of the service's node the compute nodes can reach. 0.0.0.0 (or ::) listens on
+  /// every interface and tells rank 0 this host's name (gethostname) to connect to.
   std::string listen_address = "127.0.0.1";
   double connect_timeout_seconds = 120.0;  // from the launch to rank 0's connection
   double finish_timeout_seconds = 30.0;    // from Finish to the job's exit, then it is killed

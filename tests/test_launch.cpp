@@ -285,6 +285,18 @@ TEST(JobSolvers, AJobWithAnotherRankCountIsRefused) {
   }
 }
 
+TEST(JobSolvers, AJobReachesAServiceListeningOnEveryInterface) {
+  const auto dir = fresh_directory("launch_any");
+  const sim::Scene scene = small_tgv2d();
+  LaunchOptions o =
+      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log");
+  o.listen_address = "0.0.0.0";  // rank 0 connects to this host's name
+  JobSolvers solvers = job_solvers(o);
+  const auto remote = solvers.make(scene, sim::setup_run(scene).particles);
+  remote->step();
+  EXPECT_EQ(remote->step_count(), 1u);
+}
+
 /// Bitwise equality of two states by particle id.
 void expect_same_by_id(const sim::ParticleArrays& a, const sim::ParticleArrays& b) {
   ASSERT_EQ(a.size(), b.size());
