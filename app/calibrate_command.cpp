@@ -93,7 +93,7 @@ double mean_urms(sim::Scene scene, double chi, double average_from) {
     simulation->step(scene.end_time - before);
     const double dt = simulation->time() - before;
     if (simulation->time() > average_from) {
-      const double u_rms = sim::case_diagnostics(scene, simulation->particles())[2];
+      const double u_rms = simulation->case_diagnostics(scene)[2];
       weighted += u_rms * dt;
       duration += dt;
     }

@@ -913,11 +913,10 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     last_flush = Clock::now();
   };
   const auto record = [&](const sim::StepDiagnostics& d) {
-    // particles() gathers a distributed run's particles: only for a case that has such values.
-    const std::vector<double> values =
-        sim::case_diagnostic_names(current.run.scene).empty()
-            ? std::vector<double>{}
-            : sim::case_diagnostics(current.run.scene, simulation->particles());
+    // Summed where the particles live (a distributed run gathers nothing for them).
+    const std::vector<double> values = sim::case_diagnostic_names(current.run.scene).empty()
+                                           ? std::vector<double>{}
+                                           : simulation->case_diagnostics(current.run.scene);
     const double epsilon = dissipation.add(d.time, d.kinetic_energy);
     latest_dissipation = epsilon;
     timeseries.write(d, epsilon, values);

@@ -30,7 +30,9 @@ enum class MessageKind : std::uint32_t {
   Finish = 6,   // the job ends (no reply)
   Status = 7,   // time, step, stable time step, diagnostics
   SolverState = 8,
-  Error = 9,  // a request failed on the job: what, and the blow-up facts if it was one
+  Error = 9,             // a request failed on the job: what, and the blow-up facts if it was one
+  CaseDiagnostics = 10,  // scene JSON → Values (Simulation::case_diagnostics)
+  Values = 11,
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

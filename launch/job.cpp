@@ -302,6 +302,17 @@ class RemoteSimulation final : public sim::Simulation {
   const sim::StepDiagnostics& diagnostics() const override { return status_.diagnostics; }
   const sim::SolverConfig& config() const override { return config_; }
   double stable_time_step() const override { return status_.stable_time_step; }
+  std::vector<double> case_diagnostics(const sim::Scene& scene) const override {
+    job_->require_current(generation_);
+    Encoder e;
+    e.string(sim::scene_to_json(scene).dump());
+    Message reply = job_->request(MessageKind::CaseDiagnostics, e, "case diagnostics failed");
+    if (reply.kind != MessageKind::Values) throw ProtocolError("expected a values reply");
+    Decoder d(reply.body);
+    std::vector<double> values = d.doubles();
+    d.finish();
+    return values;
+  }
 
   const sim::ParticleArrays& particles() const override { return whole().particles; }
   std::size_t owned_count() const override { return particles().size(); }
@@ -448,6 +459,14 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           if (!simulation) throw std::logic_error("a step before the solver was made");
           simulation->step(max_dt);
           reply = status();
+          break;
+        }
+        case MessageKind::CaseDiagnostics: {
+          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          d.finish();
+          if (!simulation) throw std::logic_error("case diagnostics before the solver was made");
+          kind = MessageKind::Values;
+          reply.doubles(simulation->case_diagnostics(scene));
           break;
         }
         case MessageKind::State:

@@ -18,7 +18,14 @@ namespace sphles::par {
 
 namespace {
 
-enum class Command : int { Finish = 0, Make = 1, Restore = 2, Step = 3, Gather = 4 };
+enum class Command : int {
+  Finish = 0,
+  Make = 1,
+  Restore = 2,
+  Step = 3,
+  Gather = 4,
+  CaseDiagnostics = 5
+};
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
 /// sleeps kIdleSleep between tests: a run paused, or busy with analysis and checkpoints on rank
@@ -117,6 +124,13 @@ class DistributedSimulation final : public sim::Simulation {
   const sim::StepDiagnostics& diagnostics() const override { return m_->local->diagnostics(); }
   const sim::SolverConfig& config() const override { return m_->config; }
   double stable_time_step() const override { return m_->local->stable_time_step(); }
+  /// Summed by every rank over its owned particles (the scene travels with the command).
+  std::vector<double> case_diagnostics(const sim::Scene& scene) const override {
+    send_command(comm_, Command::CaseDiagnostics);
+    std::string json = sim::scene_to_json(scene).dump();
+    broadcast_string(comm_, json);
+    return m_->local->case_diagnostics(scene);
+  }
 
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
   std::size_t owned_count() const override { return particles().size(); }
@@ -201,6 +215,13 @@ void serve_commands(MPI_Comm comm) {
         case Command::Gather:
           if (member) gather_state(*member->decomposition, member->local->state(), 0);
           break;
+        case Command::CaseDiagnostics: {
+          std::string json;
+          broadcast_string(comm, json);
+          if (member)
+            member->local->case_diagnostics(sim::parse_scene(nlohmann::json::parse(json)));
+          break;
+        }
       }
     } catch (const std::exception&) {
       // The same error stopped rank 0's command (every check is collective); rank 0 reports it.

@@ -2,9 +2,13 @@
 #pragma once
 
 #include <array>
+#include <span>
+#include <string>
+#include <vector>
 
 #include "sim/packing.hpp"
 #include "sim/particles.hpp"
+#include "sim/reduction.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 
@@ -43,6 +47,12 @@ double kolmogorov_laminar_velocity(const KolmogorovForcing& forcing, double wave
 /// (mass-weighted averages, SPEC (4.3)); the Taylor-Green cases add none.
 std::vector<std::string> case_diagnostic_names(const Scene& scene);
 std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& particles);
+/// The same in two halves, for particles spread over processes: the exact sums over particles
+/// [0, n) (a process' owned ones), which combine bitwise in any order (ExactSum), and the
+/// diagnostics from the sums over every particle.
+std::vector<ExactSum> case_diagnostic_sums(const Scene& scene, const ParticleArrays& particles,
+                                           std::size_t n);
+std::vector<double> case_diagnostics_from_sums(const Scene& scene, std::span<const ExactSum> sums);
 
 /// V_i = 1/Σ_j W_ij (A.1) of every particle of an arrangement, with the kernel, support and box
 /// of `config`: the volumes the solver's first density pass computes.

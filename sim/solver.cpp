@@ -5,6 +5,7 @@
 #include <span>
 #include <sstream>
 
+#include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/reduction.hpp"
 
@@ -198,6 +199,12 @@ class SphSolver final : public Simulation {
     return time_step_limits(config_.time_step, config_.particle_spacing, config_.fluid,
                             diagnostics_.max_speed, max_acceleration_)
         .step();
+  }
+
+  std::vector<double> case_diagnostics(const Scene& scene) const override {
+    std::vector<ExactSum> sums = case_diagnostic_sums(scene, particles_, owned_);
+    exchange_->sum(sums);
+    return case_diagnostics_from_sums(scene, sums);
   }
 
  private:

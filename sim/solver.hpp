@@ -20,6 +20,7 @@
 #include <string>
 #include <string_view>
 #include <utility>
+#include <vector>
 
 #include "sim/exchange.hpp"
 #include "sim/health.hpp"
@@ -31,6 +32,8 @@
 #include "sim/subfilter.hpp"
 
 namespace sphles::sim {
+
+struct Scene;  // scene.hpp
 
 /// Time-step limits (docs/numerics.md); Δl is the mean particle spacing, H the kernel support.
 ///   acoustic:     dt <= cfl_acoustic * Δl / (c_s + |v|max)
@@ -171,6 +174,10 @@ class Simulation {
   virtual SolverState state() const = 0;
   /// The step the limits allow for the current state (before max_dt).
   virtual double stable_time_step() const = 0;
+  /// The case's own diagnostics of the current state (case_diagnostics, initial_conditions.hpp)
+  /// for `scene`, the scene this solver was made from: summed over every particle of a
+  /// distributed run without gathering them, bitwise as one process sums them. Collective.
+  virtual std::vector<double> case_diagnostics(const Scene& scene) const = 0;
 };
 
 /// Builds a solver for the configured dimension and kernel. `initial` needs positions, velocities

@@ -297,6 +297,24 @@ TEST(JobSolvers, AJobReachesAServiceListeningOnEveryInterface) {
   EXPECT_EQ(remote->step_count(), 1u);
 }
 
+TEST(JobSolvers, KolmogorovDiagnosticsAreSummedInTheJobBitwiseLikeOneProcess) {
+  const auto dir = fresh_directory("launch_kolmogorov");
+  const sim::Scene scene = sim::parse_scene(
+      {{"preset", "kolmogorov2d"}, {"particles_per_side", 48}, {"packing", {{"enabled", false}}}});
+  const sim::RunSetup setup = sim::setup_run(scene);
+  auto local = sim::make_simulation(setup.solver, setup.particles);
+  JobSolvers solvers = job_solvers(
+      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  const auto remote = solvers.make(scene, setup.particles);
+  for (int s = 0; s < 10; ++s) {
+    local->step();
+    remote->step();
+  }
+  const std::vector<double> expected = local->case_diagnostics(scene);
+  ASSERT_EQ(expected.size(), 3u);
+  EXPECT_EQ(remote->case_diagnostics(scene), expected);
+}
+
 /// Bitwise equality of two states by particle id.
 void expect_same_by_id(const sim::ParticleArrays& a, const sim::ParticleArrays& b) {
   ASSERT_EQ(a.size(), b.size());
