@@ -4,7 +4,6 @@
 
 #include <cmath>
 #include <cstdio>
-#include <optional>
 #include <stdexcept>
 
 #include "app/commands.hpp"
@@ -20,66 +19,16 @@ struct CalibrateOptions {
   std::string scene_file;
   std::vector<std::string> overrides;
   double target = 0.0;
-  std::optional<double> end_time, average_from, initial;
+  double end_time = -1.0, average_from = -1.0, initial = 0.0;  // not given: -1, -1, 0
   int tries = 8;
   double tolerance = 0.01;
   int threads = 0;
 };
 
-double parse_number(const std::string& option, const std::string& text) {
-  std::size_t used = 0;
-  double value = 0.0;
-  try {
-    value = std::stod(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used != text.size() || !std::isfinite(value))
-    throw std::invalid_argument(option + " must be a number, got '" + text + "'");
-  return value;
-}
-
-CalibrateOptions parse_options(const std::vector<std::string>& args) {
-  CalibrateOptions o;
-  bool have_target = false;
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    const std::string& a = args[k];
-    const auto value = [&]() -> const std::string& {
-      if (k + 1 >= args.size()) throw std::invalid_argument(a + " needs a value");
-      return args[++k];
-    };
-    if (a == "--target-urms") {
-      o.target = parse_number(a, value());
-      have_target = true;
-    } else if (a == "--time") {
-      o.end_time = parse_number(a, value());
-    } else if (a == "--average-from") {
-      o.average_from = parse_number(a, value());
-    } else if (a == "--initial") {
-      o.initial = parse_number(a, value());
-    } else if (a == "--tries") {
-      o.tries = static_cast<int>(parse_number(a, value()));
-    } else if (a == "--tolerance") {
-      o.tolerance = parse_number(a, value());
-    } else if (a == "--threads") {
-      o.threads = static_cast<int>(parse_number(a, value()));
-    } else if (a == "--set") {
-      o.overrides.push_back(value());
-    } else if (!a.empty() && a[0] == '-') {
-      throw std::invalid_argument("unknown option '" + a + "'");
-    } else if (o.scene_file.empty()) {
-      o.scene_file = a;
-    } else {
-      throw std::invalid_argument("unexpected argument '" + a + "'");
-    }
-  }
-  if (o.scene_file.empty()) throw std::invalid_argument("missing SCENE.json or preset");
-  if (!have_target || !(o.target > 0.0))
-    throw std::invalid_argument("--target-urms must be given and > 0");
-  if (o.tries < 2 || o.tries > 100) throw std::invalid_argument("--tries must be in [2, 100]");
+/// Refusals CLI11 does not express.
+void check_options(const CalibrateOptions& o) {
+  if (!(o.target > 0.0)) throw std::invalid_argument("--target-urms must be > 0");
   if (!(o.tolerance > 0.0)) throw std::invalid_argument("--tolerance must be > 0");
-  if (o.threads < 0 || o.threads > 1024) throw std::invalid_argument("--threads must be >= 1");
-  return o;
 }
 
 /// Time-averaged u_rms over [average_from, end] of one run with forcing amplitude χ.
@@ -104,27 +53,26 @@ double mean_urms(sim::Scene scene, double chi, double average_from) {
 
 }  // namespace
 
-int calibrate_command(const std::vector<std::string>& args) {
-  CalibrateOptions o;
+int calibrate_command(const CalibrateOptions& o) {
   sim::Scene scene;
   try {
-    o = parse_options(args);
+    check_options(o);
     scene = load_run_config(o.scene_file, o.overrides).scene;
     if (scene.case_type != sim::CaseType::Kolmogorov2D)
       throw std::invalid_argument("calibrate needs a kolmogorov2d scene, got case '" +
                                   std::string(sim::case_name(scene.case_type)) + "'");
-    if (o.end_time) scene.end_time = *o.end_time;
+    if (o.end_time >= 0.0) scene.end_time = o.end_time;
     if (!(scene.end_time > 0.0)) throw std::invalid_argument("--time must be > 0");
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles calibrate: %s\n", e.what());
     return kExitUsage;
   }
   if (o.threads > 0) omp_set_num_threads(o.threads);
-  const double average_from = o.average_from.value_or(0.25 * scene.end_time);
+  const double average_from = o.average_from >= 0.0 ? o.average_from : 0.25 * scene.end_time;
   try {
     std::printf("calibrating chi for <u_rms> = %g m/s over t in [%g, %g] s (%zu particles)\n",
                 o.target, average_from, scene.end_time, scene.num_particles());
-    double chi0 = o.initial.value_or(scene.forcing.amplitude);
+    double chi0 = o.initial > 0.0 ? o.initial : scene.forcing.amplitude;
     double u0 = mean_urms(scene, chi0, average_from);
     std::printf("try 1: chi = %.6g m/s^2  <u_rms> = %.6g m/s  error = %+.3f %%\n", chi0, u0,
                 100.0 * (u0 / o.target - 1.0));
@@ -154,6 +102,41 @@ int calibrate_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "sphles calibrate: %s\n", e.what());
     return kExitFailure;
   }
+}
+
+void add_calibrate_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<CalibrateOptions>();
+  CLI::App* calibrate =
+      app.add_subcommand("calibrate", "calibrate the Kolmogorov forcing to a target u_rms");
+  calibrate->footer(
+      "Find the Kolmogorov forcing amplitude chi giving a time-averaged u_rms = U by secant "
+      "iterations of whole runs (SPEC 6.3). Exit 0 when converged, 1 when not.");
+  calibrate->add_option("scene", o->scene_file, "a kolmogorov2d scene file or preset")
+      ->type_name("SCENE.json|PRESET")
+      ->required();
+  calibrate->add_option("--target-urms", o->target, "the target <u_rms> [m/s]")
+      ->type_name("U")
+      ->required();
+  calibrate->add_option("--time", o->end_time, "end time of each run [s] (default: the scene's)")
+      ->type_name("T")
+      ->check(CLI::NonNegativeNumber);
+  calibrate
+      ->add_option("--average-from", o->average_from,
+                   "start of the averaging window [s] (default: a quarter of the end time)")
+      ->type_name("T0")
+      ->check(CLI::NonNegativeNumber);
+  calibrate->add_option("--initial", o->initial, "first chi [m/s^2] (default: the scene's)")
+      ->type_name("CHI")
+      ->check(CLI::PositiveNumber);
+  calibrate->add_option("--tries", o->tries, "runs at most")
+      ->check(CLI::Range(2, 100))
+      ->capture_default_str();
+  calibrate->add_option("--tolerance", o->tolerance, "relative error accepted")
+      ->capture_default_str();
+  repeatable(calibrate->add_option("--set", o->overrides, "change a scene key (repeatable)"))
+      ->type_name("KEY=VALUE");
+  add_threads_option(*calibrate, o->threads, "OpenMP threads");
+  calibrate->callback([o, &exit_code] { exit_code = calibrate_command(*o); });
 }
 
 }  // namespace sphles::app

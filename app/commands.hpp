@@ -1,6 +1,9 @@
-// Subcommands of the sphles program. Each returns the process exit code.
+// Subcommands of the sphles program, declared with CLI11 (Debian libcli11-dev): each adds its
+// subcommand, options and help text to the program's command line, and a callback that runs it
+// and sets the process exit code. `sphles COMMAND --help` prints a command's own help (rc 0).
 #pragma once
 
+#include <CLI/CLI.hpp>
 #include <string>
 #include <vector>
 
@@ -15,31 +18,39 @@ inline constexpr int kExitUsage = 2;
 
 /// sphles run SCENE.json|PRESET [--set key=value ...] [--out DIR] [--threads N] [--overwrite]
 ///   [--packing-cache DIR] | --restart CHECKPOINT|RUN_DIR [--set ...] [--out DIR]
-int run_command(const std::vector<std::string>& args);
+void add_run_command(CLI::App& app, int& exit_code);
 
-/// sphles inspect FILE: validates a checkpoint and prints its contents (exit 2 if invalid).
-int inspect_command(const std::vector<std::string>& args);
+/// sphles inspect FILE: validates a checkpoint or snapshot and prints its contents.
+void add_inspect_command(CLI::App& app, int& exit_code);
 
-/// sphles presets: lists the preset names.
-int presets_command(const std::vector<std::string>& args);
+/// sphles presets: lists the presets.
+void add_presets_command(CLI::App& app, int& exit_code);
 
-/// sphles calibrate SCENE.json|PRESET --target-urms U [--time T] [--average-from T0]
-///   [--initial CHI] [--tries N] [--tolerance F] [--set key=value ...] [--threads N]
-int calibrate_command(const std::vector<std::string>& args);
+/// sphles calibrate SCENE.json|PRESET --target-urms U [...]: the Kolmogorov forcing amplitude.
+void add_calibrate_command(CLI::App& app, int& exit_code);
 
 /// sphles estimate SCENE.json|PRESET [--set key=value ...] [--json]: memory, disk and steps a
 /// run would need (control/resources.hpp), without running it.
-int estimate_command(const std::vector<std::string>& args);
+void add_estimate_command(CLI::App& app, int& exit_code);
 
-/// sphles serve [--port 8080] [--bind 127.0.0.1] [--data DIR] [--token TOKEN] [--web DIR]
-///   [--max-running N] [--max-queued N] [--max-runs N] [--max-memory SIZE] [--threads N]
-///   [--packing-cache DIR] [--launcher CMD] [--job-address IP] [--max-ranks N]
-///   [--start-run PRESET|SCENE.json [--set key=value ...]]
-int serve_command(const std::vector<std::string>& args);
+/// sphles serve [...]: the HTTP/WebSocket service and dashboard.
+void add_serve_command(CLI::App& app, int& exit_code);
 
 /// sphles worker --connect HOST:PORT --token TOKEN [--threads N]: a rank of the MPI job the
-/// service launches for a run with ranks > 1 (launch/job.hpp); not meant to be run by hand.
-int worker_command(const std::vector<std::string>& args);
+/// service launches for a run with ranks > 1 (launch/job.hpp); not meant to be run by hand
+/// (hidden from the help).
+void add_worker_command(CLI::App& app, int& exit_code);
+
+/// A repeatable option taking one value per occurrence (`--set a=1 --set b=2`), collected in
+/// order; CLI11's vectors would otherwise swallow the arguments that follow.
+inline CLI::Option* repeatable(CLI::Option* option) {
+  return option->expected(1)->allow_extra_args(false)->take_all();
+}
+
+/// --threads N (1 to 1024) of the commands that run a solver.
+inline CLI::Option* add_threads_option(CLI::App& command, int& threads, const std::string& what) {
+  return command.add_option("--threads", threads, what)->type_name("N")->check(CLI::Range(1, 1024));
+}
 
 /// The scene document of a scene file, or of a preset name when no such file exists, with --set
 /// overrides applied (not yet validated). Throws sim::SceneError.

@@ -8,28 +8,17 @@
 
 namespace sphles::app {
 
-int estimate_command(const std::vector<std::string>& args) {
+namespace {
+struct EstimateOptions {
   std::string scene;
   std::vector<std::string> overrides;
   bool as_json = false;
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    if (args[k] == "--set" && k + 1 < args.size()) {
-      overrides.push_back(args[++k]);
-    } else if (args[k] == "--json") {
-      as_json = true;
-    } else if (scene.empty() && !args[k].empty() && args[k][0] != '-') {
-      scene = args[k];
-    } else {
-      std::fprintf(stderr,
-                   "sphles estimate: usage: sphles estimate SCENE.json|PRESET [--set key=value "
-                   "...] [--json]\n");
-      return kExitUsage;
-    }
-  }
-  if (scene.empty()) {
-    std::fprintf(stderr, "sphles estimate: a scene file or preset is required\n");
-    return kExitUsage;
-  }
+};
+
+int estimate_command(const EstimateOptions& o) {
+  const std::string& scene = o.scene;
+  const std::vector<std::string>& overrides = o.overrides;
+  const bool as_json = o.as_json;
   try {
     const control::RunSpec spec = control::parse_run_spec(load_scene_document(scene, overrides));
     const control::ResourceEstimate e = control::estimate_resources(spec);
@@ -65,6 +54,23 @@ int estimate_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "sphles estimate: %s\n", e.what());
     return kExitUsage;
   }
+}
+
+}  // namespace
+
+void add_estimate_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<EstimateOptions>();
+  CLI::App* estimate = app.add_subcommand("estimate", "memory, disk and steps a run would need");
+  estimate->footer(
+      "Estimate the peak memory, checkpoint and analysis disk, initial time step and steps of a "
+      "run without running it (control/resources.hpp).");
+  estimate->add_option("scene", o->scene, "scene file (JSON) or preset name")
+      ->type_name("SCENE.json|PRESET")
+      ->required();
+  repeatable(estimate->add_option("--set", o->overrides, "change a scene key (repeatable)"))
+      ->type_name("KEY=VALUE");
+  estimate->add_flag("--json", o->as_json, "print the estimate as JSON");
+  estimate->callback([o, &exit_code] { exit_code = estimate_command(*o); });
 }
 
 }  // namespace sphles::app

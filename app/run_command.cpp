@@ -20,9 +20,9 @@ namespace {
 struct RunOptions {
   std::string scene_file;
   std::vector<std::string> overrides;
-  std::optional<std::string> out_dir;
-  std::optional<std::string> restart;  // checkpoint file or run directory
-  std::string packing_cache;           // empty: the default cache directory
+  std::string out_dir;        // empty: the default
+  std::string restart;        // checkpoint file or run directory; empty: none
+  std::string packing_cache;  // empty: the default cache directory
   int threads = 0;
   bool overwrite = false;
 };
@@ -32,50 +32,13 @@ class UsageError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
-RunOptions parse_run_options(const std::vector<std::string>& args) {
-  RunOptions o;
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    const std::string& a = args[k];
-    const auto value = [&]() -> const std::string& {
-      if (k + 1 >= args.size()) throw UsageError(a + " needs a value");
-      return args[++k];
-    };
-    if (a == "--set") {
-      o.overrides.push_back(value());
-    } else if (a == "--out") {
-      o.out_dir = value();
-    } else if (a == "--overwrite") {
-      o.overwrite = true;
-    } else if (a == "--restart") {
-      o.restart = value();
-    } else if (a == "--packing-cache") {
-      o.packing_cache = value();
-      if (o.packing_cache.empty()) throw UsageError("--packing-cache must not be empty");
-    } else if (a == "--threads") {
-      const std::string& v = value();
-      std::size_t used = 0;
-      int n = 0;
-      try {
-        n = std::stoi(v, &used);
-      } catch (const std::exception&) {
-        used = 0;
-      }
-      if (used != v.size() || n < 1 || n > 1024)
-        throw UsageError("--threads must be an integer in [1, 1024], got '" + v + "'");
-      o.threads = n;
-    } else if (!a.empty() && a[0] == '-') {
-      throw UsageError("unknown option '" + a + "'");
-    } else if (o.scene_file.empty()) {
-      o.scene_file = a;
-    } else {
-      throw UsageError("unexpected argument '" + a + "'");
-    }
-  }
-  if (o.scene_file.empty() && !o.restart) throw UsageError("missing SCENE.json (or --restart)");
-  if (!o.scene_file.empty() && o.restart)
+/// Refusals CLI11 cannot express: exactly one of SCENE.json and --restart.
+void check_run_options(const RunOptions& o) {
+  if (o.scene_file.empty() && o.restart.empty())
+    throw UsageError("missing SCENE.json (or --restart)");
+  if (!o.scene_file.empty() && !o.restart.empty())
     throw UsageError(
         "give either SCENE.json or --restart, not both (the scene is in the checkpoint)");
-  return o;
 }
 
 }  // namespace
@@ -95,8 +58,7 @@ int launched_ranks() {
 }
 
 /// The run on this process; with a driver, its solver spans the MPI ranks (rank 0 only).
-int run_here(const std::vector<std::string>& args, par::Driver* driver) {
-  RunOptions options;
+int run_here(const RunOptions& options, par::Driver* driver) {
   std::unique_ptr<control::Run> run;
   control::RunOptions run_options;
   run_options.log_progress = true;
@@ -110,11 +72,11 @@ int run_here(const std::vector<std::string>& args, par::Driver* driver) {
     std::fprintf(stderr, "sphles run: the solver spans %d MPI ranks\n", driver->ranks());
   }
   try {
-    options = parse_run_options(args);
+    check_run_options(options);
     run_options.threads = options.threads;
     run_options.packing_cache_dir = options.packing_cache;
-    if (options.restart) {
-      std::filesystem::path checkpoint_file = *options.restart;
+    if (!options.restart.empty()) {
+      std::filesystem::path checkpoint_file = options.restart;
       if (std::filesystem::is_directory(checkpoint_file)) {
         const std::filesystem::path dir = std::filesystem::exists(checkpoint_file / "checkpoints")
                                               ? checkpoint_file / "checkpoints"
@@ -124,8 +86,9 @@ int run_here(const std::vector<std::string>& args, par::Driver* driver) {
         for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
       }
       const std::filesystem::path out_dir =
-          options.out_dir ? std::filesystem::path(*options.out_dir)
-                          : std::filesystem::absolute(checkpoint_file).parent_path().parent_path();
+          !options.out_dir.empty()
+              ? std::filesystem::path(options.out_dir)
+              : std::filesystem::absolute(checkpoint_file).parent_path().parent_path();
       std::filesystem::create_directories(out_dir);
       run = control::Run::open(out_dir.filename().string(), out_dir, run_options, options.overrides,
                                checkpoint_file);
@@ -134,8 +97,8 @@ int run_here(const std::vector<std::string>& args, par::Driver* driver) {
       control::RunSpec spec = control::parse_run_spec(document);
       // The scene's name becomes one path component under runs/, never a path of its own.
       const std::filesystem::path out_dir =
-          options.out_dir
-              ? std::filesystem::path(*options.out_dir)
+          !options.out_dir.empty()
+              ? std::filesystem::path(options.out_dir)
               : std::filesystem::path("runs") / control::directory_name(spec.run.scene.name);
       // A fresh run never silently replaces the checkpoints of an earlier one.
       if (std::filesystem::exists(out_dir / "run.json") ||
@@ -147,8 +110,15 @@ int run_here(const std::vector<std::string>& args, par::Driver* driver) {
         for (const char* stale : {"run.json", "checkpoints", "frames"})
           std::filesystem::remove_all(out_dir / stale);
       }
-      run = std::make_unique<control::Run>(out_dir.filename().string(), std::move(spec), out_dir,
-                                           run_options);
+      try {
+        run = std::make_unique<control::Run>(out_dir.filename().string(), std::move(spec), out_dir,
+                                             run_options);
+      } catch (const std::exception& e) {
+        // The run directory or its first files cannot be written: an I/O failure (exit 1).
+        std::fprintf(stderr, "sphles run: cannot set up the run directory '%s': %s\n",
+                     out_dir.c_str(), e.what());
+        return kExitFailure;
+      }
     }
   } catch (const sim::SceneError& e) {
     std::fprintf(stderr, "sphles run: %s\n", e.what());
@@ -207,8 +177,8 @@ int run_here(const std::vector<std::string>& args, par::Driver* driver) {
   return kExitOk;
 }
 
-int run_command(const std::vector<std::string>& args) {
-  if (launched_ranks() <= 1) return run_here(args, nullptr);
+int run_command(const RunOptions& options) {
+  if (launched_ranks() <= 1) return run_here(options, nullptr);
   // Under mpirun: rank 0 runs as one process would, with the solver over every rank; the others
   // serve it. mpirun forwards SIGINT and SIGTERM to every rank: they are blocked on all ranks
   // before MPI starts its threads, so rank 0 alone acts on them (it stops after the step and
@@ -218,7 +188,41 @@ int run_command(const std::vector<std::string>& args) {
   sigaddset(&signals, SIGINT);
   sigaddset(&signals, SIGTERM);
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
-  return par::drive_from_rank_zero([&](par::Driver& driver) { return run_here(args, &driver); });
+  return par::drive_from_rank_zero([&](par::Driver& driver) { return run_here(options, &driver); });
+}
+
+void add_run_command(CLI::App& app, int& exit_code) {
+  auto options = std::make_shared<RunOptions>();
+  CLI::App* run = app.add_subcommand("run", "run a scene or preset to its end time");
+  run->footer(
+      "Run a scene (or a preset, see 'sphles presets') to its end time, printing progress and "
+      "writing DIR/scene.json, DIR/run.json, DIR/timeseries.csv, checkpoints and the analysis "
+      "products the scene asks for (docs/scenes.md). Under mpirun or mpiexec the solver spans "
+      "the ranks, bitwise as one process (docs/scaling.md). Exit 0 when the end time is reached, "
+      "1 when the run fails or is stopped by a signal (it then writes a checkpoint), 2 for a bad "
+      "command line or scene.");
+  run->add_option("scene", options->scene_file, "scene file (JSON) or preset name")
+      ->type_name("SCENE.json|PRESET");
+  repeatable(run->add_option("--set", options->overrides,
+                             "change a scene key, e.g. --set particles_per_side=48 (repeatable; "
+                             "with --restart only what a live change may change)"))
+      ->type_name("KEY=VALUE");
+  run->add_option("--out", options->out_dir,
+                  "run directory (default runs/NAME; with --restart the checkpoint's run)")
+      ->type_name("DIR");
+  run->add_flag("--overwrite", options->overwrite,
+                "replace the checkpoints and run record of an earlier run in --out");
+  run->add_option("--restart", options->restart,
+                  "continue from a checkpoint, or from the newest valid one of a run directory")
+      ->type_name("CHECKPOINT.h5|RUN_DIR");
+  run->add_option("--packing-cache", options->packing_cache,
+                  "directory of the packed initial lattices (default ~/.cache/sphles/packing)")
+      ->type_name("DIR")
+      ->check([](const std::string& v) {
+        return v.empty() ? std::string("must not be empty") : std::string();
+      });
+  add_threads_option(*run, options->threads, "OpenMP threads (per MPI rank under mpirun)");
+  run->callback([options, &exit_code] { exit_code = run_command(*options); });
 }
 
 }  // namespace sphles::app

@@ -1,10 +1,13 @@
 #include <algorithm>
 #include <cstdio>
 #include <filesystem>
+#include <optional>
+#include <set>
 
 #include "app/commands.hpp"
 #include "io/checkpoint.hpp"
 #include "io/particle_snapshot.hpp"
+#include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -16,10 +19,20 @@ nlohmann::json load_scene_document(const std::string& scene_or_preset,
   const bool is_preset =
       !std::filesystem::exists(scene_or_preset) &&
       std::find(presets.begin(), presets.end(), scene_or_preset) != presets.end();
-  if (is_preset)
+  const bool looks_like_file = scene_or_preset.find('/') != std::string::npos ||
+                               std::filesystem::path(scene_or_preset).has_extension();
+  if (is_preset) {
     document = {{"preset", scene_or_preset}};
-  else
+  } else if (!std::filesystem::exists(scene_or_preset) && !looks_like_file) {
+    // Neither a file nor a preset: say so, and which preset it may be a typo of.
+    const std::optional<std::string> near =
+        sim::closest_key(scene_or_preset, std::set<std::string>(presets.begin(), presets.end()));
+    throw sim::SceneError("'" + scene_or_preset + "' is neither a scene file nor a preset" +
+                          (near ? "; did you mean '" + *near + "'?" : std::string()) +
+                          " (see 'sphles presets')");
+  } else {
     document = sim::read_scene_file(scene_or_preset);
+  }
   for (const std::string& assignment : overrides) sim::apply_override(document, assignment);
   return document;
 }
@@ -31,11 +44,10 @@ analysis::RunConfig load_run_config(const std::string& scene_or_preset,
   return analysis::parse_run_config(document);
 }
 
-int inspect_command(const std::vector<std::string>& args) {
-  if (args.size() != 1) {
-    std::fprintf(stderr, "sphles inspect: usage: sphles inspect CHECKPOINT.h5|SNAPSHOT.h5\n");
-    return kExitUsage;
-  }
+namespace {
+
+int inspect_command(const std::string& file) {
+  const std::vector<std::string> args{file};
   try {
     // The root attribute "schema" says which kind of sphles file it is.
     const std::string schema = io::hdf5_schema(args[0]);
@@ -57,11 +69,7 @@ int inspect_command(const std::vector<std::string>& args) {
   }
 }
 
-int presets_command(const std::vector<std::string>& args) {
-  if (!args.empty()) {
-    std::fprintf(stderr, "sphles presets: takes no arguments\n");
-    return kExitUsage;
-  }
+int presets_command() {
   for (const std::string& name : sim::preset_names()) {
     const sim::Scene s = sim::parse_scene({{"preset", name}});
     std::printf("%-16s %-13s N=%d^%d  %-15s D_K/dl=%g  model=%-8s C_S=%-5g c_s=%g  p_ref=%g\n",
@@ -72,6 +80,29 @@ int presets_command(const std::vector<std::string>& args) {
                 s.subfilter.smagorinsky_constant, s.fluid.sound_speed, s.fluid.reference_pressure);
   }
   return kExitOk;
+}
+
+}  // namespace
+
+void add_inspect_command(CLI::App& app, int& exit_code) {
+  auto file = std::make_shared<std::string>();
+  CLI::App* inspect =
+      app.add_subcommand("inspect", "validate a checkpoint or snapshot and describe it");
+  inspect->footer(
+      "Validate a checkpoint or a particle snapshot and print what it holds (exit 2 if it is "
+      "not valid; docs/checkpoints.md).");
+  inspect->add_option("file", *file, "an HDF5 file sphles wrote")
+      ->type_name("CHECKPOINT.h5|SNAPSHOT.h5")
+      ->required();
+  inspect->callback([file, &exit_code] { exit_code = inspect_command(*file); });
+}
+
+void add_presets_command(CLI::App& app, int& exit_code) {
+  app.add_subcommand("presets", "list the presets (the thesis cases, kolmogorov2d)")
+      ->footer(
+          "The 21 Taylor-Green cases of the thesis and kolmogorov2d; run one by name, "
+          "scaled down with --set particles_per_side=N.")
+      ->callback([&exit_code] { exit_code = presets_command(); });
 }
 
 }  // namespace sphles::app

@@ -33,23 +33,11 @@ struct ServeOptions {
   control::ManagerOptions manager;
   std::string launcher = "mpirun -n {ranks}";  // runs with ranks > 1; empty: none
   std::string job_address = "127.0.0.1";       // where the jobs' rank 0 connects back
-  std::optional<std::string> start_run;        // preset name or scene file
+  std::string start_run;                       // preset name or scene file; empty: none
   std::vector<std::string> overrides;          // --set, for --start-run
+  std::string max_memory;                      // --max-memory as given; empty: the default
+  std::string packing_cache;                   // empty: the default
 };
-
-int parse_int(const std::string& option, const std::string& text, int min, int max) {
-  std::size_t used = 0;
-  int value = 0;
-  try {
-    value = std::stoi(text, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (used == 0 || used != text.size() || value < min || value > max)
-    throw UsageError(option + " must be an integer in [" + std::to_string(min) + ", " +
-                     std::to_string(max) + "], got '" + text + "'");
-  return value;
-}
 
 /// "12G", "512M", "2.5T", "1000000" (bytes; K, M, G, T are binary multiples, an optional "iB"
 /// or "B" after them is accepted).
@@ -74,56 +62,73 @@ double parse_bytes(const std::string& option, const std::string& text) {
   return unit.empty() ? value : value * std::pow(1024.0, static_cast<double>(power + 1));
 }
 
-ServeOptions parse_serve_options(const std::vector<std::string>& args) {
-  ServeOptions o;
-  o.server.web_root = SPHLES_WEB_DIR;
-  o.manager.data_directory = "sphles-data";
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    const std::string& a = args[k];
-    const auto value = [&]() -> const std::string& {
-      if (k + 1 >= args.size()) throw UsageError(a + " needs a value");
-      return args[++k];
-    };
-    if (a == "--port")
-      o.server.port = static_cast<unsigned short>(parse_int(a, value(), 0, 65535));
-    else if (a == "--bind")
-      o.server.address = value();
-    else if (a == "--data")
-      o.manager.data_directory = value();
-    else if (a == "--token")
-      o.server.token = value();
-    else if (a == "--web")
-      o.server.web_root = value();
-    else if (a == "--max-running")
-      o.manager.max_running = parse_int(a, value(), 1, 1024);
-    else if (a == "--max-queued")
-      o.manager.max_queued = parse_int(a, value(), 0, 100000);
-    else if (a == "--max-runs")
-      o.manager.max_runs = parse_int(a, value(), 1, 100000);
-    else if (a == "--max-memory")
-      o.manager.max_memory_bytes = parse_bytes(a, value());
-    else if (a == "--packing-cache") {
-      o.manager.run_options.packing_cache_dir = value();
-      if (o.manager.run_options.packing_cache_dir.empty())
-        throw UsageError("--packing-cache must not be empty");
-    } else if (a == "--threads")
-      o.manager.run_options.threads = parse_int(a, value(), 0, 1024);
-    else if (a == "--launcher")
-      o.launcher = value();
-    else if (a == "--job-address")
-      o.job_address = value();
-    else if (a == "--max-ranks")
-      o.manager.max_ranks = parse_int(a, value(), 1, 1 << 20);
-    else if (a == "--start-run")
-      o.start_run = value();
-    else if (a == "--set")
-      o.overrides.push_back(value());
-    else
-      throw UsageError("unknown option '" + a + "'");
-  }
-  if (o.server.token.empty() && std::find(args.begin(), args.end(), "--token") != args.end())
-    throw UsageError("--token must not be empty");
-  if (!o.overrides.empty() && !o.start_run) throw UsageError("--set needs --start-run");
+/// The command line's options (CLI11 checks types and ranges).
+void add_serve_options(CLI::App& serve, ServeOptions& o) {
+  serve.add_option("--port", o.server.port, "TCP port; 0 picks a free one (printed)")
+      ->capture_default_str();
+  serve.add_option("--bind", o.server.address, "address to listen on")->capture_default_str();
+  serve
+      .add_option("--data", o.manager.data_directory,
+                  "data directory: runs live in DIR/runs/ (default sphles-data)")
+      ->type_name("DIR");
+  serve
+      .add_option("--token", o.server.token,
+                  "mutating calls need 'Authorization: Bearer TOKEN' (docs/api.md)")
+      ->check([](const std::string& v) { return v.empty() ? "must not be empty" : ""; });
+  serve
+      .add_option("--web", o.server.web_root,
+                  "directory of the dashboard's files (default: web/ of the source tree)")
+      ->type_name("DIR");
+  serve.add_option("--max-running", o.manager.max_running, "runs stepping at once")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  serve.add_option("--max-queued", o.manager.max_queued, "runs waiting for a slot")
+      ->check(CLI::Range(0, 100000))
+      ->capture_default_str();
+  serve.add_option("--max-runs", o.manager.max_runs, "runs kept in the data directory")
+      ->check(CLI::Range(1, 100000))
+      ->capture_default_str();
+  serve
+      .add_option("--max-memory", o.max_memory,
+                  "memory the active runs may use together, e.g. 8G or 512M (default: a share "
+                  "of the machine's)")
+      ->type_name("SIZE");
+  serve
+      .add_option("--threads", o.manager.run_options.threads,
+                  "OpenMP threads of each run's solver (per MPI rank); 0: the default")
+      ->type_name("N")
+      ->check(CLI::Range(0, 1024));
+  serve
+      .add_option("--packing-cache", o.packing_cache,
+                  "directory of the packed initial lattices (default ~/.cache/sphles/packing)")
+      ->type_name("DIR")
+      ->check([](const std::string& v) { return v.empty() ? "must not be empty" : ""; });
+  serve
+      .add_option("--launcher", o.launcher,
+                  "command that starts a run with ranks > 1 as an MPI job ({ranks}: the rank "
+                  "count; '' refuses such runs; docs/scaling.md)")
+      ->type_name("CMD")
+      ->capture_default_str();
+  serve
+      .add_option("--job-address", o.job_address,
+                  "address of this host the MPI jobs' rank 0 connects back to (0.0.0.0: every "
+                  "interface, rank 0 is sent this host's name)")
+      ->type_name("IP")
+      ->capture_default_str();
+  serve.add_option("--max-ranks", o.manager.max_ranks, "MPI ranks one run may ask for")
+      ->check(CLI::Range(1, 1 << 20))
+      ->capture_default_str();
+  serve.add_option("--start-run", o.start_run, "create and start a run at once")
+      ->type_name("PRESET|SCENE.json");
+  repeatable(serve.add_option("--set", o.overrides, "change a key of the --start-run scene"))
+      ->type_name("KEY=VALUE");
+}
+
+/// What CLI11 cannot check, and the MPI job launcher.
+void finish_serve_options(ServeOptions& o) {
+  if (!o.max_memory.empty()) o.manager.max_memory_bytes = parse_bytes("--max-memory", o.max_memory);
+  if (!o.packing_cache.empty()) o.manager.run_options.packing_cache_dir = o.packing_cache;
+  if (!o.overrides.empty() && o.start_run.empty()) throw UsageError("--set needs --start-run");
   if (!o.launcher.empty()) {
     launch::LaunchOptions launch;
     launch.launcher = o.launcher;
@@ -155,7 +160,6 @@ ServeOptions parse_serve_options(const std::vector<std::string>& args) {
       run.restore_simulation = std::move(solvers.restore);
     };
   }
-  return o;
 }
 
 control::CreateRequest start_request(const std::string& scene_or_preset,
@@ -176,19 +180,11 @@ control::CreateRequest start_request(const std::string& scene_or_preset,
 
 }  // namespace
 
-int serve_command(const std::vector<std::string>& args) {
-  ServeOptions options;
+int serve_command(ServeOptions options) {
   try {
-    options = parse_serve_options(args);
+    finish_serve_options(options);
   } catch (const UsageError& e) {
-    std::fprintf(stderr,
-                 "sphles serve: %s\nusage: sphles serve [--port 8080] [--bind 127.0.0.1] "
-                 "[--data DIR] [--token TOKEN] [--web DIR] [--max-running N] [--max-queued N] "
-                 "[--max-runs N] [--max-memory SIZE] [--threads N] [--packing-cache DIR] "
-                 "[--launcher 'mpirun -n {ranks}'] [--job-address IP] [--max-ranks N] [--start-run "
-                 "PRESET|SCENE.json "
-                 "[--set key=value ...]]\n",
-                 e.what());
+    std::fprintf(stderr, "sphles serve: %s\nRun with --help for more information.\n", e.what());
     return kExitUsage;
   }
 
@@ -209,20 +205,20 @@ int serve_command(const std::vector<std::string>& args) {
                options.manager.data_directory.c_str(), manager->list().size(),
                control::format_bytes(manager->options().max_memory_bytes).c_str());
 
-  if (options.start_run) {
+  if (!options.start_run.empty()) {
     try {
-      const auto run = manager->create(start_request(*options.start_run, options.overrides));
+      const auto run = manager->create(start_request(options.start_run, options.overrides));
       std::fprintf(stderr, "sphles serve: started run %s (%s)\n", run->id().c_str(),
-                   options.start_run->c_str());
+                   options.start_run.c_str());
     } catch (const UsageError& e) {
       std::fprintf(stderr, "sphles serve: %s\n", e.what());
       return kExitUsage;
     } catch (const sim::SceneError& e) {
-      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run->c_str(),
+      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run.c_str(),
                    e.what());
       return kExitUsage;
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run->c_str(),
+      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run.c_str(),
                    e.what());
       return kExitFailure;
     }
@@ -263,6 +259,19 @@ int serve_command(const std::vector<std::string>& args) {
   manager.reset();
   std::fprintf(stderr, "sphles serve: stopped\n");
   return kExitOk;
+}
+
+void add_serve_command(CLI::App& app, int& exit_code) {
+  auto options = std::make_shared<ServeOptions>();
+  options->server.web_root = SPHLES_WEB_DIR;
+  options->manager.data_directory = "sphles-data";
+  CLI::App* serve = app.add_subcommand("serve", "the HTTP/WebSocket service and browser dashboard");
+  serve->footer(
+      "The HTTP/WebSocket service and browser dashboard (docs/api.md, docs/dashboard.md). Runs "
+      "live in DIR/runs/ and survive restarts; prints 'sphles serve: listening on URL'. SIGINT "
+      "or SIGTERM stops every run with a checkpoint, then the server.");
+  add_serve_options(*serve, *options);
+  serve->callback([options, &exit_code] { exit_code = serve_command(*options); });
 }
 
 }  // namespace sphles::app

@@ -17,50 +17,31 @@ namespace sphles::app {
 namespace {
 
 struct WorkerOptions {
+  std::string connect;  // HOST:PORT as given
   std::string host;
   unsigned short port = 0;
   std::string token;
   int threads = 0;
 };
 
-WorkerOptions parse_worker_options(const std::vector<std::string>& args) {
-  WorkerOptions o;
-  for (std::size_t k = 0; k < args.size(); ++k) {
-    const std::string& a = args[k];
-    if (k + 1 >= args.size()) throw std::invalid_argument(a + " needs a value");
-    const std::string& v = args[++k];
-    if (a == "--connect") {
-      const std::size_t colon = v.rfind(':');
-      int port = 0;
-      try {
-        port = colon == std::string::npos ? 0 : std::stoi(v.substr(colon + 1));
-      } catch (const std::exception&) {
-        port = 0;
-      }
-      if (colon == 0 || port < 1 || port > 65535)
-        throw std::invalid_argument("--connect must be HOST:PORT, got '" + v + "'");
-      o.host = v.substr(0, colon);
-      o.port = static_cast<unsigned short>(port);
-    } else if (a == "--token") {
-      o.token = v;
-    } else if (a == "--threads") {
-      o.threads = std::stoi(v);
-      if (o.threads < 1) throw std::invalid_argument("--threads must be at least 1");
-    } else {
-      throw std::invalid_argument("unknown option '" + a + "'");
-    }
+/// HOST:PORT of --connect into the options.
+void set_connect(WorkerOptions& o, const std::string& v) {
+  const std::size_t colon = v.rfind(':');
+  int port = 0;
+  try {
+    port = colon == std::string::npos ? 0 : std::stoi(v.substr(colon + 1));
+  } catch (const std::exception&) {
+    port = 0;
   }
-  if (o.host.empty() || o.token.empty())
-    throw std::invalid_argument("--connect HOST:PORT and --token TOKEN are required");
-  return o;
+  if (colon == 0 || port < 1 || port > 65535)
+    throw std::invalid_argument("--connect must be HOST:PORT, got '" + v + "'");
+  o.host = v.substr(0, colon);
+  o.port = static_cast<unsigned short>(port);
 }
 
-}  // namespace
-
-int worker_command(const std::vector<std::string>& args) {
-  WorkerOptions options;
+int worker_command(WorkerOptions options) {
   try {
-    options = parse_worker_options(args);
+    set_connect(options, options.connect);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles worker: %s\n", e.what());
     return kExitUsage;
@@ -85,6 +66,19 @@ int worker_command(const std::vector<std::string>& args) {
     std::fprintf(stderr, "sphles worker: rank 0 of %d done\n", driver.ranks());
     return rc;
   });
+}
+
+}  // namespace
+
+void add_worker_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<WorkerOptions>();
+  CLI::App* worker = app.add_subcommand(
+      "worker", "a rank of an MPI job the service launched (not for use by hand)");
+  worker->group("");  // hidden from the program's help
+  worker->add_option("--connect", o->connect, "the service's HOST:PORT")->required();
+  worker->add_option("--token", o->token, "the job's token")->required();
+  add_threads_option(*worker, o->threads, "OpenMP threads per rank");
+  worker->callback([o, &exit_code] { exit_code = worker_command(*o); });
 }
 
 }  // namespace sphles::app

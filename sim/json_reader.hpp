@@ -2,6 +2,7 @@
 // nobody read are reported as unknown. Used by every module that owns a section of a scene.
 #pragma once
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
@@ -27,6 +28,45 @@ inline std::string format_number(double value) {
   std::ostringstream s;
   s << value;
   return s.str();
+}
+
+/// Levenshtein distance of two keys (insertions, deletions and substitutions).
+inline std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::size_t> row(b.size() + 1);
+  for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (std::size_t i = 1; i <= a.size(); ++i) {
+    std::size_t diagonal = row[0];
+    row[0] = i;
+    for (std::size_t j = 1; j <= b.size(); ++j) {
+      const std::size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+/// The known key `key` is most likely a typo of: the nearest by edit distance, if at most a
+/// third of the key's length (and at least 1) edits away; of equally near keys, the one sharing
+/// the longest prefix with `key` (tgv3d-case99: tgv3d-case9 rather than tgv3d-case19).
+inline std::optional<std::string> closest_key(const std::string& key,
+                                              const std::set<std::string>& known) {
+  const auto common_prefix = [&](const std::string& candidate) {
+    std::size_t n = 0;
+    while (n < key.size() && n < candidate.size() && key[n] == candidate[n]) ++n;
+    return n;
+  };
+  std::optional<std::string> best;
+  std::size_t best_distance = std::max<std::size_t>(1, key.size() / 3) + 1, best_prefix = 0;
+  for (const std::string& candidate : known) {
+    const std::size_t d = edit_distance(key, candidate), prefix = common_prefix(candidate);
+    if (d < best_distance || (d == best_distance && best && prefix > best_prefix)) {
+      best_distance = d;
+      best_prefix = prefix;
+      best = candidate;
+    }
+  }
+  return best;
 }
 
 /// Reads keys of one JSON object, remembering which were used so that the rest can be reported
@@ -132,10 +172,14 @@ class ObjectReader {
     target = std::move(result);
   }
 
-  /// Throws on the first key that no read asked for.
+  /// Throws on the first key that no read asked for, suggesting the known key it is a typo of.
   void reject_unknown() const {
     for (const auto& [key, value] : object_.items())
-      if (!seen_.contains(key)) throw SceneError("scene: unknown key '" + field(key) + "'");
+      if (!seen_.contains(key)) {
+        const std::optional<std::string> near = closest_key(key, seen_);
+        throw SceneError("scene: unknown key '" + field(key) + "'" +
+                         (near ? "; did you mean '" + field(*near) + "'?" : std::string()));
+      }
   }
 
  private:

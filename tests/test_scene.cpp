@@ -171,12 +171,73 @@ TEST_F(CliTest, InvalidJsonMissingFileAndBadOptions) {
   const auto good = write("good.json", "{}");
   r = run_sphles("run " + good + " --threads zero");
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("--threads must be an integer"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--threads"), std::string::npos) << r.output;
+  r = run_sphles("run " + good + " --threads 0");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--threads"), std::string::npos) << r.output;
   r = run_sphles("run " + good + " --set kernel.diameter=4");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("unknown key 'kernel.diameter'"), std::string::npos) << r.output;
   r = run_sphles("frobnicate");
   EXPECT_EQ(r.exit_code, 2);
+  r = run_sphles("");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  r = run_sphles("run " + good + " --no-such-option");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("--no-such-option"), std::string::npos) << r.output;
+}
+
+// Every command prints its own help with exit code 0 (issue 20), naming its options.
+TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
+  const std::pair<const char*, const char*> commands[] = {
+      {"run", "--restart"},         {"serve", "--launcher"},        {"estimate", "--json"},
+      {"inspect", "CHECKPOINT.h5"}, {"calibrate", "--target-urms"}, {"presets", "presets"}};
+  for (const auto& [command, option] : commands) {
+    const ProcessResult r = run_sphles(std::string(command) + " --help");
+    EXPECT_EQ(r.exit_code, 0) << command << ": " << r.output;
+    EXPECT_NE(r.output.find(option), std::string::npos) << command << ": " << r.output;
+  }
+  ProcessResult r = run_sphles("--help");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* command : {"run", "serve", "presets", "estimate", "inspect", "calibrate"})
+    EXPECT_NE(r.output.find(command), std::string::npos) << command << ": " << r.output;
+  EXPECT_EQ(r.output.find("worker"), std::string::npos) << "the job's worker is not for users";
+  r = run_sphles("--version");
+  EXPECT_EQ(r.exit_code, 0);
+  EXPECT_NE(r.output.find("sphles "), std::string::npos) << r.output;
+}
+
+// A typo in a scene key or a preset name is answered with what it was probably meant to be.
+TEST_F(CliTest, TyposGetASuggestion) {
+  const auto good = write("good.json", "{}");
+  ProcessResult r = run_sphles("run " + good + " --set kernel.typ=quintic_spline");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown key 'kernel.typ'; did you mean 'kernel.type'?"),
+            std::string::npos)
+      << r.output;
+  r = run_sphles("run tgv3d-case99");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("'tgv3d-case99' is neither a scene file nor a preset; did you mean "
+                          "'tgv3d-case9'?"),
+            std::string::npos)
+      << r.output;
+  r = run_sphles("estimate kolmogorov");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("did you mean 'kolmogorov2d'?"), std::string::npos) << r.output;
+  // Far from every key: no suggestion.
+  r = run_sphles("run " + good + " --set zzzzzzzz=1");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_EQ(r.output.find("did you mean"), std::string::npos) << r.output;
+}
+
+// An --out that cannot be created is an I/O failure (exit 1), not a usage error.
+TEST_F(CliTest, AnUnwritableOutIsAnIoFailure) {
+  const auto good = write("good.json", R"({"case": "tgv2d", "particles_per_side": 16})");
+  const auto blocker = write("blocker", "a file where a directory would go");
+  const ProcessResult r =
+      run_sphles("run " + good + " --out " + (std::filesystem::path(blocker) / "out").string());
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("cannot set up the run directory"), std::string::npos) << r.output;
 }
 
 TEST_F(CliTest, SmallRunWritesSceneAndTimeSeries) {
@@ -289,7 +350,7 @@ TEST_F(CliTest, CalibrateFindsForcingForTargetUrms) {
   EXPECT_NE(r.output.find("needs a kolmogorov2d scene"), std::string::npos) << r.output;
   r = run_sphles("calibrate " + scene);
   EXPECT_EQ(r.exit_code, 2);
-  EXPECT_NE(r.output.find("--target-urms must be given"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("--target-urms is required"), std::string::npos) << r.output;
 }
 
 }  // namespace
