@@ -41,6 +41,10 @@ void add_serve_command(CLI::App& app, int& exit_code);
 /// (hidden from the help).
 void add_worker_command(CLI::App& app, int& exit_code);
 
+/// sphles docs man|bash-completion: the manual page and the bash completion, generated from
+/// the commands' declarations (hidden; the build writes both, app/CMakeLists.txt).
+void add_docs_command(CLI::App& app, int& exit_code);
+
 /// A repeatable option taking one value per occurrence (`--set a=1 --set b=2`), collected in
 /// order; CLI11's vectors would otherwise swallow the arguments that follow.
 inline CLI::Option* repeatable(CLI::Option* option) {

@@ -28,6 +28,7 @@ int main(int argc, char** argv) {
   app::add_inspect_command(cli, exit_code);
   app::add_calibrate_command(cli, exit_code);
   app::add_worker_command(cli, exit_code);
+  app::add_docs_command(cli, exit_code);
   cli.add_subcommand("version", "print the version")->callback([] {
     std::puts("sphles " SPHLES_VERSION);
   });

@@ -207,6 +207,70 @@ TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   EXPECT_NE(r.output.find("sphles "), std::string::npos) << r.output;
 }
 
+/// The output and exit code of a bash command line.
+ProcessResult run_bash(const std::string& script, const std::filesystem::path& file) {
+  std::ofstream(file) << script;
+  const std::string command = "bash " + file.string() + " 2>&1";
+  FILE* pipe = popen(command.c_str(), "r");
+  if (!pipe) return {-1, "popen failed"};
+  std::string output;
+  std::array<char, 4096> buffer;
+  while (std::fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
+  const int status = pclose(pipe);
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+// The manual page and the bash completion are generated from the same declarations that parse
+// the command line: every option a command's --help lists is in the manual, groff reads the
+// page without a warning, and the completion completes commands, options and preset names.
+TEST_F(CliTest, ManualPageAndCompletionFollowTheCommandLine) {
+  const ProcessResult man = run_sphles("docs man");
+  ASSERT_EQ(man.exit_code, 0) << man.output;
+  for (const char* command : {"run", "serve", "presets", "estimate", "inspect", "calibrate"}) {
+    EXPECT_NE(man.output.find(std::string(".SS \"sphles ") + command), std::string::npos)
+        << command;
+    const ProcessResult help = run_sphles(std::string(command) + " --help");
+    std::size_t at = 0;
+    int options = 0;
+    while ((at = help.output.find("  --", at)) != std::string::npos) {
+      const std::size_t end = help.output.find_first_of(" \n,=", at + 2);
+      const std::string name = help.output.substr(at + 2, end - at - 2);
+      at = end;
+      if (name == "--help") continue;
+      ++options;
+      std::string escaped;  // roff writes '-' as "\-"
+      for (const char c : name) escaped += c == '-' ? std::string("\\-") : std::string(1, c);
+      EXPECT_NE(man.output.find(escaped), std::string::npos) << command << " " << name;
+    }
+    if (std::string(command) != "presets" && std::string(command) != "inspect") {
+      EXPECT_GT(options, 0) << command << ": no options found in its help";
+    }
+  }
+  EXPECT_EQ(man.output.find("worker"), std::string::npos) << "the worker is not for users";
+  const std::string page = write("sphles.1", man.output);
+  const ProcessResult groff = run_bash("groff -man -Tutf8 -ww -z " + page + "\n", dir_ / "g.sh");
+  EXPECT_EQ(groff.exit_code, 0) << groff.output;
+  EXPECT_EQ(groff.output, "") << "groff warnings: " << groff.output;
+
+  const ProcessResult completion = run_sphles("docs bash-completion");
+  ASSERT_EQ(completion.exit_code, 0) << completion.output;
+  const std::string script = write("sphles.bash", completion.output);
+  const ProcessResult r =
+      run_bash("source " + script +
+                   "\n"
+                   "complete_words() { COMP_WORDS=(\"$@\"); COMP_CWORD=$(( $# - 1 )); _sphles; "
+                   "echo \"[${COMPREPLY[*]}]\"; }\n"
+                   "complete_words sphles ser\n"
+                   "complete_words sphles run --thr\n"
+                   "complete_words sphles serve --launch\n"
+                   "complete_words sphles run kolmogorov\n"
+                   "complete_words sphles estimate --js\n"
+                   "complete_words sphles wor\n",
+               dir_ / "c.sh");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output, "[serve]\n[--threads]\n[--launcher]\n[kolmogorov2d]\n[--json]\n[]\n");
+}
+
 // A typo in a scene key or a preset name is answered with what it was probably meant to be.
 TEST_F(CliTest, TyposGetASuggestion) {
   const auto good = write("good.json", "{}");
