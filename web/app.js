@@ -301,8 +301,8 @@ function selectRun(id) {
   for (const url of Object.values(app.shownUrl)) if (url && url.startsWith('blob:')) URL.revokeObjectURL(url);
   Object.assign(app, {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
-    samples: [], analysis: [], stats: [], spectrum: null, frames: [], live: true,
-    liveImage: {}, shownUrl: {},
+    samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
+    live: true, liveImage: {}, shownUrl: {},
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
   $('no-run').hidden = true;
@@ -758,21 +758,22 @@ function redraw() {
   }
   c.dissipation.setData(x, [fromHistory, spectral, vorticity]);
 
+  // Only the selected run's spectrum: none yet (a run just selected) empties the plot.
   const s = app.spectrum;
-  if (s && Array.isArray(s.k) && Array.isArray(s.energy)) {
-    const d = spectrumData(s.k, s.energy);
-    c.spectrum.setData(d.x, d.ys);
-    c.spectrum.setMarkers([
-      { x: s.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },
-      { x: s.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
-    ]);
-  }
+  const hasSpectrum = s && Array.isArray(s.k) && Array.isArray(s.energy);
+  const d = hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []);
+  c.spectrum.setData(d.x, d.ys);
+  c.spectrum.setMarkers(hasSpectrum ? [
+    { x: s.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },
+    { x: s.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
+  ] : []);
   c.stats.setData(app.stats.map((p) => p.time), [app.stats.map((p) => p.max), app.stats.map((p) => p.mean)]);
 }
 
 // ---------------------------------------------------------------- live parameters
 
 function fillParamForm(scene) {
+  $('p-chi').disabled = scene?.case !== 'kolmogorov2d';  // the forcing of the Kolmogorov flow
   for (const input of $('param-form').querySelectorAll('[data-path]')) {
     let value = getPath(scene, input.dataset.path);
     if (input.tagName === 'SELECT' && (value === undefined || value === null)) value = 'log';

@@ -257,6 +257,7 @@ export function drawJointHistogram(canvas, joint) {
   const nx = joint?.bins_x | 0;
   const ny = joint?.bins_y | 0;
   const counts = Array.isArray(joint?.counts) ? joint.counts : [];
+  canvas.dataset.cells = String(nx > 0 && ny > 0 && counts.length === nx * ny ? counts.length : 0);
   if (nx > 0 && ny > 0 && counts.length === nx * ny) {
     const maxLog = Math.log10(1 + Math.max(...counts));
     for (let by = 0; by < ny; by++) {

@@ -223,6 +223,41 @@ async function run() {
   }, 30_000);
   pass(`ω² image updated: step ${first.step} → ${second.step} (${second.width} px wide)`);
 
+  // Plots show only the selected run (issue 20): another run without products empties the
+  // spectrum and the joint histogram; selecting this run again refills them.
+  currentStep = 'switching runs';
+  const productsShown = async () => ({
+    spectrum: Number(await page.locator('#chart-spectrum').getAttribute('data-points')),
+    joint: Number(await page.locator('#hist-joint').getAttribute('data-cells')),
+  });
+  await waitFor('a spectrum and a joint histogram of the running run', async () => {
+    const shown = await productsShown();
+    return shown.spectrum > 0 && shown.joint > 0;
+  }, 30_000);
+  const idle = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ preset: 'tgv3d', name: 'e2e-idle', start: false }),
+  });
+  if (idle.status !== 201) fail(`creating the idle run: HTTP ${idle.status}`);
+  const idleId = (await idle.json()).id;
+  const idleItem = page.locator(`#run-list li[data-id="${idleId}"] button`);
+  await waitFor('the idle run in the list', async () => (await idleItem.count()) === 1, 10_000);
+  await idleItem.click();
+  await waitFor('the idle run selected', async () => (await text(page, '#run-title')) === 'e2e-idle', 10_000);
+  await page.waitForTimeout(600);  // past the redraw delay
+  const cleared = await productsShown();
+  if (cleared.spectrum !== 0 || cleared.joint !== 0)
+    fail(`the idle run shows the other run's products: ${JSON.stringify(cleared)}`);
+  if ((await text(page, '#cap-spectrum')) !== 'no spectrum yet') fail('the spectrum caption was not reset');
+  const runningItem = page.locator('#run-list li button', { hasText: 'e2e-tgv2d' });
+  await runningItem.click();
+  await waitFor('the running run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
+  await waitFor('its spectrum and joint histogram back', async () => {
+    const shown = await productsShown();
+    return shown.spectrum > 0 && shown.joint > 0;
+  }, 30_000);
+  pass('switching runs shows only the selected run\'s spectrum and histograms');
+
   if (screenshot) {
     await page.waitForTimeout(1500);  // let the spectrum and statistics plots fill in
     await page.screenshot({ path: screenshot, fullPage: true });
@@ -264,6 +299,22 @@ async function run() {
   await page.click('#btn-stop');
   await waitFor('state "stopped"', async () => (await text(page, '#run-state')) === 'stopped', 20_000);
   pass('stopped');
+
+  // The end time and the viscosity are in the parameter form (issue 20): a stopped (or
+  // finished) run can be given a later end and another viscosity before it is resumed.
+  currentStep = 'changing time.end and the viscosity of the stopped run';
+  await page.fill('#p-end', String(2 * END_TIME));
+  await page.fill('#p-eta', '0.02');
+  await page.click('#param-apply');
+  await waitFor('the change to be accepted', async () => /^Changed: /.test(await text(page, '#param-status')), 10_000);
+  {
+    const runs = await (await fetch(`${base}/api/runs`)).json();
+    const mine = runs.find((r) => r.name === 'e2e-tgv2d');
+    const scene = (await (await fetch(`${base}/api/runs/${mine.id}`)).json()).scene;
+    if (scene?.time?.end !== 2 * END_TIME || scene?.fluid?.dynamic_viscosity !== 0.02)
+      fail(`the run's scene did not take the form's values: time.end ${scene?.time?.end}, η ${scene?.fluid?.dynamic_viscosity}`);
+  }
+  pass('time.end and η changed from the parameter form');
 
   // Delete: after the confirmation the run leaves the list and the server.
   currentStep = 'deleting';
