@@ -207,9 +207,18 @@ int serve_command(ServeOptions options) {
 
   if (!options.start_run.empty()) {
     try {
-      const auto run = manager->create(start_request(options.start_run, options.overrides));
-      std::fprintf(stderr, "sphles serve: started run %s (%s)\n", run->id().c_str(),
-                   options.start_run.c_str());
+      const control::CreateRequest request = start_request(options.start_run, options.overrides);
+      // The same command again continues the run it started before and that was stopped (Ctrl-C,
+      // SIGTERM) from its newest checkpoint, instead of starting the scene again at t = 0.
+      if (const auto stopped = manager->find_stopped_like(request)) {
+        manager->resume(stopped->id());
+        std::fprintf(stderr, "sphles serve: continuing run %s (%s) from t = %g\n",
+                     stopped->id().c_str(), options.start_run.c_str(), stopped->status().time);
+      } else {
+        const auto run = manager->create(request);
+        std::fprintf(stderr, "sphles serve: started run %s (%s)\n", run->id().c_str(),
+                     options.start_run.c_str());
+      }
     } catch (const UsageError& e) {
       std::fprintf(stderr, "sphles serve: %s\n", e.what());
       return kExitUsage;

@@ -260,21 +260,7 @@ void RunManager::refuse_if_queue_full() const {
                         std::to_string(options_.max_queued) + "); try again later");
 }
 
-RunOptions RunManager::run_options_for(int ranks, const std::filesystem::path& directory) const {
-  RunOptions options = options_.run_options;
-  options.ranks = ranks;
-  if (ranks > 1) options_.distribute(options, ranks, directory);
-  return options;
-}
-
-std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
-  if (request.ranks > 1 && !options_.distribute)
-    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
-                     ": this server launches no MPI jobs (start it with --launcher); use 1");
-  if (request.ranks > options_.max_ranks)
-    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
-                     " exceeds this server's limit (--max-ranks " +
-                     std::to_string(options_.max_ranks) + ")");
+RunSpec RunManager::spec_of(const CreateRequest& request) {
   json document;
   if (request.preset) {
     const auto names = sim::preset_names();
@@ -291,9 +277,36 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
   document.merge_patch(request.patch);
   for (const std::string& assignment : request.overrides) sim::apply_override(document, assignment);
   if (request.name) document["name"] = *request.name;
-  RunSpec spec =
-      parse_run_spec(with_live_defaults(document));  // throws naming the field; nothing created yet
-  const double memory = admit(spec);                 // throws AdmissionError with the estimate
+  return parse_run_spec(with_live_defaults(document));
+}
+
+std::shared_ptr<Run> RunManager::find_stopped_like(const CreateRequest& request) const {
+  const json wanted = run_spec_to_json(spec_of(request));
+  std::lock_guard lock(mutex_);
+  for (auto it = runs_.rbegin(); it != runs_.rend(); ++it)
+    if ((*it)->status().state == RunState::Stopped && (*it)->ranks() == request.ranks &&
+        (*it)->document() == wanted)
+      return *it;
+  return nullptr;
+}
+
+RunOptions RunManager::run_options_for(int ranks, const std::filesystem::path& directory) const {
+  RunOptions options = options_.run_options;
+  options.ranks = ranks;
+  if (ranks > 1) options_.distribute(options, ranks, directory);
+  return options;
+}
+
+std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
+  if (request.ranks > 1 && !options_.distribute)
+    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
+                     ": this server launches no MPI jobs (start it with --launcher); use 1");
+  if (request.ranks > options_.max_ranks)
+    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
+                     " exceeds this server's limit (--max-ranks " +
+                     std::to_string(options_.max_ranks) + ")");
+  RunSpec spec = spec_of(request);    // throws naming the field; nothing created yet
+  const double memory = admit(spec);  // throws AdmissionError with the estimate
 
   // A run to start is created only if it can start or queue: a full queue refuses it whole.
   std::unique_lock<std::mutex> schedule;

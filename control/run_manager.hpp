@@ -84,6 +84,11 @@ class RunManager {
   /// then creates the run directory and starts or queues the run if request.start.
   std::shared_ptr<Run> create(const CreateRequest& request);
 
+  /// The newest stopped run whose scene document is the one `request` would create (with its
+  /// live defaults), or null: what `sphles serve --start-run` continues instead of starting the
+  /// same scene again at t = 0. Throws sim::SceneError for an invalid request.
+  std::shared_ptr<Run> find_stopped_like(const CreateRequest& request) const;
+
   /// All runs, oldest first.
   std::vector<std::shared_ptr<Run>> list() const;
   /// Throws UnknownRunError.
@@ -122,6 +127,9 @@ class RunManager {
     bool wake = false, stop = false;
     void notify();  // from a run's thread: never blocks on a run
   };
+  /// The scene document of a create request, validated (throws sim::SceneError naming the
+  /// field): preset or scene, patch, overrides, name, live defaults.
+  static RunSpec spec_of(const CreateRequest& request);
   /// Throws AdmissionError if the run's estimated memory exceeds the limit, or its checkpoints
   /// the free disk of the data directory; returns the estimated memory [B].
   double admit(const RunSpec& spec) const;

@@ -427,6 +427,64 @@ TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
 
 // Finding 13: a scene's packing.cache_dir made the server create directories and write files
 // wherever it could; in the command line a scene name of ../../x wrote outside runs/.
+// `sphles serve --start-run SCENE` run again continues the run it started before and that was
+// stopped, from its newest checkpoint, instead of starting the scene again at t = 0 (issue 20:
+// ./scripts/run.sh twice); a different scene starts a new run.
+TEST(ServiceFaults, StartRunAgainContinuesTheStoppedRun) {
+  const fs::path base = scratch("start_run_again");
+  const fs::path data = base / "data";
+  const std::vector<std::string> args{"--data",      data.string(),
+                                      "--threads",   "1",
+                                      "--start-run", "tgv2d",
+                                      "--set",       "particles_per_side=16",
+                                      "--set",       "packing.enabled=false",
+                                      "--set",       "time.end=1000"};
+  double stopped_at = 0.0;
+  {
+    ServeProcess serve(args, base / "first.log");
+    Api api{serve.port()};
+    const auto deadline = std::chrono::steady_clock::now() + 60s;
+    for (;;) {
+      const Reply r = api.get("/api/runs");
+      const json runs = json::parse(r.body);
+      if (runs.size() == 1 && runs[0]["time"].get<double>() > 0.2) break;
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << r.body;
+      std::this_thread::sleep_for(100ms);
+    }
+    serve.signal(SIGTERM);  // stops the run with a checkpoint
+    ASSERT_EQ(serve.wait_exit(60s), 0);
+  }
+  {
+    std::ifstream in(data / "runs" / "0001-tgv2d" / "run.json");
+    const json record = json::parse(in);
+    ASSERT_EQ(record["state"], "stopped");
+    stopped_at = record["time"].get<double>();
+    ASSERT_GT(stopped_at, 0.0);
+  }
+  {
+    ServeProcess serve(args, base / "second.log");
+    Api api{serve.port()};
+    const json runs = json::parse(api.get("/api/runs").body);
+    ASSERT_EQ(runs.size(), 1u) << runs.dump();
+    EXPECT_EQ(runs[0]["id"], "0001-tgv2d");
+    EXPECT_NE(runs[0]["state"], "stopped");
+    EXPECT_GE(runs[0]["time"].get<double>(), stopped_at);
+    serve.signal(SIGTERM);
+    ASSERT_EQ(serve.wait_exit(60s), 0);
+  }
+  std::ifstream log(base / "second.log");
+  const std::string text((std::istreambuf_iterator<char>(log)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("continuing run 0001-tgv2d"), std::string::npos) << text;
+  // Another scene is a new run.
+  std::vector<std::string> other = args;
+  other.back() = "time.end=999";
+  ServeProcess serve(other, base / "third.log");
+  const json runs = json::parse(Api{serve.port()}.get("/api/runs").body);
+  EXPECT_EQ(runs.size(), 2u) << runs.dump();
+  serve.signal(SIGTERM);
+  EXPECT_EQ(serve.wait_exit(60s), 0);
+}
+
 TEST(ServiceFaults, ClientsChooseNoPaths) {
   TestServer server(scratch("paths") / "data");
   const Api api{server.port()};
