@@ -399,7 +399,12 @@ function renderHeader() {
   const badge = $('run-state');
   badge.textContent = s.state ?? '–';
   badge.dataset.state = s.state ?? '';
-  setText('run-reason', s.reason ? `(${s.reason})` : '');
+  // A failure is an error with its diagnosis (the launcher's report, the blow-up's location,
+  // the last valid checkpoint), not a remark in parentheses.
+  const failed = s.state === 'failed';
+  setText('run-reason', s.reason && !failed ? `(${s.reason})` : '');
+  $('run-failure').hidden = !failed;
+  setText('run-failure', failed ? `Failed: ${s.reason || 'no reason given'}` : '');
   const progress = finite(s.progress) ?? (s.end_time > 0 ? (s.time ?? 0) / s.end_time : 0);
   $('run-progress').value = Math.min(1, Math.max(0, progress));
   setText('run-time', formatNumber(s.time));

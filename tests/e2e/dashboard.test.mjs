@@ -336,6 +336,26 @@ async function run() {
   if (after.some((r) => r.id === created.id)) fail(`run ${created.id} is still listed after delete`);
   pass(`deleted run ${created.id}: gone from the dashboard and GET /api/runs`);
 
+  // A failed run shows its diagnosis as an error (issue 20): 3 MPI ranks cannot split a 12²
+  // box with a halo as wide as the kernel's list radius, which the job refuses, naming why.
+  currentStep = 'a failing run';
+  const failing = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ preset: 'tgv3d', name: 'e2e-fails', ranks: 3,
+      patch: { case: 'tgv2d', particles_per_side: 12, packing: { enabled: false } } }),
+  });
+  if (failing.status !== 201) fail(`creating the failing run: HTTP ${failing.status} ${await failing.text()}`);
+  const failingId = (await failing.json()).id;
+  const failingItem = page.locator(`#run-list li[data-id="${failingId}"] button`);
+  await waitFor('the failing run in the list', async () => (await failingItem.count()) === 1, 10_000);
+  await failingItem.click();
+  await waitFor('state "failed"', async () => (await text(page, '#run-state')) === 'failed', 60_000);
+  await waitFor('the failure shown', async () => page.locator('#run-failure').isVisible(), 5_000);
+  const diagnosis = await text(page, '#run-failure');
+  if (!/narrower than the halo width/.test(diagnosis) || !/3 MPI ranks/.test(diagnosis))
+    fail(`the failure does not show the diagnosis: ${diagnosis}`);
+  pass(`a failed run shows its diagnosis as an error: "${diagnosis.slice(0, 80)}…"`);
+
   if (consoleErrors.length) fail(`the page logged errors:\n  ${consoleErrors.join('\n  ')}`);
   pass('no console errors or uncaught exceptions');
 }
