@@ -194,8 +194,11 @@ std::string outputs_summary(const json& outputs) {
   std::string line = "written:";
   const auto count = [](const json& j) { return j.value("count", 0); };
   for (const char* kind :
-       {"timeseries", "spectra", "statistics", "snapshots", "fields", "checkpoints"})
-    line += " " + std::to_string(count(outputs[kind])) + " " + kind + ",";
+       {"timeseries", "spectra", "statistics", "snapshots", "fields", "checkpoints"}) {
+    // Appended piece by piece: GCC 12's -Wrestrict misreads the chained temporaries here.
+    line.append(" ").append(std::to_string(count(outputs[kind]))).append(" ").append(kind);
+    line.append(",");
+  }
   for (const char* kind : {"slices", "frames"}) {
     line += std::string(" ") + kind;
     if (outputs[kind]["by_field"].empty()) line += " 0";
@@ -312,7 +315,8 @@ struct Run::Impl {
               {"time", time},
               {"step", step},
               {"checkpoint", last_checkpoint},
-              {"ranks", options.ranks}};
+              {"ranks", options.ranks},
+              {"wall_seconds", wall_seconds}};
     if (!outputs.is_null()) j["outputs"] = outputs;
     write_text_atomically(directory / "run.json", j.dump(2) + "\n");
   }
@@ -432,6 +436,9 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
       impl->reason = run.value("reason", std::string());
       impl->state = run_state_from_name(run.value("state", std::string("stopped")));
       impl->last_checkpoint = run.value("checkpoint", std::string());
+      // Wall time spent stepping, over every start of the run (not reset by a resume or a
+      // restart of the server; what was stepped after the newest record is not counted).
+      impl->wall_seconds = run.value("wall_seconds", 0.0);
       if (!checkpoint) {
         // Written at every state change and after every checkpoint: after a crash it holds the
         // time of the newest checkpoint, where a resume continues.

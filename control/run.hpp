@@ -104,7 +104,8 @@ struct RunStatus {
   double time = 0.0;
   double end_time = 0.0;
   std::uint64_t step = 0;
-  double wall_seconds = 0.0;      // spent stepping (excludes paused time)
+  double wall_seconds = 0.0;      // spent stepping (excludes paused time), over every start
+                                  // of the run, also across server restarts (run.json)
   double steps_per_second = 0.0;  // over the last progress interval
   std::optional<MetricsSample> latest;
   std::uint64_t analysis_published = 0, analysis_dropped = 0, frames_rendered = 0;

@@ -123,6 +123,15 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   // observer's lock: a transition may notify observers while it holds the run's own.)
   EXPECT_THROW(run.start(), StateError);
   EXPECT_THROW(run.pause(), StateError);
+  // The wall time spent stepping is recorded and survives reopening (a server restart), and a
+  // continuation adds to it instead of starting from zero (issue 20).
+  EXPECT_GT(s.wall_seconds, 0.0);
+  EXPECT_EQ(run_file.at("wall_seconds").get<double>(), s.wall_seconds);
+  std::unique_ptr<control::Run> reopened = control::Run::open("r1", dir);
+  EXPECT_EQ(reopened->status().wall_seconds, s.wall_seconds);
+  reopened->apply_changes({{"time", {{"end", 0.2}}}});
+  EXPECT_EQ(reopened->run_here(), RunState::Finished);
+  EXPECT_GT(reopened->status().wall_seconds, s.wall_seconds);
 }
 
 // Every analysis snapshot carries -de_v/dt of the time series at its time, so that

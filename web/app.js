@@ -302,7 +302,7 @@ function selectRun(id) {
   Object.assign(app, {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
-    live: true, liveImage: {}, shownUrl: {},
+    live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
   $('no-run').hidden = true;
@@ -412,10 +412,26 @@ function renderHeader() {
   setText('run-step', s.step === undefined ? '–' : String(s.step));
   setText('run-rate', formatNumber(s.steps_per_second));
   setText('run-wall', fmtSeconds(s.wall_seconds));
+  setText('run-eta', s.state === 'running' ? fmtSeconds(estimateRemaining(s)) : '–');
   setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}${s.ranks > 1 ? `, ${s.ranks} MPI ranks` : ''}`);
   const allowed = ALLOWED[s.state] ?? [];
   for (const b of document.querySelectorAll('.controls button[data-action]'))
     b.disabled = app.busy || !allowed.includes(b.dataset.action);
+}
+
+/** Wall seconds to the end time at the rate of the last minute of stepping (simulated time per
+ *  wall second between summaries of the selected run); null until two summaries differ. */
+function estimateRemaining(s) {
+  const t = finite(s.time);
+  const w = finite(s.wall_seconds);
+  if (t === null || w === null) return null;
+  const history = app.progressHistory ?? (app.progressHistory = []);
+  if (!history.length || w > history[history.length - 1].w) history.push({ t, w });
+  while (history.length > 2 && w - history[0].w > 60) history.shift();
+  const first = history[0];
+  if (!(w > first.w) || !(t > first.t)) return null;
+  const rate = (t - first.t) / (w - first.w);
+  return Math.max(0, (s.end_time - t) / rate);
 }
 
 function deselectRun() {

@@ -212,6 +212,11 @@ async function run() {
     return n > points ? n : 0;
   }, 15_000);
   pass(`e_v plot has data and grows (${points} → ${morePoints} samples)`);
+  const eta = await waitFor('an ETA for the running run', async () => {
+    const t = await text(page, '#run-eta');
+    return /\d/.test(t) ? t : null;
+  }, 15_000);
+  pass(`ETA shown while running: ${eta}`);
 
   const first = await waitFor('a decoded ω² slice image', async () => {
     const s = await imageState(page);
