@@ -125,8 +125,9 @@ struct ProcessResult {
   std::string output;
 };
 
-ProcessResult run_sphles(const std::string& arguments) {
-  const std::string command = std::string(SPHLES_BINARY) + " " + arguments + " 2>&1";
+/// The output (stdout and stderr) and exit code of a shell command line.
+ProcessResult run_shell(const std::string& command_line) {
+  const std::string command = command_line + " 2>&1";
   FILE* pipe = popen(command.c_str(), "r");
   if (!pipe) return {-1, "popen failed"};
   std::string output;
@@ -134,6 +135,10 @@ ProcessResult run_sphles(const std::string& arguments) {
   while (std::fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
   const int status = pclose(pipe);
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+}
+
+ProcessResult run_sphles(const std::string& arguments) {
+  return run_shell(std::string(SPHLES_BINARY) + " " + arguments);
 }
 
 class CliTest : public ::testing::Test {
@@ -207,17 +212,10 @@ TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   EXPECT_NE(r.output.find("sphles "), std::string::npos) << r.output;
 }
 
-/// The output and exit code of a bash command line.
+/// The output and exit code of a bash script (written to `file`).
 ProcessResult run_bash(const std::string& script, const std::filesystem::path& file) {
   std::ofstream(file) << script;
-  const std::string command = "bash " + file.string() + " 2>&1";
-  FILE* pipe = popen(command.c_str(), "r");
-  if (!pipe) return {-1, "popen failed"};
-  std::string output;
-  std::array<char, 4096> buffer;
-  while (std::fgets(buffer.data(), buffer.size(), pipe)) output += buffer.data();
-  const int status = pclose(pipe);
-  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, output};
+  return run_shell("bash " + file.string());
 }
 
 // The manual page and the bash completion are generated from the same declarations that parse
