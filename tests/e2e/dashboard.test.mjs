@@ -262,6 +262,10 @@ async function run() {
     return shown.spectrum > 0 && shown.joint > 0;
   }, 30_000);
   pass('switching runs shows only the selected run\'s spectrum and histograms');
+  // The idle run has served: without it no other "created" run can be auto-selected when the
+  // test later deletes the selected one.
+  const removed = await fetch(`${base}/api/runs/${idleId}`, { method: 'DELETE' });
+  if (removed.status !== 204 && removed.status !== 200) fail(`deleting the idle run: HTTP ${removed.status}`);
 
   if (screenshot) {
     await page.waitForTimeout(1500);  // let the spectrum and statistics plots fill in
