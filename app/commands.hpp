@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "analysis/config.hpp"
+#include "logging/logging.hpp"
 
 namespace sphles::app {
 
@@ -54,6 +55,19 @@ inline CLI::Option* repeatable(CLI::Option* option) {
 /// --threads N (1 to 1024) of the commands that run a solver.
 inline CLI::Option* add_threads_option(CLI::App& command, int& threads, const std::string& what) {
   return command.add_option("--threads", threads, what)->type_name("N")->check(CLI::Range(1, 1024));
+}
+
+/// --log-level LEVEL of the commands that log (logging/logging.hpp): trace, debug, info (the
+/// default), warn, error or off; the command calls logging::configure with it.
+inline CLI::Option* add_log_level_option(CLI::App& command, std::string& level) {
+  level = "info";
+  return command
+      .add_option("--log-level", level,
+                  "least severe messages shown on stderr and written to run.log "
+                  "(trace, debug, info, warn, error, off)")
+      ->type_name("LEVEL")
+      ->check(CLI::IsMember(logging::level_names()))
+      ->capture_default_str();
 }
 
 /// The scene document of a scene file, or of a preset name when no such file exists, with --set

@@ -25,6 +25,7 @@ struct RunOptions {
   std::string packing_cache;  // empty: the default cache directory
   int threads = 0;
   bool overwrite = false;
+  std::string log_level;
 };
 
 class UsageError : public std::runtime_error {
@@ -178,6 +179,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
 }
 
 int run_command(const RunOptions& options) {
+  logging::configure(logging::ConsoleStyle::plain, logging::parse_level(options.log_level));
   if (launched_ranks() <= 1) return run_here(options, nullptr);
   // Under mpirun: rank 0 runs as one process would, with the solver over every rank; the others
   // serve it. mpirun forwards SIGINT and SIGTERM to every rank: they are blocked on all ranks
@@ -222,6 +224,7 @@ void add_run_command(CLI::App& app, int& exit_code) {
         return v.empty() ? std::string("must not be empty") : std::string();
       });
   add_threads_option(*run, options->threads, "OpenMP threads (per MPI rank under mpirun)");
+  add_log_level_option(*run, options->log_level);
   run->callback([options, &exit_code] { exit_code = run_command(*options); });
 }
 

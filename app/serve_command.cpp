@@ -37,6 +37,7 @@ struct ServeOptions {
   std::vector<std::string> overrides;          // --set, for --start-run
   std::string max_memory;                      // --max-memory as given; empty: the default
   std::string packing_cache;                   // empty: the default
+  std::string log_level;                       // --log-level
 };
 
 /// "12G", "512M", "2.5T", "1000000" (bytes; K, M, G, T are binary multiples, an optional "iB"
@@ -64,6 +65,7 @@ double parse_bytes(const std::string& option, const std::string& text) {
 
 /// The command line's options (CLI11 checks types and ranges).
 void add_serve_options(CLI::App& serve, ServeOptions& o) {
+  add_log_level_option(serve, o.log_level);
   serve.add_option("--port", o.server.port, "TCP port; 0 picks a free one (printed)")
       ->capture_default_str();
   serve.add_option("--bind", o.server.address, "address to listen on")->capture_default_str();
@@ -180,6 +182,13 @@ control::CreateRequest start_request(const std::string& scene_or_preset,
 
 }  // namespace
 
+/// Whether an address to listen on is reachable from this machine only.
+bool is_loopback(const std::string& address) {
+  boost::system::error_code ec;
+  const auto ip = boost::asio::ip::make_address(address, ec);
+  return address == "localhost" || (!ec && ip.is_loopback());
+}
+
 int serve_command(ServeOptions options) {
   try {
     finish_serve_options(options);
@@ -187,6 +196,8 @@ int serve_command(ServeOptions options) {
     std::fprintf(stderr, "sphles serve: %s\nRun with --help for more information.\n", e.what());
     return kExitUsage;
   }
+  logging::configure(logging::ConsoleStyle::timestamped, logging::parse_level(options.log_level));
+  const auto log = logging::console("serve");
 
   // Signals are handled by the io_context below; block nothing, but install before any thread
   // starts so that every thread sees the same disposition.
@@ -197,13 +208,13 @@ int serve_command(ServeOptions options) {
   try {
     manager.emplace(options.manager);
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sphles serve: cannot open the data directory %s: %s\n",
-                 options.manager.data_directory.c_str(), e.what());
+    log->error("cannot open the data directory {}: {}", options.manager.data_directory.string(),
+               e.what());
     return kExitFailure;
   }
-  std::fprintf(stderr, "sphles serve: data directory %s, %zu run(s) found; runs may use %s\n",
-               options.manager.data_directory.c_str(), manager->list().size(),
-               control::format_bytes(manager->options().max_memory_bytes).c_str());
+  log->info("sphles {}, data directory {}, {} run(s) found; runs may use {}", SPHLES_VERSION,
+            options.manager.data_directory.string(), manager->list().size(),
+            control::format_bytes(manager->options().max_memory_bytes));
 
   if (!options.start_run.empty()) {
     try {
@@ -212,12 +223,11 @@ int serve_command(ServeOptions options) {
       // SIGTERM) from its newest checkpoint, instead of starting the scene again at t = 0.
       if (const auto stopped = manager->find_stopped_like(request)) {
         manager->resume(stopped->id());
-        std::fprintf(stderr, "sphles serve: continuing run %s (%s) from t = %g\n",
-                     stopped->id().c_str(), options.start_run.c_str(), stopped->status().time);
+        log->info("continuing run {} ({}) from t = {:g}", stopped->id(), options.start_run,
+                  stopped->status().time);
       } else {
         const auto run = manager->create(request);
-        std::fprintf(stderr, "sphles serve: started run %s (%s)\n", run->id().c_str(),
-                     options.start_run.c_str());
+        log->info("started run {} ({})", run->id(), options.start_run);
       }
     } catch (const UsageError& e) {
       std::fprintf(stderr, "sphles serve: %s\n", e.what());
@@ -227,8 +237,7 @@ int serve_command(ServeOptions options) {
                    e.what());
       return kExitUsage;
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles serve: --start-run %s: %s\n", options.start_run.c_str(),
-                   e.what());
+      log->error("--start-run {}: {}", options.start_run, e.what());
       return kExitFailure;
     }
   }
@@ -237,20 +246,19 @@ int serve_command(ServeOptions options) {
   try {
     http.start();
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sphles serve: %s\n", e.what());
+    log->error("{}", e.what());
     manager->shutdown();
     return kExitFailure;
   }
   if (!std::filesystem::is_directory(options.server.web_root))
-    std::fprintf(stderr, "sphles serve: warning: web root %s does not exist (API only)\n",
-                 options.server.web_root.c_str());
+    log->warn("web root {} does not exist (API only)", options.server.web_root.string());
   if (!options.server.token.empty())
-    std::fprintf(stderr, "sphles serve: mutating calls need 'Authorization: Bearer <token>'\n");
-  else if (options.server.address != "127.0.0.1" && options.server.address != "::1")
-    std::fprintf(stderr,
-                 "sphles serve: warning: listening on %s without --token: anyone who can reach "
-                 "it can create, change and stop runs\n",
-                 options.server.address.c_str());
+    log->info("mutating calls need 'Authorization: Bearer <token>'");
+  else if (!is_loopback(options.server.address))
+    log->warn(
+        "listening on {} without --token: anyone who can reach it can create, change and stop "
+        "runs",
+        options.server.address);
   std::printf("sphles serve: listening on %s\n", http.url().c_str());
   std::fflush(stdout);
 
@@ -260,13 +268,12 @@ int serve_command(ServeOptions options) {
   });
   signals_context.run();
 
-  std::fprintf(stderr, "sphles serve: signal %d: stopping runs (checkpoints) and the server\n",
-               received);
+  log->info("signal {}: stopping runs (checkpoints) and the server", received);
   http.stop_accepting();
   manager->shutdown();  // every active run writes a checkpoint and is marked stopped
   http.stop();
   manager.reset();
-  std::fprintf(stderr, "sphles serve: stopped\n");
+  log->info("stopped");
   return kExitOk;
 }
 

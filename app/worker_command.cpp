@@ -22,6 +22,7 @@ struct WorkerOptions {
   unsigned short port = 0;
   std::string token;
   int threads = 0;
+  std::string log_level;
 };
 
 /// HOST:PORT of --connect into the options.
@@ -46,6 +47,8 @@ int worker_command(WorkerOptions options) {
     std::fprintf(stderr, "sphles worker: %s\n", e.what());
     return kExitUsage;
   }
+  logging::configure(logging::ConsoleStyle::timestamped, logging::parse_level(options.log_level));
+  const auto log = logging::console("worker");
   if (options.threads > 0) omp_set_num_threads(options.threads);
   return par::drive_from_rank_zero([&](par::Driver& driver) {
     launch::WorkerSolvers solvers;
@@ -60,10 +63,10 @@ int worker_command(WorkerOptions options) {
     try {
       launch::serve_job(options.host, options.port, options.token, solvers);
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles worker: %s\n", e.what());
+      log->error("{}", e.what());
       rc = kExitFailure;
     }
-    std::fprintf(stderr, "sphles worker: rank 0 of %d done\n", driver.ranks());
+    log->info("rank 0 of {} done", driver.ranks());
     return rc;
   });
 }
@@ -78,6 +81,7 @@ void add_worker_command(CLI::App& app, int& exit_code) {
   worker->add_option("--connect", o->connect, "the service's HOST:PORT")->required();
   worker->add_option("--token", o->token, "the job's token")->required();
   add_threads_option(*worker, o->threads, "OpenMP threads per rank");
+  add_log_level_option(*worker, o->log_level);
   worker->callback([o, &exit_code] { exit_code = worker_command(*o); });
 }
 

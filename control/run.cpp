@@ -20,6 +20,7 @@
 #include "control/live_changes.hpp"
 #include "control/render_sink.hpp"
 #include "io/checkpoint.hpp"
+#include "logging/logging.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/run_log.hpp"
@@ -268,6 +269,7 @@ struct Run::Impl {
   void refuse_if_retired() const {
     if (retired) throw StateError("run " + id + " has been deleted");
   }
+  std::unique_ptr<logging::RunLog> log;  // run.log (and the console)
   std::thread thread;
   std::string last_checkpoint;  // file name under checkpoints/ of the newest one written
   json outputs;                 // what the run directory holds, set when the run ends
@@ -326,7 +328,7 @@ struct Run::Impl {
     try {
       write_run_file_locked();
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "run %s: %s\n", id.c_str(), e.what());
+      log->warn("{}", e.what());
     }
   }
   void write_scene_file_locked() const {
@@ -335,8 +337,15 @@ struct Run::Impl {
 
   /// Sets the state (caller holds the lock), persists it, and tells observers after unlocking.
   void set_state(std::unique_lock<std::mutex>& lock, RunState s, std::string why = {}) {
+    const RunState before = state;
     state = s;
     reason = std::move(why);
+    if (s == RunState::Failed)
+      log->error("state: {} -> failed: {}", run_state_name(before), reason);
+    else if (reason.empty())
+      log->info("state: {} -> {}", run_state_name(before), run_state_name(s));
+    else
+      log->info("state: {} -> {} ({})", run_state_name(before), run_state_name(s), reason);
     try_write_run_file_locked();
     const std::string r = reason;
     changed.notify_all();
@@ -362,6 +371,7 @@ Run::Run(std::string id, std::filesystem::path directory, RunOptions options,
   impl_->id = id_;
   impl_->directory = directory_;
   impl_->options = options;
+  impl_->log = std::make_unique<logging::RunLog>(id_, directory_ / "run.log", options.log_progress);
 }
 
 Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptions options)
@@ -475,8 +485,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     if (record_changed) r.write_run_file_locked();
   } catch (const std::exception& e) {
     if (must_write) throw;
-    std::fprintf(stderr, "run %s: %s (listed as it is; it cannot run until this is fixed)\n",
-                 r.id.c_str(), e.what());
+    r.log->warn("{} (listed as it is; it cannot run until this is fixed)", e.what());
   }
   return run;
 }
@@ -683,6 +692,10 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
     ++r.revision;
     r.try_write_run_file_locked();  // the name may have changed
   }
+  std::string fields;
+  for (const std::string& f : change.fields) fields += (fields.empty() ? "" : ", ") + f;
+  r.log->info("changed {} by {} ({})", fields, patch.dump(),
+              active ? "applied at the next step" : "stored for the next start");
   return change.fields;
 }
 
@@ -776,7 +789,6 @@ void Run::Impl::execute() {
   } catch (const sim::SetupCancelled& e) {
     // A stop during the set-up: nothing was stepped, so a later start begins afresh.
     std::unique_lock lock(mutex);
-    if (options.log_progress) std::fprintf(stderr, "run %s: %s\n", id.c_str(), e.what());
     continue_from_checkpoint = false;
     set_state(lock, RunState::Stopped, stop_reason + " (" + e.what() + ", before the first step)");
   } catch (const std::exception& e) {
@@ -790,7 +802,6 @@ void Run::Impl::execute() {
     } catch (const std::exception& listing) {
       why += std::string("; the checkpoints cannot be listed: ") + listing.what();
     }
-    if (options.log_progress) std::fprintf(stderr, "run %s failed: %s\n", id.c_str(), why.c_str());
     set_state(lock, RunState::Failed, why);
   }
 }
@@ -823,7 +834,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     } else if (!io::list_checkpoints(checkpoint_dir).empty()) {
       std::vector<std::string> rejected;
       file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
-      for (const std::string& why : rejected) std::fprintf(stderr, "skipped: %s\n", why.c_str());
+      for (const std::string& why : rejected) log->warn("skipped: {}", why);
     }
     if (file.empty())
       throw std::runtime_error(
@@ -831,19 +842,15 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
           "again from t = 0)");
     {
       checkpoint = io::read_checkpoint(file);
-      if (options.log_progress)
-        std::fprintf(stderr, "restart: %s at t = %.17g, step %llu\n", file.c_str(),
-                     checkpoint->state.time,
-                     static_cast<unsigned long long>(checkpoint->state.step));
+      log->progress("restart: {} at t = {:.17g}, step {}", file.string(), checkpoint->state.time,
+                    checkpoint->state.step);
     }
   }
   const sim::Scene& scene0 = current.run.scene;
-  if (options.log_progress)
-    std::fprintf(stderr,
-                 "sphles run: %s (%s), %zu particles, kernel %s, D_K/dl = %g, %d threads -> %s\n",
-                 scene0.name.c_str(), std::string(sim::case_name(scene0.case_type)).c_str(),
-                 scene0.num_particles(), std::string(sim::kernel_name(scene0.kernel)).c_str(),
-                 scene0.kernel_diameter_over_spacing, omp_get_max_threads(), directory.c_str());
+  log->progress("sphles run: {} ({}), {} particles, kernel {}, D_K/dl = {:g}, {} threads -> {}",
+                scene0.name, sim::case_name(scene0.case_type), scene0.num_particles(),
+                sim::kernel_name(scene0.kernel), scene0.kernel_diameter_over_spacing,
+                omp_get_max_threads(), directory.string());
   if (checkpoint) {
     packing = checkpoint->metadata.packing;
     simulation = restore_solver(scene0, std::move(checkpoint->state));
@@ -870,15 +877,14 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                   setup.packing.final_residual, setup.packing.from_cache ? "yes" : "no",
                   setup.packing.cache_file.empty() ? "-" : setup.packing.cache_file.c_str());
     packing = text;
-    if (scene0.packing.enabled && options.log_progress)
-      std::fprintf(stderr, "packing: %s, %d iterations, residual %.3g -> %.3g (%.1f s)%s%s\n",
-                   setup.packing.from_cache  ? "from cache"
-                   : setup.packing.converged ? "converged"
-                                             : "NOT converged (max_iterations reached)",
-                   setup.packing.iterations, setup.packing.initial_residual,
-                   setup.packing.final_residual, setup_seconds,
-                   setup.packing.cache_file.empty() ? "" : ", cache ",
-                   setup.packing.cache_file.c_str());
+    if (scene0.packing.enabled)
+      log->progress("packing: {}, {} iterations, residual {:.3g} -> {:.3g} ({:.1f} s){}{}",
+                    setup.packing.from_cache  ? "from cache"
+                    : setup.packing.converged ? "converged"
+                                              : "NOT converged (max_iterations reached)",
+                    setup.packing.iterations, setup.packing.initial_residual,
+                    setup.packing.final_residual, setup_seconds,
+                    setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
     simulation = options.make_simulation
                      ? options.make_simulation(scene0, std::move(setup.particles))
                      : sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -1128,25 +1134,19 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     if (std::chrono::duration<double>(Clock::now() - last_flush).count() >=
         options.metrics_batch_seconds)
       flush_metrics();
-    if (const std::string line = progress->update(d); !line.empty() && options.log_progress)
-      std::fprintf(stderr, "%s\n", line.c_str());
+    if (const std::string line = progress->update(d); !line.empty()) log->progress("{}", line);
   }
 
-  if (options.log_progress)
-    std::fprintf(stderr, "%s\n", progress->update(simulation->diagnostics(), true).c_str());
+  log->progress("{}", progress->update(simulation->diagnostics(), true));
   flush_metrics();
   // Every run ends with a checkpoint, stopped or finished, so that it can be continued (raise
   // time.end) and never has to start again from t = 0.
   save_checkpoint();
   if (pipeline) {
     pipeline->close(/*drain=*/!stopped);
-    if (options.log_progress) {
-      const analysis::PipelineCounters c = pipeline->counters();
-      std::fprintf(
-          stderr, "analysis: %llu snapshots published, %llu analysed, %llu dropped, %.1f s busy\n",
-          static_cast<unsigned long long>(c.published), static_cast<unsigned long long>(c.analysed),
-          static_cast<unsigned long long>(c.dropped), c.busy_seconds);
-    }
+    const analysis::PipelineCounters c = pipeline->counters();
+    log->progress("analysis: {} snapshots published, {} analysed, {} dropped, {:.1f} s busy",
+                  c.published, c.analysed, c.dropped, c.busy_seconds);
   }
   if (renderer) renderer->close(/*drain=*/!stopped);
   publish_progress(true);
@@ -1157,14 +1157,13 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   if (renderer && !renderer->error().empty())
     throw std::runtime_error("rendering failed: " + renderer->error());
   json written = outputs_json(directory);
-  if (options.log_progress) std::fprintf(stderr, "%s\n", outputs_summary(written).c_str());
+  log->progress("{}", outputs_summary(written));
   std::unique_lock lock(mutex);
   outputs = std::move(written);
   if (stopped) {
     set_state(lock, RunState::Stopped, stopped_reason);
   } else {
-    if (options.log_progress)
-      std::fprintf(stderr, "sphles run: finished, outputs in %s\n", directory.c_str());
+    log->progress("sphles run: finished, outputs in {}", directory.string());
     set_state(lock, RunState::Finished);
   }
 }

@@ -129,8 +129,9 @@ class RunObserver {
 };
 
 struct RunOptions {
-  int threads = 0;                          // OpenMP threads of the solver; 0 = default
-  bool log_progress = false;                // progress lines on stderr (command line)
+  int threads = 0;  // OpenMP threads of the solver; 0 = default
+  bool log_progress =
+      false;  // progress lines on the console too (command line); run.log has them always
   double metrics_batch_seconds = 0.1;       // observers get metrics at most this often (wall time)
   std::filesystem::path packing_cache_dir;  // empty: sim::default_packing_cache_dir()
   /// How often (wall time) the solver thread checks that its run directory still exists.

@@ -7,6 +7,7 @@
 #include <sys/statvfs.h>
 
 #include "control/resources.hpp"
+#include "logging/logging.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
 
@@ -169,17 +170,17 @@ RunManager::RunManager(ManagerOptions options)
     try {
       int ranks = Run::recorded_ranks(directory);
       if (ranks > 1 && !options_.distribute) {
-        std::fprintf(stderr,
-                     "sphles: run %s ran on %d MPI ranks; this server launches no MPI jobs, so "
-                     "it continues in this process (bitwise the same results)\n",
-                     id.c_str(), ranks);
+        logging::console("runs")->warn(
+            "run {} ran on {} MPI ranks; this server launches no MPI jobs, so it continues in "
+            "this process (bitwise the same results)",
+            id, ranks);
         ranks = 1;
       }
       auto run = std::shared_ptr<Run>(Run::open(id, directory, run_options_for(ranks, directory)));
       run->add_observer(slot_observer_);
       runs_.push_back(std::move(run));
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles: skipping run directory %s: %s\n", directory.c_str(), e.what());
+      logging::console("runs")->warn("skipping run directory {}: {}", directory.string(), e.what());
     }
     next_number_ =
         std::max<std::uint64_t>(next_number_, std::strtoull(id.c_str(), nullptr, 10) + 1);
@@ -331,6 +332,8 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
     run->add_observer(slot_observer_);
     runs_.push_back(run);
   }
+  logging::console("runs")->info("created run {} in {} ({} MPI rank(s))", run->id(),
+                                 run->directory().string(), request.ranks);
   if (request.start) start_locked(run);
   return run;
 }
@@ -422,6 +425,7 @@ void RunManager::remove(const std::string& id) {
   run->remove_observer(slot_observer_.get());
   std::error_code ignored;
   std::filesystem::remove_all(trash, ignored);  // a leftover is removed on the next start
+  logging::console("runs")->info("deleted run {}", id);
 }
 
 void RunManager::start_queued() {
@@ -449,8 +453,7 @@ void RunManager::start_queued() {
     try {
       next->start_if_queued();  // false: stopped or deleted since it queued
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles: could not start queued run %s: %s\n", next->id().c_str(),
-                   e.what());
+      logging::console("runs")->error("could not start queued run {}: {}", next->id(), e.what());
     }
   }
 }
@@ -477,7 +480,7 @@ void RunManager::shutdown() {
       try {
         run->stop("the server shut down; resume continues from the newest checkpoint");
       } catch (const std::exception& e) {
-        std::fprintf(stderr, "sphles: stopping run %s: %s\n", run->id().c_str(), e.what());
+        logging::console("runs")->error("stopping run {}: {}", run->id(), e.what());
       }
     }
   }

@@ -24,7 +24,9 @@
 #include <utility>
 #include <vector>
 
+#include "logging/logging.hpp"
 #include "server/routes.hpp"
+#include "server/url.hpp"
 #include "server/websocket_session.hpp"
 
 namespace sphles::server {
@@ -57,9 +59,9 @@ void run_context(net::io_context& context, const char* what) noexcept {
       context.run();
       return;
     } catch (const std::exception& e) {
-      std::fprintf(stderr, "sphles serve: %s: a handler failed: %s\n", what, e.what());
+      logging::console("http")->error("{}: a handler failed: {}", what, e.what());
     } catch (...) {
-      std::fprintf(stderr, "sphles serve: %s: a handler failed\n", what);
+      logging::console("http")->error("{}: a handler failed", what);
     }
   }
 }
@@ -88,6 +90,7 @@ struct HttpServer::Impl {
   // Declaration order is destruction order in reverse: sessions still owned by handlers die with
   // the io_context and unregister from `sessions` and `streams`, which must outlive it.
   ServerOptions options;
+  std::shared_ptr<spdlog::logger> http_log = logging::console("http");
   StreamRegistry streams;
   ProductCache products;
   struct Entry {
@@ -201,6 +204,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
 
   void on_read_error(beast::error_code ec) {
     if (ec == http::error::end_of_stream) return shutdown();
+    note_request();
     // Malformed HTTP is answered (then the connection closes: its framing is lost);
     // network errors and timeouts just close.
     if (ec.category() != http::make_error_code(http::error::end_of_stream).category())
@@ -222,6 +226,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
   void on_request() {
     enter(Phase::handling);
     stream_.expires_never();  // the worker may take a while (stop writes a checkpoint)
+    note_request();
     Request request = parser_->release();
     if (beast::websocket::is_upgrade(request)) return upgrade(std::move(request));
 
@@ -264,6 +269,7 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
       return send(error_response(e, request.version(), false));
     }
     upgraded_ = true;
+    log_request(101, 0);
     auto session = std::make_shared<WebSocketSession>(
         std::move(stream_), std::move(target.run), server_.streams, server_.products,
         server_.control.get_executor(), server_.options.stream, target.authorised,
@@ -281,7 +287,8 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
                       beast::bind_front_handler(&HttpSession::on_write, shared_from_this(), close));
   }
 
-  void on_write(bool close, beast::error_code ec, std::size_t) {
+  void on_write(bool close, beast::error_code ec, std::size_t bytes) {
+    log_request(response_->result_int(), bytes);
     response_.reset();
     server_.release_response(std::exchange(reserved_, 0));
     if (ec) return shutdown();
@@ -313,10 +320,34 @@ class HttpSession : public std::enable_shared_from_this<HttpSession> {
     });
   }
 
+  /// What the request log says of the request being handled: its method and target (a token
+  /// in the query hidden), or "-" when the header could not be read; and when handling began.
+  void note_request() {
+    request_started_ = Clock::now();
+    if (parser_ && parser_->is_header_done()) {
+      const auto& header = parser_->get();
+      request_line_ = std::string(header.method_string()) + " " +
+                      loggable_target(std::string_view(header.target()));
+    } else {
+      request_line_ = "-";
+    }
+  }
+  /// One line per answered request at info (5xx at warn): peer, request, status, bytes written,
+  /// time from the complete request to the written response.
+  void log_request(unsigned status, std::size_t bytes) {
+    const double ms =
+        std::chrono::duration<double, std::milli>(Clock::now() - request_started_).count();
+    server_.http_log->log(status >= 500 ? spdlog::level::warn : spdlog::level::info,
+                          "{} \"{}\" {} {} B {:.1f} ms", address_, request_line_, status, bytes,
+                          ms);
+  }
+
   beast::tcp_stream stream_;
   beast::tcp_stream::executor_type executor_;  // the connection's strand, kept after an upgrade
   HttpServer::Impl& server_;
   std::string address_;  // the peer's
+  std::string request_line_ = "-";
+  Clock::time_point request_started_ = Clock::now();
   bool upgraded_ = false;
   std::atomic<int> phase_{static_cast<int>(Phase::reading)};
   std::atomic<std::int64_t> phase_since_{now_ns()};
@@ -388,6 +419,10 @@ HttpSession* HttpServer::Impl::victim(const std::string* address) const {
 void HttpServer::Impl::refuse(tcp::socket& socket, const std::string& reason) {
   // Written at once, without reading the request (a fresh socket's send buffer takes it); a
   // client that has already sent its request may see a reset instead.
+  beast::error_code no_peer;
+  const auto peer = socket.remote_endpoint(no_peer);
+  http_log->warn("{} refused with 503: {}", no_peer ? std::string("-") : peer.address().to_string(),
+                 reason);
   try {
     const std::string body = dump(error_json(ApiError(503, reason)));
     const std::string response =

@@ -9,6 +9,7 @@
 #include <map>
 #include <sstream>
 
+#include "logging/logging.hpp"
 #include "server/auth.hpp"
 #include "server/openapi.hpp"
 #include "server/url.hpp"
@@ -219,6 +220,27 @@ Response timeseries(const Router::Services& s, const Context& c) {
                                                      s.options.limits, s.series));
 }
 
+/// The end of the run's run.log as text: the last `lines` lines (default 200, at most the
+/// server's rows per answer), "" before the run has logged anything.
+Response run_log(const Router::Services& s, const Context& c) {
+  constexpr std::uint64_t kDefaultLines = 200;
+  const auto run = find_run(s, c.params[0]);
+  const std::uint64_t max_rows = s.options.limits.max_rows;
+  const std::uint64_t lines = query_unsigned(c, "lines", kDefaultLines);
+  if (lines < 1 || lines > max_rows)
+    throw ApiError(400,
+                   "'lines' must be an integer in [1, " + std::to_string(max_rows) +
+                       "] (the server's rows per answer)",
+                   "lines");
+  Response res = make_response(
+      c.request, http::status::ok,
+      logging::tail_lines(run->directory() / "run.log", static_cast<std::size_t>(lines),
+                          s.options.limits.max_bytes),
+      "text/plain; charset=utf-8");
+  res.set(http::field::cache_control, "no-store");
+  return res;
+}
+
 /// A product of the run's latest frame as the frame's one shared text.
 Response product(const Router::Services& s, const Context& c, Product which, const char* what) {
   const auto run = find_run(s, c.params[0]);
@@ -322,6 +344,7 @@ const std::vector<Route>& route_table() {
       {{V::post, "/api/runs/{id}/stop", true}, transition<&M::stop>},
       {{V::patch, "/api/runs/{id}/parameters", true}, change_parameters, true},
       {{V::get, "/api/runs/{id}/timeseries", false}, timeseries},
+      {{V::get, "/api/runs/{id}/log", false}, run_log},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},

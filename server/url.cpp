@@ -84,4 +84,26 @@ std::optional<std::map<std::string, std::string>> parse_query(std::string_view q
   return result;
 }
 
+std::string loggable_target(std::string_view target) {
+  const std::size_t question = target.find('?');
+  if (question == std::string_view::npos) return std::string(target);
+  std::string out(target.substr(0, question + 1));
+  std::string_view query = target.substr(question + 1);
+  bool first = true;
+  while (true) {
+    const std::size_t amp = query.find('&');
+    const std::string_view pair = query.substr(0, amp);
+    if (!first) out += '&';
+    first = false;
+    const std::size_t equals = pair.find('=');
+    if (pair.substr(0, equals) == "token" && equals != std::string_view::npos)
+      out += "token=***";
+    else
+      out += pair;
+    if (amp == std::string_view::npos) break;
+    query.remove_prefix(amp + 1);
+  }
+  return out;
+}
+
 }  // namespace sphles::server

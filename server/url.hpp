@@ -31,4 +31,8 @@ std::optional<std::vector<std::string>> path_segments(std::string_view path);
 /// Decoded query parameters (the last of repeated keys wins). nullopt if malformed.
 std::optional<std::map<std::string, std::string>> parse_query(std::string_view query);
 
+/// The request target as a log may show it: the value of every `token` query parameter is
+/// replaced by "***" (a WebSocket URL carries the server's token there).
+std::string loggable_target(std::string_view target);
+
 }  // namespace sphles::server

@@ -651,7 +651,14 @@ TEST_F(CheckpointTest, ServeExitsCleanlyOnSigtermAfterAFailedCheckpointWrite) {
   server.pid = 0;
   const std::string err = file_text(options.err);
   EXPECT_TRUE(end.exited) << end.describe() << "\n" << err;
-  EXPECT_NE(err.find("sphles serve: stopped"), std::string::npos) << err;
+  EXPECT_NE(err.find(" info  serve: stopped\n"), std::string::npos) << err;
+  // The service's log has the request and the run's failure with its diagnosis; so has run.log.
+  EXPECT_NE(err.find(" info  http: 127.0.0.1 \"POST /api/runs\" 201 "), std::string::npos) << err;
+  const std::string failure = "run " + id + ": state: running -> failed: ";
+  EXPECT_NE(err.find(" error " + failure), std::string::npos) << err;
+  const std::string run_log = file_text(dir_ / "data" / "runs" / id / "run.log");
+  EXPECT_NE(run_log.find(" error state: running -> failed: "), std::string::npos) << run_log;
+  EXPECT_NE(run_log.find(std::strerror(EFBIG)), std::string::npos) << run_log;
   EXPECT_EQ(err.find("infinite loop closing library"), std::string::npos) << err;
 }
 

@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -132,6 +133,24 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   reopened->apply_changes({{"time", {{"end", 0.2}}}});
   EXPECT_EQ(reopened->run_here(), RunState::Finished);
   EXPECT_GT(reopened->status().wall_seconds, s.wall_seconds);
+  // run.log (issue 20): one UTC-stamped line per event, appended over both starts.
+  const std::vector<std::string> log = lines_of(dir / "run.log");
+  const std::regex line(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z (info |warn |error) .+)");
+  for (const std::string& l : log) EXPECT_TRUE(std::regex_match(l, line)) << l;
+  const auto position = [&](const std::string& text, std::size_t from = 0) {
+    for (std::size_t i = from; i < log.size(); ++i)
+      if (log[i].find(text) != std::string::npos) return i;
+    return log.size();
+  };
+  const std::size_t started = position("info  state: created -> running");
+  const std::size_t finished = position("info  state: running -> finished", started);
+  const std::size_t changed =
+      position("info  changed time.end by {\"time\":{\"end\":0.2}}", finished);
+  const std::size_t again = position("info  state: finished -> running", changed);
+  EXPECT_LT(position("info  state: running -> finished", again), log.size())
+      << "state changes, live change and restart in order";
+  EXPECT_LT(position("sphles run: tiny (tgv2d), 256 particles"), finished);
+  EXPECT_LT(position("restart: "), log.size());
 }
 
 // Every analysis snapshot carries -de_v/dt of the time series at its time, so that
@@ -250,6 +269,13 @@ TEST(RunControl, ABlowUpFailsTheRunCleanlyAndKeepsTheLastValidCheckpoint) {
   const io::Checkpoint newest = io::read_checkpoint(files.front());  // validates, all finite
   EXPECT_LT(newest.state.time, 5.0);
   EXPECT_EQ(json::parse(std::ifstream(dir / "run.json")).at("state"), "failed");
+  // The failure and its diagnosis are in run.log, at error level.
+  bool logged = false;
+  for (const std::string& l : lines_of(dir / "run.log"))
+    logged = logged || (l.find(" error state: running -> failed: ") != std::string::npos &&
+                        l.find("blow-up") != std::string::npos &&
+                        l.find("last valid checkpoint: checkpoints/") != std::string::npos);
+  EXPECT_TRUE(logged);
 }
 
 TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {

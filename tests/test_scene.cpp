@@ -212,6 +212,29 @@ TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   EXPECT_NE(r.output.find("sphles "), std::string::npos) << r.output;
 }
 
+// --log-level (issue 20): validated by name; it sets what the console and run.log receive.
+TEST_F(CliTest, LogLevelIsValidatedAndSetsWhatIsLogged) {
+  ProcessResult r = run_sphles("serve --log-level loud");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--log-level: loud not in {trace,debug,info,warn,error,off}"),
+            std::string::npos)
+      << r.output;
+  const auto tiny = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "packing": {"enabled": false}, "time": {"end": 0.02}})");
+  r = run_sphles("run " + tiny + " --threads 1 --out " + (dir_ / "info").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("state: running -> finished"), std::string::npos) << r.output;
+  std::ifstream info_log(dir_ / "info" / "run.log");
+  const std::string info((std::istreambuf_iterator<char>(info_log)), {});
+  EXPECT_NE(info.find(" info  state: running -> finished\n"), std::string::npos) << info;
+  EXPECT_NE(info.find(" info  sphles run: finished, outputs in "), std::string::npos) << info;
+  r = run_sphles("run " + tiny + " --threads 1 --log-level warn --out " + (dir_ / "warn").string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_EQ(r.output, "") << "nothing at warn or above happened";
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "warn" / "run.log")) << "nothing to log";
+  EXPECT_TRUE(std::filesystem::exists(dir_ / "warn" / "run.json"));
+}
+
 /// The output and exit code of a bash script (written to `file`).
 ProcessResult run_bash(const std::string& script, const std::filesystem::path& file) {
   std::ofstream(file) << script;

@@ -315,6 +315,24 @@ TEST(Server, ParameterChangesTakeEffect) {
   EXPECT_EQ(ws.read_type("error").text()["error"]["status"], 400);
   ws.send_raw("binary", true);
   EXPECT_EQ(ws.read_type("error").text()["error"]["status"], 400);
+
+  // The run's log (run.log) records the start and each accepted change with its patch.
+  const Reply log = api.get("/api/runs/" + id + "/log");
+  ASSERT_EQ(log.status, 200) << log.body;
+  EXPECT_EQ(log.header("content-type"), "text/plain; charset=utf-8");
+  EXPECT_NE(log.body.find(" info  state: created -> running\n"), std::string::npos) << log.body;
+  EXPECT_NE(log.body.find(" info  changed time.end by {\"time\":{\"end\":2000.0}} (applied at the "
+                          "next step)\n"),
+            std::string::npos)
+      << log.body;
+  EXPECT_NE(log.body.find("by {\"fluid\":{\"reference_pressure\":3.0}}"), std::string::npos)
+      << log.body;
+  EXPECT_EQ(log.body.find("particles_per_side"), std::string::npos) << "a refused change is not";
+  const std::string last = api.get("/api/runs/" + id + "/log?lines=1").body;
+  EXPECT_EQ(std::count(last.begin(), last.end(), '\n'), 1) << last;
+  expect_error(api.get("/api/runs/" + id + "/log?lines=0"), 400, "lines");
+  expect_error(api.get("/api/runs/" + id + "/log?lines=many"), 400, "lines");
+  expect_error(api.get("/api/runs/0999-none/log"), 404);
 }
 
 TEST(Server, TimeSeries) {
@@ -976,6 +994,12 @@ TEST(ServerParts, UrlDecodingIsStrict) {
   ASSERT_TRUE(query);
   EXPECT_EQ(query->at("b"), "x y");
   EXPECT_EQ(query->at("c"), "");
+  // A request log never shows the server's token.
+  using sphles::server::loggable_target;
+  EXPECT_EQ(loggable_target("/api/runs/a/stream?token=s3cret"), "/api/runs/a/stream?token=***");
+  EXPECT_EQ(loggable_target("/x?a=1&token=s&b=token"), "/x?a=1&token=***&b=token");
+  EXPECT_EQ(loggable_target("/x?tokens=1&token"), "/x?tokens=1&token");
+  EXPECT_EQ(loggable_target("/api/runs"), "/api/runs");
 }
 
 }  // namespace

@@ -30,8 +30,8 @@ export class ApiError extends Error {
   }
 }
 
-async function request(method, path, body) {
-  const headers = { Accept: 'application/json' };
+async function request(method, path, body, { text: asText = false } = {}) {
+  const headers = { Accept: asText ? 'text/plain' : 'application/json' };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
   const init = { method, headers, cache: 'no-store' };
@@ -46,6 +46,7 @@ async function request(method, path, body) {
     throw new ApiError(0, `server unreachable (${e.message})`, null);
   }
   const text = await response.text();
+  if (asText && response.ok) return text;
   let json = null;
   if (text) {
     try {
@@ -80,6 +81,8 @@ export const api = {
   timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
   spectrum: (id) => request('GET', `${run(id)}/spectrum`),
   statistics: (id) => request('GET', `${run(id)}/statistics`),
+  /** The last `lines` lines of the run's run.log, as text. */
+  log: (id, lines) => request('GET', `${run(id)}/log?lines=${lines}`, undefined, { text: true }),
   frames: (id) => request('GET', `${run(id)}/frames`),
   frameUrl: (id, file) => `${run(id)}/frames/${encodeURIComponent(file)}`,
   imageUrl: (id, field) => `${run(id)}/images/${encodeURIComponent(field)}`,

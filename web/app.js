@@ -10,6 +10,8 @@ import {
 } from './charts.js';
 
 const POLL_MS = 2000;
+const LOG_POLL_MS = 3000;  // the selected run's log while it is active
+const LOG_LINES = 500;     // of run.log shown
 const REDRAW_MS = 250;
 const IMAGE_FIELDS = ['omega2', 'tau_sfs'];
 const ACTIVE = new Set(['created', 'queued', 'running', 'paused']);
@@ -315,6 +317,9 @@ function selectRun(id) {
   }
   showStatus('control-status', '');
   showStatus('param-status', '');
+  setText('run-log', 'no log yet');
+  $('run-log').dataset.lines = '0';
+  refreshLog();
   setText('cap-spectrum', 'no spectrum yet');
   setText('cap-stats', 'no statistics yet');
   ensureCharts();
@@ -496,6 +501,7 @@ function onStreamMessage(id, m) {
     case 'state':
       mergeSummary({ id, state: m.state, reason: m.reason ?? '' });
       pollSoon();
+      refreshLog();
       break;
     case 'metrics':
       addSamples(Array.isArray(m.samples) ? m.samples : []);
@@ -508,6 +514,7 @@ function onStreamMessage(id, m) {
       break;
     case 'changed':
       showStatus('param-status', `Changed: ${(m.changed ?? []).join(', ') || 'nothing'}.`, 'ok');
+      refreshLog();
       break;
     case 'error':
       showStatus('param-status', errorText(new ApiError(m.error?.status ?? 0, m.error?.message ?? 'error', m.error?.field)), 'error');
@@ -515,6 +522,26 @@ function onStreamMessage(id, m) {
     default:
       break;  // newer message types: ignored
   }
+}
+
+/** The end of the selected run's run.log into the log panel, kept scrolled to the bottom when
+ *  the reader is there. */
+async function refreshLog() {
+  const id = app.selectedId;
+  if (!id) return;
+  let text;
+  try {
+    text = await api.log(id, LOG_LINES);
+  } catch {
+    return;  // the run list's poll reports the connection state
+  }
+  if (id !== app.selectedId) return;
+  const pre = $('run-log');
+  const atBottom = pre.scrollTop + pre.clientHeight >= pre.scrollHeight - 4;
+  const lines = text ? text.replace(/\n$/, '').split('\n').length : 0;
+  pre.textContent = text || 'no log yet';
+  pre.dataset.lines = String(lines);
+  if (atBottom) pre.scrollTop = pre.scrollHeight;
 }
 
 let pollSoonTimer = null;
@@ -888,6 +915,9 @@ function main() {
   }).catch(() => {});
   loadPresets();
   pollRuns();
+  setInterval(() => {
+    if (!document.hidden && app.summary && ACTIVE.has(app.summary.state)) refreshLog();
+  }, LOG_POLL_MS);
 }
 
 main();

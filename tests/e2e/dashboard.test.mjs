@@ -218,6 +218,18 @@ async function run() {
   }, 15_000);
   pass(`ETA shown while running: ${eta}`);
 
+  // The run's log (issue 20): run.log's lines, the start among them, and new lines while it runs.
+  const logLines = await waitFor('the run log with its start', async () => {
+    const log = await text(page, '#run-log');
+    return /state: (created|queued) -> running/.test(log)
+      ? Number(await page.locator('#run-log').getAttribute('data-lines')) : 0;
+  }, 10_000);
+  const moreLogLines = await waitFor('the run log to grow (progress lines)', async () => {
+    const n = Number(await page.locator('#run-log').getAttribute('data-lines'));
+    return n > logLines ? n : 0;
+  }, 30_000);
+  pass(`run log shown and growing (${logLines} → ${moreLogLines} lines)`);
+
   const first = await waitFor('a decoded ω² slice image', async () => {
     const s = await imageState(page);
     return s.complete && s.width > 0 && s.step ? s : null;
@@ -364,6 +376,9 @@ async function run() {
   if (!/narrower than the halo width/.test(diagnosis) || !/3 MPI ranks/.test(diagnosis))
     fail(`the failure does not show the diagnosis: ${diagnosis}`);
   pass(`a failed run shows its diagnosis as an error: "${diagnosis.slice(0, 80)}…"`);
+  await waitFor('the failure in the run log', async () =>
+    / error state: \w+ -> failed: .*narrower than the halo width/.test(await text(page, '#run-log')), 10_000);
+  pass('the run log has the failure at error level');
 
   if (consoleErrors.length) fail(`the page logged errors:\n  ${consoleErrors.join('\n  ')}`);
   pass('no console errors or uncaught exceptions');
