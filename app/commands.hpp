@@ -4,10 +4,13 @@
 #pragma once
 
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "analysis/config.hpp"
+#include "control/resources.hpp"
+#include "control/run.hpp"
 #include "logging/logging.hpp"
 
 namespace sphles::app {
@@ -33,6 +36,13 @@ void add_calibrate_command(CLI::App& app, int& exit_code);
 /// sphles estimate SCENE.json|PRESET [--set key=value ...] [--json]: memory, disk and steps a
 /// run would need (control/resources.hpp), without running it.
 void add_estimate_command(CLI::App& app, int& exit_code);
+
+/// What estimate prints for a spec (JSON with `as_json`); with `with_time` also the measured time
+/// per step and to the end (control/step_time.hpp), unless the run cannot fit in memory.
+void print_estimate(const control::RunSpec& spec, bool as_json, bool with_time);
+
+/// The reason a run's estimated peak memory exceeds this machine's, or nothing.
+std::optional<std::string> check_machine_memory(const control::ResourceEstimate& estimate);
 
 /// sphles serve [...]: the HTTP/WebSocket service and dashboard.
 void add_serve_command(CLI::App& app, int& exit_code);

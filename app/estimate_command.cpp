@@ -1,54 +1,50 @@
 // sphles estimate: what a run would need (control/resources.hpp), without running it.
+#include <omp.h>
+
+#include <cmath>
 #include <cstdio>
 
 #include "app/commands.hpp"
 #include "control/resources.hpp"
 #include "control/run.hpp"
+#include "control/step_time.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
 
 namespace {
+
 struct EstimateOptions {
   std::string scene;
   std::vector<std::string> overrides;
   bool as_json = false;
+  bool time = false;
+  int threads = 0;
 };
 
+/// "2.5 ms", "1.2 s", "3 min 20 s", "4.1 h", "2.3 days".
+std::string format_duration(double seconds) {
+  char text[64];
+  if (seconds < 1.0)
+    std::snprintf(text, sizeof text, "%.3g ms", seconds * 1e3);
+  else if (seconds < 120.0)
+    std::snprintf(text, sizeof text, "%.3g s", seconds);
+  else if (seconds < 7200.0)
+    std::snprintf(text, sizeof text, "%.0f min %.0f s", std::floor(seconds / 60.0),
+                  std::fmod(seconds, 60.0));
+  else if (seconds < 2.0 * 86400.0)
+    std::snprintf(text, sizeof text, "%.3g h", seconds / 3600.0);
+  else
+    std::snprintf(text, sizeof text, "%.3g days", seconds / 86400.0);
+  return text;
+}
+
 int estimate_command(const EstimateOptions& o) {
-  const std::string& scene = o.scene;
-  const std::vector<std::string>& overrides = o.overrides;
-  const bool as_json = o.as_json;
   try {
-    const control::RunSpec spec = control::parse_run_spec(load_scene_document(scene, overrides));
-    const control::ResourceEstimate e = control::estimate_resources(spec);
-    if (as_json) {
-      nlohmann::json j = control::resource_estimate_to_json(e);
-      j["machine_memory_bytes"] = control::machine_memory_bytes();
-      j["default_memory_limit_bytes"] = control::default_memory_limit_bytes();
-      std::puts(j.dump(2).c_str());
-      return kExitOk;
-    }
-    std::printf("particles            %.6g (%.4g neighbours each)\n", e.particles,
-                e.neighbours_per_particle);
-    std::printf("memory at the peak   %s\n", control::format_bytes(e.memory_bytes).c_str());
-    for (const control::MemoryPart& p : e.memory)
-      std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
-                  p.detail.c_str());
-    std::printf(
-        "machine memory       %s (default server limit %s)\n",
-        control::format_bytes(static_cast<double>(control::machine_memory_bytes())).c_str(),
-        control::format_bytes(static_cast<double>(control::default_memory_limit_bytes())).c_str());
-    std::printf("checkpoint file      %s (%s on disk at once)\n",
-                control::format_bytes(e.checkpoint_file_bytes).c_str(),
-                control::format_bytes(e.checkpoint_disk_bytes).c_str());
-    if (e.analysis_frames > 0.0)
-      std::printf("analysis             %.6g frames x %s = %s\n", e.analysis_frames,
-                  control::format_bytes(e.analysis_frame_bytes).c_str(),
-                  control::format_bytes(e.analysis_disk_bytes).c_str());
-    std::printf("initial time step    %.6g s (%s limit), %.6g steps to t = %g s\n",
-                e.time_step.step(), std::string(e.time_step.limits.binding()).c_str(), e.steps,
-                spec.run.scene.end_time);
+    if (o.threads > 0) omp_set_num_threads(o.threads);
+    const control::RunSpec spec =
+        control::parse_run_spec(load_scene_document(o.scene, o.overrides));
+    print_estimate(spec, o.as_json, o.time);
     return kExitOk;
   } catch (const sim::SceneError& e) {
     std::fprintf(stderr, "sphles estimate: %s\n", e.what());
@@ -57,6 +53,60 @@ int estimate_command(const EstimateOptions& o) {
 }
 
 }  // namespace
+
+std::optional<std::string> check_machine_memory(const control::ResourceEstimate& e) {
+  const double machine = static_cast<double>(control::machine_memory_bytes());
+  if (machine <= 0.0) return std::nullopt;  // unknown: nothing to compare with
+  return control::check_memory(e, machine, "this machine has");
+}
+
+void print_estimate(const control::RunSpec& spec, bool as_json, bool with_time) {
+  const control::ResourceEstimate e = control::estimate_resources(spec);
+  const std::optional<std::string> too_big = check_machine_memory(e);
+  std::optional<control::StepTimeEstimate> time;
+  if (with_time && !too_big) time = control::estimate_step_time(spec, e);
+  if (as_json) {
+    nlohmann::json j = control::resource_estimate_to_json(e);
+    j["machine_memory_bytes"] = control::machine_memory_bytes();
+    j["default_memory_limit_bytes"] = control::default_memory_limit_bytes();
+    j["fits_machine_memory"] = !too_big;
+    if (time) j["time"] = control::step_time_to_json(*time);
+    std::puts(j.dump(2).c_str());
+    return;
+  }
+  std::printf("particles            %.6g (%.4g neighbours each)\n", e.particles,
+              e.neighbours_per_particle);
+  std::printf("memory at the peak   %s\n", control::format_bytes(e.memory_bytes).c_str());
+  for (const control::MemoryPart& p : e.memory)
+    std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
+                p.detail.c_str());
+  std::printf(
+      "machine memory       %s (default server limit %s)%s\n",
+      control::format_bytes(static_cast<double>(control::machine_memory_bytes())).c_str(),
+      control::format_bytes(static_cast<double>(control::default_memory_limit_bytes())).c_str(),
+      too_big ? ": the run does NOT fit" : "");
+  std::printf("checkpoint file      %s (%s on disk at once)\n",
+              control::format_bytes(e.checkpoint_file_bytes).c_str(),
+              control::format_bytes(e.checkpoint_disk_bytes).c_str());
+  if (e.analysis_frames > 0.0)
+    std::printf("analysis             %.6g frames x %s = %s\n", e.analysis_frames,
+                control::format_bytes(e.analysis_frame_bytes).c_str(),
+                control::format_bytes(e.analysis_disk_bytes).c_str());
+  std::printf("initial time step    %.6g s (%s limit), %.6g steps to t = %g s\n",
+              e.time_step.step(), std::string(e.time_step.limits.binding()).c_str(), e.steps,
+              spec.run.scene.end_time);
+  if (time) {
+    std::printf(
+        "time per step        %s on %d threads (measured: %d steps of %zu^%d particles in "
+        "%.3g s, scaled by the particle count)\n",
+        format_duration(time->seconds_per_step).c_str(), time->threads, time->calibration_steps,
+        time->calibration_side, spec.run.scene.dimension(), time->calibration_seconds);
+    std::printf(
+        "time to the end      %s to t = %g s at the initial step (the step may shrink "
+        "as the flow develops); packing, analysis and rendering not included\n",
+        format_duration(time->seconds_to_end).c_str(), spec.run.scene.end_time);
+  }
+}
 
 void add_estimate_command(CLI::App& app, int& exit_code) {
   auto o = std::make_shared<EstimateOptions>();
@@ -70,6 +120,10 @@ void add_estimate_command(CLI::App& app, int& exit_code) {
   repeatable(estimate->add_option("--set", o->overrides, "change a scene key (repeatable)"))
       ->type_name("KEY=VALUE");
   estimate->add_flag("--json", o->as_json, "print the estimate as JSON");
+  estimate->add_flag("--time", o->time,
+                     "also time a few steps at a small size and estimate the time per step and "
+                     "to the end time on this machine");
+  add_threads_option(*estimate, o->threads, "OpenMP threads of the --time calibration");
   estimate->callback([o, &exit_code] { exit_code = estimate_command(*o); });
 }
 

@@ -1,3 +1,4 @@
+#include <omp.h>
 #include <pthread.h>
 #include <signal.h>
 
@@ -25,6 +26,7 @@ struct RunOptions {
   std::string packing_cache;  // empty: the default cache directory
   int threads = 0;
   bool overwrite = false;
+  bool dry_run = false;
   std::string log_level;
 };
 
@@ -96,6 +98,9 @@ int run_here(const RunOptions& options, par::Driver* driver) {
     } else {
       nlohmann::json document = load_scene_document(options.scene_file, options.overrides);
       control::RunSpec spec = control::parse_run_spec(document);
+      // A run that cannot fit in this machine's memory is refused before anything is written.
+      if (const auto too_big = check_machine_memory(control::estimate_resources(spec)))
+        throw UsageError(*too_big);
       // The scene's name becomes one path component under runs/, never a path of its own.
       const std::filesystem::path out_dir =
           !options.out_dir.empty()
@@ -178,8 +183,32 @@ int run_here(const RunOptions& options, par::Driver* driver) {
   return kExitOk;
 }
 
+/// --dry-run: what the run would need and take on this machine, nothing written.
+int dry_run(const RunOptions& options) {
+  try {
+    if (!options.restart.empty())
+      throw UsageError("--dry-run estimates a new run: give SCENE.json, not --restart");
+    check_run_options(options);
+    if (options.threads > 0) omp_set_num_threads(options.threads);
+    const control::RunSpec spec =
+        control::parse_run_spec(load_scene_document(options.scene_file, options.overrides));
+    print_estimate(spec, /*as_json=*/false, /*with_time=*/true);
+    if (const auto too_big = check_machine_memory(control::estimate_resources(spec))) {
+      std::fprintf(stderr, "sphles run: %s\n", too_big->c_str());
+      return kExitUsage;
+    }
+    return kExitOk;
+  } catch (const sim::SceneError& e) {
+    std::fprintf(stderr, "sphles run: %s\n", e.what());
+  } catch (const UsageError& e) {
+    std::fprintf(stderr, "sphles run: %s\n", e.what());
+  }
+  return kExitUsage;
+}
+
 int run_command(const RunOptions& options) {
   logging::configure(logging::ConsoleStyle::plain, logging::parse_level(options.log_level));
+  if (options.dry_run) return dry_run(options);
   if (launched_ranks() <= 1) return run_here(options, nullptr);
   // Under mpirun: rank 0 runs as one process would, with the solver over every rank; the others
   // serve it. mpirun forwards SIGINT and SIGTERM to every rank: they are blocked on all ranks
@@ -212,6 +241,10 @@ void add_run_command(CLI::App& app, int& exit_code) {
   run->add_option("--out", options->out_dir,
                   "run directory (default runs/NAME; with --restart the checkpoint's run)")
       ->type_name("DIR");
+  run->add_flag("--dry-run", options->dry_run,
+                "print what the run would need (particles, neighbours, memory, disk) and take on "
+                "this machine (time per step and to the end, from a short calibration), then "
+                "exit without writing anything; exit 2 if it cannot fit in memory");
   run->add_flag("--overwrite", options->overwrite,
                 "replace the checkpoints and run record of an earlier run in --out");
   run->add_option("--restart", options->restart,

@@ -504,10 +504,11 @@ std::string describe_memory(const ResourceEstimate& e, std::size_t parts) {
   return text + ")";
 }
 
-std::optional<std::string> check_memory(const ResourceEstimate& e, double limit_bytes) {
+std::optional<std::string> check_memory(const ResourceEstimate& e, double limit_bytes,
+                                        const std::string& limit_name) {
   if (e.memory_bytes <= limit_bytes) return std::nullopt;
   return "the run needs " + describe_memory(e) + " of memory, more than the " +
-         format_bytes(limit_bytes) + " the server allows (--max-memory)";
+         format_bytes(limit_bytes) + " " + limit_name;
 }
 
 namespace {

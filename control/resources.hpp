@@ -65,7 +65,10 @@ std::string describe_memory(const ResourceEstimate& estimate, std::size_t parts 
 
 /// The reason a run does not fit, or nothing: "the run needs an estimated 12.3 GiB of memory
 /// at its peak (...), more than the 6.2 GiB the server allows (--max-memory)".
-std::optional<std::string> check_memory(const ResourceEstimate& estimate, double limit_bytes);
+/// `limit_name` says whose limit it is.
+std::optional<std::string> check_memory(
+    const ResourceEstimate& estimate, double limit_bytes,
+    const std::string& limit_name = "the server allows (--max-memory)");
 
 /// Memory the machine gives this process [B]: the cgroup limit if one is set (v2 memory.max,
 /// v1 memory.limit_in_bytes, the smallest along the cgroup's path), else MemTotal of

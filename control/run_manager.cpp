@@ -1,5 +1,7 @@
 #include "control/run_manager.hpp"
 
+#include <omp.h>
+
 #include <algorithm>
 #include <cstdio>
 #include <limits>
@@ -7,6 +9,7 @@
 #include <sys/statvfs.h>
 
 #include "control/resources.hpp"
+#include "control/step_time.hpp"
 #include "logging/logging.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
@@ -235,6 +238,24 @@ double RunManager::admit(const RunSpec& spec) const {
             " (" + format_bytes(estimate.checkpoint_file_bytes) + " each), more than the " +
             format_bytes(*free) + " free in the data directory");
   return estimate.memory_bytes;
+}
+
+nlohmann::json RunManager::estimate(const CreateRequest& request) const {
+  const RunSpec spec = spec_of(request);
+  const ResourceEstimate resources = estimate_resources(spec);
+  json answer = resource_estimate_to_json(resources);
+  answer["memory_limit_bytes"] = options_.max_memory_bytes;
+  try {
+    admit(spec);
+    answer["admitted"] = true;
+  } catch (const AdmissionError& e) {
+    answer["admitted"] = false;
+    answer["refusal"] = {{"field", e.field()}, {"message", e.what()}};
+    return answer;
+  }
+  if (options_.run_options.threads > 0) omp_set_num_threads(options_.run_options.threads);
+  answer["time"] = step_time_to_json(estimate_step_time(spec, resources));
+  return answer;
 }
 
 bool RunManager::fits_now(const Run* run, double memory) const {

@@ -107,6 +107,13 @@ class RunManager {
   /// run that a restart would list; leftovers in trash/ are removed on start.
   void remove(const std::string& id);
 
+  /// What a create request would need and take, creating nothing (POST /api/estimate): the
+  /// resource estimate (resource_estimate_to_json), "admitted" and, if not, "refusal" {"field",
+  /// "message"} as create would refuse it; for an admitted run "time" (step_time_to_json), a
+  /// short calibration of its scene on this machine with the runs' threads (the solver in one
+  /// process, also for ranks > 1). Throws sim::SceneError naming the field.
+  nlohmann::json estimate(const CreateRequest& request) const;
+
   /// Stops every active run (each writes a checkpoint and is marked stopped) and the scheduler.
   /// Idempotent.
   void shutdown();

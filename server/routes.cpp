@@ -151,6 +151,13 @@ Response create_run(const Router::Services& s, const Context& c) {
   return res;
 }
 
+/// What a create request would need and take (memory, disk, steps, time per step on this
+/// machine), creating nothing: RunManager::estimate.
+Response estimate_run(const Router::Services& s, const Context& c) {
+  const nlohmann::json body = json_body(c.request);
+  return json_response(c.request, s.manager.estimate(control::parse_create_request(body)));
+}
+
 Response get_run(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
   return json_response(c.request, run_detail_json(*run, s.streams.counters(run->id())));
@@ -336,6 +343,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/presets", false}, presets},
       {{V::get, "/api/runs", false}, list_runs},
       {{V::post, "/api/runs", true}, create_run, true},
+      {{V::post, "/api/estimate", true}, estimate_run, true},
       {{V::get, "/api/runs/{id}", false}, get_run},
       {{V::delete_, "/api/runs/{id}", true}, delete_run},
       {{V::post, "/api/runs/{id}/start", true}, transition<&M::start>},

@@ -17,6 +17,7 @@
 
 #include "control/resources.hpp"
 #include "control/run.hpp"
+#include "control/step_time.hpp"
 #include "io/checkpoint.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
@@ -357,6 +358,36 @@ TEST(ResourceEstimate, JsonAndFormatting) {
   EXPECT_EQ(format_bytes(512), "512 B");
   EXPECT_EQ(format_bytes(1536), "1.5 KiB");
   EXPECT_EQ(format_bytes(3.0 * 1024 * 1024 * 1024), "3 GiB");
+}
+
+// The time estimate (run --dry-run, POST /api/estimate) runs a small copy of the scene and scales
+// by the particle count. Its accuracy is a benchmark figure (docs/performance.md), not asserted.
+TEST(StepTimeEstimate, CalibratesASmallCopyAndScalesByTheParticleCount) {
+  const RunSpec small2d =
+      spec_of(with(with({{"case", "tgv2d"}}, "particles_per_side", 16), "packing.enabled", false));
+  EXPECT_EQ(calibration_side(small2d), 16u) << "a small run is its own calibration";
+  const RunSpec big3d = spec_of(with({{"preset", "tgv3d"}}, "particles_per_side", 96));
+  EXPECT_EQ(calibration_side(big3d), 24u);
+  EXPECT_EQ(calibration_side(spec_of(with({{"case", "tgv2d"}}, "particles_per_side", 400))), 64u);
+
+  const ResourceEstimate resources = estimate_resources(small2d);
+  const StepTimeEstimate t = estimate_step_time(small2d, resources, 3);
+  EXPECT_EQ(t.calibration_side, 16u);
+  EXPECT_EQ(t.calibration_particles, 256.0);
+  EXPECT_EQ(t.calibration_steps, 3);
+  EXPECT_GT(t.calibration_seconds, 0.0);
+  EXPECT_GT(t.threads, 0);
+  EXPECT_DOUBLE_EQ(t.seconds_per_step, t.calibration_seconds / 3.0);
+  EXPECT_DOUBLE_EQ(t.seconds_to_end, t.seconds_per_step * resources.steps);
+  const json j = step_time_to_json(t);
+  EXPECT_EQ(j["calibration"]["particles_per_side"], 16);
+  EXPECT_DOUBLE_EQ(j["seconds_to_end"].get<double>(), t.seconds_to_end);
+
+  // A large run is timed at 24³ (packing off) and scaled by 96³ / 24³ = 64.
+  const ResourceEstimate big = estimate_resources(big3d);
+  const StepTimeEstimate b = estimate_step_time(big3d, big, 1);
+  EXPECT_EQ(b.calibration_particles, 24.0 * 24.0 * 24.0);
+  EXPECT_DOUBLE_EQ(b.seconds_per_step, b.calibration_seconds * 64.0);
 }
 
 }  // namespace

@@ -235,6 +235,37 @@ TEST_F(CliTest, LogLevelIsValidatedAndSetsWhatIsLogged) {
   EXPECT_TRUE(std::filesystem::exists(dir_ / "warn" / "run.json"));
 }
 
+// run --dry-run (issue 20): particles, neighbours, memory and the measured time per step and to
+// the end, nothing written; a run that cannot fit in this machine's memory is refused, dry or not.
+TEST_F(CliTest, DryRunEstimatesAndWritesNothing) {
+  const auto tiny = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "packing": {"enabled": false}, "time": {"end": 0.5}})");
+  const auto out = dir_ / "dry";
+  ProcessResult r = run_sphles("run " + tiny + " --dry-run --threads 1 --out " + out.string());
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  for (const char* line :
+       {"particles            256 (", "memory at the peak", "time per step",
+        "on 1 threads (measured: 10 steps of 16^2 particles", "time to the end", "to t = 0.5 s"})
+    EXPECT_NE(r.output.find(line), std::string::npos) << line << "\n" << r.output;
+  EXPECT_FALSE(std::filesystem::exists(out)) << "a dry run writes nothing";
+  r = run_sphles("run tgv3d-case1 --set particles_per_side=2048 --dry-run --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("the run does NOT fit"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("this machine has"), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("time per step"), std::string::npos) << "not timed: " << r.output;
+  r = run_sphles("run tgv3d-case1 --set particles_per_side=2048 --out " + out.string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("sphles run: the run needs an estimated"), std::string::npos) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(out));
+  r = run_sphles("run --dry-run --restart " + out.string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--dry-run estimates a new run"), std::string::npos) << r.output;
+  r = run_sphles("estimate " + tiny + " --time --json --threads 1");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("\"seconds_per_step\""), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("\"fits_machine_memory\": true"), std::string::npos) << r.output;
+}
+
 /// The output and exit code of a bash script (written to `file`).
 ProcessResult run_bash(const std::string& script, const std::filesystem::path& file) {
   std::ofstream(file) << script;

@@ -131,6 +131,40 @@ TEST(Server, CreateRejectsBadRequestsNamingTheField) {
   EXPECT_TRUE(fs::is_empty(server.data_directory / "runs"));
 }
 
+// POST /api/estimate (issue 20, the dashboard's Estimate button): what a create request would need
+// and take, measured on the server, and whether create would accept it; nothing is created.
+TEST(Server, EstimateMeasuresARunWithoutCreatingIt) {
+  TestServer server(scratch("estimate") / "data");
+  const Api api{server.port()};
+  Reply r = api.post("/api/estimate", {{"scene", tiny_scene(2.0)}});
+  ASSERT_EQ(r.status, 200) << r.body;
+  json e = r.body_json();
+  EXPECT_EQ(e["particles"], 256.0);
+  EXPECT_EQ(e["admitted"], true);
+  EXPECT_GT(e["memory_bytes"].get<double>(), 0.0);
+  EXPECT_GT(e["memory_limit_bytes"].get<double>(), e["memory_bytes"].get<double>());
+  ASSERT_TRUE(e["time"].is_object()) << e;
+  EXPECT_EQ(e["time"]["calibration"]["particles_per_side"], 16);
+  EXPECT_GT(e["time"]["seconds_per_step"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(e["time"]["seconds_to_end"].get<double>(),
+                   e["time"]["seconds_per_step"].get<double>() * e["steps"].get<double>());
+  // A run create would refuse is described with create's reason and not timed.
+  r = api.post("/api/estimate", {{"preset", "tgv3d"}, {"patch", {{"particles_per_side", 2048}}}});
+  ASSERT_EQ(r.status, 200) << r.body;
+  e = r.body_json();
+  EXPECT_EQ(e["admitted"], false);
+  EXPECT_EQ(e["refusal"]["field"], "particles_per_side") << e;
+  EXPECT_NE(e["refusal"]["message"].get<std::string>().find("the server allows (--max-memory)"),
+            std::string::npos)
+      << e;
+  EXPECT_FALSE(e.contains("time"));
+  expect_error(api.post("/api/estimate", {{"scene", tiny_scene()}, {"colour", "red"}}), 400,
+               "colour");
+  expect_error(api.post("/api/estimate", {{"preset", "no-such-preset"}}), 400, "preset");
+  EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u);
+  EXPECT_TRUE(fs::is_empty(server.data_directory / "runs"));
+}
+
 TEST(Server, EveryStateTransitionAndItsIllegalVariants) {
   TestServer server(scratch("states") / "data");
   const Api api{server.port()};
@@ -528,6 +562,9 @@ TEST(Server, TokenGuardsMutatingCalls) {
     expect_error(anonymous.post("/api/runs/" + id + "/" + action), 401);
   expect_error(anonymous.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 5.0}}}}), 401);
   expect_error(anonymous.remove("/api/runs/" + id), 401);
+  // An estimate spends the server's CPU on a calibration: the token's holders only.
+  expect_error(anonymous.post("/api/estimate", {{"scene", tiny_scene()}}), 401, "Authorization");
+  EXPECT_EQ(owner.post("/api/estimate", {{"scene", tiny_scene()}}).status, 200);
   EXPECT_EQ(anonymous.run(id)["state"], "created");
   ASSERT_EQ(owner.post("/api/runs/" + id + "/start").status, 200);
 

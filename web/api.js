@@ -75,6 +75,8 @@ export const api = {
   runs: () => request('GET', '/api/runs'),
   run: (id) => request('GET', run(id)),
   create: (body) => request('POST', '/api/runs', body),
+  /** What a create request would need and take on the server's machine (creates nothing). */
+  estimate: (body) => request('POST', '/api/estimate', body),
   action: (id, verb) => request('POST', `${run(id)}/${verb}`),
   remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),

@@ -269,15 +269,20 @@ function buildCreateRequest() {
   return body;
 }
 
-async function onCreate(event) {
-  event.preventDefault();
-  let body;
+/** The form's create request, or null after showing why the form cannot make one. */
+function formRequest() {
   try {
-    body = buildCreateRequest();
+    return buildCreateRequest();
   } catch (e) {
     showStatus('create-status', e.message, 'error');
-    return;
+    return null;
   }
+}
+
+async function onCreate(event) {
+  event.preventDefault();
+  const body = formRequest();
+  if (!body) return;
   const button = $('create-submit');
   button.disabled = true;
   showStatus('create-status', 'Creating…');
@@ -287,6 +292,65 @@ async function onCreate(event) {
     app.runs = app.runs.filter((r) => r.id !== run.id).concat([run]);
     renderRunList();
     selectRun(run.id);
+  } catch (e) {
+    showStatus('create-status', errorText(e), 'error');
+  } finally {
+    button.disabled = false;
+  }
+}
+
+/** "2.5 ms", "1.2 s", "3.4 min", "4.1 h", "2.3 days". */
+function fmtDuration(s) {
+  if (!(s >= 0)) return '–';
+  if (s < 1) return `${(s * 1e3).toPrecision(3)} ms`;
+  if (s < 120) return `${s.toPrecision(3)} s`;
+  if (s < 7200) return `${(s / 60).toPrecision(3)} min`;
+  if (s < 2 * 86400) return `${(s / 3600).toPrecision(3)} h`;
+  return `${(s / 86400).toPrecision(3)} days`;
+}
+
+function fmtBytes(b) {
+  const units = ['B', 'KiB', 'MiB', 'GiB', 'TiB'];
+  let i = 0;
+  while (b >= 1024 && i < units.length - 1) { b /= 1024; i += 1; }
+  return `${i ? b.toPrecision(3) : b} ${units[i]}`;
+}
+
+/** The form's run, estimated by the server before it is created (POST /api/estimate). */
+async function onEstimate() {
+  const body = formRequest();
+  if (!body) return;
+  const button = $('create-estimate');
+  const result = $('create-estimate-result');
+  button.disabled = true;
+  result.hidden = true;
+  showStatus('create-status', 'Estimating (a short calibration on the server)…');
+  try {
+    const e = await api.estimate(body);
+    const rows = [
+      ['particles', `${Math.round(e.particles).toLocaleString('en-US')} (${Math.round(e.neighbours_per_particle)} neighbours each)`],
+      ['memory', `${fmtBytes(e.memory_bytes)} at the peak (server allows ${fmtBytes(e.memory_limit_bytes)})`],
+      ['checkpoints', `${fmtBytes(e.checkpoint_disk_bytes)} on disk`],
+      ['steps', `${formatNumber(e.steps)} at the initial step`],
+    ];
+    if (e.time) {
+      const c = e.time.calibration;
+      rows.push(['per step', `${fmtDuration(e.time.seconds_per_step)} on ${c.threads} threads`]);
+      rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver only; from ${c.steps} steps of ${c.particles_per_side}^n particles)`]);
+    }
+    result.replaceChildren(...rows.map(([k, v]) => {
+      const div = document.createElement('div');
+      const dt = document.createElement('dt');
+      const dd = document.createElement('dd');
+      dt.textContent = k;
+      dd.textContent = v;
+      dd.dataset.field = k;
+      div.append(dt, dd);
+      return div;
+    }));
+    result.hidden = false;
+    if (e.admitted) showStatus('create-status', 'Estimate: the server would accept this run.', 'ok');
+    else showStatus('create-status', `The server would refuse this run: ${e.refusal?.message ?? ''}`, 'error');
   } catch (e) {
     showStatus('create-status', errorText(e), 'error');
   } finally {
@@ -899,6 +963,7 @@ function main() {
   $('token').value = getToken();
   $('token-form').addEventListener('submit', onTokenSave);
   $('create-form').addEventListener('submit', onCreate);
+  $('create-estimate').addEventListener('click', onEstimate);
   $('create-preset').addEventListener('change', fillCreateForm);
   $('create-live').addEventListener('change', () => { $('create-every').disabled = !$('create-live').checked; });
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);

@@ -192,6 +192,18 @@ async function run() {
   await page.fill('#create-name', 'e2e-tgv2d');
   await page.fill('#create-ranks', '2');  // the solver in a 2-rank MPI job (the server's --launcher)
   await page.check('#create-start');
+  // The estimate before Create (issue 20): memory and the time per step measured on the server.
+  const runsBefore = (await (await fetch(`${base}/api/runs`)).json()).length;
+  await page.click('#create-estimate');
+  const perStep = await waitFor('the estimate with a time per step', async () => {
+    if (await page.locator('#create-estimate-result').isHidden()) return null;
+    const t = await text(page, '#create-estimate-result dd[data-field="per step"]');
+    return /\d/.test(t) ? t : null;
+  }, 20_000);
+  const estimateStatus = await text(page, '#create-status');
+  if (!/would accept/.test(estimateStatus)) fail(`the estimate says: ${estimateStatus}`);
+  if ((await (await fetch(`${base}/api/runs`)).json()).length !== runsBefore) fail('the estimate created a run');
+  pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}`);
   await page.click('#create-submit');
   await waitFor('the new run to be selected', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
   const createStatus = await text(page, '#create-status');

@@ -1,0 +1,41 @@
+// How long a run's steps take on this machine, measured before the run: a short calibration run
+// of the same scene at a small size (same case, kernel and D_K/Δl, scheme and sub-filter model,
+// so the same neighbours per particle and the same work per pair), scaled by the particle count.
+#pragma once
+
+#include <cstddef>
+#include <nlohmann/json.hpp>
+
+#include "control/resources.hpp"
+#include "control/run.hpp"
+
+namespace sphles::control {
+
+struct StepTimeEstimate {
+  double seconds_per_step = 0.0;     // of the run, at its particle count [s]
+  double seconds_to_end = 0.0;       // seconds_per_step × the estimate's steps (initial step) [s]
+  std::size_t calibration_side = 0;  // particles per side of the calibration run
+  double calibration_particles = 0.0;      // its N^n
+  int calibration_steps = 0;               // steps timed (after the warm-up)
+  double calibration_seconds = 0.0;        // their wall time [s]
+  double calibration_setup_seconds = 0.0;  // building it, warm-up included [s]
+  int threads = 0;                         // OpenMP threads it ran on
+};
+
+/// Particles per side of the calibration run: the run's own when it is small, else 64 in 2D
+/// and 24 in 3D (4096 and 13824 particles; at D_K = 8Δl a few supports across the box).
+std::size_t calibration_side(const RunSpec& spec);
+
+/// Times `steps` steps of the run's scene at calibration_side() (no packing, no analysis, no
+/// output; one warm-up step builds the neighbour list first) on the calling thread's OpenMP
+/// team, and scales the time per step by particles / calibration particles (the pair loops are
+/// linear in N at fixed neighbours; caches make large runs somewhat slower per particle).
+/// Throws sim::SceneError if the scene cannot be set up.
+StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate& resources,
+                                    int steps = 10);
+
+/// {"seconds_per_step", "seconds_to_end", "calibration": {"particles_per_side", "particles",
+///  "steps", "seconds", "setup_seconds", "threads"}}.
+nlohmann::json step_time_to_json(const StepTimeEstimate& estimate);
+
+}  // namespace sphles::control
