@@ -227,6 +227,15 @@ Response timeseries(const Router::Services& s, const Context& c) {
                                                      s.options.limits, s.series));
 }
 
+/// Every analysis frame's scalars so far (stats/snapshots.csv: e_v on the grid, ⟨ω²⟩, the
+/// dissipation three ways, max and mean |τ_SFS|), paged or decimated as the time series.
+Response analysis_history(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  const HistoryQuery query = history_query(s, c, true);
+  return make_json_text(c.request, timeseries_answer(run->directory() / "stats" / "snapshots.csv",
+                                                     query, s.options.limits, s.series));
+}
+
 /// The end of the run's run.log as text: the last `lines` lines (default 200, at most the
 /// server's rows per answer), "" before the run has logged anything.
 Response run_log(const Router::Services& s, const Context& c) {
@@ -353,6 +362,7 @@ const std::vector<Route>& route_table() {
       {{V::patch, "/api/runs/{id}/parameters", true}, change_parameters, true},
       {{V::get, "/api/runs/{id}/timeseries", false}, timeseries},
       {{V::get, "/api/runs/{id}/log", false}, run_log},
+      {{V::get, "/api/runs/{id}/analysis", false}, analysis_history},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},

@@ -397,6 +397,46 @@ TEST(Server, TimeSeries) {
   expect_error(api.get("/api/runs/" + id + "/timeseries?since_step=soon"), 400, "since_step");
 }
 
+// The analysis history (issue 20): one row per analysis frame from stats/snapshots.csv, so that a
+// page loaded late (or after a restart) plots the dissipation estimates and |τ_SFS| of every
+// frame, not only those streamed since it connected.
+TEST(Server, AnalysisHistoryHasEveryFrame) {
+  TestServer server(scratch("analysis_history") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", rendered_scene(0.3)}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  const json h = api.get("/api/runs/" + id + "/analysis").body_json();
+  const json& columns = h["columns"];
+  ASSERT_GE(columns.size(), 9u) << h;
+  EXPECT_EQ(columns[0], "time");
+  EXPECT_EQ(columns[1], "step");
+  const auto column = [&](const std::string& name) -> const json& {
+    for (std::size_t k = 0; k < columns.size(); ++k)
+      if (columns[k] == name) return h["data"][k];
+    throw std::runtime_error("no column " + name);
+  };
+  // analysis.every = 0.05 to t = 0.3: frames at 0, 0.05, ..., 0.3.
+  const json& time = column("time");
+  ASSERT_EQ(time.size(), 7u) << h;
+  for (std::size_t k = 0; k < time.size(); ++k)
+    EXPECT_NEAR(time[k].get<double>(), 0.05 * static_cast<double>(k), 1e-9);
+  for (const json& v : column("tau_sfs_max")) EXPECT_GT(v.get<double>(), 0.0);
+  for (const json& v : column("dissipation_spectral")) EXPECT_GT(v.get<double>(), 0.0);
+  EXPECT_EQ(h["more"], false);
+  // Paged and decimated as the time series.
+  const json page = api.get("/api/runs/" + id + "/analysis?limit=2").body_json();
+  EXPECT_EQ(page["data"][0].size(), 2u);
+  EXPECT_EQ(page["more"], true);
+  const json few = api.get("/api/runs/" + id + "/analysis?max_points=3").body_json();
+  EXPECT_LE(few["data"][0].size(), 3u);
+  EXPECT_EQ(few["data"][0].back(), time.back()) << "the last frame is kept";
+  expect_error(api.get("/api/runs/" + id + "/analysis?limit=0"), 400, "limit");
+  expect_error(api.get("/api/runs/0999-none/analysis"), 404);
+  // A run without analysis frames has no columns yet.
+  const std::string bare = api.create({{"scene", tiny_scene()}, {"start", false}});
+  EXPECT_TRUE(api.get("/api/runs/" + bare + "/analysis").body_json()["columns"].empty());
+}
+
 TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   TestServer server(scratch("stream") / "data");
   const Api api{server.port()};

@@ -81,6 +81,8 @@ export const api = {
   remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
   timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
+  /** Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series. */
+  analysisHistory: (id) => request('GET', `${run(id)}/analysis?max_points=${HISTORY_POINTS}`),
   spectrum: (id) => request('GET', `${run(id)}/spectrum`),
   statistics: (id) => request('GET', `${run(id)}/statistics`),
   /** The last `lines` lines of the run's run.log, as text. */

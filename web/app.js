@@ -414,12 +414,14 @@ function onStreamState({ state, attempt, delayMs, detail }) {
 /** After each (re)connection: the history the stream does not repeat. */
 async function backfill(id) {
   try {
-    const [detail, series, frames] = await Promise.all([
+    const [detail, series, frames, analysis] = await Promise.all([
       api.run(id), api.timeseries(id).catch(() => null), api.frames(id).catch(() => []),
+      api.analysisHistory(id).catch(() => null),
     ]);
     if (id !== app.selectedId) return;
     applyDetail(detail);
     if (series) addTimeseries(series);
+    if (analysis) addAnalysisHistory(analysis);
     addFrames(frames);
     // Only products the server says exist (a request for a missing one is a 404 that the
     // browser logs as an error).
@@ -675,6 +677,28 @@ function addTimeseries(series) {
   addSamples(rows);
 }
 
+/** The analysis frames written before the page connected (GET analysis): the dissipation
+ *  estimates and the sub-filter stress over the whole run, also after a reload or a restart. */
+function addAnalysisHistory(history) {
+  const columns = Array.isArray(history?.columns) ? history.columns : [];
+  const data = Array.isArray(history?.data) ? history.data : [];
+  const col = (name) => data[columns.indexOf(name)] ?? [];
+  const time = col('time');
+  const spectral = col('dissipation_spectral');
+  const vorticity = col('dissipation_vorticity');
+  const max = col('tau_sfs_max');
+  const mean = col('tau_sfs_mean');
+  for (let i = 0; i < time.length; i++) {
+    const t = finite(time[i]);
+    if (t === null) continue;
+    addAnalysisPoint({ time: t, spectral: finite(spectral[i]), vorticity: finite(vorticity[i]) });
+    if (finite(max[i]) !== null && !app.stats.some((s) => s.time === t))
+      app.stats.push({ time: t, max: finite(max[i]), mean: finite(mean[i]) });
+  }
+  app.stats.sort((a, b) => a.time - b.time);
+  scheduleRedraw();
+}
+
 function onSpectrum(m) {
   app.spectrum = m;
   const vorticity = finite(m.dissipation_vorticity) ?? finite(m.vorticity?.dissipation);
@@ -687,7 +711,9 @@ function onSpectrum(m) {
 function addAnalysisPoint(p) {
   if (p.time === null || (p.spectral === null && p.vorticity === null)) return;
   const i = app.analysis.findIndex((a) => a.time === p.time);
-  if (i >= 0) app.analysis[i] = { ...app.analysis[i], ...p };
+  if (i >= 0) {
+    for (const [k, v] of Object.entries(p)) if (v !== null) app.analysis[i][k] = v;
+  }
   else app.analysis.push(p);
   app.analysis.sort((a, b) => a.time - b.time);
 }

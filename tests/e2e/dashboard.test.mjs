@@ -318,6 +318,21 @@ async function run() {
     fail('while paused, Resume should be enabled and Pause disabled');
   pass(`paused: step stays at ${pausedStep} for 2 s, Resume enabled`);
 
+  // Full history after a reload (issue 20): while paused nothing new arrives, so whatever the
+  // plots show after the reload came from the server's histories (timeseries, analysis).
+  currentStep = 'reloading while paused';
+  const statsBefore = Number(await page.locator('#chart-stats').getAttribute('data-points'));
+  if (!(statsBefore > 1)) fail(`the sub-filter stress plot has ${statsBefore} points before the reload`);
+  await page.reload();
+  await waitFor('the paused run selected again', async () => (await text(page, '#run-state')) === 'paused', 10_000);
+  const statsAfter = await waitFor('the sub-filter stress history after the reload', async () => {
+    const n = Number(await page.locator('#chart-stats').getAttribute('data-points'));
+    return n >= statsBefore ? n : 0;
+  }, 10_000);
+  const energyAfter = Number(await page.locator('#chart-energy').getAttribute('data-points'));
+  if (!(energyAfter >= pausedStep)) fail(`e_v has ${energyAfter} points after the reload, the run ${pausedStep} steps`);
+  pass(`after a reload the plots have the whole history: ${statsAfter} analysis frames (${statsBefore} before), ${energyAfter} e_v samples`);
+
   // Resume: running again and the step count advances.
   currentStep = 'resuming';
   await page.click('#btn-resume');
