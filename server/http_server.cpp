@@ -75,7 +75,10 @@ struct HttpServer::Impl {
         products(options.responses.max_bytes),
         acceptor(net::make_strand(ioc)),
         router(manager, streams, products,
-               RouterOptions{options.token, options.web_root, options.responses}) {}
+               RouterOptions{options.token, options.web_root, options.responses,
+                             options.reference_dir.empty()
+                                 ? std::filesystem::path(SPHLES_REFERENCE_DIR)
+                                 : options.reference_dir}) {}
 
   void do_accept();
   void on_accept(beast::error_code ec, tcp::socket socket);

@@ -32,6 +32,8 @@ struct ServerOptions {
   unsigned short port = 8080;         // 0: an ephemeral port (see HttpServer::port)
   std::string token;                  // non-empty: mutating calls need it
   std::filesystem::path web_root;     // static files; need not exist
+  /// Reference data (data/reference/: the 3D TGV DNS); empty: the source tree's, as built.
+  std::filesystem::path reference_dir;
   int io_threads = 2;
   /// Requests are handled off the I/O threads: reads (GET, HEAD) on `worker_threads`, everything
   /// else on `control_threads`. Run-control calls may block for a while (a stop waits for the

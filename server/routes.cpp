@@ -9,6 +9,7 @@
 #include <map>
 #include <sstream>
 
+#include "analysis/reference.hpp"
 #include "logging/logging.hpp"
 #include "server/auth.hpp"
 #include "server/openapi.hpp"
@@ -236,6 +237,25 @@ Response analysis_history(const Router::Services& s, const Context& c) {
                                                      query, s.options.limits, s.series));
 }
 
+/// The run's reference curve (analysis/reference.hpp): the analytic decay of the 2D TGV, the DNS
+/// of the 3D TGV at Re = 5000; 404 saying why a run has none.
+Response reference(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  const sim::Scene scene = control::parse_run_spec(run->document()).run.scene;
+  analysis::ReferenceCurve curve;
+  try {
+    curve = analysis::reference_curve(scene, s.options.reference_dir);
+  } catch (const std::invalid_argument& e) {
+    throw ApiError(404, "run '" + run->id() + "' has no reference: " + e.what());
+  } catch (const std::runtime_error& e) {
+    throw ApiError(500, e.what());
+  }
+  return json_response(c.request, {{"label", curve.label},
+                                   {"source", curve.source},
+                                   {"columns", {"time", "kinetic_energy", "dissipation"}},
+                                   {"data", {curve.time, curve.energy, curve.dissipation}}});
+}
+
 /// The end of the run's run.log as text: the last `lines` lines (default 200, at most the
 /// server's rows per answer), "" before the run has logged anything.
 Response run_log(const Router::Services& s, const Context& c) {
@@ -363,6 +383,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/timeseries", false}, timeseries},
       {{V::get, "/api/runs/{id}/log", false}, run_log},
       {{V::get, "/api/runs/{id}/analysis", false}, analysis_history},
+      {{V::get, "/api/runs/{id}/reference", false}, reference},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},

@@ -41,7 +41,8 @@ struct RouteInfo {
 struct RouterOptions {
   std::string token;  // empty: no token needed
   std::filesystem::path web_root;
-  ResponseLimits limits;  // bytes of one answer, rows of one history page
+  ResponseLimits limits;                // bytes of one answer, rows of one history page
+  std::filesystem::path reference_dir;  // data/reference: the DNS of GET reference
 };
 
 class Router {

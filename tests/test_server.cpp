@@ -435,6 +435,22 @@ TEST(Server, AnalysisHistoryHasEveryFrame) {
   // A run without analysis frames has no columns yet.
   const std::string bare = api.create({{"scene", tiny_scene()}, {"start", false}});
   EXPECT_TRUE(api.get("/api/runs/" + bare + "/analysis").body_json()["columns"].empty());
+
+  // The reference curve the dashboard draws dashed: the analytic decay of this 2D TGV; none
+  // (404 with the reason) for a 3D TGV at another Reynolds number than the DNS'.
+  const json ref = api.get("/api/runs/" + bare + "/reference").body_json();
+  EXPECT_EQ(ref["label"], "analytic decay");
+  EXPECT_EQ(ref["columns"], json({"time", "kinetic_energy", "dissipation"}));
+  ASSERT_EQ(ref["data"][0].size(), 201u);
+  EXPECT_DOUBLE_EQ(ref["data"][1][0].get<double>(), 0.25);
+  EXPECT_DOUBLE_EQ(ref["data"][0].back().get<double>(), 1000.0);  // tiny_scene's end time
+  EXPECT_EQ(api.run(bare)["available"]["reference"], true);
+  const std::string thesis =
+      api.create({{"preset", "tgv3d"}, {"patch", {{"particles_per_side", 16}}}, {"start", false}});
+  EXPECT_EQ(api.run(thesis)["available"]["reference"], false);
+  const Reply none = api.get("/api/runs/" + thesis + "/reference");
+  expect_error(none, 404);
+  EXPECT_NE(none.body.find("Re = 5000"), std::string::npos) << none.body;
 }
 
 TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
@@ -593,8 +609,10 @@ TEST(Server, TokenGuardsMutatingCalls) {
             401);
   const std::string id = owner.create({{"scene", tiny_scene()}, {"start", false}});
   ASSERT_FALSE(id.empty());
-  EXPECT_EQ(owner.run(id)["available"],
-            json({{"spectrum", false}, {"statistics", false}, {"images", json::array()}}));
+  EXPECT_EQ(owner.run(id)["available"], json({{"spectrum", false},
+                                              {"statistics", false},
+                                              {"images", json::array()},
+                                              {"reference", true}}));
   // Reading needs no token.
   EXPECT_EQ(anonymous.get("/api/runs").status, 200);
   EXPECT_EQ(anonymous.get("/api/runs/" + id).status, 200);

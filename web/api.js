@@ -81,6 +81,8 @@ export const api = {
   remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
   timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
+  /** The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none). */
+  reference: (id) => request('GET', `${run(id)}/reference`),
   /** Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series. */
   analysisHistory: (id) => request('GET', `${run(id)}/analysis?max_points=${HISTORY_POINTS}`),
   spectrum: (id) => request('GET', `${run(id)}/spectrum`),

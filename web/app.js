@@ -368,6 +368,7 @@ function selectRun(id) {
   Object.assign(app, {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
+    reference: null, referenceWhy: null,
     live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
@@ -426,6 +427,8 @@ async function backfill(id) {
     // Only products the server says exist (a request for a missing one is a 404 that the
     // browser logs as an error).
     const available = detail.available ?? {};
+    if (available.reference && !app.reference) loadReference(id);
+    else if (!available.reference) app.referenceWhy = 'none for this case and Reynolds number (GET /api/runs/{id}/reference says why)';
     if (available.spectrum) {
       const s = await api.spectrum(id).catch(() => null);
       if (s && id === app.selectedId) onSpectrum(s);
@@ -677,6 +680,19 @@ function addTimeseries(series) {
   addSamples(rows);
 }
 
+/** The run's reference curve (GET reference): the analytic 2D decay or the 3D DNS, or why none. */
+async function loadReference(id) {
+  try {
+    const r = await api.reference(id);
+    if (id !== app.selectedId) return;
+    const col = (name) => r.data[r.columns.indexOf(name)] ?? [];
+    app.reference = { label: r.label, source: r.source, time: col('time'), energy: col('kinetic_energy'), dissipation: col('dissipation') };
+  } catch (e) {
+    if (id === app.selectedId) app.referenceWhy = errorText(e);
+  }
+  scheduleRedraw();
+}
+
 /** The analysis frames written before the page connected (GET analysis): the dissipation
  *  estimates and the sub-filter stress over the whole run, also after a reload or a restart. */
 function addAnalysisHistory(history) {
@@ -857,11 +873,30 @@ function scheduleRedraw() {
   }, REDRAW_MS);
 }
 
+/** Two sets of series on one increasing time axis ({x, ys}), null where a set has no value. */
+function mergeOnTime(a, b) {
+  const x = [];
+  const ys = [...a.ys, ...b.ys].map(() => []);
+  let i = 0;
+  let j = 0;
+  while (i < a.x.length || j < b.x.length) {
+    const takeA = j >= b.x.length || (i < a.x.length && a.x[i] <= b.x[j]);
+    x.push(takeA ? a.x[i] : b.x[j]);
+    a.ys.forEach((column, k) => ys[k].push(takeA ? column[i] : null));
+    b.ys.forEach((column, k) => ys[a.ys.length + k].push(takeA ? null : column[j]));
+    if (takeA) i++;
+    else j++;
+  }
+  return { x, ys };
+}
+
 function redraw() {
   const c = app.charts;
   const samples = app.samples;
   const last = samples[samples.length - 1];
-  setText('cap-energy', last ? `eᵥ = ${formatNumber(last.kinetic_energy)} m²/s² at t = ${formatNumber(last.time)} s (${samples.length} samples)` : 'no samples yet');
+  const refNote = app.reference ? `; dashed: ${app.reference.label}` : (app.referenceWhy ? '; no reference' : '');
+  setText('cap-energy', (last ? `eᵥ = ${formatNumber(last.kinetic_energy)} m²/s² at t = ${formatNumber(last.time)} s (${samples.length} samples)` : 'no samples yet') + refNote);
+  $('cap-energy').title = app.reference ? app.reference.source : (app.referenceWhy ?? '');
   const lastEps = [...app.analysis].reverse().find((a) => a.spectral !== null || a.vorticity !== null);
   setText('cap-dissipation', last ? `−deᵥ/dt = ${formatNumber(last.dissipation)}` +
     `${lastEps ? `, spectral ${formatNumber(lastEps.spectral ?? lastEps.vorticity)}` : ''} m²/s³` : '');
@@ -869,7 +904,11 @@ function redraw() {
   drawAlignmentHistogram($('hist-alignment'), app.latestStatistics ? app.latestStatistics.alignment ?? null : undefined);
   if (!c) return;
 
-  c.energy.setData(samples.map((s) => s.time), [samples.map((s) => s.kinetic_energy)]);
+  const ref = app.reference;
+  const refRows = ref ? { x: ref.time, ys: [ref.energy] } : { x: [], ys: [[]] };
+  const energy = mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows);
+  c.energy.setData(energy.x, energy.ys);
+  $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
 
   // ε: the per-step series and the sparse analysis estimates on one merged time axis.
   const x = [];
@@ -894,7 +933,9 @@ function redraw() {
       j++;
     }
   }
-  c.dissipation.setData(x, [fromHistory, spectral, vorticity]);
+  const eps = mergeOnTime({ x, ys: [fromHistory, spectral, vorticity] },
+    ref ? { x: ref.time, ys: [ref.dissipation] } : { x: [], ys: [[]] });
+  c.dissipation.setData(eps.x, eps.ys);
 
   // Only the selected run's spectrum: none yet (a run just selected) empties the plot.
   const s = app.spectrum;

@@ -108,7 +108,8 @@ class Chart {
     // A log axis needs at least one positive value to place its ticks.
     const drawable = data.slice(1).some((a) => a.some((v) => v !== null));
     this.count = x.length;
-    this.container.dataset.points = String(drawable ? x.length : 0);
+    // Points of the first series (the run's own; a reference curve may share the x axis).
+    this.container.dataset.points = String(drawable ? ys[0].filter((v) => v !== null && v !== undefined).length : 0);
     this.plot.setData(drawable ? data : [[], ...ys.map(() => [])]);
   }
 
@@ -155,7 +156,10 @@ export function energyChart(container) {
   return new Chart(container, {
     xLabel: 't [s]',
     yLabel: 'eᵥ [m²/s²]',
-    series: [{ label: 'eᵥ (particles)' }],
+    series: [
+      { label: 'eᵥ (particles)' },
+      { label: 'reference', stroke: '#555555', dash: [6, 4], width: 1.5 },
+    ],
   });
 }
 
@@ -167,6 +171,7 @@ export function dissipationChart(container) {
       { label: '−deᵥ/dt' },
       { label: '2ν∫k²E dk (spectral)', points: true, width: 1 },
       { label: 'ν⟨ω²⟩ (vorticity)', points: true, width: 1 },
+      { label: 'reference', stroke: '#555555', dash: [6, 4], width: 1.5 },
     ],
   });
 }

@@ -14,6 +14,7 @@
 #include <stdexcept>
 
 #include "analysis/grid.hpp"
+#include "analysis/reference.hpp"
 #include "analysis/vorticity.hpp"
 #include "bench/process_time.hpp"
 #include "sim/initial_conditions.hpp"
@@ -257,21 +258,8 @@ void finish_kolmogorov(RunResult& r) {
 }  // namespace
 
 ReferenceHistory read_reference(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot read the DNS reference " + path);
-  ReferenceHistory h;
-  std::string line;
-  while (std::getline(in, line)) {
-    if (line.empty() || line[0] == '#') continue;
-    std::istringstream s(line);
-    double t = 0.0, e = 0.0, eps = 0.0;
-    if (!(s >> t >> e >> eps)) throw std::runtime_error("malformed line in " + path + ": " + line);
-    h.time.push_back(t);
-    h.energy.push_back(e);
-    h.dissipation.push_back(eps);
-  }
-  if (h.time.size() < 2) throw std::runtime_error("no data rows in " + path);
-  return h;
+  analysis::DnsHistory dns = analysis::read_dns_history(path);
+  return {std::move(dns.time), std::move(dns.energy), std::move(dns.dissipation)};
 }
 
 std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {

@@ -224,6 +224,11 @@ async function run() {
     return n > points ? n : 0;
   }, 15_000);
   pass(`e_v plot has data and grows (${points} → ${morePoints} samples)`);
+  // The reference (issue 20): the 2D TGV's analytic decay, dashed under the run's e_v.
+  const referencePoints = await waitFor('the analytic reference in the e_v plot', async () =>
+    Number(await page.locator('#chart-energy').getAttribute('data-reference-points')), 10_000);
+  if (!/analytic decay/.test(await text(page, '#cap-energy'))) fail(`the e_v caption does not name the reference: ${await text(page, '#cap-energy')}`);
+  pass(`reference curve drawn with the run (${referencePoints} points of the analytic decay)`);
   const eta = await waitFor('an ETA for the running run', async () => {
     const t = await text(page, '#run-eta');
     return /\d/.test(t) ? t : null;

@@ -1,0 +1,109 @@
+#include "analysis/reference.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <numbers>
+#include <sstream>
+#include <stdexcept>
+
+#include "sim/initial_conditions.hpp"
+#include "sim/json_reader.hpp"
+
+namespace sphles::analysis {
+
+namespace {
+constexpr double kDnsReynolds = 5000.0;            // Re = V0 L / ν of the DNS, V0 = 1, L = 1
+constexpr double kDnsMatchTolerance = 1e-9;        // relative, on ν, v0 and the box
+constexpr double kTwoPi = 2.0 * std::numbers::pi;  // the Taylor-Green box [m]
+
+bool close(double a, double b) {
+  return std::abs(a - b) <= kDnsMatchTolerance * std::abs(b);
+}
+
+double uniform_energy(const sim::Scene& scene) {
+  double u2 = 0.0;
+  for (double u : scene.uniform_velocity) u2 += u * u;
+  return 0.5 * u2;
+}
+}  // namespace
+
+DnsHistory read_dns_history(const std::filesystem::path& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error("cannot read the DNS reference " + file.string());
+  DnsHistory h;
+  std::string line;
+  while (std::getline(in, line)) {
+    if (line.empty() || line[0] == '#') continue;
+    std::istringstream s(line);
+    double t = 0.0, e = 0.0, eps = 0.0;
+    if (!(s >> t >> e >> eps))
+      throw std::runtime_error("malformed line in " + file.string() + ": " + line);
+    h.time.push_back(t);
+    h.energy.push_back(e);
+    h.dissipation.push_back(eps);
+  }
+  if (h.time.size() < 2) throw std::runtime_error("no data rows in " + file.string());
+  return h;
+}
+
+std::optional<std::string> missing_reference(const sim::Scene& scene) {
+  const double nu = scene.fluid.kinematic_viscosity();
+  const double v0 = scene.velocity_amplitude;
+  switch (scene.case_type) {
+    case sim::CaseType::TaylorGreen2D:
+      return std::nullopt;
+    case sim::CaseType::TaylorGreen3D:
+      if (close(nu, 1.0 / kDnsReynolds) && close(v0, 1.0) && close(scene.box_length(), kTwoPi))
+        return std::nullopt;
+      return "the DNS reference is the 3D Taylor-Green vortex at Re = 5000 (v0 = 1 m/s, L = 2π m, "
+             "ν = 2e-4 m²/s); this run has v0 = " +
+             sim::format_number(v0) + " m/s, ν = " + sim::format_number(nu) + " m²/s";
+    default:
+      return "no reference history for the case " + std::string(sim::case_name(scene.case_type)) +
+             " (the Kolmogorov flow's laminar reference is a velocity profile, SPEC §6.3)";
+  }
+}
+
+ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::path& reference_dir,
+                               int samples) {
+  if (const auto why = missing_reference(scene)) throw std::invalid_argument(*why);
+  const double nu = scene.fluid.kinematic_viscosity();
+  const double v0 = scene.velocity_amplitude;
+  const double shift = uniform_energy(scene);
+  ReferenceCurve c;
+  switch (scene.case_type) {
+    case sim::CaseType::TaylorGreen2D: {
+      // e_v(t) = v0²/4 exp(-4νt), so -de_v/dt = 4ν (e_v - ½|U|²) (SPEC §6.2).
+      c.label = "analytic decay";
+      c.source = "2D Taylor-Green vortex, e_v(t) = v0²/4 exp(-4νt) (SPEC §6.2)";
+      const int n = std::max(samples, 2);
+      for (int k = 0; k < n; ++k) {
+        const double t = scene.end_time * k / (n - 1);
+        const double e = sim::taylor_green_2d_energy(v0, nu, t);
+        c.time.push_back(t);
+        c.energy.push_back(e + shift);
+        c.dissipation.push_back(4.0 * nu * e);
+      }
+      return c;
+    }
+    case sim::CaseType::TaylorGreen3D: {
+      const DnsHistory dns = read_dns_history(reference_dir / kTgv3dDnsFile);
+      c.label = "DNS, Re = 5000";
+      c.source =
+          "Incompact3d DNS on 1280³ nodes, Dairay, Lamballais, Laizet & Vassilicos, "
+          "J. Comput. Phys. 337 (2017) 252-274 (data/reference/README.md)";
+      for (std::size_t k = 0; k < dns.time.size() && dns.time[k] <= scene.end_time; ++k) {
+        c.time.push_back(dns.time[k]);
+        c.energy.push_back(dns.energy[k] + shift);
+        c.dissipation.push_back(dns.dissipation[k]);
+      }
+      return c;
+    }
+    default:
+      break;
+  }
+  throw std::logic_error("missing_reference and reference_curve disagree");  // not reached
+}
+
+}  // namespace sphles::analysis

@@ -1,0 +1,42 @@
+// Reference curves a run is compared with (dashboard, accuracy benchmark): the kinetic energy
+// e_v(t) and its dissipation -de_v/dt of the 2D Taylor-Green vortex (analytic, SPEC §6.2) and of
+// the 3D Taylor-Green vortex at Re = 5000 (the DNS shipped in data/reference/, SPEC §6.1).
+#pragma once
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "sim/scene.hpp"
+
+namespace sphles::analysis {
+
+/// t, E and -dE/dt of the Incompact3d DNS file (data/reference/README.md: columns 1-3; lines
+/// starting with '#' skipped). Throws std::runtime_error naming the file and the line.
+struct DnsHistory {
+  std::vector<double> time, energy, dissipation;
+};
+DnsHistory read_dns_history(const std::filesystem::path& file);
+
+/// The DNS file's name in the reference directory.
+inline constexpr const char* kTgv3dDnsFile = "tgv_re5000_incompact3d_1280_dairay2017.dat";
+
+struct ReferenceCurve {
+  std::string label;                              // e.g. "DNS, Re = 5000 (Dairay et al. 2017)"
+  std::string source;                             // what it is and where it comes from
+  std::vector<double> time, energy, dissipation;  // [s], e_v [m²/s²], -de_v/dt [m²/s³]
+};
+
+/// Why a scene has no reference curve, or nothing when it has one (cheap: no file is read).
+std::optional<std::string> missing_reference(const sim::Scene& scene);
+
+/// The reference of a scene, if it has one: the analytic decay for tgv2d (sampled at
+/// `samples` times over [0, time.end]), the DNS for tgv3d when the scene is the DNS' flow (v0 =
+/// 1, L = 2π, ν = 1/5000 within 1e-9 relative; up to time.end, and the DNS' t ≤ 20). A uniform
+/// velocity U adds ½|U|² to e_v. Otherwise throws std::invalid_argument saying why there is
+/// none (Kolmogorov: its laminar reference is a velocity profile, not a history).
+ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::path& reference_dir,
+                               int samples = 201);
+
+}  // namespace sphles::analysis

@@ -1,0 +1,75 @@
+// Reference curves (analysis/reference.hpp): the analytic 2D Taylor-Green decay and the DNS of
+// the 3D Taylor-Green vortex at Re = 5000 shipped in data/reference/.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "analysis/reference.hpp"
+#include "sim/scene.hpp"
+
+namespace sphles::analysis {
+namespace {
+
+const std::filesystem::path kReferenceDir = SPHLES_SOURCE_DIR "/data/reference";
+
+TEST(Reference, TaylorGreen2dIsTheAnalyticDecay) {
+  sim::Scene scene = sim::parse_scene({{"case", "tgv2d"}, {"time", {{"end", 2.0}}}});
+  const double nu = scene.fluid.kinematic_viscosity();
+  EXPECT_FALSE(missing_reference(scene));
+  const ReferenceCurve c = reference_curve(scene, kReferenceDir, 5);
+  ASSERT_EQ(c.time.size(), 5u);
+  EXPECT_EQ(c.time.front(), 0.0);
+  EXPECT_EQ(c.time.back(), 2.0);
+  for (std::size_t k = 0; k < c.time.size(); ++k) {
+    // e_v = v0²/4 exp(-4νt), -de_v/dt = 4ν e_v (SPEC §6.2), v0 = 1.
+    EXPECT_NEAR(c.energy[k], 0.25 * std::exp(-4.0 * nu * c.time[k]), 1e-15);
+    EXPECT_NEAR(c.dissipation[k], 4.0 * nu * c.energy[k], 1e-15);
+  }
+  // A uniform velocity U adds ½|U|² to e_v and nothing to the dissipation.
+  scene.uniform_velocity = {3.0, 4.0, 0.0};
+  const ReferenceCurve moving = reference_curve(scene, kReferenceDir, 5);
+  EXPECT_NEAR(moving.energy[2], c.energy[2] + 12.5, 1e-13);
+  EXPECT_EQ(moving.dissipation[2], c.dissipation[2]);
+}
+
+TEST(Reference, TaylorGreen3dAtRe5000IsTheDnsUpToTheEndTime) {
+  const sim::Scene scene = sim::parse_scene(
+      {{"case", "tgv3d"}, {"fluid", {{"dynamic_viscosity", 2e-4}}}, {"time", {{"end", 10.0}}}});
+  EXPECT_FALSE(missing_reference(scene));
+  const ReferenceCurve c = reference_curve(scene, kReferenceDir);
+  ASSERT_EQ(c.time.size(), 501u);  // t = 0, 0.02, ..., 10
+  EXPECT_EQ(c.energy.front(), 0.125);
+  EXPECT_NEAR(c.time.back(), 10.0, 1e-12);
+  // data/reference/README.md: peak -dE/dt = 0.0155441 at t = 8.74.
+  std::size_t peak = 0;
+  for (std::size_t k = 0; k < c.time.size(); ++k)
+    if (c.dissipation[k] > c.dissipation[peak]) peak = k;
+  EXPECT_NEAR(c.time[peak], 8.74, 1e-9);
+  EXPECT_NEAR(c.dissipation[peak], 0.0155441, 1e-7);
+}
+
+TEST(Reference, OtherRunsHaveNoneAndSayWhy) {
+  const sim::Scene re10000 = sim::parse_scene({{"case", "tgv3d"}});  // ν = 1e-4, the thesis' Re
+  const auto why = missing_reference(re10000);
+  ASSERT_TRUE(why);
+  EXPECT_NE(why->find("Re = 5000"), std::string::npos) << *why;
+  EXPECT_NE(why->find("0.0001"), std::string::npos) << *why;
+  EXPECT_THROW(reference_curve(re10000, kReferenceDir), std::invalid_argument);
+  const sim::Scene kolmogorov = sim::parse_scene({{"preset", "kolmogorov2d"}});
+  ASSERT_TRUE(missing_reference(kolmogorov));
+  EXPECT_NE(missing_reference(kolmogorov)->find("velocity profile"), std::string::npos);
+  // A missing file is an error naming it.
+  const sim::Scene dns =
+      sim::parse_scene({{"case", "tgv3d"}, {"fluid", {{"dynamic_viscosity", 2e-4}}}});
+  try {
+    reference_curve(dns, "/nonexistent");
+    FAIL();
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/nonexistent/" + std::string(kTgv3dDnsFile)),
+              std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace sphles::analysis
