@@ -276,6 +276,11 @@ struct Run::Impl {
   double time = 0.0, end_time = 0.0;
   std::uint64_t step = 0;
   double wall_seconds = 0.0, steps_per_second = 0.0;
+  std::string phase;  // RunStatus::phase while the solver thread runs
+  void set_phase(const char* p) {
+    std::lock_guard lock(mutex);
+    phase = p;
+  }
   std::optional<MetricsSample> latest;
   std::shared_ptr<const analysis::AnalysisFrame> latest_frame;
   std::map<std::string, ImageEvent> latest_images;
@@ -711,6 +716,7 @@ RunStatus Run::status() const {
   s.step = r.step;
   s.wall_seconds = r.wall_seconds;
   s.steps_per_second = r.steps_per_second;
+  if (r.state == RunState::Running || r.state == RunState::Paused) s.phase = r.phase;
   s.latest = r.latest;
   s.analysis_published = r.analysis_published;
   s.analysis_dropped = r.analysis_dropped;
@@ -827,6 +833,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
         std::filesystem::remove(entry.path());
 
   std::optional<io::Checkpoint> checkpoint;
+  set_phase(resumed ? "restoring" : current.run.scene.packing.enabled ? "packing" : "setting up");
   if (resumed) {
     std::filesystem::path file;
     if (start_checkpoint) {
@@ -885,10 +892,12 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                     setup.packing.iterations, setup.packing.initial_residual,
                     setup.packing.final_residual, setup_seconds,
                     setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
+    set_phase("setting up");  // the solver (and any MPI job) from the packed particles
     simulation = options.make_simulation
                      ? options.make_simulation(scene0, std::move(setup.particles))
                      : sim::make_simulation(setup.solver, std::move(setup.particles));
   }
+  set_phase("stepping");
 
   // Every output goes to the run directory: if it is deleted or replaced while the run goes on,
   // further writes would vanish into unlinked files, so the run fails instead, saying why.

@@ -107,6 +107,10 @@ struct RunStatus {
   double wall_seconds = 0.0;      // spent stepping (excludes paused time), over every start
                                   // of the run, also across server restarts (run.json)
   double steps_per_second = 0.0;  // over the last progress interval
+  /// What a running or paused run is doing: "packing" (relaxing the initial lattice, which may
+  /// take minutes), "restoring" (reading its checkpoint), "setting up" (building the initial
+  /// state or launching its MPI job) or "stepping"; "" for a run that is not active.
+  std::string phase;
   std::optional<MetricsSample> latest;
   std::uint64_t analysis_published = 0, analysis_dropped = 0, frames_rendered = 0;
   std::uint64_t frames_skipped = 0;  // analysis frames nobody needed an image of

@@ -70,6 +70,7 @@ nlohmann::json run_summary_json(const control::Run& run, const control::RunStatu
           {"progress", progress},
           {"steps_per_second", status.steps_per_second},
           {"wall_seconds", status.wall_seconds},
+          {"phase", status.phase},
           {"ranks", run.ranks()}};
 }
 

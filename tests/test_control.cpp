@@ -193,6 +193,42 @@ TEST(RunControl, SnapshotStatisticsCarryTheTimeSeriesDissipation) {
   EXPECT_EQ(split(stats.back())[0], split(series.back())[0]) << "the last snapshot is analysed";
 }
 
+// What a running run is doing (issue 20: the dashboard's "packing…"): packing its lattice (into a
+// fresh cache, so that it really packs), then stepping; nothing once it has ended.
+TEST(RunControl, ReportsItsPhaseFromPackingToStepping) {
+  const auto dir = fresh_directory("phase");
+  json scene = tiny_scene(1000.0);
+  scene["particles_per_side"] = 48;
+  scene["packing"] = {{"enabled", true}};
+  RunOptions options;
+  options.packing_cache_dir = dir / "packing-cache";
+  control::Run run("r", parse_run_spec(scene), dir / "run", options);
+  EXPECT_EQ(run.status().phase, "") << "not active";
+  run.start();
+  std::vector<std::string> seen;
+  ASSERT_TRUE(eventually([&] {
+    const std::string phase = run.status().phase;
+    if (seen.empty() || seen.back() != phase) seen.push_back(phase);
+    return phase == "stepping";
+  }));
+  const auto packing = std::find(seen.begin(), seen.end(), "packing");
+  ASSERT_NE(packing, seen.end()) << "a 48² lattice packs for a while";
+  EXPECT_LT(packing - seen.begin(), static_cast<long>(seen.size()) - 1) << "then it steps";
+  run.pause();
+  EXPECT_EQ(run.status().phase, "stepping");
+  run.stop();
+  EXPECT_EQ(run.status().phase, "") << "stopped";
+  // A resume reads its checkpoint first.
+  run.start();
+  seen.clear();
+  ASSERT_TRUE(eventually([&] {
+    const std::string phase = run.status().phase;
+    if (seen.empty() || seen.back() != phase) seen.push_back(phase);
+    return phase == "stepping";
+  }));
+  run.stop();
+}
+
 TEST(RunControl, RefusesADirectoryThatHoldsARun) {
   const auto dir = fresh_directory("twice");
   { control::Run run("a", parse_run_spec(tiny_scene(0.1)), dir); }

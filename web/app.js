@@ -42,6 +42,12 @@ const TGV2D_SCENE_OPTION = {
   },
   builtinScene: true,
 };
+// What a running run is doing before its first step (RunSummary.phase); nothing once it steps.
+const PHASE_TEXT = {
+  packing: 'packing the initial lattice…',
+  restoring: 'reading the checkpoint…',
+  'setting up': 'setting up…',
+};
 const LIVE_PRODUCTS = ['energy', 'spectrum', 'vorticity', 'slices', 'sfs_stats'];
 
 const $ = (id) => document.getElementById(id);
@@ -477,6 +483,10 @@ function renderHeader() {
   // the last valid checkpoint), not a remark in parentheses.
   const failed = s.state === 'failed';
   setText('run-reason', s.reason && !failed ? `(${s.reason})` : '');
+  // Before its first step a run may spend minutes packing its lattice: say so.
+  setText('run-phase', PHASE_TEXT[s.phase] ?? '');
+  for (const f of IMAGE_FIELDS)
+    if (!$(`img-${f}`).getAttribute('src')) setText(`cap-${f}`, PHASE_TEXT[s.phase] ?? 'no image yet');
   $('run-failure').hidden = !failed;
   setText('run-failure', failed ? `Failed: ${s.reason || 'no reason given'}` : '');
   const progress = finite(s.progress) ?? (s.end_time > 0 ? (s.time ?? 0) / s.end_time : 0);
