@@ -191,6 +191,14 @@ async function loadPresets() {
   }
   app.presets = Array.isArray(presets) ? presets.slice() : [];
   if (!app.presets.some((p) => p.case === 'tgv2d')) app.presets.unshift(TGV2D_SCENE_OPTION);
+  renderPresetOptions();
+  // Prefer a small 2D Taylor-Green vortex as the first choice: it runs in seconds.
+  const tgv2d = app.presets.findIndex((p) => p.case === 'tgv2d');
+  $('create-preset').value = String(Math.max(0, tgv2d));
+  fillCreateForm();
+}
+
+function renderPresetOptions() {
   const select = $('create-preset');
   select.replaceChildren(...app.presets.map((p, i) => {
     const o = document.createElement('option');
@@ -200,10 +208,42 @@ async function loadPresets() {
     o.textContent = `${p.builtinScene ? 'scene: ' : ''}${p.name}${n ? ` (${n}${dim === 2 ? '²' : '³'})` : ''}`;
     return o;
   }));
-  // Prefer a small 2D Taylor-Green vortex as the first choice: it runs in seconds.
-  const tgv2d = app.presets.findIndex((p) => p.case === 'tgv2d');
-  select.value = String(Math.max(0, tgv2d));
+}
+
+/** Clone…: the selected run's whole scene becomes the form's first choice (one clone at a time);
+ *  the fields show its values, what is changed goes as a patch over it, Create makes a new run. */
+async function cloneSelectedRun() {
+  if (!app.selectedId) return;
+  let detail;
+  try {
+    detail = await api.run(app.selectedId);  // the scene as it is now, live changes included
+  } catch (e) {
+    showStatus('create-status', `Could not read the run to clone: ${errorText(e)}`, 'error');
+    return;
+  }
+  if (!detail.scene) return;
+  const scene = JSON.parse(JSON.stringify(detail.scene));
+  app.presets = app.presets.filter((p) => !p.clone);
+  app.presets.unshift({
+    name: `clone of ${detail.id}`,
+    case: scene.case,
+    dimension: detail.dimension,
+    particles_per_side: scene.particles_per_side,
+    description: `The scene of run ${detail.id} as it is now (every key, its analysis and render ` +
+      'sections included); change what you want, then Create.',
+    scene,
+    builtinScene: true,
+    clone: true,
+  });
+  renderPresetOptions();
+  $('create-preset').value = '0';
   fillCreateForm();
+  $('create-live').checked = false;  // the clone keeps its own analysis and render sections
+  $('create-every').disabled = true;
+  $('create-name').value = `${scene.name ?? detail.id}-clone`;
+  $('create-ranks').value = String(detail.ranks ?? 1);
+  showStatus('create-status', `Form filled with run ${detail.id}'s scene: edit, then Create.`, 'ok');
+  $('create-preset').focus();
 }
 
 function selectedPreset() {
@@ -498,6 +538,7 @@ function renderHeader() {
   setText('run-wall', fmtSeconds(s.wall_seconds));
   setText('run-eta', s.state === 'running' ? fmtSeconds(estimateRemaining(s)) : '–');
   setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}${s.ranks > 1 ? `, ${s.ranks} MPI ranks` : ''}`);
+  $('btn-clone').disabled = !app.detail;
   const allowed = ALLOWED[s.state] ?? [];
   for (const b of document.querySelectorAll('.controls button[data-action]'))
     b.disabled = app.busy || !allowed.includes(b.dataset.action);
@@ -1041,6 +1082,7 @@ function main() {
   $('token-form').addEventListener('submit', onTokenSave);
   $('create-form').addEventListener('submit', onCreate);
   $('create-estimate').addEventListener('click', onEstimate);
+  $('btn-clone').addEventListener('click', cloneSelectedRun);
   $('create-preset').addEventListener('change', fillCreateForm);
   $('create-live').addEventListener('change', () => { $('create-every').disabled = !$('create-live').checked; });
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);

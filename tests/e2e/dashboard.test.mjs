@@ -382,6 +382,32 @@ async function run() {
   if (detail.ranks !== 2) fail(`the run's rank count is not the form's 2: ${detail.ranks}`);
   if (!(await text(page, '#run-case')).includes('2 MPI ranks')) fail('the run detail does not show its 2 MPI ranks');
   pass('the run was created with the form\'s 2 MPI ranks and shows them');
+
+  // Clone with edits (issue 20): the form takes the run's whole scene; an edited end time goes
+  // as a patch over it, and everything else (scheme, the live-changed η, ranks) is the run's.
+  currentStep = 'cloning';
+  await page.click('#btn-clone');
+  const cloneLabel = await page.locator('#create-preset option:checked').textContent();
+  if (!/clone of/.test(cloneLabel)) fail(`the form's choice after Clone is "${cloneLabel}"`);
+  if ((await page.inputValue('#create-particles')) !== String(PARTICLES_PER_SIDE) ||
+      (await page.inputValue('#create-scheme')) !== 'transport_velocity')
+    fail('the form does not show the cloned run\'s particles and scheme');
+  await page.fill('#create-end', '7');
+  await page.uncheck('#create-start');
+  await page.click('#create-submit');
+  await waitFor('the clone selected', async () => (await text(page, '#run-title')) === 'e2e-tgv2d-clone', 10_000);
+  const clone = (await (await fetch(`${base}/api/runs`)).json()).find((r) => r.name === 'e2e-tgv2d-clone');
+  const cloneDetail = await (await fetch(`${base}/api/runs/${clone.id}`)).json();
+  const cs = cloneDetail.scene;
+  if (cs.time?.end !== 7 || cs.scheme?.type !== 'transport_velocity' || cs.scheme?.ale_correction !== 'full' ||
+      cs.fluid?.dynamic_viscosity !== 0.02 || cs.particles_per_side !== PARTICLES_PER_SIDE || cloneDetail.ranks !== 2)
+    fail(`the clone's scene is not the run's with the edit: ${JSON.stringify({ end: cs.time?.end, scheme: cs.scheme, eta: cs.fluid?.dynamic_viscosity, n: cs.particles_per_side, ranks: cloneDetail.ranks })}`);
+  pass(`cloned with an edited end time: ${clone.id} has the run's scheme, η, particles and ranks, and time.end = 7`);
+  page.once('dialog', (d) => d.accept());
+  await page.click('#btn-delete');
+  await waitFor('the clone deleted', async () => page.locator('#run-detail').isHidden(), 10_000);
+  await page.locator(`#run-list li[data-id="${created.id}"] button`).click();
+  await waitFor('the original run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the run detail to close after delete', async () => page.locator('#run-detail').isHidden(), 10_000);
