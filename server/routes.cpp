@@ -4,6 +4,7 @@
 #include <array>
 #include <cctype>
 #include <charconv>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <map>
@@ -354,6 +355,90 @@ Response get_frame(const Router::Services& s, const Context& c) {
   return png_response(c.request, std::move(*content));
 }
 
+/// A file a run is still writing under a temporary name (renamed into place when complete).
+bool is_temporary(const std::string& name) {
+  constexpr std::string_view kTmp = ".tmp";
+  return name.find(".tmp.") != std::string::npos ||
+         (name.size() >= kTmp.size() &&
+          name.compare(name.size() - kTmp.size(), kTmp.size(), kTmp) == 0);
+}
+
+/// Every file of the run directory and its subdirectories (one level: checkpoints/, spectra/,
+/// slices/, stats/, frames/, ...) for download: [{"path","bytes","modified","url"}] by path,
+/// `modified` in seconds since 1970 UTC; files under a temporary name are left out.
+Response list_files(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  std::error_code ec;
+  const fs::path root = fs::canonical(run->directory(), ec);
+  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
+  std::vector<std::pair<std::string, fs::path>> files;
+  const auto add = [&](const fs::directory_entry& entry, const std::string& relative) {
+    std::error_code e;
+    if (entry.is_symlink(e) || !entry.is_regular_file(e) ||
+        !is_plain_name(entry.path().filename().string(), 255) ||
+        is_temporary(entry.path().filename().string()))
+      return;
+    files.emplace_back(relative, entry.path());
+  };
+  for (const fs::directory_entry& entry : fs::directory_iterator(root, ec)) {
+    const std::string name = entry.path().filename().string();
+    std::error_code e;
+    if (entry.is_directory(e) && !entry.is_symlink(e) && is_plain_name(name, 255)) {
+      for (const fs::directory_entry& inner : fs::directory_iterator(entry.path(), e))
+        add(inner, name + "/" + inner.path().filename().string());
+    } else {
+      add(entry, name);
+    }
+  }
+  std::sort(files.begin(), files.end());
+  nlohmann::json list = nlohmann::json::array();
+  for (const auto& [relative, path] : files) {
+    std::error_code e;
+    const auto bytes = fs::file_size(path, e);
+    const auto modified = fs::last_write_time(path, e);
+    if (e) continue;  // removed meanwhile (a rotated checkpoint)
+    const double seconds =
+        std::chrono::duration<double>(std::chrono::file_clock::to_sys(modified).time_since_epoch())
+            .count();
+    list.push_back({{"path", relative},
+                    {"bytes", bytes},
+                    {"modified", seconds},
+                    {"url", "/api/runs/" + run->id() + "/files/" + relative}});
+  }
+  return json_response(c.request, list);
+}
+
+/// One file of the run directory (GET files/{name} or files/{dir}/{name}), streamed from disk
+/// whatever its size, as an attachment named after it.
+Response get_file(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  std::string relative;
+  for (std::size_t k = 1; k < c.params.size(); ++k) {
+    if (!is_plain_name(c.params[k], 255) || c.params[k] == "..")
+      throw ApiError(400, "'path' must name a file of the run as GET files lists it", "path");
+    relative += (k > 1 ? "/" : "") + c.params[k];
+  }
+  std::error_code ec;
+  const fs::path root = fs::canonical(run->directory(), ec);
+  const fs::path file = ec ? fs::path() : fs::canonical(root / relative, ec);
+  const std::string missing = "no file '" + relative + "' in run '" + run->id() + "'";
+  if (ec || !is_within(root, file) || is_temporary(file.filename().string()))
+    throw ApiError(404, missing, "path");
+  const std::shared_ptr<const FileSource> source = FileSource::open(file, ec);
+  if (!source) throw ApiError(404, missing + " (" + ec.message() + ")", "path");
+  Response res{http::status::ok, c.request.version()};
+  res.set(http::field::server, "sphles/" SPHLES_VERSION);
+  res.set(http::field::content_type, mime_type(file));
+  res.set(http::field::content_disposition,
+          "attachment; filename=\"" + file.filename().string() + "\"");
+  res.set(http::field::cache_control, "no-store");
+  res.set("X-Content-Type-Options", "nosniff");
+  res.keep_alive(c.request.keep_alive());
+  res.body().stream(source);
+  res.prepare_payload();
+  return res;
+}
+
 Response stream_without_upgrade(const Router::Services& s, const Context& c) {
   find_run(s, c.params[0]);
   Response res = error_response(
@@ -384,6 +469,9 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/log", false}, run_log},
       {{V::get, "/api/runs/{id}/analysis", false}, analysis_history},
       {{V::get, "/api/runs/{id}/reference", false}, reference},
+      {{V::get, "/api/runs/{id}/files", false}, list_files},
+      {{V::get, "/api/runs/{id}/files/{name}", false}, get_file},
+      {{V::get, "/api/runs/{id}/files/{dir}/{name}", false}, get_file},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},

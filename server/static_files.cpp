@@ -49,7 +49,7 @@ bool is_within(const fs::path& root, const fs::path& path) {
 }
 
 std::string_view mime_type(const fs::path& file) {
-  static constexpr std::array<std::pair<std::string_view, std::string_view>, 18> kTypes{{
+  static constexpr std::array<std::pair<std::string_view, std::string_view>, 25> kTypes{{
       {".html", "text/html; charset=utf-8"},
       {".htm", "text/html; charset=utf-8"},
       {".js", "text/javascript; charset=utf-8"},
@@ -68,6 +68,14 @@ std::string_view mime_type(const fs::path& file) {
       {".woff", "font/woff"},
       {".woff2", "font/woff2"},
       {".ttf", "font/ttf"},
+      // What a run directory holds (GET /api/runs/{id}/files/...).
+      {".csv", "text/csv; charset=utf-8"},
+      {".log", "text/plain; charset=utf-8"},
+      {".h5", "application/x-hdf5"},
+      {".xdmf", "application/xml"},
+      {".vti", "application/xml"},
+      {".pvd", "application/xml"},
+      {".npy", "application/octet-stream"},
   }};
   std::string extension = file.extension().string();
   std::transform(extension.begin(), extension.end(), extension.begin(),

@@ -453,6 +453,64 @@ TEST(Server, AnalysisHistoryHasEveryFrame) {
   EXPECT_NE(none.body.find("Re = 5000"), std::string::npos) << none.body;
 }
 
+// Downloads (issue 20): every file of a run is listed with its size and served whole, byte for
+// byte, streamed from disk: also a file larger than one response may be in memory.
+TEST(Server, RunFilesAreListedAndDownloadedWhole) {
+  constexpr std::size_t kAnswerLimit = 2048;  // bytes of one in-memory answer (507 beyond)
+  TestServer server(scratch("files") / "data", "", 2,
+                    [&](ServerOptions& o) { o.responses.max_bytes = kAnswerLimit; });
+  const Api api{server.port()};
+  json scene = rendered_scene(0.2);
+  scene["checkpoint"] = {{"every", 0.1}};
+  const std::string id = api.create({{"scene", scene}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  const fs::path dir = server.data_directory / "runs" / id;
+  const json list = api.get("/api/runs/" + id + "/files").body_json();
+  std::map<std::string, json> by_path;
+  for (const json& f : list) by_path[f["path"]] = f;
+  for (const char* expected : {"scene.json", "run.json", "run.log", "timeseries.csv",
+                               "spectra/index.csv", "stats/snapshots.csv"})
+    EXPECT_TRUE(by_path.count(expected)) << expected << " not listed: " << list;
+  std::string checkpoint;
+  for (const auto& [path, f] : by_path) {
+    EXPECT_EQ(f["bytes"].get<std::uintmax_t>(), fs::file_size(dir / path)) << path;
+    EXPECT_EQ(f["url"], "/api/runs/" + id + "/files/" + path);
+    EXPECT_EQ(path.find(".tmp"), std::string::npos) << path;
+    if (path.rfind("checkpoints/ckpt_", 0) == 0 && fs::path(path).extension() == ".h5")
+      checkpoint = path;
+  }
+  ASSERT_FALSE(checkpoint.empty()) << list;
+  ASSERT_GT(fs::file_size(dir / checkpoint), kAnswerLimit) << "larger than one in-memory answer";
+  const auto bytes_of = [](const fs::path& file) {
+    std::ifstream in(file, std::ios::binary);
+    return std::string((std::istreambuf_iterator<char>(in)), {});
+  };
+  for (const std::string& path : {std::string("timeseries.csv"), checkpoint}) {
+    const Reply r = api.get("/api/runs/" + id + "/files/" + path);
+    ASSERT_EQ(r.status, 200) << path << ": " << r.body.substr(0, 300);
+    EXPECT_TRUE(r.body == bytes_of(dir / path)) << path << ": " << r.body.size() << " bytes";
+    EXPECT_EQ(r.header("content-disposition"),
+              "attachment; filename=\"" + fs::path(path).filename().string() + "\"");
+  }
+  EXPECT_EQ(api.get("/api/runs/" + id + "/files/timeseries.csv").header("content-type"),
+            "text/csv; charset=utf-8");
+  EXPECT_EQ(api.get("/api/runs/" + id + "/files/" + checkpoint).header("content-type"),
+            "application/x-hdf5");
+  // HEAD: the size, no body.
+  const Reply head =
+      send(server.port(), {http::verb::head, "/api/runs/" + id + "/files/" + checkpoint});
+  EXPECT_EQ(head.status, 200);
+  EXPECT_EQ(head.header("content-length"), std::to_string(fs::file_size(dir / checkpoint)));
+  EXPECT_TRUE(head.body.empty());
+  // Nothing outside the run's files.
+  expect_error(api.get("/api/runs/" + id + "/files/no-such-file"), 404, "path");
+  expect_error(api.get("/api/runs/" + id + "/files/checkpoints"), 404, "path");
+  expect_error(api.get("/api/runs/" + id + "/files/..%2Frun.json"), 400);
+  expect_error(api.get("/api/runs/" + id + "/files/../" + id + "/run.json"), 404);  // no route
+  expect_error(api.get("/api/runs/" + id + "/files/.hidden"), 400, "path");
+  expect_error(api.get("/api/runs/0999-none/files"), 404);
+}
+
 TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   TestServer server(scratch("stream") / "data");
   const Api api{server.port()};

@@ -81,6 +81,8 @@ export const api = {
   remove: (id) => request('DELETE', run(id)),
   patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
   timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
+  /** Every file of the run directory: [{path, bytes, modified, url}]. */
+  files: (id) => request('GET', `${run(id)}/files`),
   /** The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none). */
   reference: (id) => request('GET', `${run(id)}/reference`),
   /** Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series. */

@@ -431,6 +431,9 @@ function selectRun(id) {
   setText('run-log', 'no log yet');
   $('run-log').dataset.lines = '0';
   refreshLog();
+  $('run-files').replaceChildren();
+  $('run-files').dataset.count = '0';
+  refreshFiles();
   setText('cap-spectrum', 'no spectrum yet');
   setText('cap-stats', 'no statistics yet');
   ensureCharts();
@@ -622,6 +625,7 @@ function onStreamMessage(id, m) {
       mergeSummary({ id, state: m.state, reason: m.reason ?? '' });
       pollSoon();
       refreshLog();
+      refreshFiles();
       break;
     case 'metrics':
       addSamples(Array.isArray(m.samples) ? m.samples : []);
@@ -662,6 +666,55 @@ async function refreshLog() {
   pre.textContent = text || 'no log yet';
   pre.dataset.lines = String(lines);
   if (atBottom) pre.scrollTop = pre.scrollHeight;
+}
+
+/** The run directory's files as download links: top-level files, then one collapsible group per
+ *  subdirectory with its count and size. */
+async function refreshFiles() {
+  const id = app.selectedId;
+  if (!id) return;
+  let files;
+  try {
+    files = await api.files(id);
+  } catch {
+    return;  // the run list's poll reports the connection state
+  }
+  if (id !== app.selectedId || !Array.isArray(files)) return;
+  const link = (f, text) => {
+    const li = document.createElement('li');
+    const a = document.createElement('a');
+    a.href = f.url;
+    a.download = f.path.split('/').pop();
+    a.textContent = text;
+    li.append(a, ` ${fmtBytes(f.bytes)}`);
+    return li;
+  };
+  const top = document.createElement('ul');
+  top.className = 'files';
+  const groups = new Map();
+  for (const f of files) {
+    const slash = f.path.indexOf('/');
+    if (slash < 0) top.append(link(f, f.path));
+    else {
+      const dir = f.path.slice(0, slash);
+      if (!groups.has(dir)) groups.set(dir, []);
+      groups.get(dir).push(f);
+    }
+  }
+  const parts = [top];
+  for (const [dir, list] of groups) {
+    const details = document.createElement('details');
+    const summary = document.createElement('summary');
+    summary.textContent = `${dir}/ (${list.length} file${list.length === 1 ? '' : 's'}, ${fmtBytes(list.reduce((n, f) => n + f.bytes, 0))})`;
+    const ul = document.createElement('ul');
+    ul.className = 'files';
+    ul.append(...list.map((f) => link(f, f.path.slice(dir.length + 1))));
+    details.append(summary, ul);
+    parts.push(details);
+  }
+  const box = $('run-files');
+  box.replaceChildren(...(files.length ? parts : [Object.assign(document.createElement('p'), { className: 'muted', textContent: 'no files yet' })]));
+  box.dataset.count = String(files.length);
 }
 
 let pollSoonTimer = null;
@@ -1083,6 +1136,7 @@ function main() {
   $('create-form').addEventListener('submit', onCreate);
   $('create-estimate').addEventListener('click', onEstimate);
   $('btn-clone').addEventListener('click', cloneSelectedRun);
+  $('files-refresh').addEventListener('click', refreshFiles);
   $('create-preset').addEventListener('change', fillCreateForm);
   $('create-live').addEventListener('change', () => { $('create-every').disabled = !$('create-live').checked; });
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);

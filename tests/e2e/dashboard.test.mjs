@@ -369,6 +369,21 @@ async function run() {
   }
   pass('time.end and η changed from the parameter form');
 
+  // Downloads (issue 20): the stopped run's files, its final checkpoint among them, as links
+  // that fetch the files themselves.
+  currentStep = 'files';
+  const fileCount = await waitFor('the run\'s files listed', async () => {
+    const n = Number(await page.locator('#run-files').getAttribute('data-count'));
+    return (await page.locator('#run-files a[href$=".h5"]').count()) > 0 ? n : 0;
+  }, 10_000);
+  const seriesHref = await page.locator('#run-files a[href$="/timeseries.csv"]').getAttribute('href');
+  const seriesText = await (await fetch(`${base}${seriesHref}`)).text();
+  if (!seriesText.startsWith('t,step,')) fail(`the timeseries.csv link gives: ${seriesText.slice(0, 80)}`);
+  const h5Href = await page.locator('#run-files a[href$=".h5"]').first().getAttribute('href');
+  const h5 = new Uint8Array(await (await fetch(`${base}${h5Href}`)).arrayBuffer());
+  if (h5.length < 8 || String.fromCharCode(...h5.slice(1, 4)) !== 'HDF') fail(`${h5Href} is not an HDF5 file`);
+  pass(`files listed for download (${fileCount}): timeseries.csv and the checkpoint (${h5.length} B, HDF5 signature) fetched from their links`);
+
   // Delete: after the confirmation the run leaves the list and the server.
   currentStep = 'deleting';
   const runs = await (await fetch(`${base}/api/runs`)).json();
@@ -387,8 +402,8 @@ async function run() {
   // as a patch over it, and everything else (scheme, the live-changed η, ranks) is the run's.
   currentStep = 'cloning';
   await page.click('#btn-clone');
-  const cloneLabel = await page.locator('#create-preset option:checked').textContent();
-  if (!/clone of/.test(cloneLabel)) fail(`the form's choice after Clone is "${cloneLabel}"`);
+  await waitFor('the form to take the run\'s scene', async () =>
+    /clone of/.test(await page.locator('#create-preset option:checked').textContent()), 5_000);
   if ((await page.inputValue('#create-particles')) !== String(PARTICLES_PER_SIDE) ||
       (await page.inputValue('#create-scheme')) !== 'transport_velocity')
     fail('the form does not show the cloned run\'s particles and scheme');
