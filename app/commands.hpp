@@ -73,8 +73,9 @@ inline CLI::Option* add_log_level_option(CLI::App& command, std::string& level) 
   level = "info";
   return command
       .add_option("--log-level", level,
-                  "least severe messages shown on stderr and written to run.log "
-                  "(trace, debug, info, warn, error, off)")
+                  "least severe messages shown on stderr (trace, debug, info, warn, error, off); "
+                  "run.log records info and above whatever this says, and debug or trace too "
+                  "when asked")
       ->type_name("LEVEL")
       ->check(CLI::IsMember(logging::level_names()))
       ->capture_default_str();

@@ -137,6 +137,7 @@ void configure(ConsoleStyle style, Level level) {
   c.sink->set_formatter(
       make_formatter(style == ConsoleStyle::plain ? kPlainPattern : kTimestampedPattern));
   c.level = level;
+  c.sink->set_level(level);
   std::lock_guard lock(c.mutex);
   for (auto& [name, logger] : c.loggers) logger->set_level(level);
 }
@@ -163,8 +164,11 @@ RunLog::RunLog(const std::string& run_id, std::filesystem::path file, bool echo_
   const auto console_sink = the_console().sink;
   both_ = std::make_shared<spdlog::logger>(name, spdlog::sinks_init_list{sink, console_sink});
   progress_ = echo_progress ? both_ : std::make_shared<spdlog::logger>(name, sink);
-  both_->set_level(level());
-  progress_->set_level(level());
+  // run.log keeps the run's record at info whatever the console shows (more when the level is
+  // more verbose); the console sink filters by the level itself.
+  const Level file_level = std::min(level(), Level::info);
+  both_->set_level(file_level);
+  progress_->set_level(file_level);
 }
 
 RunLog::~RunLog() = default;

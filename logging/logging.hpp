@@ -26,11 +26,12 @@ Level parse_level(std::string_view name);
 /// and the logger's name, for a service's log (`sphles serve`, `sphles worker`).
 enum class ConsoleStyle { plain, timestamped };
 
-/// Sets the console's style and the level of every logger, those made before included. Call it
-/// once at the start of a command, before other threads log.
+/// Sets the console's style and level, for every logger, those made before included. Call it
+/// once at the start of a command, before other threads log. A run's run.log records at info
+/// or the level, whichever is more verbose: `warn` quiets the console, not the run's record.
 void configure(ConsoleStyle style, Level level);
 
-/// The current level (info until configure() says otherwise).
+/// The console's level (info until configure() says otherwise).
 Level level();
 
 /// The console logger called `name` (e.g. "serve", "http", "runs"), made on first use.
