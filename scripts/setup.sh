@@ -11,7 +11,7 @@ packages=(
   libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
-  python3 python3-matplotlib python3-h5py
+  python3 python3-matplotlib python3-h5py python3-websocket
   paraview xvfb xauth
 )
 
