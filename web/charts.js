@@ -256,15 +256,19 @@ function prepareCanvas(canvas) {
  */
 export function drawJointHistogram(canvas, joint) {
   const { ctx, w, h } = prepareCanvas(canvas);
-  const pad = { l: 42, r: 10, t: 8, b: 34 };
+  const pad = { l: 42, r: 74, t: 8, b: 34 };  // the colour legend on the right
   const pw = w - pad.l - pad.r;
   const ph = h - pad.t - pad.b;
   const nx = joint?.bins_x | 0;
   const ny = joint?.bins_y | 0;
   const counts = Array.isArray(joint?.counts) ? joint.counts : [];
   canvas.dataset.cells = String(nx > 0 && ny > 0 && counts.length === nx * ny ? counts.length : 0);
+  canvas.dataset.legendMax = '0';
   if (nx > 0 && ny > 0 && counts.length === nx * ny) {
-    const maxLog = Math.log10(1 + Math.max(...counts));
+    const maxCount = Math.max(...counts);
+    const maxLog = Math.log10(1 + maxCount);
+    drawCountLegend(ctx, pad.l + pw + 14, pad.t, ph, maxCount);
+    canvas.dataset.legendMax = String(maxCount);
     for (let by = 0; by < ny; by++) {
       for (let bx = 0; bx < nx; bx++) {
         const c = counts[bx + nx * by];
@@ -292,6 +296,42 @@ export function drawJointHistogram(canvas, joint) {
   ctx.rotate(-Math.PI / 2);
   ctx.textAlign = 'center';
   ctx.fillText('ω²* = ω² / max [–]', 0, 0);
+  ctx.restore();
+}
+
+/** The joint histogram's colour scale: particles per cell, log(1 + count), with decade ticks. */
+function drawCountLegend(ctx, x, top, height, maxCount) {
+  const barWidth = 12;
+  const maxLog = Math.log10(1 + maxCount);
+  const steps = 64;
+  for (let i = 0; i < steps; i++) {
+    ctx.fillStyle = viridis((i + 0.5) / steps);
+    ctx.fillRect(x, top + height - ((i + 1) / steps) * height, barWidth, height / steps + 0.5);
+  }
+  ctx.strokeStyle = '#333';
+  ctx.strokeRect(x, top, barWidth, height);
+  ctx.fillStyle = '#333';
+  ctx.textAlign = 'left';
+  const at = (count) => top + height - (maxLog > 0 ? Math.log10(1 + count) / maxLog : 0) * height;
+  // From the top (the largest count, always labelled) down: a label too close to the one above
+  // it is left out, so that none overlap.
+  const ticks = [maxCount];
+  for (let d = 10 ** Math.floor(Math.log10(Math.max(1, maxCount))); d >= 1; d /= 10)
+    if (d < maxCount) ticks.push(d);
+  if (maxCount > 0) ticks.push(0);
+  let lastY = -Infinity;
+  for (const c of ticks) {
+    const y = at(c);
+    if (y - lastY < 11) continue;
+    ctx.fillRect(x + barWidth, y - 0.5, 3, 1);
+    ctx.fillText(String(c), x + barWidth + 5, Math.min(top + height, Math.max(top + 8, y + 4)));
+    lastY = y;
+  }
+  ctx.save();
+  ctx.translate(x + barWidth + 38, top + height / 2);
+  ctx.rotate(-Math.PI / 2);
+  ctx.textAlign = 'center';
+  ctx.fillText('particles per cell', 0, 0);
   ctx.restore();
 }
 

@@ -266,7 +266,8 @@ async function run() {
   });
   await waitFor('a spectrum and a joint histogram of the running run', async () => {
     const shown = await productsShown();
-    return shown.spectrum > 0 && shown.joint > 0;
+    return shown.spectrum > 0 && shown.joint > 0 &&
+      Number(await page.locator('#hist-joint').getAttribute('data-legend-max')) > 0;
   }, 30_000);
   const idle = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },
