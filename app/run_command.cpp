@@ -66,12 +66,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
   control::RunOptions run_options;
   run_options.log_progress = true;
   if (driver) {
-    run_options.make_simulation = [driver](const sim::Scene& scene, sim::ParticleArrays all) {
-      return driver->make(scene, std::move(all));
-    };
-    run_options.restore_simulation = [driver](const sim::Scene& scene, sim::SolverState state) {
-      return driver->restore(scene, std::move(state));
-    };
+    run_options.solvers = driver->factories();
     std::fprintf(stderr, "sphles run: the solver spans %d MPI ranks\n", driver->ranks());
   }
   try {

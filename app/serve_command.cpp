@@ -157,9 +157,7 @@ void finish_serve_options(ServeOptions& o) {
       job.ranks = ranks;
       job.threads = run.threads;
       job.log_file = directory / "job.log";
-      launch::JobSolvers solvers = launch::job_solvers(std::move(job));
-      run.make_simulation = std::move(solvers.make);
-      run.restore_simulation = std::move(solvers.restore);
+      run.solvers = launch::job_solvers(std::move(job));
     };
   }
 }

@@ -51,17 +51,10 @@ int worker_command(WorkerOptions options) {
   const auto log = logging::console("worker");
   if (options.threads > 0) omp_set_num_threads(options.threads);
   return par::drive_from_rank_zero([&](par::Driver& driver) {
-    launch::WorkerSolvers solvers;
-    solvers.ranks = driver.ranks();
-    solvers.make = [&driver](const sim::Scene& scene, sim::ParticleArrays all) {
-      return driver.make(scene, std::move(all));
-    };
-    solvers.restore = [&driver](const sim::Scene& scene, sim::SolverState state) {
-      return driver.restore(scene, std::move(state));
-    };
+    const sim::SolverFactories solvers = driver.factories();
     int rc = kExitOk;
     try {
-      launch::serve_job(options.host, options.port, options.token, solvers);
+      launch::serve_job(options.host, options.port, options.token, solvers, driver.ranks());
     } catch (const std::exception& e) {
       log->error("{}", e.what());
       rc = kExitFailure;

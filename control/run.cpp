@@ -822,8 +822,8 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
   const std::filesystem::path frames_dir = directory / "frames";
   const auto restore_solver = [this](const sim::Scene& scene, sim::SolverState state) {
-    return options.restore_simulation
-               ? options.restore_simulation(scene, std::move(state))
+    return options.solvers.restore
+               ? options.solvers.restore(scene, std::move(state))
                : sim::restore_simulation(sim::make_solver_config(scene), std::move(state));
   };
   // Temporaries of a write that a crash interrupted are never valid checkpoints: remove them.
@@ -893,8 +893,8 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                     setup.packing.final_residual, setup_seconds,
                     setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
     set_phase("setting up");  // the solver (and any MPI job) from the packed particles
-    simulation = options.make_simulation
-                     ? options.make_simulation(scene0, std::move(setup.particles))
+    simulation = options.solvers.make
+                     ? options.solvers.make(scene0, std::move(setup.particles))
                      : sim::make_simulation(setup.solver, std::move(setup.particles));
   }
   set_phase("stepping");

@@ -27,6 +27,7 @@
 #include "render/config.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
+#include "sim/solver_factories.hpp"
 
 namespace sphles::control {
 
@@ -143,13 +144,11 @@ struct RunOptions {
   /// Called with the document a live change would give, before it is made; throws
   /// AdmissionError to refuse it (the run manager checks the resource estimate).
   std::function<void(const RunSpec&)> admit;
-  /// Builds the solver of a fresh start and of a restart or live change; empty: one process
-  /// (sim::make_simulation, sim::restore_simulation). `sphles run` under mpirun sets them to
-  /// the distributed solver (par::Driver), which Run then drives like any other.
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)>
-      make_simulation;
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)>
-      restore_simulation;
+  /// Builds the solver of a fresh start and of a restart or live change; empty members: one
+  /// process (sim::make_simulation, sim::restore_simulation). `sphles run` under mpirun sets
+  /// them to the distributed solver (par::Driver::factories), the service for runs with ranks
+  /// > 1 to an MPI job of their own (launch::job_solvers); Run drives either like any other.
+  sim::SolverFactories solvers;
   /// MPI ranks the solver spans, recorded in run.json: 1 for this process; more when the
   /// factories above put the solver into an MPI job (`mpirun sphles run`; the service's runs
   /// created with ranks > 1, launch/job.hpp).

@@ -395,10 +395,10 @@ std::string launch_command(const LaunchOptions& o) {
   return command;
 }
 
-JobSolvers job_solvers(LaunchOptions options) {
+sim::SolverFactories job_solvers(LaunchOptions options) {
   validate(options);
   auto holder = std::make_shared<JobHolder>(std::move(options));
-  JobSolvers solvers;
+  sim::SolverFactories solvers;
   solvers.make = [holder](const sim::Scene& scene, sim::ParticleArrays particles) {
     return holder->make(MessageKind::Make, scene, particles, "setting up the solver failed");
   };
@@ -409,12 +409,12 @@ JobSolvers job_solvers(LaunchOptions options) {
 }
 
 void serve_job(const std::string& host, unsigned short port, const std::string& token,
-               const WorkerSolvers& solvers) {
+               const sim::SolverFactories& solvers, int ranks) {
   Channel channel;
   channel.connect(host, port);
   Encoder hello;
   hello.string(token);
-  hello.u64(static_cast<std::uint64_t>(solvers.ranks));
+  hello.u64(static_cast<std::uint64_t>(ranks));
   channel.send(MessageKind::Hello, hello);
   std::unique_ptr<sim::Simulation> simulation;
   const auto status = [&] {

@@ -18,6 +18,7 @@
 
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
+#include "sim/solver_factories.hpp"
 
 namespace sphles::launch {
 
@@ -43,23 +44,15 @@ void validate(const LaunchOptions& options);
 /// The shell command that starts the job (without the connection arguments).
 std::string launch_command(const LaunchOptions& options);
 
-/// Solver factories for control::RunOptions (make_simulation, restore_simulation) that put the
+/// Solver factories for control::RunOptions::solvers that put the
 /// solver into a job launched with `options`. The two share the job.
-struct JobSolvers {
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)> make;
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)> restore;
-};
-JobSolvers job_solvers(LaunchOptions options);
+sim::SolverFactories job_solvers(LaunchOptions options);
 
 /// The job's side, on rank 0 (app/worker_command.cpp): connects to the service, proves the
 /// token, and carries out requests with the given solver factories until told to finish or the
 /// service goes away. Returns normally in both cases.
-struct WorkerSolvers {
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::ParticleArrays)> make;
-  std::function<std::unique_ptr<sim::Simulation>(const sim::Scene&, sim::SolverState)> restore;
-  int ranks = 1;
-};
+/// `ranks`: the job's rank count, which rank 0 reports to the service.
 void serve_job(const std::string& host, unsigned short port, const std::string& token,
-               const WorkerSolvers& solvers);
+               const sim::SolverFactories& solvers, int ranks);
 
 }  // namespace sphles::launch

@@ -166,6 +166,15 @@ Driver::~Driver() {
   send_command(comm_, Command::Finish);
 }
 
+sim::SolverFactories Driver::factories() {
+  return {[this](const sim::Scene& scene, sim::ParticleArrays all) {
+            return make(scene, std::move(all));
+          },
+          [this](const sim::Scene& scene, sim::SolverState whole) {
+            return restore(scene, std::move(whole));
+          }};
+}
+
 int Driver::ranks() const {
   int size = 1;
   MPI_Comm_size(comm_, &size);

@@ -16,6 +16,7 @@
 
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
+#include "sim/solver_factories.hpp"
 
 namespace sphles::par {
 
@@ -39,6 +40,9 @@ class Driver {
   std::unique_ptr<sim::Simulation> restore(const sim::Scene& scene, sim::SolverState whole);
 
   int ranks() const;
+  /// make() and restore() as the factories a run takes (control::RunOptions::solvers); they
+  /// refer to this Driver, which must outlive them.
+  sim::SolverFactories factories();
 
  private:
   MPI_Comm comm_;

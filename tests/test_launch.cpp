@@ -242,7 +242,7 @@ LaunchOptions options_for(const std::string& launcher, const std::filesystem::pa
   return o;
 }
 
-TEST(JobSolvers, ALauncherWithoutTheRankCountIsRefused) {
+TEST(JobSolverFactories, ALauncherWithoutTheRankCountIsRefused) {
   LaunchOptions o = options_for("mpirun -n 2", "job.log");
   try {
     validate(o);
@@ -252,11 +252,11 @@ TEST(JobSolvers, ALauncherWithoutTheRankCountIsRefused) {
   }
 }
 
-TEST(JobSolvers, ALauncherThatFailsIsDiagnosedFromItsStatusAndLog) {
+TEST(JobSolverFactories, ALauncherThatFailsIsDiagnosedFromItsStatusAndLog) {
   const auto dir = fresh_directory("launch_failing");
   const std::filesystem::path log = dir / "job.log";
   const sim::Scene scene = small_tgv2d();
-  JobSolvers solvers =
+  sim::SolverFactories solvers =
       job_solvers(options_for("/bin/sh -c 'echo cannot place {ranks} ranks >&2; exit 3'", log));
   try {
     solvers.make(scene, sim::setup_run(scene).particles);
@@ -269,11 +269,11 @@ TEST(JobSolvers, ALauncherThatFailsIsDiagnosedFromItsStatusAndLog) {
   }
 }
 
-TEST(JobSolvers, AJobWithAnotherRankCountIsRefused) {
+TEST(JobSolverFactories, AJobWithAnotherRankCountIsRefused) {
   const auto dir = fresh_directory("launch_ranks");
   const sim::Scene scene = small_tgv2d();
   // A launcher that ignores the rank count: one rank where the run asked for two.
-  JobSolvers solvers = job_solvers(options_for(
+  sim::SolverFactories solvers = job_solvers(options_for(
       "mpiexec --oversubscribe --bind-to none -n 1 env SPHLES_IGNORED={ranks}", dir / "job.log"));
   try {
     solvers.make(scene, sim::setup_run(scene).particles);
@@ -285,25 +285,25 @@ TEST(JobSolvers, AJobWithAnotherRankCountIsRefused) {
   }
 }
 
-TEST(JobSolvers, AJobReachesAServiceListeningOnEveryInterface) {
+TEST(JobSolverFactories, AJobReachesAServiceListeningOnEveryInterface) {
   const auto dir = fresh_directory("launch_any");
   const sim::Scene scene = small_tgv2d();
   LaunchOptions o =
       options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log");
   o.listen_address = "0.0.0.0";  // rank 0 connects to this host's name
-  JobSolvers solvers = job_solvers(o);
+  sim::SolverFactories solvers = job_solvers(o);
   const auto remote = solvers.make(scene, sim::setup_run(scene).particles);
   remote->step();
   EXPECT_EQ(remote->step_count(), 1u);
 }
 
-TEST(JobSolvers, KolmogorovDiagnosticsAreSummedInTheJobBitwiseLikeOneProcess) {
+TEST(JobSolverFactories, KolmogorovDiagnosticsAreSummedInTheJobBitwiseLikeOneProcess) {
   const auto dir = fresh_directory("launch_kolmogorov");
   const sim::Scene scene = sim::parse_scene(
       {{"preset", "kolmogorov2d"}, {"particles_per_side", 48}, {"packing", {{"enabled", false}}}});
   const sim::RunSetup setup = sim::setup_run(scene);
   auto local = sim::make_simulation(setup.solver, setup.particles);
-  JobSolvers solvers = job_solvers(
+  sim::SolverFactories solvers = job_solvers(
       options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
   const auto remote = solvers.make(scene, setup.particles);
   for (int s = 0; s < 10; ++s) {
@@ -333,12 +333,12 @@ void expect_same_by_id(const sim::ParticleArrays& a, const sim::ParticleArrays& 
   EXPECT_EQ(differing, 0u);
 }
 
-TEST(JobSolvers, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
+TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   const auto dir = fresh_directory("launch_job");
   const sim::Scene scene = small_tgv2d();
   sim::RunSetup setup = sim::setup_run(scene);
   auto local = sim::make_simulation(setup.solver, setup.particles);
-  JobSolvers solvers = job_solvers(
+  sim::SolverFactories solvers = job_solvers(
       options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
   std::unique_ptr<sim::Simulation> remote = solvers.make(scene, setup.particles);
   EXPECT_EQ(remote->diagnostics().kinetic_energy, local->diagnostics().kinetic_energy);
