@@ -60,7 +60,8 @@ std::optional<std::string> check_machine_memory(const control::ResourceEstimate&
   return control::check_memory(e, machine, "this machine has");
 }
 
-void print_estimate(const control::RunSpec& spec, bool as_json, bool with_time) {
+std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_json,
+                                          bool with_time) {
   const control::ResourceEstimate e = control::estimate_resources(spec);
   const std::optional<std::string> too_big = check_machine_memory(e);
   std::optional<control::StepTimeEstimate> time;
@@ -72,7 +73,7 @@ void print_estimate(const control::RunSpec& spec, bool as_json, bool with_time) 
     j["fits_machine_memory"] = !too_big;
     if (time) j["time"] = control::step_time_to_json(*time);
     std::puts(j.dump(2).c_str());
-    return;
+    return too_big;
   }
   std::printf("particles            %.6g (%.4g neighbours each)\n", e.particles,
               e.neighbours_per_particle);
@@ -106,6 +107,7 @@ void print_estimate(const control::RunSpec& spec, bool as_json, bool with_time) 
         "as the flow develops); packing, analysis and rendering not included\n",
         format_duration(time->seconds_to_end).c_str(), spec.run.scene.end_time);
   }
+  return too_big;
 }
 
 void add_estimate_command(CLI::App& app, int& exit_code) {

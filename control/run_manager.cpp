@@ -218,7 +218,10 @@ void RunManager::schedule_loop() {
 }
 
 double RunManager::admit(const RunSpec& spec) const {
-  const ResourceEstimate estimate = estimate_resources(spec);
+  return admit(estimate_resources(spec));
+}
+
+double RunManager::admit(const ResourceEstimate& estimate) const {
   if (const std::optional<std::string> refusal =
           check_memory(estimate, options_.max_memory_bytes)) {
     std::string field = "particles_per_side";
@@ -246,7 +249,7 @@ nlohmann::json RunManager::estimate(const CreateRequest& request) const {
   json answer = resource_estimate_to_json(resources);
   answer["memory_limit_bytes"] = options_.max_memory_bytes;
   try {
-    admit(spec);
+    admit(resources);
     answer["admitted"] = true;
   } catch (const AdmissionError& e) {
     answer["admitted"] = false;

@@ -18,6 +18,8 @@
 
 namespace sphles::control {
 
+struct ResourceEstimate;  // control/resources.hpp
+
 struct ManagerOptions {
   std::filesystem::path data_directory = "sphles-data";
   int max_running = 1;  // runs stepping at once; further starts queue
@@ -140,6 +142,7 @@ class RunManager {
   /// Throws AdmissionError if the run's estimated memory exceeds the limit, or its checkpoints
   /// the free disk of the data directory; returns the estimated memory [B].
   double admit(const RunSpec& spec) const;
+  double admit(const ResourceEstimate& estimate) const;  // the same, for an estimate at hand
   /// Whether a run (`run`, or a new one when null) needing `memory` may start now: a free slot,
   /// and memory beside the active runs. Caller holds schedule_mutex_.
   bool fits_now(const Run* run, double memory) const;

@@ -222,20 +222,22 @@ HistoryQuery history_query(const Router::Services& s, const Context& c, bool dec
   return q;
 }
 
-Response timeseries(const Router::Services& s, const Context& c) {
+/// A growing CSV file of the run with a step column, as columns, paged or decimated.
+Response csv_history(const Router::Services& s, const Context& c, const fs::path& relative) {
   const auto run = find_run(s, c.params[0]);
   const HistoryQuery query = history_query(s, c, true);
-  return make_json_text(c.request, timeseries_answer(run->directory() / "timeseries.csv", query,
-                                                     s.options.limits, s.series));
+  return make_json_text(
+      c.request, timeseries_answer(run->directory() / relative, query, s.options.limits, s.series));
+}
+
+Response timeseries(const Router::Services& s, const Context& c) {
+  return csv_history(s, c, "timeseries.csv");
 }
 
 /// Every analysis frame's scalars so far (stats/snapshots.csv: e_v on the grid, ⟨ω²⟩, the
 /// dissipation three ways, max and mean |τ_SFS|), paged or decimated as the time series.
 Response analysis_history(const Router::Services& s, const Context& c) {
-  const auto run = find_run(s, c.params[0]);
-  const HistoryQuery query = history_query(s, c, true);
-  return make_json_text(c.request, timeseries_answer(run->directory() / "stats" / "snapshots.csv",
-                                                     query, s.options.limits, s.series));
+  return csv_history(s, c, fs::path("stats") / "snapshots.csv");
 }
 
 /// The run's reference curve (analysis/reference.hpp): the analytic decay of the 2D TGV, the DNS

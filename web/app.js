@@ -345,14 +345,9 @@ async function onCreate(event) {
   }
 }
 
-/** "2.5 ms", "1.2 s", "3.4 min", "4.1 h", "2.3 days". */
+/** fmtSeconds, with times under a second in ms (a step's cost). */
 function fmtDuration(s) {
-  if (!(s >= 0)) return '–';
-  if (s < 1) return `${(s * 1e3).toPrecision(3)} ms`;
-  if (s < 120) return `${s.toPrecision(3)} s`;
-  if (s < 7200) return `${(s / 60).toPrecision(3)} min`;
-  if (s < 2 * 86400) return `${(s / 3600).toPrecision(3)} h`;
-  return `${(s / 86400).toPrecision(3)} days`;
+  return s > 0 && s < 1 ? `${(s * 1e3).toPrecision(3)} ms` : fmtSeconds(s);
 }
 
 function fmtBytes(b) {
@@ -770,10 +765,15 @@ function addSamples(list) {
   scheduleRedraw();
 }
 
+/** A column of a {columns, data} answer (time series, analysis, reference) by name; [] if absent. */
+function columnOf(answer) {
+  const columns = Array.isArray(answer?.columns) ? answer.columns : [];
+  const data = Array.isArray(answer?.data) ? answer.data : [];
+  return (name) => data[columns.indexOf(name)] ?? [];
+}
+
 function addTimeseries(series) {
-  const columns = Array.isArray(series?.columns) ? series.columns : [];
-  const data = Array.isArray(series?.data) ? series.data : [];
-  const col = (name) => data[columns.indexOf(name)] ?? [];
+  const col = columnOf(series);
   const time = col('time');
   const step = col('step');
   const energy = col('kinetic_energy');
@@ -789,7 +789,7 @@ async function loadReference(id) {
   try {
     const r = await api.reference(id);
     if (id !== app.selectedId) return;
-    const col = (name) => r.data[r.columns.indexOf(name)] ?? [];
+    const col = columnOf(r);
     app.reference = { label: r.label, source: r.source, time: col('time'), energy: col('kinetic_energy'), dissipation: col('dissipation') };
   } catch (e) {
     if (id === app.selectedId) app.referenceWhy = errorText(e);
@@ -800,9 +800,7 @@ async function loadReference(id) {
 /** The analysis frames written before the page connected (GET analysis): the dissipation
  *  estimates and the sub-filter stress over the whole run, also after a reload or a restart. */
 function addAnalysisHistory(history) {
-  const columns = Array.isArray(history?.columns) ? history.columns : [];
-  const data = Array.isArray(history?.data) ? history.data : [];
-  const col = (name) => data[columns.indexOf(name)] ?? [];
+  const col = columnOf(history);
   const time = col('time');
   const spectral = col('dissipation_spectral');
   const vorticity = col('dissipation_vorticity');
@@ -1014,30 +1012,12 @@ function redraw() {
   c.energy.setData(energy.x, energy.ys);
   $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
 
-  // ε: the per-step series and the sparse analysis estimates on one merged time axis.
-  const x = [];
-  const fromHistory = [];
-  const spectral = [];
-  const vorticity = [];
-  let i = 0;
-  let j = 0;
-  while (i < samples.length || j < app.analysis.length) {
-    const a = app.analysis[j];
-    if (j >= app.analysis.length || (i < samples.length && samples[i].time < a.time)) {
-      x.push(samples[i].time);
-      fromHistory.push(samples[i].dissipation);
-      spectral.push(null);
-      vorticity.push(null);
-      i++;
-    } else {
-      x.push(a.time);
-      fromHistory.push(null);
-      spectral.push(a.spectral ?? null);
-      vorticity.push(a.vorticity ?? null);
-      j++;
-    }
-  }
-  const eps = mergeOnTime({ x, ys: [fromHistory, spectral, vorticity] },
+  // ε: the per-step series, the sparse analysis estimates and the reference on one time axis.
+  const estimates = mergeOnTime(
+    { x: samples.map((s) => s.time), ys: [samples.map((s) => s.dissipation)] },
+    { x: app.analysis.map((a) => a.time),
+      ys: [app.analysis.map((a) => a.spectral ?? null), app.analysis.map((a) => a.vorticity ?? null)] });
+  const eps = mergeOnTime(estimates,
     ref ? { x: ref.time, ys: [ref.dissipation] } : { x: [], ys: [[]] });
   c.dissipation.setData(eps.x, eps.ys);
 
