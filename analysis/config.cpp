@@ -86,7 +86,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
   AnalysisConfig c;
   if (!section) return c;
   sim::ObjectReader r(*section, "analysis");
-  r.number("every", c.every, sim::non_negative);
+  r.number("every", c.every);
   std::vector<std::string> products;
   r.strings("products", products);
   for (std::size_t k = 0; k < products.size(); ++k)
@@ -152,15 +152,15 @@ AnalysisConfig parse_analysis_config(const json* section) {
     g.string("vorticity", vorticity);
     c.gridding.vorticity =
         parse_name(kVorticityEstimateNames, vorticity, "analysis.gridding.vorticity");
-    g.number("fit_radius", c.gridding.fit_radius, sim::in_range(kMinFitRadius, kMaxFitRadius));
+    g.number("fit_radius", c.gridding.fit_radius);
     g.reject_unknown();
   }
-  r.integer("grid_points_per_spacing", c.grid_points_per_spacing, 1, 8);
-  r.integer("histogram_bins", c.histogram_bins, 1, kMaxHistogramBins);
-  r.integer("angle_bins", c.angle_bins, 1, kMaxAngleBins);
-  r.number("angle_threshold", c.angle_threshold, sim::in_range(0.0, 1.0, true));
-  r.number("dissipation_window", c.dissipation_window, sim::positive);
-  r.number("spectrum_length_scale", c.spectrum_length_scale, sim::positive);
+  r.integer("grid_points_per_spacing", c.grid_points_per_spacing);
+  r.integer("histogram_bins", c.histogram_bins);
+  r.integer("angle_bins", c.angle_bins);
+  r.number("angle_threshold", c.angle_threshold);
+  r.number("dissipation_window", c.dissipation_window);
+  r.number("spectrum_length_scale", c.spectrum_length_scale);
   r.reject_unknown();
   if (!c.products.empty() && !(c.every > 0.0))
     throw SceneError("scene: 'analysis.every' must be > 0 when products are requested, got " +

@@ -37,12 +37,6 @@ enum class VorticityEstimate { Particle, Grid, Mls };
 std::string_view velocity_gridding_name(VelocityGridding gridding);
 std::string_view vorticity_estimate_name(VorticityEstimate estimate);
 
-/// Bounds of gridding.fit_radius, in kernel support radii H: below 0.75 H the fits of the thesis'
-/// D_K = 4 Δl kernels would see too few particles for a cubic in 3D (20 monomials); above 2 H the
-/// fit averages over scales the model resolves, and costs (R/Δl)^n per point.
-inline constexpr double kMinFitRadius = 0.75;
-inline constexpr double kMaxFitRadius = 2.0;
-
 struct GriddingConfig {
   VelocityGridding velocity = VelocityGridding::Nearest;
   VorticityEstimate vorticity = VorticityEstimate::Mls;
@@ -57,14 +51,6 @@ struct SliceConfig {
   double position = 3.14159265358979323846;  // [m], snapped to the nearest grid plane
   std::set<SliceField> fields{SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
 };
-
-/// Bounds of the histogram resolutions (docs/scenes.md, "Limits"). The joint histogram travels
-/// dense in every analysis frame (memory, the frame's JSON on the API and WebSocket, which the
-/// dashboard spreads into one Math.max call): 256² = 65 536 counts are 512 KiB per copy and at
-/// most about 0.5 MB of JSON, five times the thesis's 50 bins per axis. The polar histogram of
-/// γ ∈ [0, π/2] at 360 bins has 0.25° bins, finer than any statistic of a run's particles needs.
-inline constexpr int kMaxHistogramBins = 256;
-inline constexpr int kMaxAngleBins = 360;
 
 struct AnalysisConfig {
   double every = 0.0;  // simulated time between snapshots; 0 = no snapshot analysis

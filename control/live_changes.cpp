@@ -1,68 +1,17 @@
 #include "control/live_changes.hpp"
 
+#include <algorithm>
 #include <set>
 
+#include "control/scene_schema.hpp"
 #include "sim/scene.hpp"
+#include "sim/scene_schema.hpp"
 
 namespace sphles::control {
 
 using nlohmann::json;
 
 namespace {
-
-// Live changes (docs/rendering.md): fields the run may change between two steps, and why the
-// others may not. A path is allowed if an entry equals it or is a prefix of it.
-const std::vector<std::string> kChangeable = {
-    "name",
-    "time.end",
-    "time.cfl_acoustic",
-    "time.cfl_viscous",
-    "time.cfl_force",
-    "time.fixed_step",
-    "fluid.reference_pressure",
-    "fluid.dynamic_viscosity",
-    "subfilter.smagorinsky_constant",
-    "subfilter.sigma_constant",
-    "subfilter.filter_width",
-    "forcing.amplitude",
-    "forcing.friction",
-    "analysis.every",
-    "analysis.products",
-    "analysis.slice",
-    "analysis.particle_fields",
-    "analysis.grid_points_per_spacing",
-    "analysis.gridding",
-    "analysis.histogram_bins",
-    "analysis.angle_bins",
-    "analysis.angle_threshold",
-    "analysis.spectrum_length_scale",
-    "render",
-    "checkpoint",
-    "output.timeseries_every",
-    "output.progress_every_seconds",
-};
-
-const std::vector<std::pair<std::string, std::string>> kFixedReasons = {
-    {"case", "fixes the flow being simulated; create a new run"},
-    {"preset", "fixes the flow being simulated; create a new run"},
-    {"particles_per_side", "fixes the particle set; create a new run"},
-    {"box_length", "fixes the particle set; create a new run"},
-    {"kernel", "fixes the interaction stencil and the neighbour list; create a new run"},
-    {"fluid.sound_speed",
-     "sets the equation of state: changing it mid-run sends pressure waves through the flow; "
-     "create a new run"},
-    {"fluid.reference_density", "sets the particle masses; create a new run"},
-    {"subfilter.model",
-     "switching the sub-filter model mid-run is not supported; create a new run"},
-    {"scheme.type",
-     "fixes the discretisation the stored state belongs to (a^n, and the transport velocity of "
-     "the TVF, are the scheme's); create a new run"},
-    {"flow", "applies to the initial condition only"},
-    {"packing", "applies to the initial condition only"},
-    {"initial", "applies to the initial condition only"},
-    {"neighbours", "fixes the neighbour list that a bitwise restart relies on"},
-    {"analysis.dissipation_window", "is fixed for the run's dissipation estimate"},
-};
 
 bool has_prefix(const std::string& path, const std::string& prefix) {
   return path == prefix ||
@@ -108,7 +57,22 @@ ChangeScope scope_of(const std::vector<std::string>& fields) {
 }
 
 const std::vector<std::string>& changeable_fields() {
-  return kChangeable;
+  // The smallest set of prefixes covering every field the schema lets a run change: a field
+  // whose own fields are all changeable stands for them.
+  static const std::vector<std::string> fields = [] {
+    const std::vector<std::string> all = sim::scene_schema_fields();
+    std::vector<std::string> out;
+    for (const std::string& field : all) {
+      bool whole = live_rule(field).live;
+      for (const std::string& other : all)
+        if (whole && other != field && has_prefix(other, field)) whole = live_rule(other).live;
+      const bool covered = std::any_of(out.begin(), out.end(),
+                                       [&](const std::string& p) { return has_prefix(field, p); });
+      if (whole && !covered) out.push_back(field);
+    }
+    return out;
+  }();
+  return fields;
 }
 
 CheckedChange check_change(const json& before, const json& after) {
@@ -130,13 +94,10 @@ CheckedChange check_change(const json& before, const json& after) {
   for (const json& op : json::diff(before, run_spec_to_json(change.spec)))
     fields.insert(dotted_field(op.at("path").get<std::string>()));
   for (const std::string& field : fields) {
-    bool allowed = false;
-    for (const std::string& c : kChangeable) allowed = allowed || has_prefix(field, c);
-    if (allowed) continue;
-    for (const auto& [prefix, why] : kFixedReasons)
-      if (has_prefix(field, prefix))
-        throw ChangeError(field, "cannot change while a run exists: " + why);
-    throw ChangeError(field, "cannot change while a run exists");
+    const LiveRule rule = live_rule(field);  // declared by the scene schema ("x-live", "x-fixed")
+    if (rule.live) continue;
+    throw ChangeError(field, "cannot change while a run exists" +
+                                 (rule.reason.empty() ? std::string() : ": " + rule.reason));
   }
   change.fields.assign(fields.begin(), fields.end());
   return change;

@@ -1,5 +1,7 @@
 #include "control/run.hpp"
 
+#include "control/scene_schema.hpp"
+
 #include <omp.h>
 
 #include <algorithm>
@@ -53,6 +55,10 @@ RunSpec parse_run_spec(const json& document) {
   spec.run = analysis::parse_run_config(rest);
   spec.render =
       render::parse_render_config(has_render ? &render_section : nullptr, spec.run.analysis);
+  // The readers apply the schema's keys, types and bounds with their own messages; the whole
+  // schema (every keyword, by valijson) is the last word.
+  if (const std::optional<std::string> violation = schema_violation(document))
+    throw sim::SceneError("scene: " + *violation);
   return spec;
 }
 

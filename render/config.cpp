@@ -31,8 +31,8 @@ ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
       bound = x;
     }
   }
-  r.number("lower_percentile", mapping.lower_percentile, sim::in_range(0.0, 1.0));
-  r.number("upper_percentile", mapping.upper_percentile, sim::in_range(0.0, 1.0));
+  r.number("lower_percentile", mapping.lower_percentile);
+  r.number("upper_percentile", mapping.upper_percentile);
   r.reject_unknown();
   if (mapping.lower_percentile >= mapping.upper_percentile)
     throw SceneError("scene: '" + r.field("lower_percentile") +
@@ -53,8 +53,8 @@ json mapping_to_json(const ColourMapping& m) {
 }
 
 void read_size(sim::ObjectReader& r, int& width, int& height) {
-  r.integer("width", width, kMinImageSide, kMaxImageSide);
-  r.integer("height", height, kMinImageSide, kMaxImageSide);
+  r.integer("width", width);
+  r.integer("height", height);
 }
 
 }  // namespace
@@ -107,7 +107,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     std::string field(analysis::slice_field_name(view.field));
     v.string("field", field);
     view.field = analysis::slice_field_from_name(field, "render.view3d.field");
-    v.number("every", view.every, sim::non_negative);
+    v.number("every", view.every);
     read_size(v, view.width, view.height);
     view.colour = parse_mapping(v.object("colour"), view.colour);
     v.reject_unknown();

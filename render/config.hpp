@@ -11,12 +11,6 @@
 
 namespace sphles::render {
 
-/// Image sides [px] of every frame (docs/scenes.md, "Limits"). Rendering holds about 50 bytes
-/// per pixel of each frame size in use (OSMesa and VTK buffers, read-back, PNG; measured, see
-/// control/resources.cpp): 4096 x 4096 is about 800 MiB; 8192 x 8192 would be over 3 GiB.
-inline constexpr int kMinImageSide = 64;
-inline constexpr int kMaxImageSide = 4096;
-
 /// Log scale between the 1st and 99th percentiles.
 inline ColourMapping log_mapping() {
   ColourMapping mapping;

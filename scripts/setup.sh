@@ -8,7 +8,7 @@ packages=(
   build-essential cmake ninja-build pkg-config clang-format
   libeigen3-dev libhdf5-dev hdf5-tools libfftw3-dev
   libvtk9-dev libosmesa6-dev libopenmpi-dev openmpi-bin libpng-dev
-  libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev
+  libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libvalijson-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
   python3 python3-matplotlib python3-h5py python3-websocket

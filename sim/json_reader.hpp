@@ -1,5 +1,7 @@
-// Reading validated configuration objects from JSON: every read names its dotted field, and keys
-// nobody read are reported as unknown. Used by every module that owns a section of a scene.
+// Reading validated configuration objects from JSON: every read names its dotted field and takes
+// the field's type and bounds from the scene's schema (sim/scene.schema.json, scene_schema.hpp);
+// keys the schema does not declare are reported as unknown. Used by every module that owns a
+// section of a scene.
 #pragma once
 
 #include <algorithm>
@@ -15,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sim/scene.hpp"
+#include "sim/scene_schema.hpp"
 
 namespace sphles::sim {
 
@@ -73,7 +76,11 @@ inline std::optional<std::string> closest_key(const std::string& key,
 /// as unknown. Targets hold their defaults on entry.
 class ObjectReader {
  public:
-  ObjectReader(const json& object, std::string path) : object_(object), path_(std::move(path)) {
+  /// The object at the dotted `path` of the scene ("" for the whole scene), whose schema the
+  /// scene's schema must declare.
+  ObjectReader(const json& object, std::string path)
+      : object_(object), path_(std::move(path)), schema_(scene_schema_node(path_)) {
+    if (!schema_) throw std::logic_error("scene schema declares no '" + label() + "'");
     if (!object_.is_object())
       throw SceneError("scene: '" + label() + "' must be an object, got " + describe_type(object_));
   }
@@ -82,7 +89,10 @@ class ObjectReader {
     return path_.empty() ? key : path_ + "." + key;
   }
 
+  /// The value of `key`, nullptr when absent. Throws std::logic_error when the schema does not
+  /// declare the key (a reader asking for a key the schema does not declare is a defect).
   const json* find(const std::string& key) {
+    schema_of(key);
     seen_.insert(key);
     const auto it = object_.find(key);
     return it == object_.end() ? nullptr : &*it;
@@ -94,6 +104,8 @@ class ObjectReader {
     return ObjectReader(value ? *value : kEmpty, field(key));
   }
 
+  /// A number within the schema's bounds of the key, and `check` (for bounds that depend on
+  /// other keys) when given.
   void number(const std::string& key, double& target,
               const std::function<std::optional<std::string>(double)>& check = {}) {
     const json* value = find(key);
@@ -103,23 +115,28 @@ class ObjectReader {
                        describe_type(*value));
     const double x = value->get<double>();
     if (!std::isfinite(x)) throw SceneError("scene: '" + field(key) + "' must be finite");
+    if (auto reason = violated_bounds(schema_of(key), x))
+      throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + format_number(x));
     if (check)
       if (auto reason = check(x))
         throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + format_number(x));
     target = x;
   }
 
+  /// An integer within the schema's bounds of the key.
   template <class Int>
-  void integer(const std::string& key, Int& target, long long min, long long max) {
+  void integer(const std::string& key, Int& target) {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_number_integer())
       throw SceneError("scene: '" + field(key) + "' must be an integer, got " +
                        (value->is_number() ? "a fractional number" : describe_type(*value)));
+    if (value->is_number_unsigned() && value->get<unsigned long long>() > kMaxLongLong)
+      throw SceneError("scene: '" + field(key) + "' must be at most " +
+                       std::to_string(kMaxLongLong));
     const long long x = value->get<long long>();
-    if (x < min || x > max)
-      throw SceneError("scene: '" + field(key) + "' must be in [" + std::to_string(min) + ", " +
-                       std::to_string(max) + "], got " + std::to_string(x));
+    if (auto reason = violated_bounds(schema_of(key), static_cast<double>(x)))
+      throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + std::to_string(x));
     target = static_cast<Int>(x);
   }
 
@@ -172,40 +189,35 @@ class ObjectReader {
     target = std::move(result);
   }
 
-  /// Throws on the first key that no read asked for, suggesting the known key it is a typo of.
+  /// Throws on the first key the schema does not declare, suggesting the declared key it is a
+  /// typo of; std::logic_error for a declared key that no read asked for (a defect: the key
+  /// would be accepted and ignored).
   void reject_unknown() const {
-    for (const auto& [key, value] : object_.items())
-      if (!seen_.contains(key)) {
-        const std::optional<std::string> near = closest_key(key, seen_);
-        throw SceneError("scene: unknown key '" + field(key) + "'" +
-                         (near ? "; did you mean '" + field(*near) + "'?" : std::string()));
-      }
+    std::set<std::string> declared;
+    if (const auto properties = schema_->find("properties"); properties != schema_->end())
+      for (const auto& [key, value] : properties->items()) declared.insert(key);
+    for (const auto& [key, value] : object_.items()) {
+      if (seen_.contains(key)) continue;
+      if (declared.contains(key))
+        throw std::logic_error("scene schema declares '" + field(key) + "', which no reader reads");
+      const std::optional<std::string> near = closest_key(key, declared);
+      throw SceneError("scene: unknown key '" + field(key) + "'" +
+                       (near ? "; did you mean '" + field(*near) + "'?" : std::string()));
+    }
   }
 
  private:
+  static constexpr unsigned long long kMaxLongLong = 9223372036854775807ULL;
   std::string label() const { return path_.empty() ? "(top level)" : path_; }
+  const json& schema_of(const std::string& key) const {
+    const json* node = scene_schema_property(*schema_, key);
+    if (!node) throw std::logic_error("scene schema declares no '" + field(key) + "'");
+    return *node;
+  }
   const json& object_;
   std::string path_;
+  const json* schema_;
   std::set<std::string> seen_;
 };
-
-inline std::optional<std::string> positive(double x) {
-  if (x > 0.0) return std::nullopt;
-  return "must be > 0";
-}
-inline std::optional<std::string> non_negative(double x) {
-  if (x >= 0.0) return std::nullopt;
-  return "must be >= 0";
-}
-inline auto in_range(double lo, double hi, bool open_high = false) {
-  return [lo, hi, open_high](double x) -> std::optional<std::string> {
-    if (x >= lo && (open_high ? x < hi : x <= hi)) return std::nullopt;
-    return "must be in [" + format_number(lo) + ", " + format_number(hi) + (open_high ? ")" : "]");
-  };
-}
-inline std::optional<std::string> courant(double x) {
-  if (x > 0.0 && x <= 2.0) return std::nullopt;
-  return "must be in (0, 2]";
-}
 
 }  // namespace sphles::sim

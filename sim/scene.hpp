@@ -107,14 +107,8 @@ struct Scene {
   std::size_t num_particles() const;
 };
 
-/// Bounds of scene keys whose extremes only cost memory or time (docs/scenes.md, "Limits").
-/// D_K/Δl: at 2 the support H = Δl holds no lattice neighbour, at 3 it holds the 8 (2D) or 18
-/// (3D) nearest ones; the presets, the thesis and docs/accuracy.md use 4 to 12. At 16 a 3D
-/// particle has about 3300 list neighbours (8 times the memory and work of D_K = 8Δl).
-inline constexpr double kMinDiameterOverSpacing = 3.0;
-inline constexpr double kMaxDiameterOverSpacing = 16.0;
-/// Newest checkpoints kept: bounds a run's checkpoint directory to this many state files.
-inline constexpr int kMaxCheckpointsKept = 100;
+/// Bounds of scene keys are declared by the scene schema (sim/scene.schema.json, its "$comment"s
+/// say why; docs/scenes.md, "Limits").
 /// A non-zero cadence (output.timeseries_every, checkpoint.every, analysis.every) shorter than
 /// a step cuts every step short to land on the next cadence point, so the run takes one step per
 /// point: a cadence of 1e-9 s stalls it. A cadence is accepted when it is at least this fraction

@@ -168,21 +168,22 @@ void expect_bound(const json& base, const std::string& key, const json& at, cons
 
 TEST(SceneLimits, BoundsAreAcceptedAndTheNextValueBeyondIsRefused) {
   const json tgv3d = {{"preset", "tgv3d"}};
-  const double min_d = sim::kMinDiameterOverSpacing, max_d = sim::kMaxDiameterOverSpacing;
+  // The limits of docs/scenes.md ("Limits"), declared by sim/scene.schema.json.
+  const double min_d = 3.0, max_d = 16.0;
+  const int max_keep = 100, max_bins = 256, max_angle_bins = 360, max_side = 4096;
   expect_bound(tgv3d, "kernel.diameter_over_spacing", min_d, std::nextafter(min_d, 0.0),
                "kernel.diameter_over_spacing");
   expect_bound(tgv3d, "kernel.diameter_over_spacing", max_d, std::nextafter(max_d, 100.0),
                "kernel.diameter_over_spacing");
-  expect_bound(tgv3d, "checkpoint.keep", sim::kMaxCheckpointsKept, sim::kMaxCheckpointsKept + 1,
-               "checkpoint.keep");
+  expect_bound(tgv3d, "checkpoint.keep", max_keep, max_keep + 1, "checkpoint.keep");
   const json analysis = analysed(tgv3d, {{"every", 0.5}, {"products", kProducts}});
-  expect_bound(analysis, "analysis.histogram_bins", analysis::kMaxHistogramBins,
-               analysis::kMaxHistogramBins + 1, "analysis.histogram_bins");
-  expect_bound(analysis, "analysis.angle_bins", analysis::kMaxAngleBins,
-               analysis::kMaxAngleBins + 1, "analysis.angle_bins");
+  expect_bound(analysis, "analysis.histogram_bins", max_bins, max_bins + 1,
+               "analysis.histogram_bins");
+  expect_bound(analysis, "analysis.angle_bins", max_angle_bins, max_angle_bins + 1,
+               "analysis.angle_bins");
   for (const std::string key :
        {"render.width", "render.height", "render.view3d.width", "render.view3d.height"})
-    expect_bound(tgv3d, key, render::kMaxImageSide, render::kMaxImageSide + 1, key);
+    expect_bound(tgv3d, key, max_side, max_side + 1, key);
 }
 
 TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {

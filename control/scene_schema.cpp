@@ -1,0 +1,187 @@
+#include "control/scene_schema.hpp"
+
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+#include <valijson/adapters/nlohmann_json_adapter.hpp>
+#include <valijson/schema.hpp>
+#include <valijson/schema_parser.hpp>
+#include <valijson/validation_results.hpp>
+#include <valijson/validator.hpp>
+
+#include "analysis/config.hpp"
+#include "sim/scene.hpp"
+#include "sim/scene_schema.hpp"
+
+namespace sphles::control {
+
+using nlohmann::json;
+
+namespace {
+
+/// A copy of `node` with every {"$ref": "#/..."} replaced by its target (the published schema
+/// stands alone, e.g. as a component of the OpenAPI document).
+json inline_refs(const json& node, const json& root) {
+  if (node.is_object()) {
+    if (const auto ref = node.find("$ref"); ref != node.end())
+      return inline_refs(root.at(json::json_pointer(ref->get<std::string>().substr(1))), root);
+    json out = json::object();
+    for (const auto& [key, value] : node.items())
+      if (key != "$defs") out[key] = inline_refs(value, root);
+    return out;
+  }
+  if (node.is_array()) {
+    json out = json::array();
+    for (const json& value : node) out.push_back(inline_refs(value, root));
+    return out;
+  }
+  return node;
+}
+
+json& node_at(json& schema, std::string_view dotted) {
+  json* node = &schema;
+  std::size_t start = 0;
+  while (start < dotted.size()) {
+    std::size_t end = dotted.find('.', start);
+    if (end == std::string_view::npos) end = dotted.size();
+    node = &node->at("properties").at(std::string(dotted.substr(start, end - start)));
+    start = end + 1;
+  }
+  return *node;
+}
+
+template <class Enum>
+std::vector<std::string> names(std::string_view (*name_of)(Enum)) {
+  return sim::registered_names<Enum>(name_of);
+}
+
+json build_schema() {
+  const json& document = sim::scene_schema_document();
+  json schema = inline_refs(document, document);
+  const std::vector<std::string> slice_fields = names(analysis::slice_field_name);
+  std::vector<std::string> grid_fields = {"velocity"};
+  grid_fields.insert(grid_fields.end(), slice_fields.begin(), slice_fields.end());
+  const auto set_enum = [&](std::string_view field, const std::vector<std::string>& values) {
+    node_at(schema, field)["enum"] = values;
+  };
+  const auto set_item_enum = [&](std::string_view field, const std::vector<std::string>& values) {
+    node_at(schema, field)["items"]["enum"] = values;
+  };
+  set_enum("preset", sim::preset_names());
+  set_enum("case", sim::case_names());
+  set_enum("kernel.type", sim::kernel_names());
+  set_enum("scheme.type", sim::scheme_names());
+  set_enum("scheme.viscous_operator", sim::viscous_operator_names());
+  set_enum("scheme.ale_correction", sim::ale_correction_names());
+  set_enum("subfilter.model", sim::subfilter_model_names());
+  set_enum("initial.mass", sim::initial_mass_names());
+  set_item_enum("analysis.products", names(analysis::product_name));
+  set_item_enum("analysis.slice.fields", slice_fields);
+  set_item_enum("analysis.particle_fields", slice_fields);
+  set_item_enum("analysis.grid_fields", grid_fields);
+  set_enum("analysis.gridding.velocity", names(analysis::velocity_gridding_name));
+  set_enum("analysis.gridding.vorticity", names(analysis::vorticity_estimate_name));
+  set_item_enum("render.fields", slice_fields);
+  set_enum("render.view3d.field", slice_fields);
+  node_at(schema, "render.colour")["propertyNames"] = {{"enum", slice_fields}};
+  return schema;
+}
+
+/// The schema with null allowed beside every value, and no key required.
+json patch_of(const json& node) {
+  json out = node;
+  if (out.contains("properties"))
+    for (auto& [key, child] : out["properties"].items()) child = patch_of(child);
+  if (out.contains("additionalProperties") && out["additionalProperties"].is_object())
+    out["additionalProperties"] = patch_of(out["additionalProperties"]);
+  json type = out.value("type", json());
+  if (type.is_string()) type = json::array({type});
+  if (type.is_array() && std::find(type.begin(), type.end(), "null") == type.end())
+    type.push_back("null");
+  if (!type.is_null()) out["type"] = type;
+  if (out.contains("enum") &&
+      std::find(out["enum"].begin(), out["enum"].end(), nullptr) == out["enum"].end())
+    out["enum"].push_back(nullptr);
+  return out;
+}
+
+struct Validator {
+  valijson::Schema schema;
+  Validator() {
+    valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+    valijson::adapters::NlohmannJsonAdapter adapter(scene_schema());
+    parser.populateSchema(adapter, schema);
+  }
+};
+
+/// valijson's context ("<root>", "[kernel]", "[type]", "[0]") as the dotted field "kernel.type[0]".
+std::string dotted_context(const std::vector<std::string>& context) {
+  std::string field;
+  for (const std::string& part : context) {
+    if (part == "<root>" || part.size() < 2) continue;
+    const std::string inner = part.substr(1, part.size() - 2);
+    const bool index = !inner.empty() && inner.find_first_not_of("0123456789") == std::string::npos;
+    if (index)
+      field += part;
+    else
+      field += (field.empty() ? "" : ".") + inner;
+  }
+  return field.empty() ? "(top level)" : field;
+}
+
+}  // namespace
+
+const json& scene_schema() {
+  static const json schema = build_schema();
+  return schema;
+}
+
+json scene_patch_schema() {
+  json patch = patch_of(scene_schema());
+  patch["title"] = "sphles scene patch";
+  patch["description"] =
+      "A JSON merge patch (RFC 7396) of a scene: the keys of the scene, each also null (removes "
+      "the key, back to its default).";
+  patch["type"] = "object";
+  return patch;
+}
+
+std::optional<std::string> schema_violation(const json& document) {
+  static const Validator validator;
+  valijson::Validator check;
+  valijson::ValidationResults results;
+  valijson::adapters::NlohmannJsonAdapter adapter(document);
+  if (check.validate(validator.schema, adapter, &results)) return std::nullopt;
+  // The deepest error names the field most precisely (the first is its enclosing object).
+  valijson::ValidationResults::Error error, deepest;
+  while (results.popError(error))
+    if (error.context.size() > deepest.context.size()) deepest = error;
+  return "'" + dotted_context(deepest.context) + "' " + deepest.description;
+}
+
+LiveRule live_rule(const std::string& dotted) {
+  LiveRule rule;
+  const json* node = &sim::scene_schema_document();
+  std::size_t start = 0;
+  const auto apply = [&](const json& n) {
+    if (const auto live = n.find("x-live"); live != n.end()) {
+      rule.live = live->get<bool>();
+      rule.reason.clear();
+    }
+    if (const auto fixed = n.find("x-fixed"); fixed != n.end()) {
+      rule.live = false;
+      rule.reason = fixed->get<std::string>();
+    }
+  };
+  while (node && start < dotted.size()) {
+    std::size_t end = dotted.find('.', start);
+    if (end == std::string::npos) end = dotted.size();
+    node = sim::scene_schema_property(*node, dotted.substr(start, end - start));
+    if (node) apply(*node);
+    start = end + 1;
+  }
+  return rule;
+}
+
+}  // namespace sphles::control

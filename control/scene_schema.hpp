@@ -1,0 +1,35 @@
+// The scene's schema as the program publishes it: sim/scene.schema.json with the names of every
+// registry filled in (kernels, schemes, sub-filter models, analysis products and fields, presets),
+// for the API (GET /api/schema/scene, the OpenAPI document), the dashboard, `sphles schema` and
+// docs/scenes.md; the validation of a whole scene document against it; and the live-change rules
+// it declares ("x-live", "x-fixed").
+#pragma once
+
+#include <optional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace sphles::control {
+
+/// The published scene schema (draft-07 JSON Schema): "$ref"s inlined, registry names as "enum".
+const nlohmann::json& scene_schema();
+
+/// The same for a JSON merge patch of a scene (PATCH /api/runs/{id}/parameters): every value may
+/// also be null (a removal).
+nlohmann::json scene_patch_schema();
+
+/// The first violation of scene_schema() by `document` (valijson), as "'dotted.field' reason";
+/// nullopt when it conforms.
+std::optional<std::string> schema_violation(const nlohmann::json& document);
+
+/// Whether a running run may change the dotted field, and why not: the nearest "x-live" /
+/// "x-fixed" of the field or its parents in the schema. `reason` is empty for a refusal the
+/// schema gives no reason for.
+struct LiveRule {
+  bool live = false;
+  std::string reason;
+};
+LiveRule live_rule(const std::string& dotted);
+
+}  // namespace sphles::control
