@@ -30,6 +30,10 @@ void add_inspect_command(CLI::App& app, int& exit_code);
 /// sphles presets: lists the presets.
 void add_presets_command(CLI::App& app, int& exit_code);
 
+/// sphles schema [scene|patch|openapi]: the scene's JSON Schema (control/scene_schema.hpp), the
+/// schema of a scene patch, or the service's OpenAPI document.
+void add_schema_command(CLI::App& app, int& exit_code);
+
 /// sphles calibrate SCENE.json|PRESET --target-urms U [...]: the Kolmogorov forcing amplitude.
 void add_calibrate_command(CLI::App& app, int& exit_code);
 

@@ -24,6 +24,7 @@ int main(int argc, char** argv) {
   app::add_run_command(cli, exit_code);
   app::add_serve_command(cli, exit_code);
   app::add_presets_command(cli, exit_code);
+  app::add_schema_command(cli, exit_code);
   app::add_estimate_command(cli, exit_code);
   app::add_inspect_command(cli, exit_code);
   app::add_calibrate_command(cli, exit_code);

@@ -5,8 +5,10 @@
 #include <set>
 
 #include "app/commands.hpp"
+#include "control/scene_schema.hpp"
 #include "io/checkpoint.hpp"
 #include "io/particle_snapshot.hpp"
+#include "server/openapi.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
 
@@ -103,6 +105,29 @@ void add_presets_command(CLI::App& app, int& exit_code) {
           "The 21 Taylor-Green cases of the thesis and kolmogorov2d; run one by name, "
           "scaled down with --set particles_per_side=N.")
       ->callback([&exit_code] { exit_code = presets_command(); });
+}
+
+void add_schema_command(CLI::App& app, int& exit_code) {
+  auto which = std::make_shared<std::string>("scene");
+  CLI::App* schema = app.add_subcommand(
+      "schema", "print the scene's JSON Schema (or the scene patch's, or the API's OpenAPI)");
+  schema->footer(
+      "The scene schema is the one declaration of every scene key: type, bounds, default, "
+      "description, and whether a running run may change it (x-live, x-fixed); the same "
+      "document as GET /api/schema/scene (docs/scenes.md).");
+  schema->add_option("document", *which, "which document")
+      ->check(CLI::IsMember({"scene", "patch", "openapi"}))
+      ->type_name("scene|patch|openapi");
+  schema->callback([which, &exit_code] {
+    if (*which == "openapi")
+      std::printf("%s\n", server::served_openapi_document().c_str());
+    else
+      std::printf("%s\n",
+                  (*which == "patch" ? control::scene_patch_schema() : control::scene_schema())
+                      .dump(2)
+                      .c_str());
+    exit_code = kExitOk;
+  });
 }
 
 }  // namespace sphles::app

@@ -1,11 +1,18 @@
-// server/openapi.json, embedded at build time (server/CMakeLists.txt generates the definition).
+// The OpenAPI document of the service: server/openapi.json (embedded at build time,
+// cmake/EmbedFile.cmake) with the scene's schema as its Scene and ScenePatch components
+// (control/scene_schema.hpp), so that the API describes scene bodies by the one declaration.
 #pragma once
 
+#include <string>
 #include <string_view>
 
 namespace sphles::server {
 
-/// The OpenAPI 3 document served at /api/openapi.json.
+/// The bytes of server/openapi.json.
 std::string_view openapi_document();
+
+/// The OpenAPI 3.1 document served at /api/openapi.json: openapi_document() with
+/// components.schemas.Scene and ScenePatch filled in from the scene schema.
+const std::string& served_openapi_document();
 
 }  // namespace sphles::server

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "analysis/reference.hpp"
+#include "control/scene_schema.hpp"
 #include "logging/logging.hpp"
 #include "server/auth.hpp"
 #include "server/openapi.hpp"
@@ -128,8 +129,11 @@ Response health(const Router::Services& s, const Context& c) {
 }
 
 Response openapi(const Router::Services&, const Context& c) {
-  return make_response(c.request, http::status::ok, std::string(openapi_document()),
-                       "application/json");
+  return make_response(c.request, http::status::ok, served_openapi_document(), "application/json");
+}
+
+Response scene_schema(const Router::Services&, const Context& c) {
+  return json_response(c.request, control::scene_schema());
 }
 
 Response presets(const Router::Services& s, const Context& c) {
@@ -457,6 +461,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/health", false}, health},
       {{V::get, "/api/openapi.json", false}, openapi},
       {{V::get, "/api/presets", false}, presets},
+      {{V::get, "/api/schema/scene", false}, scene_schema},
       {{V::get, "/api/runs", false}, list_runs},
       {{V::post, "/api/runs", true}, create_run, true},
       {{V::post, "/api/estimate", true}, estimate_run, true},

@@ -43,6 +43,18 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
     for (const auto& [key, value] : item.items())
       if (key != "parameters" && key != "summary" && key != "description") ++documented;
   EXPECT_EQ(documented, operations);
+  // Scene bodies are described by the scene schema, served as a component and on its own.
+  const json& scene = doc["components"]["schemas"]["Scene"];
+  EXPECT_EQ(scene["properties"]["kernel"]["properties"]["type"]["enum"][0], "wendland_c2");
+  EXPECT_FALSE(scene.contains("$schema"));
+  EXPECT_EQ(doc["components"]["schemas"]["CreateRequest"]["properties"]["scene"]["$ref"],
+            "#/components/schemas/Scene");
+  const Reply schema = Api{server.port()}.get("/api/schema/scene");
+  ASSERT_EQ(schema.status, 200);
+  EXPECT_EQ(
+      schema.body_json()["properties"]["fluid"]["properties"]["sound_speed"]["exclusiveMinimum"],
+      0);
+  EXPECT_EQ(schema.body_json()["properties"]["kernel"], scene["properties"]["kernel"]);
 }
 
 TEST(Server, ListsPresets) {
