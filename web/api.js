@@ -72,6 +72,7 @@ const HISTORY_POINTS = 20000;
 export const api = {
   health: () => request('GET', '/api/health'),
   presets: () => request('GET', '/api/presets'),
+  sceneSchema: () => request('GET', '/api/schema/scene'),
   runs: () => request('GET', '/api/runs'),
   run: (id) => request('GET', run(id)),
   create: (body) => request('POST', '/api/runs', body),

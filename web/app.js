@@ -55,6 +55,7 @@ const $ = (id) => document.getElementById(id);
 const app = {
   runs: [],
   presets: [],
+  sceneSchema: null,  // GET /api/schema/scene: the form's options, bounds and tooltips
   selectedId: null,
   summary: null,  // run summary of the selected run (from the list, the stream or an action)
   detail: null,   // run detail (scene, changeable, counters)
@@ -396,6 +397,61 @@ async function onEstimate() {
     showStatus('create-status', errorText(e), 'error');
   } finally {
     button.disabled = false;
+  }
+}
+
+// ---------------------------------------------------------------- scene schema
+
+/** The schema of a dotted scene field in the scene schema (GET /api/schema/scene), or null. */
+function schemaNode(schema, path) {
+  let node = schema;
+  for (const key of path.split('.')) {
+    const next = node?.properties?.[key] ??
+      (typeof node?.additionalProperties === 'object' ? node.additionalProperties : undefined);
+    if (!next) return null;
+    node = next;
+  }
+  return node;
+}
+
+/**
+ * Fits every form field that names a scene key (data-path) to the scene schema, the one
+ * declaration of the scene (docs/scenes.md): the options of a select are the schema's names
+ * (labels kept for names the page knows, the name itself for new ones), a number input takes
+ * the schema's bounds and integer step, and every field the schema's description as its tooltip.
+ */
+function applySceneSchema(schema) {
+  app.sceneSchema = schema;
+  for (const el of document.querySelectorAll('[data-path]')) {
+    const node = schemaNode(schema, el.dataset.path);
+    if (!node) continue;
+    if (node.description && !el.title) el.title = node.description;
+    if (el.tagName === 'SELECT' && Array.isArray(node.enum)) {
+      const labels = new Map([...el.options].map((o) => [o.value, o.textContent]));
+      const options = [];
+      if (labels.has('')) options.push(['', labels.get('')]);
+      for (const name of node.enum) options.push([name, labels.get(name) ?? name]);
+      el.replaceChildren(...options.map(([value, label]) => {
+        const o = document.createElement('option');
+        o.value = value;
+        o.textContent = label;
+        return o;
+      }));
+    } else if (el.tagName === 'INPUT' && el.type === 'number') {
+      const lower = node.minimum ?? node.exclusiveMinimum;
+      const upper = node.maximum ?? node.exclusiveMaximum;
+      if (lower !== undefined) el.min = String(lower);
+      if (upper !== undefined) el.max = String(upper);
+      if (node.type === 'integer') el.step = '1';
+    }
+  }
+}
+
+async function loadSceneSchema() {
+  try {
+    applySceneSchema(await api.sceneSchema());
+  } catch (e) {
+    showStatus('create-status', `Could not load the scene schema: ${errorText(e)}`, 'error');
   }
 }
 
@@ -1131,6 +1187,7 @@ function main() {
   api.health().then((h) => {
     $('api-state').title = `sphles ${h.version ?? ''} — REST API polled every ${POLL_MS / 1000} s`;
   }).catch(() => {});
+  loadSceneSchema();
   loadPresets();
   pollRuns();
   setInterval(() => {

@@ -178,6 +178,21 @@ async function run() {
     const all = await page.locator('#create-preset option').allTextContents();
     return all.length ? all : null;
   }, 10_000);
+  // The form's choices and bounds are the scene schema's (GET /api/schema/scene, issue 20): the
+  // kernel select offers exactly the schema's kernel names, and a number field its bounds.
+  const schema = await (await fetch(`${base}/api/schema/scene`)).json();
+  const kernelNames = schema.properties.kernel.properties.type.enum;
+  await waitFor('the kernel choices of the scene schema', async () => {
+    const values = await page.locator('#create-kernel option').evaluateAll((os) => os.map((o) => o.value));
+    return JSON.stringify(values) === JSON.stringify(['', ...kernelNames]) ? values : null;
+  }, 10_000);
+  const particles = page.locator('#create-particles');
+  const schemaPps = schema.properties.particles_per_side;
+  if ((await particles.getAttribute('max')) !== String(schemaPps.maximum) ||
+      !(await particles.getAttribute('title'))?.startsWith(schemaPps.description.slice(0, 10)))
+    fail('the particles field does not carry the scene schema\'s bound and description');
+  pass(`form fields follow the scene schema (${kernelNames.length} kernels, bounds, descriptions)`);
+
   const label = labels.find((l) => /tgv2d/i.test(l));
   if (!label) fail(`no 2D Taylor-Green choice in the run form (options: ${labels.join(', ')})`);
   await page.selectOption('#create-preset', { label });
