@@ -30,8 +30,9 @@ void add_inspect_command(CLI::App& app, int& exit_code);
 /// sphles presets: lists the presets.
 void add_presets_command(CLI::App& app, int& exit_code);
 
-/// sphles schema [scene|patch|openapi]: the scene's JSON Schema (control/scene_schema.hpp), the
-/// schema of a scene patch, or the service's OpenAPI document.
+/// sphles schema [scene|patch|openapi|asyncapi]: the scene's JSON Schema
+/// (control/scene_schema.hpp), the schema of a scene patch, the service's OpenAPI document or the
+/// run stream's AsyncAPI document.
 void add_schema_command(CLI::App& app, int& exit_code);
 
 /// sphles calibrate SCENE.json|PRESET --target-urms U [...]: the Kolmogorov forcing amplitude.

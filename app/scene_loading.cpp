@@ -110,17 +110,21 @@ void add_presets_command(CLI::App& app, int& exit_code) {
 void add_schema_command(CLI::App& app, int& exit_code) {
   auto which = std::make_shared<std::string>("scene");
   CLI::App* schema = app.add_subcommand(
-      "schema", "print the scene's JSON Schema (or the scene patch's, or the API's OpenAPI)");
+      "schema",
+      "print the scene's JSON Schema (or the scene patch's, the API's OpenAPI or the stream's "
+      "AsyncAPI document)");
   schema->footer(
       "The scene schema is the one declaration of every scene key: type, bounds, default, "
       "description, and whether a running run may change it (x-live, x-fixed); the same "
       "document as GET /api/schema/scene (docs/scenes.md).");
   schema->add_option("document", *which, "which document")
-      ->check(CLI::IsMember({"scene", "patch", "openapi"}))
-      ->type_name("scene|patch|openapi");
+      ->check(CLI::IsMember({"scene", "patch", "openapi", "asyncapi"}))
+      ->type_name("scene|patch|openapi|asyncapi");
   schema->callback([which, &exit_code] {
     if (*which == "openapi")
       std::printf("%s\n", server::served_openapi_document().c_str());
+    else if (*which == "asyncapi")
+      std::printf("%s\n", server::served_asyncapi_document().c_str());
     else
       std::printf("%s\n",
                   (*which == "patch" ? control::scene_patch_schema() : control::scene_schema())

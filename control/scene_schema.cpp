@@ -106,15 +106,6 @@ json patch_of(const json& node) {
   return out;
 }
 
-struct Validator {
-  valijson::Schema schema;
-  Validator() {
-    valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
-    valijson::adapters::NlohmannJsonAdapter adapter(scene_schema());
-    parser.populateSchema(adapter, schema);
-  }
-};
-
 /// valijson's context ("<root>", "[kernel]", "[type]", "[0]") as the dotted field "kernel.type[0]".
 std::string dotted_context(const std::vector<std::string>& context) {
   std::string field;
@@ -129,6 +120,30 @@ std::string dotted_context(const std::vector<std::string>& context) {
   }
   return field.empty() ? "(top level)" : field;
 }
+
+/// A parsed draft-07 schema and the first violation of it by a document.
+class Validator {
+ public:
+  explicit Validator(const json& schema) {
+    valijson::SchemaParser parser(valijson::SchemaParser::kDraft7);
+    valijson::adapters::NlohmannJsonAdapter adapter(schema);
+    parser.populateSchema(adapter, schema_);
+  }
+  std::optional<std::string> violation(const json& document) const {
+    valijson::Validator check;
+    valijson::ValidationResults results;
+    valijson::adapters::NlohmannJsonAdapter adapter(document);
+    if (check.validate(schema_, adapter, &results)) return std::nullopt;
+    // The deepest error names the field most precisely (the first is its enclosing object).
+    valijson::ValidationResults::Error error, deepest;
+    while (results.popError(error))
+      if (error.context.size() > deepest.context.size()) deepest = error;
+    return "'" + dotted_context(deepest.context) + "' " + deepest.description;
+  }
+
+ private:
+  valijson::Schema schema_;
+};
 
 }  // namespace
 
@@ -148,16 +163,12 @@ json scene_patch_schema() {
 }
 
 std::optional<std::string> schema_violation(const json& document) {
-  static const Validator validator;
-  valijson::Validator check;
-  valijson::ValidationResults results;
-  valijson::adapters::NlohmannJsonAdapter adapter(document);
-  if (check.validate(validator.schema, adapter, &results)) return std::nullopt;
-  // The deepest error names the field most precisely (the first is its enclosing object).
-  valijson::ValidationResults::Error error, deepest;
-  while (results.popError(error))
-    if (error.context.size() > deepest.context.size()) deepest = error;
-  return "'" + dotted_context(deepest.context) + "' " + deepest.description;
+  static const Validator validator(scene_schema());
+  return validator.violation(document);
+}
+
+std::optional<std::string> json_schema_violation(const json& schema, const json& document) {
+  return Validator(schema).violation(document);
 }
 
 LiveRule live_rule(const std::string& dotted) {

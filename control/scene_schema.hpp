@@ -23,6 +23,13 @@ nlohmann::json scene_patch_schema();
 /// nullopt when it conforms.
 std::optional<std::string> schema_violation(const nlohmann::json& document);
 
+/// The first violation of the JSON Schema (draft-07) `schema` by `document`, as "'dotted.field'
+/// reason"; nullopt when it conforms. "$ref"s resolve within `schema` ("#/..."), so a schema
+/// may be {"$ref": "#/components/messages/metrics/payload", "components": {...}} to check a
+/// message against a part of a larger document (the AsyncAPI document's payloads, tests).
+std::optional<std::string> json_schema_violation(const nlohmann::json& schema,
+                                                 const nlohmann::json& document);
+
 /// Whether a running run may change the dotted field, and why not: the nearest "x-live" /
 /// "x-fixed" of the field or its parents in the schema. `reason` is empty for a refusal the
 /// schema gives no reason for.

@@ -29,4 +29,14 @@ const std::string& served_openapi_document() {
   return document;
 }
 
+const std::string& served_asyncapi_document() {
+  static const std::string document = [] {
+    nlohmann::json d = nlohmann::json::parse(asyncapi_document());
+    d["components"]["schemas"] =
+        nlohmann::json::parse(served_openapi_document())["components"]["schemas"];
+    return d.dump(2);
+  }();
+  return document;
+}
+
 }  // namespace sphles::server

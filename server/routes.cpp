@@ -132,6 +132,10 @@ Response openapi(const Router::Services&, const Context& c) {
   return make_response(c.request, http::status::ok, served_openapi_document(), "application/json");
 }
 
+Response asyncapi(const Router::Services&, const Context& c) {
+  return make_response(c.request, http::status::ok, served_asyncapi_document(), "application/json");
+}
+
 Response scene_schema(const Router::Services&, const Context& c) {
   return json_response(c.request, control::scene_schema());
 }
@@ -460,6 +464,7 @@ const std::vector<Route>& route_table() {
   static const std::vector<Route> table = {
       {{V::get, "/api/health", false}, health},
       {{V::get, "/api/openapi.json", false}, openapi},
+      {{V::get, "/api/asyncapi.json", false}, asyncapi},
       {{V::get, "/api/presets", false}, presets},
       {{V::get, "/api/schema/scene", false}, scene_schema},
       {{V::get, "/api/runs", false}, list_runs},

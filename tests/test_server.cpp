@@ -1,11 +1,32 @@
 // Integration tests of the sphles service (server/) against real servers on ephemeral loopback
 // ports, driving real runs (tiny 2D Taylor-Green scenes) through the REST API and WebSocket
 // streams of docs/api.md. Clients are Boost.Beast / raw sockets; nothing is mocked.
+#include "control/scene_schema.hpp"
 #include "server_test_support.hpp"
 
 namespace {
 
 using namespace sphles_server_test;
+
+/// The run stream's messages as the served AsyncAPI document declares them.
+json stream_messages(const Api& api) {
+  const Reply r = api.get("/api/asyncapi.json");
+  EXPECT_EQ(r.status, 200);
+  return r.body_json();
+}
+
+/// A stream message (either direction) conforms to its payload schema in the AsyncAPI document,
+/// checked by valijson.
+void expect_declared(const json& asyncapi, const json& message) {
+  const std::string type = message.value("type", "");
+  ASSERT_TRUE(asyncapi["components"]["messages"].contains(type)) << "undeclared message " << type;
+  json schema = asyncapi;
+  schema["$ref"] = "#/components/messages/" + type + "/payload";
+  const std::optional<std::string> violation =
+      sphles::control::json_schema_violation(schema, message);
+  EXPECT_EQ(violation, std::nullopt)
+      << violation.value_or("") << " in " << message.dump().substr(0, 600);
+}
 
 // =============================================================================================
 
@@ -55,6 +76,23 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
       schema.body_json()["properties"]["fluid"]["properties"]["sound_speed"]["exclusiveMinimum"],
       0);
   EXPECT_EQ(schema.body_json()["properties"]["kernel"], scene["properties"]["kernel"]);
+
+  // The stream's AsyncAPI document: its payloads use the same component schemas, and the
+  // validation the stream tests rely on refuses what the declarations refuse.
+  const json asyncapi = stream_messages(Api{server.port()});
+  EXPECT_EQ(asyncapi["asyncapi"], "3.0.0");
+  EXPECT_EQ(asyncapi["components"]["schemas"]["Metrics"], doc["components"]["schemas"]["Metrics"]);
+  const auto violation = [&](const json& message) {
+    json schema = asyncapi;
+    schema["$ref"] = "#/components/messages/" + message["type"].get<std::string>() + "/payload";
+    return sphles::control::json_schema_violation(schema, message);
+  };
+  EXPECT_EQ(violation({{"type", "state"}, {"state", "paused"}, {"reason", ""}}), std::nullopt);
+  EXPECT_NE(violation({{"type", "state"}, {"state", "dancing"}, {"reason", ""}}), std::nullopt);
+  EXPECT_NE(violation({{"type", "metrics"}, {"samples", json::array()}}), std::nullopt);
+  EXPECT_NE(violation({{"type", "images"}, {"enabled", "no"}}), std::nullopt);
+  EXPECT_NE(violation({{"type", "parameters"}, {"patch", {{"kernel", {{"type", "gauss"}}}}}}),
+            std::nullopt);
 }
 
 TEST(Server, ListsPresets) {
@@ -335,8 +373,13 @@ TEST(Server, ParameterChangesTakeEffect) {
   expect_error(api.patch("/api/runs/0999-none/parameters", {{"time", {{"end", 5.0}}}}), 404);
   EXPECT_DOUBLE_EQ(api.run(id)["scene"]["fluid"]["reference_pressure"], 2.5);
 
-  // The same over the WebSocket.
-  ws.send({{"type", "parameters"}, {"patch", {{"fluid", {{"reference_pressure", 3.0}}}}}});
+  // The same over the WebSocket; the messages either way are those the AsyncAPI document declares.
+  const json asyncapi = stream_messages(api);
+  const json change = {{"type", "parameters"},
+                       {"patch", {{"fluid", {{"reference_pressure", 3.0}}}}}};
+  expect_declared(asyncapi, change);
+  expect_declared(asyncapi, {{"type", "images"}, {"enabled", false}});
+  ws.send(change);
   const json ok = ws.read_until([](const WsMessage& m) {
                       if (m.binary) return false;
                       const std::string type = m.text().value("type", "");
@@ -344,11 +387,13 @@ TEST(Server, ParameterChangesTakeEffect) {
                     }).text();
   ASSERT_EQ(ok["type"], "changed") << ok;
   EXPECT_EQ(ok["changed"], json({"fluid.reference_pressure"}));
+  expect_declared(asyncapi, ok);
   EXPECT_TRUE(
       wait_until([&] { return api.run(id)["scene"]["fluid"]["reference_pressure"] == 3.0; }));
   ws.send({{"type", "parameters"}, {"patch", {{"particles_per_side", 8}}}});
   json error = ws.read_type("error").text();
   EXPECT_EQ(error["error"]["field"], "particles_per_side");
+  expect_declared(asyncapi, error);
   ws.send({{"type", "parameters"}, {"patch", 3}});
   EXPECT_EQ(ws.read_type("error").text()["error"]["field"], "patch");
   ws.send({{"type", "launch"}});
@@ -532,6 +577,8 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   ASSERT_EQ(hello["type"], "hello");
   EXPECT_EQ(hello["run"]["id"], id);
   EXPECT_TRUE(hello["run"].contains("scene"));
+  const json asyncapi = stream_messages(api);
+  expect_declared(asyncapi, hello);
 
   bool metrics = false, spectrum = false, statistics = false, image = false;
   std::optional<std::uint64_t> last_step;
@@ -545,6 +592,7 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
           EXPECT_LT(4 + length, m.data.size());
           const json header = json::parse(m.data.substr(4, length));
           EXPECT_EQ(header["type"], "image");
+          if (!image) expect_declared(asyncapi, header);
           EXPECT_TRUE(header["field"] == "omega2" || header["field"] == "combined") << header;
           EXPECT_TRUE(header["created_ns"].is_number_integer());
           EXPECT_TRUE(header["url"].get<std::string>().starts_with("/api/runs/" + id + "/"));
@@ -552,6 +600,9 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
           image = true;
         } else {
           const json j = m.text();
+          if ((j["type"] == "metrics" && !metrics) || (j["type"] == "spectrum" && !spectrum) ||
+              (j["type"] == "statistics" && !statistics))
+            expect_declared(asyncapi, j);
           if (j["type"] == "metrics") {
             EXPECT_FALSE(j["samples"].empty());
             for (const json& s : j["samples"]) {
@@ -640,6 +691,7 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   ASSERT_EQ(api.post("/api/runs/" + id + "/pause").status, 200);
   const json state = ws.read_type("state").text();
   EXPECT_EQ(state["state"], "paused");
+  expect_declared(asyncapi, state);
 
   // Unknown run or path: the upgrade is declined with 404.
   EXPECT_EQ(upgrade_status(server.port(), "/api/runs/0999-none/stream"), 404);
