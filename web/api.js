@@ -1,3 +1,4 @@
+// @ts-check
 // REST client of the sphles server (docs/api.md). Every call goes to the origin that served the
 // page; the optional token (stored in localStorage) is sent as `Authorization: Bearer`.
 
@@ -11,6 +12,7 @@ export function getToken() {
   }
 }
 
+/** @param {string} token */
 export function setToken(token) {
   try {
     if (token) localStorage.setItem(TOKEN_KEY, token);
@@ -22,6 +24,11 @@ export function setToken(token) {
 
 /** An error answer of the server: {"error": {"status", "message", "field"}}. */
 export class ApiError extends Error {
+  /**
+   * @param {number} status
+   * @param {string} message
+   * @param {string | null | undefined} field
+   */
   constructor(status, message, field) {
     super(message);
     this.name = 'ApiError';
@@ -30,10 +37,65 @@ export class ApiError extends Error {
   }
 }
 
+// Types (checked, not run: the ctest typed_client runs `tsc --strict --checkJs` on this file
+// against the types openapi-typescript generates from the served OpenAPI document, so a call
+// whose path, method, body or answer the document does not describe fails the build's tests).
+/** @typedef {import('sphles-openapi').paths} Paths */
+/** @typedef {'get' | 'post' | 'patch' | 'delete'} Method */
+/**
+ * The methods the OpenAPI document describes for path P.
+ * @template {keyof Paths} P
+ * @typedef {{ [M in Method]: Paths[P][M] extends undefined ? never : M }[Method]} MethodOf
+ */
+/**
+ * The JSON body of the operation's success answer (200 or 201).
+ * @template {keyof Paths} P
+ * @template {MethodOf<P>} M
+ * @typedef {Paths[P][M] extends { responses: infer R }
+ *   ? R extends { 200: { content: { 'application/json': infer B } } } ? B
+ *   : R extends { 201: { content: { 'application/json': infer B } } } ? B
+ *   : R extends { 200: { content: { 'text/plain': infer T } } } ? T
+ *   : unknown
+ *   : never} Reply
+ */
+/**
+ * The JSON request body of the operation (undefined if it has none).
+ * @template {keyof Paths} P
+ * @template {MethodOf<P>} M
+ * @typedef {Paths[P][M] extends { requestBody?: { content: { 'application/json': infer B } } }
+ *   ? B : undefined} Body
+ */
+
+/**
+ * One operation of the API: `path` is a path of the OpenAPI document ("/api/runs/{id}"), its
+ * {parameters} filled from `params`.
+ * @template {keyof Paths} P
+ * @template {MethodOf<P>} M
+ * @param {M} method
+ * @param {P} path
+ * @param {{ params?: Record<string, string>, query?: Record<string, string | number>,
+ *           body?: Body<P, M>, text?: boolean }} [options]
+ * @returns {Promise<Reply<P, M>>}
+ */
+function call(method, path, { params = {}, query, body, text = false } = {}) {
+  let target = String(path).replace(/\{(\w+)\}/g, (_, name) => encodeURIComponent(params[name] ?? ''));
+  if (query) target += `?${new URLSearchParams(Object.entries(query).map(([k, v]) => [k, String(v)]))}`;
+  return request(method.toUpperCase(), target, body, { text });
+}
+
+/**
+ * @param {string} method
+ * @param {string} path
+ * @param {unknown} body
+ * @param {{ text?: boolean }} [options]
+ * @returns {Promise<any>}
+ */
 async function request(method, path, body, { text: asText = false } = {}) {
+  /** @type {Record<string, string>} */
   const headers = { Accept: asText ? 'text/plain' : 'application/json' };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
+  /** @type {RequestInit} */
   const init = { method, headers, cache: 'no-store' };
   if (body !== undefined) {
     headers['Content-Type'] = 'application/json';
@@ -43,7 +105,7 @@ async function request(method, path, body, { text: asText = false } = {}) {
   try {
     response = await fetch(path, init);
   } catch (e) {
-    throw new ApiError(0, `server unreachable (${e.message})`, null);
+    throw new ApiError(0, `server unreachable (${e instanceof Error ? e.message : e})`, null);
   }
   const text = await response.text();
   if (asText && response.ok) return text;
@@ -63,36 +125,80 @@ async function request(method, path, body, { text: asText = false } = {}) {
   return json;
 }
 
-const run = (id) => `/api/runs/${encodeURIComponent(id)}`;
-
 /** Rows of a run's time series the plots load at once; longer histories come decimated by the
  * server (first and last rows kept), so that a run of days still shows its whole history. */
 const HISTORY_POINTS = 20000;
 
+/** @param {string} id */
+const ofRun = (id) => ({ params: { id } });
+/** @param {string} id */
+const decimated = (id) => ({ params: { id }, query: { max_points: HISTORY_POINTS } });
+/** @param {string} id */
+const runPath = (id) => `/api/runs/${encodeURIComponent(id)}`;
+
 export const api = {
-  health: () => request('GET', '/api/health'),
-  presets: () => request('GET', '/api/presets'),
-  sceneSchema: () => request('GET', '/api/schema/scene'),
-  runs: () => request('GET', '/api/runs'),
-  run: (id) => request('GET', run(id)),
-  create: (body) => request('POST', '/api/runs', body),
-  /** What a create request would need and take on the server's machine (creates nothing). */
-  estimate: (body) => request('POST', '/api/estimate', body),
-  action: (id, verb) => request('POST', `${run(id)}/${verb}`),
-  remove: (id) => request('DELETE', run(id)),
-  patchParameters: (id, patch) => request('PATCH', `${run(id)}/parameters`, patch),
-  timeseries: (id) => request('GET', `${run(id)}/timeseries?max_points=${HISTORY_POINTS}`),
-  /** Every file of the run directory: [{path, bytes, modified, url}]. */
-  files: (id) => request('GET', `${run(id)}/files`),
-  /** The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none). */
-  reference: (id) => request('GET', `${run(id)}/reference`),
-  /** Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series. */
-  analysisHistory: (id) => request('GET', `${run(id)}/analysis?max_points=${HISTORY_POINTS}`),
-  spectrum: (id) => request('GET', `${run(id)}/spectrum`),
-  statistics: (id) => request('GET', `${run(id)}/statistics`),
-  /** The last `lines` lines of the run's run.log, as text. */
-  log: (id, lines) => request('GET', `${run(id)}/log?lines=${lines}`, undefined, { text: true }),
-  frames: (id) => request('GET', `${run(id)}/frames`),
-  frameUrl: (id, file) => `${run(id)}/frames/${encodeURIComponent(file)}`,
-  imageUrl: (id, field) => `${run(id)}/images/${encodeURIComponent(field)}`,
+  health: () => call('get', '/api/health'),
+  presets: () => call('get', '/api/presets'),
+  sceneSchema: () => call('get', '/api/schema/scene'),
+  runs: () => call('get', '/api/runs'),
+  /** @param {string} id */
+  run: (id) => call('get', '/api/runs/{id}', ofRun(id)),
+  /** @param {Body<'/api/runs', 'post'>} body */
+  create: (body) => call('post', '/api/runs', { body }),
+  /**
+   * What a create request would need and take on the server's machine (creates nothing).
+   * @param {Body<'/api/estimate', 'post'>} body
+   */
+  estimate: (body) => call('post', '/api/estimate', { body }),
+  /**
+   * @param {string} id
+   * @param {'start' | 'pause' | 'resume' | 'stop'} verb
+   */
+  action: (id, verb) => call('post', `/api/runs/{id}/${verb}`, ofRun(id)),
+  /** @param {string} id */
+  remove: (id) => call('delete', '/api/runs/{id}', ofRun(id)),
+  /**
+   * @param {string} id
+   * @param {Body<'/api/runs/{id}/parameters', 'patch'>} patch
+   */
+  patchParameters: (id, patch) => call('patch', '/api/runs/{id}/parameters', { ...ofRun(id), body: patch }),
+  /** @param {string} id */
+  timeseries: (id) => call('get', '/api/runs/{id}/timeseries', decimated(id)),
+  /**
+   * Every file of the run directory: [{path, bytes, modified, url}].
+   * @param {string} id
+   */
+  files: (id) => call('get', '/api/runs/{id}/files', ofRun(id)),
+  /**
+   * The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none).
+   * @param {string} id
+   */
+  reference: (id) => call('get', '/api/runs/{id}/reference', ofRun(id)),
+  /**
+   * Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series.
+   * @param {string} id
+   */
+  analysisHistory: (id) => call('get', '/api/runs/{id}/analysis', decimated(id)),
+  /** @param {string} id */
+  spectrum: (id) => call('get', '/api/runs/{id}/spectrum', ofRun(id)),
+  /** @param {string} id */
+  statistics: (id) => call('get', '/api/runs/{id}/statistics', ofRun(id)),
+  /**
+   * The last `lines` lines of the run's run.log, as text.
+   * @param {string} id
+   * @param {number} lines
+   */
+  log: (id, lines) => call('get', '/api/runs/{id}/log', { params: { id }, query: { lines }, text: true }),
+  /** @param {string} id */
+  frames: (id) => call('get', '/api/runs/{id}/frames', ofRun(id)),
+  /**
+   * @param {string} id
+   * @param {string} file
+   */
+  frameUrl: (id, file) => `${runPath(id)}/frames/${encodeURIComponent(file)}`,
+  /**
+   * @param {string} id
+   * @param {string} field
+   */
+  imageUrl: (id, field) => `${runPath(id)}/images/${encodeURIComponent(field)}`,
 };
