@@ -1,6 +1,7 @@
 // Reference curves a run is compared with (dashboard, accuracy benchmark): the kinetic energy
-// e_v(t) and its dissipation -de_v/dt of the 2D Taylor-Green vortex (analytic, SPEC §6.2) and of
-// the 3D Taylor-Green vortex at Re = 5000 (the DNS shipped in data/reference/, SPEC §6.1).
+// e_v(t) and its dissipation -de_v/dt of the 2D Taylor-Green vortex (analytic, SPEC §6.2), of
+// the 3D Taylor-Green vortex at Re = 5000 (the DNS shipped in data/reference/, SPEC §6.1) and of
+// the laminar Kolmogorov flow from rest (analytic, SPEC §6.3).
 #pragma once
 
 #include <filesystem>
@@ -33,9 +34,10 @@ std::optional<std::string> missing_reference(const sim::Scene& scene);
 
 /// The reference of a scene, if it has one: the analytic decay for tgv2d (sampled at
 /// `samples` times over [0, time.end]), the DNS for tgv3d when the scene is the DNS' flow (v0 =
-/// 1, L = 2π, ν = 1/5000 within 1e-9 relative; up to time.end, and the DNS' t ≤ 20). A uniform
-/// velocity U adds ½|U|² to e_v. Otherwise throws std::invalid_argument saying why there is
-/// none (Kolmogorov: its laminar reference is a velocity profile, not a history).
+/// 1, L = 2π, ν = 1/5000 within 1e-9 relative; up to time.end, and the DNS' t ≤ 20), the laminar
+/// spin-up from rest for kolmogorov2d (sampled as tgv2d; a uniform velocity along x only). A
+/// uniform velocity U adds ½|U|² to e_v (decaying by the friction in the Kolmogorov flow).
+/// Otherwise throws std::invalid_argument saying why there is none.
 ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::path& reference_dir,
                                int samples = 201);
 
