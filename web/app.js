@@ -56,6 +56,7 @@ const app = {
   runs: [],
   presets: [],
   sceneSchema: null,  // GET /api/schema/scene: the form's options, bounds and tooltips
+  validateScene: null,  // ajv's validator of that schema, when the page has ajv
   selectedId: null,
   summary: null,  // run summary of the selected run (from the list, the stream or an action)
   detail: null,   // run detail (scene, changeable, counters)
@@ -305,6 +306,8 @@ function buildCreateRequest() {
     patch.analysis = { every, products: [...products], slice: { fields: [...sliceFields] } };
     patch.render = { fields: IMAGE_FIELDS, combined: false };
   }
+  const invalid = sceneSchemaError(mergePatch(preset.scene ?? {}, patch));
+  if (invalid) throw new Error(`scene: ${invalid}`);
   const body = preset.builtinScene ? { scene: { ...preset.scene } } : { preset: preset.name };
   if (Object.keys(patch).length) body.patch = patch;
   const name = $('create-name').value.trim();
@@ -422,6 +425,11 @@ function schemaNode(schema, path) {
  */
 function applySceneSchema(schema) {
   app.sceneSchema = schema;
+  // The same schema validates the form's scene before it is sent (ajv, vendored; the server
+  // validates again, so a page without it only loses the early message).
+  if (typeof window.ajv7 === 'function') {
+    app.validateScene = new window.ajv7({ strict: false, allErrors: false }).compile(schema);
+  }
   for (const el of document.querySelectorAll('[data-path]')) {
     const node = schemaNode(schema, el.dataset.path);
     if (!node) continue;
@@ -445,6 +453,32 @@ function applySceneSchema(schema) {
       if (node.type === 'integer') el.step = '1';
     }
   }
+}
+
+/** RFC 7396: `patch` merged into a copy of `target` (null removes a key). */
+function mergePatch(target, patch) {
+  if (patch === null || typeof patch !== 'object' || Array.isArray(patch)) return patch;
+  const out = target !== null && typeof target === 'object' && !Array.isArray(target) ? { ...target } : {};
+  for (const [key, value] of Object.entries(patch)) {
+    if (value === null) delete out[key];
+    else out[key] = mergePatch(out[key], value);
+  }
+  return out;
+}
+
+/**
+ * Why the scene `document` does not conform to the scene schema, worded as the server words it
+ * ("'kernel.diameter_over_spacing' must be <= 16"), or null (also when no validator is loaded).
+ */
+function sceneSchemaError(document) {
+  if (!app.validateScene || app.validateScene(document)) return null;
+  const e = app.validateScene.errors[0];
+  let field = e.instancePath.slice(1).replace(/\/(\d+)(?=\/|$)/g, '[$1]').replaceAll('/', '.');
+  if (e.keyword === 'additionalProperties') {
+    field = field ? `${field}.${e.params.additionalProperty}` : e.params.additionalProperty;
+    return `unknown key '${field}'`;
+  }
+  return `'${field || '(top level)'}' ${e.message}`;
 }
 
 async function loadSceneSchema() {

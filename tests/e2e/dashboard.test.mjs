@@ -192,6 +192,18 @@ async function run() {
       !(await particles.getAttribute('title'))?.startsWith(schemaPps.description.slice(0, 10)))
     fail('the particles field does not carry the scene schema\'s bound and description');
   pass(`form fields follow the scene schema (${kernelNames.length} kernels, bounds, descriptions)`);
+  // The same schema validates the form in the browser (ajv): a value beyond a bound is refused
+  // before any request, worded as the server words it.
+  const requestsBefore = (await (await fetch(`${base}/api/runs`)).json()).length;
+  await page.fill('#create-particles', String(schemaPps.maximum + 1));
+  await page.click('#create-estimate');
+  const refusal = await waitFor('the form to refuse particles_per_side beyond its bound', async () => {
+    const t = await text(page, '#create-status');
+    return t.includes("'particles_per_side'") ? t : null;
+  }, 5_000);
+  if (!refusal.includes(`<= ${schemaPps.maximum}`)) fail(`unexpected refusal: ${refusal}`);
+  if ((await (await fetch(`${base}/api/runs`)).json()).length !== requestsBefore) fail('a run was created');
+  pass(`the browser validates the scene against the schema: "${refusal}"`);
 
   const label = labels.find((l) => /tgv2d/i.test(l));
   if (!label) fail(`no 2D Taylor-Green choice in the run form (options: ${labels.join(', ')})`);
