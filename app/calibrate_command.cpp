@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "app/commands.hpp"
+#include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -37,7 +38,7 @@ double mean_urms(sim::Scene scene, double chi, double average_from) {
   sim::RunSetup setup = sim::setup_run(scene);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   double weighted = 0.0, duration = 0.0;
-  while (simulation->time() < scene.end_time - 1e-12 * scene.end_time) {
+  while (!sim::reached_end(simulation->time(), scene.end_time)) {
     const double before = simulation->time();
     simulation->step(scene.end_time - before);
     const double dt = simulation->time() - before;

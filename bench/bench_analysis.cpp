@@ -27,6 +27,7 @@
 
 #include "analysis/pipeline.hpp"
 #include "analysis/products.hpp"
+#include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -127,18 +128,13 @@ double run_steps_per_second(int per_side, double run_time, Mode mode,
   }
   const bool every_step = mode == Mode::SlowConsumerEveryStep;
   const auto start = Clock::now();
-  double next = every;
-  while (simulation->time() < run_time - 1e-12) {
-    simulation->step(std::min(run_time, next) - simulation->time());
+  sim::Cadence snapshots(every, simulation->time());
+  while (!sim::reached_end(simulation->time(), run_time)) {
+    const double t = simulation->time();
+    simulation->step(snapshots.limit_step(t, run_time - t));
     if (every_step) pipeline->publish(an::make_snapshot(*simulation));
-    if (simulation->time() >= next - 1e-12) {
-      if (every_step) {
-        next += every;
-        continue;
-      }
-      if (pipeline) pipeline->publish(an::make_snapshot(*simulation));
-      next += every;
-    }
+    if (snapshots.take(simulation->time()) && !every_step && pipeline)
+      pipeline->publish(an::make_snapshot(*simulation));
   }
   const double seconds = std::chrono::duration<double>(Clock::now() - start).count();
   if (pipeline) {

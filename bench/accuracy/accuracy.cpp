@@ -17,6 +17,7 @@
 #include "analysis/reference.hpp"
 #include "analysis/vorticity.hpp"
 #include "bench/process_time.hpp"
+#include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -500,28 +501,24 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
     r.history.push_back(s);
   };
 
-  const double tolerance = 1e-9 * r.end_time;
   sample();
   try {
-    double next_sample = spec.sample_interval;
-    while (simulation->time() < r.end_time - tolerance) {
+    sim::Cadence samples(spec.sample_interval, simulation->time());
+    while (!sim::reached_end(simulation->time(), r.end_time)) {
       if (wall() > options.wall_limit_seconds) {
         r.status = "wall_limit";
         break;
       }
-      const double target = std::min(next_sample, r.end_time);
+      const double t = simulation->time();
       const auto step_start = std::chrono::steady_clock::now();
       const double cpu_start = bench::process_cpu_seconds();
-      simulation->step(target - simulation->time());
+      simulation->step(samples.limit_step(t, r.end_time - t));
       r.cpu_seconds += bench::process_cpu_seconds() - cpu_start;
       r.wall_seconds +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
-      if (simulation->time() >= target - tolerance) {
+      // On the fixed grid k · interval, and at the end.
+      if (samples.take(simulation->time()) || sim::reached_end(simulation->time(), r.end_time))
         sample();
-        // The next sample on the fixed grid k · interval (no drift from the landing error).
-        next_sample =
-            spec.sample_interval * (std::round(simulation->time() / spec.sample_interval) + 1.0);
-      }
     }
   } catch (const sim::BlowUpError& e) {
     r.status = "blown_up";

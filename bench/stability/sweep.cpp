@@ -9,6 +9,7 @@
 #include <ostream>
 #include <sstream>
 
+#include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -219,9 +220,8 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
     const double initial_dt = simulation->stable_time_step();
     const auto step_budget =
         static_cast<std::uint64_t>(std::ceil(options.step_budget_factor * r.end_time / initial_dt));
-    const double end_tolerance = 1e-12 * r.end_time;
     std::uint64_t steps = 0;
-    while (simulation->time() < r.end_time - end_tolerance) {
+    while (!sim::reached_end(simulation->time(), r.end_time)) {
       if (steps >= step_budget) {
         std::ostringstream reason;
         reason << "time step collapsed: " << steps
