@@ -1,0 +1,129 @@
+#include "control/run_files.hpp"
+
+#include <sys/stat.h>
+
+#include <cstdlib>
+#include <ctime>
+#include <fstream>
+#include <iterator>
+#include <stdexcept>
+
+#include "analysis/writer.hpp"
+#include "io/checkpoint.hpp"
+
+namespace sphles::control {
+
+using nlohmann::json;
+
+std::string read_text(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+void write_text_atomically(const std::filesystem::path& path, const std::string& text) {
+  const std::filesystem::path temporary = path.string() + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::trunc);
+    out << text;
+    out.flush();
+    if (!out) throw std::runtime_error("cannot write '" + temporary.string() + "'");
+  }
+  std::filesystem::rename(temporary, path);
+}
+
+void truncate_timeseries_after(const std::filesystem::path& path, double time) {
+  std::ifstream in(path);
+  if (!in) return;
+  std::string text, line;
+  if (std::getline(in, line)) text += line + "\n";
+  while (std::getline(in, line))
+    if (std::strtod(line.c_str(), nullptr) <= time) text += line + "\n";
+  in.close();
+  write_text_atomically(path, text);
+}
+
+void seed_dissipation(const std::filesystem::path& path, double time,
+                      analysis::DissipationEstimator& estimator) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);  // header: t,step,dt,e_v,...
+  while (std::getline(in, line)) {
+    double values[4];
+    const char* p = line.c_str();
+    char* end = nullptr;
+    for (double& v : values) {
+      v = std::strtod(p, &end);
+      p = *end == ',' ? end + 1 : end;
+    }
+    if (values[0] >= time - estimator.window() && values[0] <= time)
+      estimator.add(values[0], values[3]);
+  }
+}
+
+std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0 || !S_ISDIR(info.st_mode)) return std::nullopt;
+  return std::pair{info.st_dev, info.st_ino};
+}
+
+json outputs_json(const std::filesystem::path& dir) {
+  const auto series = [&](const std::filesystem::path& index, const char* time_key,
+                          const char* group_key) {
+    json by_group = json::object();
+    for (const auto& row : analysis::read_index(dir / index)) {
+      if (!row.contains(time_key)) continue;
+      const std::string group = group_key && row.contains(group_key) ? row.at(group_key) : "";
+      json& entry = by_group[group];
+      if (entry.is_null()) entry = {{"count", 0}, {"times", json::array()}};
+      entry["count"] = entry["count"].get<int>() + 1;
+      entry["times"].push_back(std::stod(row.at(time_key)));
+    }
+    json out = group_key ? json{{"index", index.string()}, {"by_field", by_group}}
+                         : (by_group.contains("") ? by_group[""] : json{{"count", 0}});
+    if (!group_key) out["index"] = index.string();
+    return out;
+  };
+  json outputs = {{"timeseries", series("timeseries.csv", "t", nullptr)},
+                  {"spectra", series("spectra/index.csv", "t", nullptr)},
+                  {"statistics", series("stats/snapshots.csv", "t", nullptr)},
+                  {"snapshots", series("snapshots/index.csv", "t", nullptr)},
+                  {"fields", series("fields/index.csv", "t", nullptr)},
+                  {"slices", series("slices/index.csv", "t", "field")},
+                  {"frames", series("frames/index.csv", "time", "field")}};
+  json checkpoints = json::array();
+  for (const auto& file : io::list_checkpoints(dir / "checkpoints"))
+    checkpoints.push_back(file.filename().string());
+  outputs["checkpoints"] = {{"count", checkpoints.size()}, {"files", checkpoints}};
+  return outputs;
+}
+
+std::string outputs_summary(const json& outputs) {
+  std::string line = "written:";
+  const auto count = [](const json& j) { return j.value("count", 0); };
+  for (const char* kind :
+       {"timeseries", "spectra", "statistics", "snapshots", "fields", "checkpoints"}) {
+    // Appended piece by piece: GCC 12's -Wrestrict misreads the chained temporaries here.
+    line.append(" ").append(std::to_string(count(outputs[kind]))).append(" ").append(kind);
+    line.append(",");
+  }
+  for (const char* kind : {"slices", "frames"}) {
+    line += std::string(" ") + kind;
+    if (outputs[kind]["by_field"].empty()) line += " 0";
+    for (const auto& [field, entry] : outputs[kind]["by_field"].items())
+      line += " " + field + " " + std::to_string(count(entry));
+    line += ",";
+  }
+  line.pop_back();
+  return line;
+}
+
+std::string utc_now() {
+  const std::time_t now = std::time(nullptr);
+  std::tm tm{};
+  gmtime_r(&now, &tm);
+  char text[32];
+  std::strftime(text, sizeof text, "%Y-%m-%dT%H:%M:%SZ", &tm);
+  return text;
+}
+
+}  // namespace sphles::control

@@ -1,0 +1,46 @@
+// The files of a run directory that run control reads and writes itself (docs/analysis.md,
+// "Run directory"): atomic text writes (run.json, scene.json), the time series a restart
+// continues, the directory's identity, and the summary of what it holds.
+#pragma once
+
+#include <sys/stat.h>
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "analysis/timeseries.hpp"
+
+namespace sphles::control {
+
+/// The whole content of a text file; empty if it cannot be read.
+std::string read_text(const std::filesystem::path& path);
+
+/// Writes `text` to a temporary beside `path`, then renames it over `path`.
+void write_text_atomically(const std::filesystem::path& path, const std::string& text);
+
+/// Keeps the rows of an existing timeseries.csv up to `time` (a restart continues it).
+void truncate_timeseries_after(const std::filesystem::path& path, double time);
+
+/// Feeds the (t, e_v) rows of a time series inside the estimator's window before `time`.
+void seed_dissipation(const std::filesystem::path& path, double time,
+                      analysis::DissipationEstimator& estimator);
+
+/// Device and inode of a directory; nullopt if it does not exist.
+std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path);
+
+/// What the run directory holds, from its indexes (so every session of a restarted run counts):
+/// for each kind of output, how many and at which times, and the index listing the files
+/// (run.json "outputs", docs/analysis.md).
+nlohmann::json outputs_json(const std::filesystem::path& dir);
+
+/// One line: "written: 3 spectra, 3 snapshots, slices omega2 3 tau_sfs 3, ...".
+std::string outputs_summary(const nlohmann::json& outputs);
+
+/// The current UTC time as "2026-12-03T12:00:00Z".
+std::string utc_now();
+
+}  // namespace sphles::control

@@ -1,0 +1,40 @@
+// Scene documents of a run: the sections of every module read into one RunSpec, validated
+// against the scene schema, and written back in full.
+#include "control/run.hpp"
+#include "control/scene_schema.hpp"
+#include "render/config.hpp"
+#include "sim/json_reader.hpp"
+
+namespace sphles::control {
+
+using nlohmann::json;
+
+RunSpec parse_run_spec(const json& document) {
+  if (!document.is_object())
+    throw sim::SceneError("scene: '(top level)' must be an object, got " +
+                          sim::describe_type(document));
+  json rest = document;
+  json render_section;
+  const bool has_render = document.contains("render");
+  if (has_render) {
+    render_section = document.at("render");
+    rest.erase("render");
+  }
+  RunSpec spec;
+  spec.run = analysis::parse_run_config(rest);
+  spec.render =
+      render::parse_render_config(has_render ? &render_section : nullptr, spec.run.analysis);
+  // The readers apply the schema's keys, types and bounds with their own messages; the whole
+  // schema (every keyword, by valijson) is the last word.
+  if (const std::optional<std::string> violation = schema_violation(document))
+    throw sim::SceneError("scene: " + *violation);
+  return spec;
+}
+
+json run_spec_to_json(const RunSpec& spec) {
+  json j = analysis::run_config_to_json(spec.run);
+  j["render"] = render::render_config_to_json(spec.render);
+  return j;
+}
+
+}  // namespace sphles::control
