@@ -8,6 +8,7 @@
 #include <array>
 #include <cmath>
 #include <functional>
+#include <limits>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -207,7 +208,8 @@ class ObjectReader {
   }
 
  private:
-  static constexpr unsigned long long kMaxLongLong = 9223372036854775807ULL;
+  static constexpr auto kMaxLongLong =
+      static_cast<unsigned long long>(std::numeric_limits<long long>::max());
   std::string label() const { return path_.empty() ? "(top level)" : path_; }
   const json& schema_of(const std::string& key) const {
     const json* node = scene_schema_property(*schema_, key);

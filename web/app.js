@@ -57,6 +57,7 @@ const app = {
   presets: [],
   sceneSchema: null,  // GET /api/schema/scene: the form's options, bounds and tooltips
   validateScene: null,  // ajv's validator of that schema, when the page has ajv
+  compared: new Map(),  // run id → {label, time, energy, dissipation, spectrum} overlaid on the plots
   selectedId: null,
   summary: null,  // run summary of the selected run (from the list, the stream or an action)
   detail: null,   // run detail (scene, changeable, counters)
@@ -161,9 +162,12 @@ function renderRunList() {
       li.innerHTML = `<button type="button" class="run-item">
           <span class="run-name"></span><span class="state"></span>
           <progress max="1" value="0"></progress>
-          <span class="run-meta muted small"></span></button>`;
+          <span class="run-meta muted small"></span></button>
+        <label class="compare small muted" title="overlay this run's eᵥ(t), ε(t) and E(k) on the selected run's plots"><input type="checkbox"> compare</label>`;
       li.querySelector('button').addEventListener('click', () => selectRun(run.id));
+      li.querySelector('.compare input').addEventListener('change', (e) => toggleCompared(run.id, e.target.checked));
     }
+    li.querySelector('.compare input').checked = app.compared.has(run.id);
     const button = li.querySelector('button');
     button.setAttribute('aria-current', run.id === app.selectedId ? 'true' : 'false');
     li.querySelector('.run-name').textContent = run.name || run.id;
@@ -435,6 +439,7 @@ function applySceneSchema(schema) {
     if (!node) continue;
     if (node.description && !el.title) el.title = node.description;
     if (el.tagName === 'SELECT' && Array.isArray(node.enum)) {
+      const current = el.value;  // kept: the schema may arrive after the form was filled
       const labels = new Map([...el.options].map((o) => [o.value, o.textContent]));
       const options = [];
       if (labels.has('')) options.push(['', labels.get('')]);
@@ -445,6 +450,7 @@ function applySceneSchema(schema) {
         o.textContent = label;
         return o;
       }));
+      if (options.some(([value]) => value === current)) el.value = current;
     } else if (el.tagName === 'INPUT' && el.type === 'number') {
       const lower = node.minimum ?? node.exclusiveMinimum;
       const upper = node.maximum ?? node.exclusiveMaximum;
@@ -1082,6 +1088,42 @@ function mergeOnTime(a, b) {
   return { x, ys };
 }
 
+/** Overlays (or removes) a run's time series and latest spectrum on the plots. */
+async function toggleCompared(id, on) {
+  if (!on) {
+    app.compared.delete(id);
+    scheduleRedraw();
+    return;
+  }
+  const run = app.runs.find((r) => r.id === id);
+  const entry = { label: run?.name || id, time: [], energy: [], dissipation: [], spectrum: null };
+  app.compared.set(id, entry);
+  try {
+    const [series, detail] = await Promise.all([api.timeseries(id), api.run(id)]);
+    const col = columnOf(series);
+    Object.assign(entry, { time: col('time'), energy: col('kinetic_energy'), dissipation: col('dissipation') });
+    if (detail.available?.spectrum) entry.spectrum = await api.spectrum(id).catch(() => null);
+  } catch (e) {
+    showStatus('control-status', `Could not load ${entry.label} for comparison: ${errorText(e)}`, 'error');
+  }
+  scheduleRedraw();
+}
+
+/** The runs compared with the selected one (not itself), in the order they were ticked. */
+function comparedRuns() {
+  return [...app.compared.entries()].filter(([id]) => id !== app.selectedId).map(([, r]) => r);
+}
+
+/** The compared runs' columns merged onto a plot's {x, ys} (one more series per run). */
+function withCompared(rows, column) {
+  let merged = rows;
+  for (const c of comparedRuns()) {
+    const other = column(c);
+    merged = mergeOnTime(merged, { x: other.x, ys: [other.y] });
+  }
+  return merged;
+}
+
 function redraw() {
   const c = app.charts;
   const samples = app.samples;
@@ -1098,7 +1140,11 @@ function redraw() {
 
   const ref = app.reference;
   const refRows = ref ? { x: ref.time, ys: [ref.energy] } : { x: [], ys: [[]] };
-  const energy = mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows);
+  const energy = withCompared(
+    mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows),
+    (r) => ({ x: r.time, y: r.energy }));
+  const labels = comparedRuns().map((r) => r.label);
+  for (const chart of [c.energy, c.dissipation, c.spectrum]) chart.setExtraSeries(labels);
   c.energy.setData(energy.x, energy.ys);
   $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
 
@@ -1107,14 +1153,21 @@ function redraw() {
     { x: samples.map((s) => s.time), ys: [samples.map((s) => s.dissipation)] },
     { x: app.analysis.map((a) => a.time),
       ys: [app.analysis.map((a) => a.spectral ?? null), app.analysis.map((a) => a.vorticity ?? null)] });
-  const eps = mergeOnTime(estimates,
-    ref ? { x: ref.time, ys: [ref.dissipation] } : { x: [], ys: [[]] });
+  const eps = withCompared(mergeOnTime(estimates,
+    ref ? { x: ref.time, ys: [ref.dissipation] } : { x: [], ys: [[]] }),
+  (r) => ({ x: r.time, y: r.dissipation }));
   c.dissipation.setData(eps.x, eps.ys);
 
   // Only the selected run's spectrum: none yet (a run just selected) empties the plot.
   const s = app.spectrum;
   const hasSpectrum = s && Array.isArray(s.k) && Array.isArray(s.energy);
-  const d = hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []);
+  const own = hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []);
+  const d = withCompared(own, (r) => {
+    const k = r.spectrum?.k ?? [];
+    const e = r.spectrum?.energy ?? [];
+    const keep = k.map((kk, i) => i).filter((i) => k[i] > 0);
+    return { x: keep.map((i) => k[i]), y: keep.map((i) => (e[i] > 0 ? e[i] : null)) };
+  });
   c.spectrum.setData(d.x, d.ys);
   c.spectrum.setMarkers(hasSpectrum ? [
     { x: s.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },

@@ -50,6 +50,9 @@ function finiteOrNull(v) {
   return Number.isFinite(v) ? v : null;
 }
 
+// Colours of the runs compared with the selected one (after its own series' colours).
+const COMPARE_COLOURS = ['#8c564b', '#e377c2', '#17becf', '#bcbd22', '#7f7f7f', '#9467bd'];
+
 class Chart {
   /**
    * container: element the plot goes into; opts: {xLabel, yLabel, series: [{label, points,
@@ -97,6 +100,30 @@ class Chart {
     this.resizeObserver.observe(container);
   }
 
+  /**
+   * Extra series after the chart's own, one per label (runs compared with the selected one):
+   * added or removed to match, in the comparison palette.
+   */
+  setExtraSeries(labels) {
+    const own = this.opts.series.length;
+    while (this.plot.series.length - 1 > own + labels.length) this.plot.delSeries(this.plot.series.length - 1);
+    labels.forEach((label, i) => {
+      const at = own + 1 + i;
+      if (at < this.plot.series.length) {
+        if (this.plot.series[at].label === label) return;
+        this.plot.delSeries(at);
+      }
+      this.plot.addSeries({
+        label,
+        stroke: COMPARE_COLOURS[i % COMPARE_COLOURS.length],
+        width: 1.5,
+        spanGaps: true,
+        points: { show: false },
+        value: (u, v) => formatNumber(v),
+      }, at);
+    });
+  }
+
   /** x: numbers; ys: one array per series (null = gap). */
   setData(x, ys) {
     const idx = thin(x.length, MAX_POINTS);
@@ -110,6 +137,10 @@ class Chart {
     this.count = x.length;
     // Points of the first series (the run's own; a reference curve may share the x axis).
     this.container.dataset.points = String(drawable ? ys[0].filter((v) => v !== null && v !== undefined).length : 0);
+    // Points of the extra (compared) series, for the browser test.
+    const extra = ys.slice(this.opts.series.length);
+    this.container.dataset.comparePoints = String(extra.reduce(
+      (n, a) => n + a.filter((v) => v !== null && v !== undefined).length, 0));
     this.plot.setData(drawable ? data : [[], ...ys.map(() => [])]);
   }
 

@@ -397,6 +397,35 @@ async function run() {
   }
   pass('time.end and η changed from the parameter form');
 
+  // Run comparison (issue 20): a second, finished run ticked "compare" overlays its e_v(t),
+  // ε(t) and E(k) on the selected run's plots; unticked, the overlay goes. (Created now that the
+  // first run is stopped: the test server runs one run at a time.)
+  currentStep = 'comparing runs';
+  const other = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ preset: 'tgv2d', name: 'e2e-compare', patch: {
+      particles_per_side: 16, time: { end: 0.3 }, analysis: { every: 0.1, products: ['spectrum'] } } }),
+  });
+  if (other.status !== 201) fail(`creating the run to compare: HTTP ${other.status}`);
+  const otherId = (await other.json()).id;
+  await waitFor('the run to compare to finish', async () =>
+    (await (await fetch(`${base}/api/runs/${otherId}`)).json()).state === 'finished', 60_000);
+  const compareBox = page.locator(`#run-list li[data-id="${otherId}"] .compare input`);
+  await waitFor('its compare box in the list', async () => (await compareBox.count()) === 1, 10_000);
+  await compareBox.check();
+  const overlaid = await waitFor('the compared run on the e_v, ε and E(k) plots', async () => {
+    const points = await Promise.all(['#chart-energy', '#chart-dissipation', '#chart-spectrum'].map(
+      async (sel) => Number(await page.locator(sel).getAttribute('data-compare-points'))));
+    return points.every((n) => n > 0) ? points : null;
+  }, 15_000);
+  if ((await text(page, '#run-title')) !== 'e2e-tgv2d') fail('ticking compare changed the selected run');
+  await compareBox.uncheck();
+  await waitFor('the overlay gone', async () =>
+    Number(await page.locator('#chart-energy').getAttribute('data-compare-points')) === 0, 10_000);
+  pass(`run comparison: e2e-compare overlaid (${overlaid.join(', ')} points on e_v, ε, E(k)) and removed`);
+  const otherRemoved = await fetch(`${base}/api/runs/${otherId}`, { method: 'DELETE' });
+  if (otherRemoved.status !== 204 && otherRemoved.status !== 200) fail(`deleting the compared run: HTTP ${otherRemoved.status}`);
+
   // Downloads (issue 20): the stopped run's files, its final checkpoint among them, as links
   // that fetch the files themselves.
   currentStep = 'files';
