@@ -434,9 +434,13 @@ int Run::recorded_ranks(const std::filesystem::path& directory) {
   return std::max(1, record["ranks"].get<int>());
 }
 
-json Run::document() const {
+RunSpec Run::spec() const {
   std::lock_guard lock(impl_->mutex);
-  return run_spec_to_json(impl_->pending ? *impl_->pending : impl_->spec);
+  return impl_->pending ? *impl_->pending : impl_->spec;
+}
+
+json Run::document() const {
+  return run_spec_to_json(spec());
 }
 
 std::shared_ptr<const analysis::AnalysisFrame> Run::latest_frame() const {

@@ -219,7 +219,8 @@ class Run {
   static const std::vector<std::string>& changeable_fields();
 
   RunStatus status() const;
-  nlohmann::json document() const;  // the current scene document
+  RunSpec spec() const;             // the current scene (with changes not yet applied)
+  nlohmann::json document() const;  // the same as a document
   std::shared_ptr<const analysis::AnalysisFrame> latest_frame() const;
   std::optional<ImageEvent> latest_image(const std::string& field) const;
   /// Fields whose latest image holds a PNG (what latest_image can serve now), sorted.

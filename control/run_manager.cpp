@@ -54,7 +54,7 @@ std::optional<double> free_disk_bytes(const std::filesystem::path& directory) {
 
 double estimated_memory(const Run& run) {
   try {
-    return estimate_resources(parse_run_spec(run.document())).memory_bytes;
+    return estimate_resources(run.spec()).memory_bytes;
   } catch (const std::exception&) {
     return 0.0;  // a document that no longer parses cannot run either
   }

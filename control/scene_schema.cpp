@@ -11,8 +11,12 @@
 #include <valijson/validator.hpp>
 
 #include "analysis/config.hpp"
+#include "sim/kernels.hpp"
 #include "sim/scene.hpp"
 #include "sim/scene_schema.hpp"
+#include "sim/scheme.hpp"
+#include "sim/subfilter.hpp"
+#include "sim/viscous_operator.hpp"
 
 namespace sphles::control {
 
@@ -69,13 +73,13 @@ json build_schema() {
     node_at(schema, field)["items"]["enum"] = values;
   };
   set_enum("preset", sim::preset_names());
-  set_enum("case", sim::case_names());
-  set_enum("kernel.type", sim::kernel_names());
-  set_enum("scheme.type", sim::scheme_names());
-  set_enum("scheme.viscous_operator", sim::viscous_operator_names());
-  set_enum("scheme.ale_correction", sim::ale_correction_names());
-  set_enum("subfilter.model", sim::subfilter_model_names());
-  set_enum("initial.mass", sim::initial_mass_names());
+  set_enum("case", names(sim::case_name));
+  set_enum("kernel.type", names(sim::kernel_name));
+  set_enum("scheme.type", names(sim::scheme_name));
+  set_enum("scheme.viscous_operator", names(sim::viscous_operator_name));
+  set_enum("scheme.ale_correction", names(sim::ale_correction_name));
+  set_enum("subfilter.model", names(sim::subfilter_model_name));
+  set_enum("initial.mass", names(sim::initial_mass_name));
   set_item_enum("analysis.products", names(analysis::product_name));
   set_item_enum("analysis.slice.fields", slice_fields);
   set_item_enum("analysis.particle_fields", slice_fields);

@@ -89,12 +89,7 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
   // What GET spectrum / statistics / images/{field} would return now, so that a client asks
   // only for products that exist instead of collecting 404s.
   const auto frame = run.latest_frame();
-  bool reference = false;
-  try {
-    reference = !analysis::missing_reference(control::parse_run_spec(detail["scene"]).run.scene);
-  } catch (const std::exception&) {
-    // a stored document that no longer parses has no reference either
-  }
+  const bool reference = !analysis::missing_reference(run.spec().run.scene);
   detail["available"] = {{"spectrum", frame && frame->spectrum.has_value()},
                          {"statistics", frame && frame->subfilter.has_value()},
                          {"images", run.image_fields()},

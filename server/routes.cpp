@@ -252,7 +252,7 @@ Response analysis_history(const Router::Services& s, const Context& c) {
 /// of the 3D TGV at Re = 5000; 404 saying why a run has none.
 Response reference(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  const sim::Scene scene = control::parse_run_spec(run->document()).run.scene;
+  const sim::Scene scene = run->spec().run.scene;
   analysis::ReferenceCurve curve;
   try {
     curve = analysis::reference_curve(scene, s.options.reference_dir);

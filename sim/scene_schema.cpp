@@ -3,12 +3,6 @@
 #include <sstream>
 #include <stdexcept>
 
-#include "sim/kernels.hpp"
-#include "sim/scene.hpp"
-#include "sim/scheme.hpp"
-#include "sim/subfilter.hpp"
-#include "sim/viscous_operator.hpp"
-
 namespace sphles::sim {
 
 using nlohmann::json;
@@ -111,28 +105,6 @@ std::vector<std::string> scene_schema_fields() {
   std::vector<std::string> fields;
   collect_fields(scene_schema_document(), "", fields);
   return fields;
-}
-
-std::vector<std::string> case_names() {
-  return registered_names<CaseType>(case_name);
-}
-std::vector<std::string> kernel_names() {
-  return registered_names<KernelType>(kernel_name);
-}
-std::vector<std::string> scheme_names() {
-  return registered_names<SchemeType>(scheme_name);
-}
-std::vector<std::string> subfilter_model_names() {
-  return registered_names<SubfilterModel>(subfilter_model_name);
-}
-std::vector<std::string> initial_mass_names() {
-  return registered_names<InitialMass>(initial_mass_name);
-}
-std::vector<std::string> viscous_operator_names() {
-  return registered_names<ViscousOperator>(viscous_operator_name);
-}
-std::vector<std::string> ale_correction_names() {
-  return registered_names<AleCorrection>(ale_correction_name);
 }
 
 }  // namespace sphles::sim

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -41,15 +42,6 @@ double scene_schema_bound(std::string_view dotted, std::string_view keyword);
 /// Every dotted field the schema declares, depth first in declaration order (objects included;
 /// the additional properties of render.colour are not enumerated).
 std::vector<std::string> scene_schema_fields();
-
-/// The scene names of sim's registries, in registry order.
-std::vector<std::string> case_names();
-std::vector<std::string> kernel_names();
-std::vector<std::string> scheme_names();
-std::vector<std::string> subfilter_model_names();
-std::vector<std::string> initial_mass_names();
-std::vector<std::string> viscous_operator_names();
-std::vector<std::string> ale_correction_names();
 
 /// The names of a registry whose name function maps each value 0, 1, ... of Enum to its name
 /// and the first value past the last to "unknown" (or throws std::invalid_argument).
