@@ -220,11 +220,11 @@ inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
 }  // namespace pair_loop_detail
 
 /// How this build sums a particle's pairs: "simd<W>" (lanes of W doubles, the widest vector the
-/// build targets) or "ordered" (list order, SPHLES_SIMD=OFF). Results of two builds agree
-/// bitwise only when this agrees.
+/// build targets and lets the vectoriser use, SPHLES_VECTOR_WIDTH) or "ordered" (list order,
+/// SPHLES_SIMD=OFF). Results of two builds agree bitwise only when this agrees.
 inline const char* pair_loop_summation() {
   if constexpr (kDefaultSummation == Summation::Ordered) return "ordered";
-#if defined(__AVX512F__)
+#if defined(__AVX512F__) && (!defined(SPHLES_VECTOR_BITS) || SPHLES_VECTOR_BITS >= 512)
   return "simd8";
 #elif defined(__AVX__)
   return "simd4";
