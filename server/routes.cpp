@@ -15,6 +15,7 @@
 #include "logging/logging.hpp"
 #include "server/auth.hpp"
 #include "server/openapi.hpp"
+#include "server/run_archive.hpp"
 #include "server/url.hpp"
 #include "server/websocket_session.hpp"
 
@@ -374,13 +375,9 @@ bool is_temporary(const std::string& name) {
 }
 
 /// Every file of the run directory and its subdirectories (one level: checkpoints/, spectra/,
-/// slices/, stats/, frames/, ...) for download: [{"path","bytes","modified","url"}] by path,
-/// `modified` in seconds since 1970 UTC; files under a temporary name are left out.
-Response list_files(const Router::Services& s, const Context& c) {
-  const auto run = find_run(s, c.params[0]);
-  std::error_code ec;
-  const fs::path root = fs::canonical(run->directory(), ec);
-  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
+/// slices/, stats/, frames/, ...) as (path relative to the directory, file), by path; files under
+/// a temporary name are left out.
+std::vector<std::pair<std::string, fs::path>> run_files(const fs::path& root) {
   std::vector<std::pair<std::string, fs::path>> files;
   const auto add = [&](const fs::directory_entry& entry, const std::string& relative) {
     std::error_code e;
@@ -390,6 +387,7 @@ Response list_files(const Router::Services& s, const Context& c) {
       return;
     files.emplace_back(relative, entry.path());
   };
+  std::error_code ec;
   for (const fs::directory_entry& entry : fs::directory_iterator(root, ec)) {
     const std::string name = entry.path().filename().string();
     std::error_code e;
@@ -401,6 +399,17 @@ Response list_files(const Router::Services& s, const Context& c) {
     }
   }
   std::sort(files.begin(), files.end());
+  return files;
+}
+
+/// The run's files for download (run_files): [{"path","bytes","modified","url"}] by path,
+/// `modified` in seconds since 1970 UTC.
+Response list_files(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  std::error_code ec;
+  const fs::path root = fs::canonical(run->directory(), ec);
+  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
+  const std::vector<std::pair<std::string, fs::path>> files = run_files(root);
   nlohmann::json list = nlohmann::json::array();
   for (const auto& [relative, path] : files) {
     std::error_code e;
@@ -449,6 +458,38 @@ Response get_file(const Router::Services& s, const Context& c) {
   return res;
 }
 
+/// The whole run directory (the files GET files lists) as one tar archive, RUN_ID.tar with the
+/// files under RUN_ID/, streamed: every file is opened first, so the archive holds each file
+/// as it was at the request (appended bytes are not sent, a rotated checkpoint is still sent).
+Response get_archive(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  std::error_code ec;
+  const fs::path root = fs::canonical(run->directory(), ec);
+  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
+  std::vector<ArchiveMember> members;
+  for (const auto& [relative, path] : run_files(root)) {
+    std::shared_ptr<const FileSource> file = FileSource::open(path, ec);
+    if (file) {
+      members.push_back({run->id() + "/" + relative, std::move(file)});
+    } else if (ec == std::errc::too_many_files_open ||
+               ec == std::errc::too_many_files_open_in_system) {
+      throw ApiError(503, "run '" + run->id() +
+                              "' has more files than this server may hold open (" + ec.message() +
+                              "); download them one by one (GET files)");
+    }  // else removed since the listing (a rotated checkpoint): not part of the run any more
+  }
+  Response res{http::status::ok, c.request.version()};
+  res.set(http::field::server, "sphles/" SPHLES_VERSION);
+  res.set(http::field::content_type, "application/x-tar");
+  res.set(http::field::content_disposition, "attachment; filename=\"" + run->id() + ".tar\"");
+  res.set(http::field::cache_control, "no-store");
+  res.set("X-Content-Type-Options", "nosniff");
+  res.keep_alive(c.request.keep_alive());
+  res.body().stream(std::make_shared<const TarArchive>(std::move(members)));
+  res.prepare_payload();
+  return res;
+}
+
 Response stream_without_upgrade(const Router::Services& s, const Context& c) {
   find_run(s, c.params[0]);
   Response res = error_response(
@@ -484,6 +525,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/files", false}, list_files},
       {{V::get, "/api/runs/{id}/files/{name}", false}, get_file},
       {{V::get, "/api/runs/{id}/files/{dir}/{name}", false}, get_file},
+      {{V::get, "/api/runs/{id}/archive", false}, get_archive},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},

@@ -553,6 +553,36 @@ TEST(Server, RunFilesAreListedAndDownloadedWhole) {
             "text/csv; charset=utf-8");
   EXPECT_EQ(api.get("/api/runs/" + id + "/files/" + checkpoint).header("content-type"),
             "application/x-hdf5");
+  // The whole run as one tar archive: RUN_ID.tar, every listed file under RUN_ID/, byte for byte
+  // (read back by Python's tarfile).
+  const Reply archive = api.get("/api/runs/" + id + "/archive");
+  ASSERT_EQ(archive.status, 200) << archive.body.substr(0, 300);
+  EXPECT_EQ(archive.header("content-type"), "application/x-tar");
+  EXPECT_EQ(archive.header("content-disposition"), "attachment; filename=\"" + id + ".tar\"");
+  EXPECT_EQ(archive.header("content-length"), std::to_string(archive.body.size()));
+  const fs::path work = scratch("archive");
+  const fs::path tar = work / (id + ".tar");
+  std::ofstream(tar, std::ios::binary) << archive.body;
+  const fs::path listing = work / "members.txt";
+  const std::string check =
+      "python3 -c \"import sys, tarfile; t = tarfile.open(sys.argv[1], 'r:'); "
+      "[print(m.name, m.size) for m in t.getmembers() if m.isfile()]\" " +
+      tar.string() + " > " + listing.string();
+  ASSERT_EQ(std::system(check.c_str()), 0) << "not a tar archive Python reads";
+  std::string members, expected;
+  {
+    std::ifstream in(listing);
+    members.assign(std::istreambuf_iterator<char>(in), {});
+  }
+  for (const auto& [path, f] : by_path)
+    expected += id + "/" + path + " " + std::to_string(f["bytes"].get<std::uintmax_t>()) + "\n";
+  EXPECT_EQ(members, expected);
+  const std::string check_bytes =
+      "python3 -c \"import sys, tarfile; t = tarfile.open(sys.argv[1]); "
+      "sys.exit(t.extractfile(sys.argv[2]).read() != open(sys.argv[3], 'rb').read())\" " +
+      tar.string() + " " + id + "/" + checkpoint + " " + (dir / checkpoint).string();
+  EXPECT_EQ(std::system(check_bytes.c_str()), 0) << checkpoint << " differs in the archive";
+  expect_error(api.get("/api/runs/0999-none/archive"), 404);
   // HEAD: the size, no body.
   const Reply head =
       send(server.port(), {http::verb::head, "/api/runs/" + id + "/files/" + checkpoint});

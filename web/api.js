@@ -197,6 +197,11 @@ export const api = {
    */
   frameUrl: (id, file) => `${runPath(id)}/frames/${encodeURIComponent(file)}`,
   /**
+   * The whole run directory as one tar archive (GET /api/runs/{id}/archive).
+   * @param {string} id
+   */
+  archiveUrl: (id) => `${runPath(id)}/archive`,
+  /**
    * @param {string} id
    * @param {string} field
    */

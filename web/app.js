@@ -782,6 +782,12 @@ async function refreshFiles() {
   };
   const top = document.createElement('ul');
   top.className = 'files';
+  if (files.length) {
+    const whole = link({ url: api.archiveUrl(id), path: `${id}.tar`, bytes: files.reduce((n, f) => n + f.bytes, 0) },
+      `the whole run as one archive (${id}.tar, ${files.length} files)`);
+    whole.id = 'run-archive';
+    top.append(whole);
+  }
   const groups = new Map();
   for (const f of files) {
     const slash = f.path.indexOf('/');

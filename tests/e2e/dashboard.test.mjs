@@ -440,6 +440,21 @@ async function run() {
   const h5 = new Uint8Array(await (await fetch(`${base}${h5Href}`)).arrayBuffer());
   if (h5.length < 8 || String.fromCharCode(...h5.slice(1, 4)) !== 'HDF') fail(`${h5Href} is not an HDF5 file`);
   pass(`files listed for download (${fileCount}): timeseries.csv and the checkpoint (${h5.length} B, HDF5 signature) fetched from their links`);
+  // The whole run as one tar archive: every listed file is a member under RUN_ID/.
+  const archiveHref = await page.locator('#run-archive a').getAttribute('href');
+  const tar = new Uint8Array(await (await fetch(`${base}${archiveHref}`)).arrayBuffer());
+  const tarText = (from, length) => String.fromCharCode(...tar.slice(from, from + length)).replace(/\0.*$/s, '');
+  const members = [];
+  for (let at = 0; at + 512 <= tar.length && tar[at] !== 0;) {
+    const size = parseInt(tarText(at + 124, 12), 8);
+    if (tarText(at + 257, 5) !== 'ustar' || !Number.isFinite(size)) fail(`${archiveHref}: no ustar header at byte ${at}`);
+    if (tarText(at + 156, 1) === '0') members.push(tarText(at, 100));
+    at += 512 + Math.ceil(size / 512) * 512;
+  }
+  const runId = archiveHref.split('/')[3];
+  if (members.length !== fileCount || !members.every((m) => m.startsWith(`${runId}/`)) || !members.includes(`${runId}/timeseries.csv`))
+    fail(`${archiveHref}: ${members.length} members (${members.slice(0, 5).join(', ')}…) for ${fileCount} listed files`);
+  pass(`the whole run downloads as one tar archive (${tar.length} B, ${members.length} members under ${runId}/)`);
 
   // Delete: after the confirmation the run leaves the list and the server.
   currentStep = 'deleting';
