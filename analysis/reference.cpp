@@ -70,8 +70,10 @@ std::optional<std::string> missing_reference(const sim::Scene& scene) {
 }
 
 ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::path& reference_dir,
-                               int samples) {
+                               int samples, double until) {
   if (const auto why = missing_reference(scene)) throw std::invalid_argument(*why);
+  if (!(until > 0.0)) throw std::invalid_argument("the reference must end at a time > 0");
+  const double end = std::min(scene.end_time, until);
   const double nu = scene.fluid.kinematic_viscosity();
   const double v0 = scene.velocity_amplitude;
   const double shift = uniform_energy(scene);
@@ -83,7 +85,7 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
       c.source = "2D Taylor-Green vortex, e_v(t) = v0²/4 exp(-4νt) (SPEC §6.2)";
       const int n = std::max(samples, 2);
       for (int k = 0; k < n; ++k) {
-        const double t = scene.end_time * k / (n - 1);
+        const double t = end * k / (n - 1);
         const double e = sim::taylor_green_2d_energy(v0, nu, t);
         c.time.push_back(t);
         c.energy.push_back(e + shift);
@@ -97,7 +99,7 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
       c.source =
           "Incompact3d DNS on 1280³ nodes, Dairay, Lamballais, Laizet & Vassilicos, "
           "J. Comput. Phys. 337 (2017) 252-274 (data/reference/README.md)";
-      for (std::size_t k = 0; k < dns.time.size() && dns.time[k] <= scene.end_time; ++k) {
+      for (std::size_t k = 0; k < dns.time.size() && dns.time[k] <= end; ++k) {
         c.time.push_back(dns.time[k]);
         c.energy.push_back(dns.energy[k] + shift);
         c.dissipation.push_back(dns.dissipation[k]);
@@ -120,7 +122,7 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
           "unstable";
       const int n = std::max(samples, 2);
       for (int i = 0; i < n; ++i) {
-        const double t = scene.end_time * i / (n - 1);
+        const double t = end * i / (n - 1);
         const double amplitude = chi / lambda * (1.0 - std::exp(-lambda * t));
         const double drift2 = ux * ux * std::exp(-2.0 * mu * t);
         c.time.push_back(t);

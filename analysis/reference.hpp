@@ -5,6 +5,7 @@
 #pragma once
 
 #include <filesystem>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -38,7 +39,10 @@ std::optional<std::string> missing_reference(const sim::Scene& scene);
 /// spin-up from rest for kolmogorov2d (sampled as tgv2d; a uniform velocity along x only). A
 /// uniform velocity U adds ½|U|² to e_v (decaying by the friction in the Kolmogorov flow).
 /// Otherwise throws std::invalid_argument saying why there is none.
+/// With `until`, the curve ends at min(until, time.end): the analytic curves are then sampled
+/// over that shorter span (a dashboard showing the first seconds of a long run), the DNS cut.
 ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::path& reference_dir,
-                               int samples = 201);
+                               int samples = 201,
+                               double until = std::numeric_limits<double>::infinity());
 
 }  // namespace sphles::analysis

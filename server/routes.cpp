@@ -205,6 +205,19 @@ std::uint64_t query_unsigned(const Context& c, const std::string& name, std::uin
   return value;
 }
 
+/// A query parameter that must be a finite number > 0, if given.
+std::optional<double> query_positive(const Context& c, const std::string& name) {
+  const auto it = c.query.find(name);
+  if (it == c.query.end()) return std::nullopt;
+  double value = 0.0;
+  const std::string& text = it->second;
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (text.empty() || ec != std::errc() || end != text.data() + text.size() ||
+      !std::isfinite(value) || !(value > 0.0))
+    throw ApiError(400, "'" + name + "' must be a number > 0, got '" + text + "'", name);
+  return value;
+}
+
 /// since_step, limit and (time series only) max_points of a history request; `limit` and
 /// `max_points` at most the server's row limit.
 HistoryQuery history_query(const Router::Services& s, const Context& c, bool decimation) {
@@ -250,13 +263,17 @@ Response analysis_history(const Router::Services& s, const Context& c) {
 }
 
 /// The run's reference curve (analysis/reference.hpp): the analytic decay of the 2D TGV, the DNS
-/// of the 3D TGV at Re = 5000; 404 saying why a run has none.
+/// of the 3D TGV at Re = 5000, the laminar Kolmogorov flow; 404 saying why a run has none.
+/// `until` ends it early (the analytic curves then sampled over the shorter span).
 Response reference(const Router::Services& s, const Context& c) {
+  constexpr int kSamples = 201;
   const auto run = find_run(s, c.params[0]);
+  const std::optional<double> until = query_positive(c, "until");
   const sim::Scene scene = run->spec().run.scene;
   analysis::ReferenceCurve curve;
   try {
-    curve = analysis::reference_curve(scene, s.options.reference_dir);
+    curve = analysis::reference_curve(scene, s.options.reference_dir, kSamples,
+                                      until.value_or(scene.end_time));
   } catch (const std::invalid_argument& e) {
     throw ApiError(404, "run '" + run->id() + "' has no reference: " + e.what());
   } catch (const std::runtime_error& e) {

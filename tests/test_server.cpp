@@ -501,6 +501,14 @@ TEST(Server, AnalysisHistoryHasEveryFrame) {
   ASSERT_EQ(ref["data"][0].size(), 201u);
   EXPECT_DOUBLE_EQ(ref["data"][1][0].get<double>(), 0.25);
   EXPECT_DOUBLE_EQ(ref["data"][0].back().get<double>(), 1000.0);  // tiny_scene's end time
+  // ?until= ends it early, sampled as finely over the shorter span; past the end it is the same.
+  const json early = api.get("/api/runs/" + bare + "/reference?until=2.5").body_json();
+  ASSERT_EQ(early["data"][0].size(), 201u);
+  EXPECT_DOUBLE_EQ(early["data"][0].back().get<double>(), 2.5);
+  EXPECT_DOUBLE_EQ(early["data"][0][1].get<double>(), 2.5 / 200);
+  EXPECT_EQ(api.get("/api/runs/" + bare + "/reference?until=5000").body_json(), ref);
+  for (const char* bad : {"0", "-1", "abc", "nan", "inf", ""})
+    expect_error(api.get("/api/runs/" + bare + "/reference?until=" + bad), 400, "until");
   EXPECT_EQ(api.run(bare)["available"]["reference"], true);
   const std::string thesis =
       api.create({{"preset", "tgv3d"}, {"patch", {{"particles_per_side", 16}}}, {"start", false}});

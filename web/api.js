@@ -170,10 +170,13 @@ export const api = {
    */
   files: (id) => call('get', '/api/runs/{id}/files', ofRun(id)),
   /**
-   * The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none).
+   * The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none), to its end
+   * time or to `until` seconds if earlier.
    * @param {string} id
+   * @param {number} [until]
    */
-  reference: (id) => call('get', '/api/runs/{id}/reference', ofRun(id)),
+  reference: (id, until) => call('get', '/api/runs/{id}/reference',
+    until === undefined ? ofRun(id) : { params: { id }, query: { until } }),
   /**
    * Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series.
    * @param {string} id

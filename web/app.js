@@ -505,7 +505,7 @@ function selectRun(id) {
   Object.assign(app, {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
-    reference: null, referenceWhy: null,
+    reference: null, referenceWhy: null, referencePending: false,
     live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
@@ -886,17 +886,33 @@ function addTimeseries(series) {
   addSamples(rows);
 }
 
-/** The run's reference curve (GET reference): the analytic 2D decay or the 3D DNS, or why none. */
-async function loadReference(id) {
+/** The run's reference curve (GET reference): the analytic 2D decay, the 3D DNS or the laminar
+ *  Kolmogorov flow, or why none; to `until` seconds if given (redraw asks again as the run goes
+ *  on, so that the plotted span is sampled finely). */
+async function loadReference(id, until) {
+  app.referencePending = true;
   try {
-    const r = await api.reference(id);
+    const r = await api.reference(id, until);
     if (id !== app.selectedId) return;
     const col = columnOf(r);
-    app.reference = { label: r.label, source: r.source, time: col('time'), energy: col('kinetic_energy'), dissipation: col('dissipation') };
+    const time = col('time');
+    // Complete: the curve ends before `until` (the run's end time or the DNS' last time).
+    const complete = until === undefined || !(time.length && time[time.length - 1] >= until * (1 - 1e-9));
+    app.reference = { id, label: r.label, source: r.source, time, energy: col('kinetic_energy'), dissipation: col('dissipation'), until: until ?? Infinity, complete };
   } catch (e) {
     if (id === app.selectedId) app.referenceWhy = errorText(e);
+  } finally {
+    if (id === app.selectedId) app.referencePending = false;
   }
   scheduleRedraw();
+}
+
+/** Asks for the reference again when the span it was sampled over is far from the plotted one:
+ *  more than four times longer, or shorter while the curve goes on. */
+function refreshReferenceSpan(horizon) {
+  const ref = app.reference;
+  if (!ref || ref.id !== app.selectedId || app.referencePending || !Number.isFinite(horizon)) return;
+  if (ref.until > 4 * horizon || (ref.until < horizon && !ref.complete)) loadReference(app.selectedId, 2 * horizon);
 }
 
 /** The analysis frames written before the page connected (GET analysis): the dissipation
@@ -1130,6 +1146,13 @@ function withCompared(rows, column) {
   return merged;
 }
 
+/** The reference's points at times up to `horizon`. */
+function clipReference(ref, horizon) {
+  const n = ref.time.findIndex((t) => t > horizon);
+  if (n < 0) return ref;
+  return { ...ref, time: ref.time.slice(0, n), energy: ref.energy.slice(0, n), dissipation: ref.dissipation.slice(0, n) };
+}
+
 function redraw() {
   const c = app.charts;
   const samples = app.samples;
@@ -1144,7 +1167,13 @@ function redraw() {
   drawAlignmentHistogram($('hist-alignment'), app.latestStatistics ? app.latestStatistics.alignment ?? null : undefined);
   if (!c) return;
 
-  const ref = app.reference;
+  // The reference up to twice the latest time of the plotted runs (all of it before the first
+  // sample): a long run's reference (time.end = 500) does not squeeze its first seconds into
+  // the plot's left edge, and the curve still shows where the run is heading.
+  const latest = Math.max(last ? last.time : 0, ...comparedRuns().map((r) => r.time?.[r.time.length - 1] ?? 0));
+  const horizon = latest > 0 ? 2 * latest : Infinity;
+  refreshReferenceSpan(horizon);
+  const ref = app.reference ? clipReference(app.reference, horizon) : null;
   const refRows = ref ? { x: ref.time, ys: [ref.energy] } : { x: [], ys: [[]] };
   const energy = withCompared(
     mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows),
@@ -1153,6 +1182,8 @@ function redraw() {
   for (const chart of [c.energy, c.dissipation, c.spectrum]) chart.setExtraSeries(labels);
   c.energy.setData(energy.x, energy.ys);
   $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
+  $('chart-energy').dataset.referenceEnd = String(ref && ref.time.length ? ref.time[ref.time.length - 1] : 0);
+  $('chart-energy').dataset.latest = String(latest);
 
   // ε: the per-step series, the sparse analysis estimates and the reference on one time axis.
   const estimates = mergeOnTime(

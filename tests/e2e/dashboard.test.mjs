@@ -256,6 +256,16 @@ async function run() {
     Number(await page.locator('#chart-energy').getAttribute('data-reference-points')), 10_000);
   if (!/analytic decay/.test(await text(page, '#cap-energy'))) fail(`the e_v caption does not name the reference: ${await text(page, '#cap-energy')}`);
   pass(`reference curve drawn with the run (${referencePoints} points of the analytic decay)`);
+  // The reference reaches no further than twice the run's latest time (time.end is far away).
+  const referenceEnd = Number(await page.locator('#chart-energy').getAttribute('data-reference-end'));
+  const latestTime = Number(await page.locator('#chart-energy').getAttribute('data-latest'));
+  if (!(referenceEnd > 0 && referenceEnd <= 2 * latestTime + 1e-9)) fail(`the reference runs to t = ${referenceEnd} for a run at t = ${latestTime}`);
+  // ... and is sampled over that span (asked for again with ?until=), not a handful of points.
+  const finePoints = await waitFor('the reference sampled over the plotted span', async () => {
+    const n = Number(await page.locator('#chart-energy').getAttribute('data-reference-points'));
+    return n >= 50 ? n : 0;
+  }, 10_000);
+  pass(`the reference is drawn to t = ${referenceEnd.toPrecision(3)}, within twice the run's t = ${latestTime.toPrecision(3)}, with ${finePoints} points`);
   const eta = await waitFor('an ETA for the running run', async () => {
     const t = await text(page, '#run-eta');
     return /\d/.test(t) ? t : null;
