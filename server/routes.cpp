@@ -419,14 +419,34 @@ std::vector<std::pair<std::string, fs::path>> run_files(const fs::path& root) {
   return files;
 }
 
+/// The run's directory, canonical (404 naming the run when it has none).
+fs::path run_root(const control::Run& run) {
+  std::error_code ec;
+  fs::path root = fs::canonical(run.directory(), ec);
+  if (ec) throw ApiError(404, "run '" + run.id() + "' has no directory", "id");
+  return root;
+}
+
+/// `source` streamed from disk as an attachment named `filename`, never cached.
+Response download_response(const Context& c, std::shared_ptr<const ByteSource> source,
+                           std::string_view content_type, const std::string& filename) {
+  Response res{http::status::ok, c.request.version()};
+  res.set(http::field::server, "sphles/" SPHLES_VERSION);
+  res.set(http::field::content_type, content_type);
+  res.set(http::field::content_disposition, "attachment; filename=\"" + filename + "\"");
+  res.set(http::field::cache_control, "no-store");
+  res.set("X-Content-Type-Options", "nosniff");
+  res.keep_alive(c.request.keep_alive());
+  res.body().stream(std::move(source));
+  res.prepare_payload();
+  return res;
+}
+
 /// The run's files for download (run_files): [{"path","bytes","modified","url"}] by path,
 /// `modified` in seconds since 1970 UTC.
 Response list_files(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  std::error_code ec;
-  const fs::path root = fs::canonical(run->directory(), ec);
-  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
-  const std::vector<std::pair<std::string, fs::path>> files = run_files(root);
+  const std::vector<std::pair<std::string, fs::path>> files = run_files(run_root(*run));
   nlohmann::json list = nlohmann::json::array();
   for (const auto& [relative, path] : files) {
     std::error_code e;
@@ -460,19 +480,9 @@ Response get_file(const Router::Services& s, const Context& c) {
   const std::string missing = "no file '" + relative + "' in run '" + run->id() + "'";
   if (ec || !is_within(root, file) || is_temporary(file.filename().string()))
     throw ApiError(404, missing, "path");
-  const std::shared_ptr<const FileSource> source = FileSource::open(file, ec);
+  std::shared_ptr<const FileSource> source = FileSource::open(file, ec);
   if (!source) throw ApiError(404, missing + " (" + ec.message() + ")", "path");
-  Response res{http::status::ok, c.request.version()};
-  res.set(http::field::server, "sphles/" SPHLES_VERSION);
-  res.set(http::field::content_type, mime_type(file));
-  res.set(http::field::content_disposition,
-          "attachment; filename=\"" + file.filename().string() + "\"");
-  res.set(http::field::cache_control, "no-store");
-  res.set("X-Content-Type-Options", "nosniff");
-  res.keep_alive(c.request.keep_alive());
-  res.body().stream(source);
-  res.prepare_payload();
-  return res;
+  return download_response(c, std::move(source), mime_type(file), file.filename().string());
 }
 
 /// The whole run directory (the files GET files lists) as one tar archive, RUN_ID.tar with the
@@ -480,11 +490,9 @@ Response get_file(const Router::Services& s, const Context& c) {
 /// as it was at the request (appended bytes are not sent, a rotated checkpoint is still sent).
 Response get_archive(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  std::error_code ec;
-  const fs::path root = fs::canonical(run->directory(), ec);
-  if (ec) throw ApiError(404, "run '" + run->id() + "' has no directory", "id");
   std::vector<ArchiveMember> members;
-  for (const auto& [relative, path] : run_files(root)) {
+  std::error_code ec;
+  for (const auto& [relative, path] : run_files(run_root(*run))) {
     std::shared_ptr<const FileSource> file = FileSource::open(path, ec);
     if (file) {
       members.push_back({run->id() + "/" + relative, std::move(file)});
@@ -495,16 +503,8 @@ Response get_archive(const Router::Services& s, const Context& c) {
                               "); download them one by one (GET files)");
     }  // else removed since the listing (a rotated checkpoint): not part of the run any more
   }
-  Response res{http::status::ok, c.request.version()};
-  res.set(http::field::server, "sphles/" SPHLES_VERSION);
-  res.set(http::field::content_type, "application/x-tar");
-  res.set(http::field::content_disposition, "attachment; filename=\"" + run->id() + ".tar\"");
-  res.set(http::field::cache_control, "no-store");
-  res.set("X-Content-Type-Options", "nosniff");
-  res.keep_alive(c.request.keep_alive());
-  res.body().stream(std::make_shared<const TarArchive>(std::move(members)));
-  res.prepare_payload();
-  return res;
+  return download_response(c, std::make_shared<const TarArchive>(std::move(members)),
+                           "application/x-tar", run->id() + ".tar");
 }
 
 Response stream_without_upgrade(const Router::Services& s, const Context& c) {
