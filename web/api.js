@@ -28,12 +28,14 @@ export class ApiError extends Error {
    * @param {number} status
    * @param {string} message
    * @param {string | null | undefined} field
+   * @param {boolean} [cancelled] the page cancelled the request (cancelRunRequests)
    */
-  constructor(status, message, field) {
+  constructor(status, message, field, cancelled = false) {
     super(message);
     this.name = 'ApiError';
     this.status = status;
     this.field = field ?? null;
+    this.cancelled = cancelled;
   }
 }
 
@@ -83,6 +85,20 @@ function call(method, path, { params = {}, query, body, text = false } = {}) {
   return request(method.toUpperCase(), target, body, { text });
 }
 
+/** Requests under way, by their path: those of a run are cancelled before it is deleted, so that
+ *  none reaches the server after the run is gone (a 404 the user did not cause). */
+/** @type {Map<AbortController, string>} */
+const inFlight = new Map();
+
+/** Cancels the requests under way for run `id` (its summary and every path below it); they
+ *  reject with an ApiError of status 0 and `cancelled` set.
+ *  @param {string} id */
+export function cancelRunRequests(id) {
+  const own = runPath(id);
+  for (const [controller, path] of inFlight)
+    if (path === own || path.startsWith(`${own}/`) || path.startsWith(`${own}?`)) controller.abort();
+}
+
 /**
  * @param {string} method
  * @param {string} path
@@ -95,19 +111,25 @@ async function request(method, path, body, { text: asText = false } = {}) {
   const headers = { Accept: asText ? 'text/plain' : 'application/json' };
   const token = getToken();
   if (token) headers.Authorization = `Bearer ${token}`;
+  const controller = new AbortController();
   /** @type {RequestInit} */
-  const init = { method, headers, cache: 'no-store' };
+  const init = { method, headers, cache: 'no-store', signal: controller.signal };
   if (body !== undefined) {
     headers['Content-Type'] = 'application/json';
     init.body = JSON.stringify(body);
   }
   let response;
+  let text;
+  inFlight.set(controller, path);
   try {
     response = await fetch(path, init);
+    text = await response.text();
   } catch (e) {
+    if (controller.signal.aborted) throw new ApiError(0, 'request cancelled', null, true);
     throw new ApiError(0, `server unreachable (${e instanceof Error ? e.message : e})`, null);
+  } finally {
+    inFlight.delete(controller);
   }
-  const text = await response.text();
   if (asText && response.ok) return text;
   let json = null;
   if (text) {

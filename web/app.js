@@ -2,7 +2,7 @@
 // parameter changes and run control. Talks only to the sphles server that served this page
 // (REST + one WebSocket per selected run, docs/api.md); no build step at run time.
 
-import { api, ApiError, getToken, setToken } from './api.js';
+import { api, ApiError, cancelRunRequests, getToken, setToken } from './api.js';
 import { RunStream } from './stream.js';
 import {
   plottingAvailable, formatNumber, energyChart, dissipationChart, spectrumChart,
@@ -669,6 +669,9 @@ async function deleteRun(id) {
   app.busy = true;
   renderHeader();
   showStatus('control-status', 'delete…');
+  // Nothing of the run may reach the server after it is gone (the reference, log and file
+  // list refresh on their own); a refused delete loads them again.
+  cancelRunRequests(id);
   try {
     await api.remove(id);
     app.runs = app.runs.filter((r) => r.id !== id);
@@ -676,6 +679,10 @@ async function deleteRun(id) {
     deselectRun();
   } catch (e) {
     app.busy = false;
+    if (app.selectedId === id) {
+      app.selectedId = null;
+      selectRun(id);
+    }
     showStatus('control-status', `delete refused: ${errorText(e)}`, 'error');
     renderHeader();
   }

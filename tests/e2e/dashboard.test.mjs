@@ -503,11 +503,21 @@ async function run() {
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the clone deleted', async () => page.locator('#run-detail').isHidden(), 10_000);
+  // The run's reference requests are held until after its delete: the page must cancel what it
+  // still has under way for the run, so that nothing of it reaches the server once it is gone
+  // (a held GET let through after the DELETE answers 404, which fails the page-error check).
+  const heldReference = [];
+  const referencePattern = `**/api/runs/${created.id}/reference*`;
+  await page.route(referencePattern, (route) => { heldReference.push(route); });
   await page.locator(`#run-list li[data-id="${created.id}"] button`).click();
   await waitFor('the original run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
+  await waitFor('the run\'s reference request under way', async () => heldReference.length > 0, 10_000);
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the run detail to close after delete', async () => page.locator('#run-detail').isHidden(), 10_000);
+  await page.unroute(referencePattern);
+  for (const route of heldReference) await route.continue().catch(() => {});
+  await page.waitForTimeout(300);
   const after = await (await fetch(`${base}/api/runs`)).json();
   if (after.some((r) => r.id === created.id)) fail(`run ${created.id} is still listed after delete`);
   pass(`deleted run ${created.id}: gone from the dashboard and GET /api/runs`);
