@@ -70,6 +70,10 @@ const app = {
   live: true,
   liveImage: {},  // field → {blob, header} of the newest live image not yet shown
   shownUrl: {},   // field → object URL currently in its <img>
+  reference: null,        // the selected run's reference curve, sampled to `until`
+  referenceWhy: null,     // why it has none
+  referencePending: false,
+  referenceRetry: { failures: 0, at: 0 },  // back-off of failed refetches (loadReference)
   charts: null,
   redrawTimer: null,
   busy: false,
@@ -505,7 +509,7 @@ function selectRun(id) {
   Object.assign(app, {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
-    reference: null, referenceWhy: null, referencePending: false,
+    reference: null, referenceWhy: null, referencePending: false, referenceRetry: { failures: 0, at: 0 },
     live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
@@ -580,7 +584,7 @@ async function backfill(id) {
     if (app.live) showLatestSavedFrames();
     scheduleRedraw();
   } catch (e) {
-    if (id === app.selectedId) showStatus('control-status', `Could not load the run: ${errorText(e)}`, 'error');
+    if (id === app.selectedId && !(e instanceof ApiError && e.cancelled)) showStatus('control-status', `Could not load the run: ${errorText(e)}`, 'error');
   }
 }
 
@@ -906,8 +910,14 @@ async function loadReference(id, until) {
     // Complete: the curve ends before `until` (the run's end time or the DNS' last time).
     const complete = until === undefined || !(time.length && time[time.length - 1] >= until * (1 - 1e-9));
     app.reference = { id, label: r.label, source: r.source, time, energy: col('kinetic_energy'), dissipation: col('dissipation'), until: until ?? Infinity, complete };
+    app.referenceRetry = { failures: 0, at: 0 };
   } catch (e) {
-    if (id === app.selectedId) app.referenceWhy = errorText(e);
+    if (id === app.selectedId && !(e instanceof ApiError && e.cancelled)) {
+      // A refetch that fails keeps the curve it had; the next try waits 1, 2, 4 … 60 s.
+      if (!app.reference) app.referenceWhy = errorText(e);
+      const failures = app.referenceRetry.failures + 1;
+      app.referenceRetry = { failures, at: Date.now() + Math.min(60_000, 1000 * 2 ** (failures - 1)) };
+    }
   } finally {
     if (id === app.selectedId) app.referencePending = false;
   }
@@ -919,6 +929,7 @@ async function loadReference(id, until) {
 function refreshReferenceSpan(horizon) {
   const ref = app.reference;
   if (!ref || ref.id !== app.selectedId || app.referencePending || !Number.isFinite(horizon)) return;
+  if (Date.now() < app.referenceRetry.at) return;
   if (ref.until > 4 * horizon || (ref.until < horizon && !ref.complete)) loadReference(app.selectedId, 2 * horizon);
 }
 

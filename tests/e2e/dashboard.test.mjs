@@ -231,6 +231,12 @@ async function run() {
   if (!/would accept/.test(estimateStatus)) fail(`the estimate says: ${estimateStatus}`);
   if ((await (await fetch(`${base}/api/runs`)).json()).length !== runsBefore) fail('the estimate created a run');
   pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}`);
+  // The reference's refetches (?until=) fail at first: the page must back off (1, 2, 4 … s
+  // between tries), not ask again at every redraw.
+  const isRefetch = (url) => url.pathname.endsWith('/reference') && url.searchParams.has('until');
+  let failedRefetches = 0;
+  const failRefetch = (route) => { failedRefetches += 1; return route.fulfill({ status: 503, contentType: 'application/json', body: '{"error":{"status":503,"message":"test: unavailable"}}' }); };
+  await page.route(isRefetch, failRefetch);
   await page.click('#create-submit');
   await waitFor('the new run to be selected', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
   const createStatus = await text(page, '#create-status');
@@ -256,15 +262,25 @@ async function run() {
     Number(await page.locator('#chart-energy').getAttribute('data-reference-points')), 10_000);
   if (!/analytic decay/.test(await text(page, '#cap-energy'))) fail(`the e_v caption does not name the reference: ${await text(page, '#cap-energy')}`);
   pass(`reference curve drawn with the run (${referencePoints} points of the analytic decay)`);
-  // The reference reaches no further than twice the run's latest time (time.end is far away).
-  const referenceEnd = Number(await page.locator('#chart-energy').getAttribute('data-reference-end'));
-  const latestTime = Number(await page.locator('#chart-energy').getAttribute('data-latest'));
-  if (!(referenceEnd > 0 && referenceEnd <= 2 * latestTime + 1e-9)) fail(`the reference runs to t = ${referenceEnd} for a run at t = ${latestTime}`);
-  // ... and is sampled over that span (asked for again with ?until=), not a handful of points.
+  await waitFor('the first refetch of the reference', async () => failedRefetches > 0, 15_000);
+  await page.waitForTimeout(3_500);
+  await page.unroute(isRefetch, failRefetch);
+  // Tries at 0, 1 and 3 s (a 4th if the clock straddles); a page without back-off asks at
+  // every redraw, dozens of times.
+  if (failedRefetches > 4) fail(`the failing reference refetch was asked ${failedRefetches} times in 3.5 s`);
+  for (let k = consoleErrors.length - 1; k >= 0; k--)
+    if (/reference\?until=.* 503|status of 503/.test(consoleErrors[k]) || /HTTP 503 GET .*\/reference\?until=/.test(consoleErrors[k])) consoleErrors.splice(k, 1);
+  pass(`a failing reference refetch backs off: ${failedRefetches} tries in 3.5 s`);
+  // The reference is sampled over the plotted span (asked for again with ?until=), not a
+  // handful of points ...
   const finePoints = await waitFor('the reference sampled over the plotted span', async () => {
     const n = Number(await page.locator('#chart-energy').getAttribute('data-reference-points'));
     return n >= 50 ? n : 0;
-  }, 10_000);
+  }, 20_000);
+  // ... and reaches no further than twice the run's latest time (time.end is far away).
+  const referenceEnd = Number(await page.locator('#chart-energy').getAttribute('data-reference-end'));
+  const latestTime = Number(await page.locator('#chart-energy').getAttribute('data-latest'));
+  if (!(referenceEnd > 0 && referenceEnd <= 2 * latestTime + 1e-9)) fail(`the reference runs to t = ${referenceEnd} for a run at t = ${latestTime}`);
   pass(`the reference is drawn to t = ${referenceEnd.toPrecision(3)}, within twice the run's t = ${latestTime.toPrecision(3)}, with ${finePoints} points`);
   const eta = await waitFor('an ETA for the running run', async () => {
     const t = await text(page, '#run-eta');
