@@ -45,13 +45,7 @@ json inline_refs(const json& node, const json& root) {
 
 json& node_at(json& schema, std::string_view dotted) {
   json* node = &schema;
-  std::size_t start = 0;
-  while (start < dotted.size()) {
-    std::size_t end = dotted.find('.', start);
-    if (end == std::string_view::npos) end = dotted.size();
-    node = &node->at("properties").at(std::string(dotted.substr(start, end - start)));
-    start = end + 1;
-  }
+  for (const std::string& key : sim::dotted_keys(dotted)) node = &node->at("properties").at(key);
   return *node;
 }
 
@@ -176,25 +170,20 @@ std::optional<std::string> json_schema_violation(const json& schema, const json&
 }
 
 LiveRule live_rule(const std::string& dotted) {
+  // The innermost x-live or x-fixed on the way from the scene to the field decides.
   LiveRule rule;
   const json* node = &sim::scene_schema_document();
-  std::size_t start = 0;
-  const auto apply = [&](const json& n) {
-    if (const auto live = n.find("x-live"); live != n.end()) {
+  for (const std::string& key : sim::dotted_keys(dotted)) {
+    node = sim::scene_schema_property(*node, key);
+    if (!node) break;
+    if (const auto live = node->find("x-live"); live != node->end()) {
       rule.live = live->get<bool>();
       rule.reason.clear();
     }
-    if (const auto fixed = n.find("x-fixed"); fixed != n.end()) {
+    if (const auto fixed = node->find("x-fixed"); fixed != node->end()) {
       rule.live = false;
       rule.reason = fixed->get<std::string>();
     }
-  };
-  while (node && start < dotted.size()) {
-    std::size_t end = dotted.find('.', start);
-    if (end == std::string::npos) end = dotted.size();
-    node = sim::scene_schema_property(*node, dotted.substr(start, end - start));
-    if (node) apply(*node);
-    start = end + 1;
   }
   return rule;
 }

@@ -1,6 +1,7 @@
 #include "sim/scene.hpp"
 
 #include "sim/json_reader.hpp"
+#include "sim/scene_schema.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -425,21 +426,20 @@ void apply_override(json& document, const std::string& assignment) {
   const std::string text = assignment.substr(eq + 1);
   json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
   if (value.is_discarded()) value = text;
+  const std::vector<std::string> parts = dotted_keys(key);
   json* node = &document;
-  std::size_t start = 0;
-  while (true) {
-    const auto dot = key.find('.', start);
-    const std::string part = key.substr(start, dot == std::string::npos ? dot : dot - start);
+  std::string walked;  // the key up to `node`
+  for (std::size_t k = 0; k < parts.size(); ++k) {
+    const std::string& part = parts[k];
     if (part.empty()) throw SceneError("--set: empty component in key '" + key + "'");
-    if (!node->is_object())
-      throw SceneError("--set: '" + key.substr(0, start ? start - 1 : 0) + "' is not an object");
-    if (dot == std::string::npos) {
+    if (!node->is_object()) throw SceneError("--set: '" + walked + "' is not an object");
+    if (k + 1 == parts.size()) {
       (*node)[part] = value;
       return;
     }
     node = &(*node)[part];
     if (node->is_null()) *node = json::object();
-    start = dot + 1;
+    walked += (walked.empty() ? "" : ".") + part;
   }
 }
 

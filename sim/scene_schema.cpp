@@ -55,14 +55,23 @@ const json* scene_schema_property(const json& object, const std::string& key) {
   return nullptr;
 }
 
+std::vector<std::string> dotted_keys(std::string_view dotted) {
+  std::vector<std::string> keys;
+  if (dotted.empty()) return keys;
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t end = dotted.find('.', start);
+    keys.emplace_back(dotted.substr(start, end == std::string_view::npos ? end : end - start));
+    if (end == std::string_view::npos) return keys;
+    start = end + 1;
+  }
+}
+
 const json* scene_schema_node(std::string_view dotted) {
   const json* node = &scene_schema_document();
-  std::size_t start = 0;
-  while (node && start < dotted.size()) {
-    std::size_t end = dotted.find('.', start);
-    if (end == std::string_view::npos) end = dotted.size();
-    node = scene_schema_property(*node, std::string(dotted.substr(start, end - start)));
-    start = end + 1;
+  for (const std::string& key : dotted_keys(dotted)) {
+    if (!node) break;
+    node = scene_schema_property(*node, key);
   }
   return node;
 }

@@ -21,6 +21,11 @@ std::string_view scene_schema_text();
 /// sim/scene.schema.json, parsed once.
 const nlohmann::json& scene_schema_document();
 
+/// The keys of a dotted field name: "analysis.slice.fields" -> {"analysis", "slice", "fields"},
+/// "a..b" -> {"a", "", "b"}, "" -> {}. The one place a dotted path is split (the schema walks,
+/// the live-change rules, --set).
+std::vector<std::string> dotted_keys(std::string_view dotted);
+
 /// The schema of the dotted field ("" is the whole scene; "render.colour.omega2" resolves the
 /// schema of render.colour's additional properties), with "$ref"s to "#/$defs/..." resolved;
 /// nullptr when the schema declares no such field.

@@ -10,6 +10,7 @@
 
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
+#include "sim/scene_schema.hpp"
 
 namespace sphles::sim {
 namespace {
@@ -72,6 +73,25 @@ TEST(Scene, OverridesUseDottedPathsAndJsonValues) {
   EXPECT_THROW(apply_override(doc, "no_equals_sign"), SceneError);
   EXPECT_THROW(apply_override(doc, "kernel..type=x"), SceneError);
   EXPECT_THROW(apply_override(doc, "particles_per_side.x=1"), SceneError);
+  EXPECT_THROW(apply_override(doc, "kernel.=x"), SceneError);
+  EXPECT_THROW(apply_override(doc, ".kernel=x"), SceneError);
+  try {
+    apply_override(doc, "packing.enabled.deep=1");
+    ADD_FAILURE() << "a key below a boolean was accepted";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("'packing.enabled' is not an object"), std::string::npos)
+        << e.what();
+  }
+}
+
+TEST(Scene, DottedKeysSplitEveryDot) {
+  using Keys = std::vector<std::string>;
+  EXPECT_EQ(dotted_keys(""), Keys{});
+  EXPECT_EQ(dotted_keys("kernel"), Keys{"kernel"});
+  EXPECT_EQ(dotted_keys("analysis.slice.fields"), (Keys{"analysis", "slice", "fields"}));
+  EXPECT_EQ(dotted_keys("a..b"), (Keys{"a", "", "b"}));
+  EXPECT_EQ(dotted_keys("a."), (Keys{"a", ""}));
+  EXPECT_EQ(dotted_keys(".a"), (Keys{"", "a"}));
 }
 
 struct BadScene {
