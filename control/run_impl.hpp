@@ -151,9 +151,11 @@ struct Run::Impl {
   void stop_locked(const std::string& why);
   void join_solver();
 
+  class Loop;  // the run loop and the outputs it feeds (control/run_loop.cpp)
   void execute();
   void solve(std::unique_ptr<sim::Simulation>& simulation, std::string& packing_provenance,
              bool resumed);
+  std::unique_ptr<sim::Simulation> set_up(const sim::Scene& scene, std::string& packing_provenance);
 };
 
 }  // namespace sphles::control

@@ -56,6 +56,372 @@ void Run::Impl::execute() {
   }
 }
 
+namespace {
+
+/// A solver restored from a state: the run's own factory (an MPI job) or one process.
+std::unique_ptr<sim::Simulation> restore_solver(const RunOptions& options, const sim::Scene& scene,
+                                                sim::SolverState state) {
+  return options.solvers.restore
+             ? options.solvers.restore(scene, std::move(state))
+             : sim::restore_simulation(sim::make_solver_config(scene), std::move(state));
+}
+
+/// Temporaries of a write that a crash interrupted are never valid checkpoints: removed.
+void remove_interrupted_writes(const std::filesystem::path& checkpoint_dir) {
+  if (!std::filesystem::exists(checkpoint_dir)) return;
+  for (const auto& entry : std::filesystem::directory_iterator(checkpoint_dir))
+    if (entry.path().filename().string().find(".h5.tmp.") != std::string::npos)
+      std::filesystem::remove(entry.path());
+}
+
+/// The state a resumed run continues from: the explicit file, else the newest valid checkpoint
+/// (the invalid ones skipped with a warning).
+io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>& explicit_file,
+                                      const std::filesystem::path& checkpoint_dir,
+                                      logging::RunLog& log) {
+  std::filesystem::path file;
+  if (explicit_file) {
+    file = *explicit_file;
+  } else if (!io::list_checkpoints(checkpoint_dir).empty()) {
+    std::vector<std::string> rejected;
+    file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
+    for (const std::string& why : rejected) log.warn("skipped: {}", why);
+  }
+  if (file.empty())
+    throw std::runtime_error(
+        "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
+        "again from t = 0)");
+  io::Checkpoint checkpoint = io::read_checkpoint(file);
+  log.progress("restart: {} at t = {:.17g}, step {}", file.string(), checkpoint.state.time,
+               checkpoint.state.step);
+  return checkpoint;
+}
+
+/// The run's loop and everything it feeds while it steps: time-series rows and metrics
+/// batches, analysis snapshots (pipeline and writer), rendered frames, checkpoints, progress,
+/// the run directory's identity, and live changes between steps. solve() sets the solver up,
+/// then run() steps to the end or a stop and finish() closes the outputs.
+}  // namespace
+
+class Run::Impl::Loop {
+ public:
+  Loop(Run::Impl& run, RunSpec& current, std::unique_ptr<sim::Simulation>& simulation,
+       const std::string& packing, bool resumed)
+      : run_(run),
+        current_(current),
+        simulation_(simulation),
+        packing_(packing),
+        checkpoint_dir_(run.directory / "checkpoints"),
+        frames_dir_(run.directory / "frames"),
+        identity_(directory_identity(run.directory)),
+        timeseries_(run.directory / "timeseries.csv", sim::case_diagnostic_names(current.run.scene),
+                    resumed),
+        dissipation_(current.run.analysis.dissipation_window) {
+    // A resumed run refills the trailing window from its time series, so that ε(t) continues
+    // as in an uninterrupted run.
+    if (resumed)
+      seed_dissipation(run.directory / "timeseries.csv", simulation->time(), dissipation_);
+    else
+      record(simulation_->diagnostics());
+    ensure_consumers();
+    if (pipeline_ && !resumed)
+      pipeline_->publish(analysis::make_snapshot(*simulation_, latest_dissipation_));
+    reset_cadences();
+    progress_->update(simulation_->diagnostics());
+    rate_wall_ = Clock::now();
+    rate_step_ = simulation_->step_count();
+  }
+
+  /// Steps until the end time or a stop; true when stopped (reason in stopped_reason()).
+  bool run() {
+    for (;;) {
+      if (run_.attention.load(std::memory_order_relaxed) && attend()) continue;
+      if (stopped_) return true;
+      if (sim::reached_end(simulation_->time(), current_.run.scene.end_time)) return false;
+      step();
+    }
+  }
+  const std::string& stopped_reason() const { return stopped_reason_; }
+
+  /// The end of a run, stopped or finished: the last progress line and metrics, a checkpoint
+  /// (every run can be continued and never has to start again from t = 0), the consumers
+  /// drained (finished) or cut short (stopped); throws what a consumer failed with.
+  void finish() {
+    run_.log->progress("{}", progress_->update(simulation_->diagnostics(), true));
+    flush_metrics();
+    save_checkpoint();
+    if (pipeline_) {
+      pipeline_->close(/*drain=*/!stopped_);
+      const analysis::PipelineCounters c = pipeline_->counters();
+      run_.log->progress("analysis: {} snapshots published, {} analysed, {} dropped, {:.1f} s busy",
+                         c.published, c.analysed, c.dropped, c.busy_seconds);
+    }
+    if (renderer_) renderer_->close(/*drain=*/!stopped_);
+    publish_progress(true);
+    if (pipeline_ && !pipeline_->error().empty())
+      throw std::runtime_error("analysis failed: " + pipeline_->error());
+    if (writer_ && !writer_->last_error().empty())
+      throw std::runtime_error("writing analysis products failed: " + writer_->last_error());
+    if (renderer_ && !renderer_->error().empty())
+      throw std::runtime_error("rendering failed: " + renderer_->error());
+  }
+
+ private:
+  /// One step, cut short to land on the next row, snapshot or checkpoint time, and what falls
+  /// due after it.
+  void step() {
+    const double t = simulation_->time();
+    const double end = current_.run.scene.end_time;
+    const double max_dt =
+        checkpoints_.limit_step(t, snapshots_.limit_step(t, rows_.limit_step(t, end - t)));
+    const auto step_start = Clock::now();
+    simulation_->step(max_dt);
+    const sim::StepDiagnostics& d = simulation_->diagnostics();
+    if (const bool row = rows_.take(d.time); row || !rows_.active()) record(d);
+    if (snapshots_.take(d.time))
+      pipeline_->publish(analysis::make_snapshot(*simulation_, latest_dissipation_));
+    bool checkpoint_due = checkpoints_.take(d.time);
+    const double every_seconds = current_.run.scene.checkpoint.every_seconds;
+    if (every_seconds > 0.0 && seconds_since(last_checkpoint_wall_) >= every_seconds)
+      checkpoint_due = true;
+    if (checkpoint_due) save_checkpoint();
+    {
+      std::lock_guard lock(run_.mutex);
+      run_.wall_seconds += seconds_since(step_start);
+    }
+    publish_progress(false);
+    check_directory();
+    if (seconds_since(last_flush_) >= run_.options.metrics_batch_seconds) flush_metrics();
+    if (const std::string line = progress_->update(d); !line.empty())
+      run_.log->progress("{}", line);
+  }
+
+  /// What a request left for the solver thread: pending changes (applied, then true: look
+  /// again), a pause (waits here), a stop (noted for run()).
+  bool attend() {
+    std::unique_lock lock(run_.mutex);
+    if (run_.pending) {
+      const ChangeScope scope = scope_of(run_.pending_fields);
+      run_.spec = std::move(*run_.pending);
+      run_.pending.reset();
+      run_.pending_fields.clear();
+      ++run_.revision;
+      run_.end_time = run_.spec.run.scene.end_time;
+      current_ = run_.spec;
+      lock.unlock();
+      apply_changes(scope);
+      lock.lock();
+    }
+    if (run_.state == RunState::Paused && !run_.stop_requested) {
+      lock.unlock();
+      flush_metrics();
+      lock.lock();
+      const auto paused_at = Clock::now();
+      run_.holding = true;
+      run_.changed.wait(lock, [&] {
+        return run_.state != RunState::Paused || run_.stop_requested || run_.pending;
+      });
+      run_.holding = false;
+      rate_wall_ += Clock::now() - paused_at;
+    }
+    if (run_.stop_requested) {
+      stopped_ = true;
+      stopped_reason_ = run_.stop_reason;
+    }
+    run_.attention =
+        run_.pending.has_value() || run_.state == RunState::Paused || run_.stop_requested;
+    return run_.pending && !stopped_;
+  }
+
+  /// A change set taken into current_: the solver restored from its state under the new scene
+  /// (when a solver key changed), the consumers reconfigured, the cadences restarted.
+  void apply_changes(const ChangeScope& scope) {
+    if (scope.solver)
+      simulation_ = restore_solver(run_.options, current_.run.scene, simulation_->state());
+    if (scope.analysis && pipeline_) pipeline_->set_config(current_.run.analysis);
+    if (scope.render && renderer_) renderer_->set_config(current_.render);
+    ensure_consumers();
+    reset_cadences();
+  }
+
+  /// Time-series rows (every step when output.timeseries_every is 0), analysis snapshots and
+  /// checkpoints at their cadences in simulated time, from now; a new progress reporter.
+  void reset_cadences() {
+    const auto cadence = [&](double every) { return sim::Cadence(every, simulation_->time()); };
+    rows_ = cadence(current_.run.scene.output.timeseries_every);
+    snapshots_ = cadence(pipeline_ ? current_.run.analysis.every : 0.0);
+    checkpoints_ = cadence(current_.run.scene.checkpoint.every);
+    progress_ = std::make_unique<sim::ProgressReporter>(
+        current_.run.scene.end_time, current_.run.scene.output.progress_every_seconds);
+  }
+
+  /// Every output goes to the run directory: if it is deleted or replaced while the run goes
+  /// on, further writes would vanish into unlinked files, so the run fails instead, saying why.
+  void check_directory() {
+    if (seconds_since(last_directory_check_) < run_.options.directory_check_seconds) return;
+    last_directory_check_ = Clock::now();
+    if (directory_identity(run_.directory) != identity_)
+      throw std::runtime_error("the run directory '" + run_.directory.string() +
+                               "' was deleted or replaced while the run was running; its "
+                               "outputs could no longer be written");
+  }
+
+  void flush_metrics() {
+    if (batch_.empty()) return;
+    {
+      std::lock_guard lock(run_.mutex);
+      run_.latest = batch_.back();
+    }
+    run_.for_each_observer([&](RunObserver& o) { o.on_metrics(batch_); });
+    batch_.clear();
+    last_flush_ = Clock::now();
+  }
+
+  /// A time-series row and a metrics sample of the step.
+  void record(const sim::StepDiagnostics& d) {
+    // Summed where the particles live (a distributed run gathers nothing for them).
+    const std::vector<std::string> names = sim::case_diagnostic_names(current_.run.scene);
+    const std::vector<double> values =
+        names.empty() ? std::vector<double>{} : simulation_->case_diagnostics(current_.run.scene);
+    const double epsilon = dissipation_.add(d.time, d.kinetic_energy);
+    latest_dissipation_ = epsilon;
+    timeseries_.write(d, epsilon, values);
+    MetricsSample m{d.time,      d.step, d.dt, d.kinetic_energy, epsilon, d.max_density_deviation,
+                    d.max_speed, {}};
+    for (std::size_t k = 0; k < names.size() && k < values.size(); ++k)
+      m.case_values.emplace_back(names[k], values[k]);
+    batch_.push_back(std::move(m));
+  }
+
+  /// A checkpoint of the current step (none twice), the newest checkpoint.keep kept; run.json
+  /// follows, so that after a crash it says where a resume continues.
+  void save_checkpoint() {
+    if (simulation_->step_count() == last_checkpoint_step_) return;
+    std::filesystem::create_directories(checkpoint_dir_);
+    const io::CheckpointMetadata metadata{run_spec_to_json(current_).dump(), SPHLES_VERSION,
+                                          packing_};
+    const auto file = checkpoint_dir_ / io::checkpoint_file_name(simulation_->step_count());
+    io::write_checkpoint(file, simulation_->state(), metadata,
+                         {.gzip_level = current_.run.scene.checkpoint.compression});
+    io::write_checkpoint_xdmf(file, simulation_->state());
+    const auto files = io::list_checkpoints(checkpoint_dir_);
+    for (std::size_t k = static_cast<std::size_t>(current_.run.scene.checkpoint.keep);
+         k < files.size(); ++k) {
+      std::filesystem::remove(files[k]);
+      std::filesystem::remove(io::checkpoint_xdmf_path(files[k]));
+    }
+    last_checkpoint_wall_ = Clock::now();
+    last_checkpoint_step_ = simulation_->step_count();
+    std::lock_guard lock(run_.mutex);
+    run_.time = simulation_->time();
+    run_.step = simulation_->step_count();
+    run_.last_checkpoint = io::checkpoint_file_name(simulation_->step_count());
+    run_.try_write_run_file_locked();
+  }
+
+  /// The renderer and the analysis pipeline (with its writer), each created when the scene
+  /// first needs it, on threads of their own.
+  void ensure_consumers() {
+    if (current_.render.enabled() && !renderer_) {
+      renderer_ = std::make_unique<RenderSink>(
+          current_.render, current_.run.scene.name, frames_dir_,
+          [this](const RenderedImage& image) { on_image(image); },
+          [this] { return run_.wants_images(); });
+      render_target_ = renderer_.get();
+    }
+    if (current_.run.analysis.enabled() && !pipeline_) {
+      writer_ = std::make_unique<analysis::RunDirectoryWriter>(
+          run_.directory, io::SnapshotMetadata{run_spec_to_json(current_).dump(), SPHLES_VERSION});
+      pipeline_ = std::make_unique<analysis::AnalysisPipeline>(
+          current_.run.analysis,
+          std::vector<analysis::FrameSink>{
+              [this](const analysis::AnalysisFrame& frame) { on_frame(frame); }});
+    }
+  }
+
+  /// On the analysis thread: a frame analysed, written, rendered and sent to the observers.
+  void on_frame(const analysis::AnalysisFrame& frame) {
+    writer_->write(frame);
+    auto shared = std::make_shared<const analysis::AnalysisFrame>(frame);
+    {
+      std::lock_guard lock(run_.mutex);
+      run_.latest_frame = shared;
+    }
+    if (RenderSink* target = render_target_.load()) target->post(shared);
+    run_.for_each_observer([&](RunObserver& o) { o.on_analysis(shared); });
+  }
+
+  /// On the render thread: a frame rendered.
+  void on_image(const RenderedImage& image) {
+    ImageEvent event{image.field, image.time, image.step, image.file, image.png, Clock::now()};
+    {
+      std::lock_guard lock(run_.mutex);
+      run_.latest_images[image.field] = event;
+    }
+    run_.for_each_observer([&](RunObserver& o) { o.on_image(event); });
+  }
+
+  /// The run's time, step, rate (over at least 1 s of stepping, or now when forced) and the
+  /// consumers' counters, for the status.
+  void publish_progress(bool force) {
+    const auto now = Clock::now();
+    const double span = std::chrono::duration<double>(now - rate_wall_).count();
+    std::lock_guard lock(run_.mutex);
+    run_.time = simulation_->time();
+    run_.step = simulation_->step_count();
+    if (span >= 1.0 || force) {
+      if (span > 0.0 && run_.step > rate_step_)
+        run_.steps_per_second = static_cast<double>(run_.step - rate_step_) / span;
+      rate_wall_ = now;
+      rate_step_ = run_.step;
+    }
+    if (pipeline_) {
+      const analysis::PipelineCounters c = pipeline_->counters();
+      run_.analysis_published = c.published;
+      run_.analysis_dropped = c.dropped;
+    }
+    if (renderer_) {
+      const RenderCounters c = renderer_->counters();
+      run_.frames_rendered = c.frames_rendered;
+      run_.frames_skipped = c.frames_skipped;
+    }
+  }
+
+  static double seconds_since(Clock::time_point then) {
+    return std::chrono::duration<double>(Clock::now() - then).count();
+  }
+
+  Run::Impl& run_;
+  RunSpec& current_;
+  std::unique_ptr<sim::Simulation>& simulation_;
+  const std::string& packing_;
+  const std::filesystem::path checkpoint_dir_, frames_dir_;
+  const std::optional<std::pair<dev_t, ino_t>> identity_;  // directory_identity at the start
+  Clock::time_point last_directory_check_ = Clock::now();
+  analysis::TimeSeriesWriter timeseries_;
+  analysis::DissipationEstimator dissipation_;
+  // -de_v/dt of the last row written: travels with each analysis snapshot (SPEC §5, the first
+  // of the three dissipation estimates of stats/snapshots.csv).
+  double latest_dissipation_ = std::numeric_limits<double>::quiet_NaN();
+  std::vector<MetricsSample> batch_;
+  Clock::time_point last_flush_ = Clock::now();
+  Clock::time_point last_checkpoint_wall_ = Clock::now();
+  std::uint64_t last_checkpoint_step_ = std::numeric_limits<std::uint64_t>::max();
+  sim::Cadence rows_{0.0, 0.0}, snapshots_{0.0, 0.0}, checkpoints_{0.0, 0.0};  // reset_cadences
+  std::unique_ptr<sim::ProgressReporter> progress_;
+  Clock::time_point rate_wall_ = Clock::now();
+  std::uint64_t rate_step_ = 0;
+  bool stopped_ = false;
+  std::string stopped_reason_;
+  // Consumers, destroyed in reverse order: the pipeline (which feeds the renderer) stops first.
+  std::unique_ptr<analysis::RunDirectoryWriter> writer_;
+  std::unique_ptr<RenderSink> renderer_;
+  std::atomic<RenderSink*> render_target_{nullptr};  // read by the analysis thread
+  std::unique_ptr<analysis::AnalysisPipeline> pipeline_;
+};
+
+/// The solver of a new run (packed or lattice particles, the packing's provenance into
+/// `packing`), or nothing to do for a resumed one; then the loop, then the end state.
 void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& packing,
                       bool resumed) {
   RunSpec current;
@@ -64,345 +430,74 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     current = spec;
   }
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
-  const std::filesystem::path frames_dir = directory / "frames";
-  const auto restore_solver = [this](const sim::Scene& scene, sim::SolverState state) {
-    return options.solvers.restore
-               ? options.solvers.restore(scene, std::move(state))
-               : sim::restore_simulation(sim::make_solver_config(scene), std::move(state));
-  };
-  // Temporaries of a write that a crash interrupted are never valid checkpoints: remove them.
-  if (std::filesystem::exists(checkpoint_dir))
-    for (const auto& entry : std::filesystem::directory_iterator(checkpoint_dir))
-      if (entry.path().filename().string().find(".h5.tmp.") != std::string::npos)
-        std::filesystem::remove(entry.path());
-
-  std::optional<io::Checkpoint> checkpoint;
-  set_phase(resumed ? "restoring" : current.run.scene.packing.enabled ? "packing" : "setting up");
-  if (resumed) {
-    std::filesystem::path file;
-    if (start_checkpoint) {
-      file = *start_checkpoint;
-    } else if (!io::list_checkpoints(checkpoint_dir).empty()) {
-      std::vector<std::string> rejected;
-      file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
-      for (const std::string& why : rejected) log->warn("skipped: {}", why);
-    }
-    if (file.empty())
-      throw std::runtime_error(
-          "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
-          "again from t = 0)");
-    {
-      checkpoint = io::read_checkpoint(file);
-      log->progress("restart: {} at t = {:.17g}, step {}", file.string(), checkpoint->state.time,
-                    checkpoint->state.step);
-    }
-  }
+  remove_interrupted_writes(checkpoint_dir);
   const sim::Scene& scene0 = current.run.scene;
+  set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
+  std::optional<io::Checkpoint> checkpoint;
+  if (resumed) checkpoint = read_resume_checkpoint(start_checkpoint, checkpoint_dir, *log);
   log->progress("sphles run: {} ({}), {} particles, kernel {}, D_K/dl = {:g}, {} threads -> {}",
                 scene0.name, sim::case_name(scene0.case_type), scene0.num_particles(),
                 sim::kernel_name(scene0.kernel), scene0.kernel_diameter_over_spacing,
                 omp_get_max_threads(), directory.string());
   if (checkpoint) {
     packing = checkpoint->metadata.packing;
-    simulation = restore_solver(scene0, std::move(checkpoint->state));
+    simulation = restore_solver(options, scene0, std::move(checkpoint->state));
     truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
-    RenderSink::truncate_index_after(frames_dir, simulation->time());
+    RenderSink::truncate_index_after(directory / "frames", simulation->time());
   } else {
-    std::error_code ignored;
-    std::filesystem::remove(directory / "timeseries.csv", ignored);
-    std::filesystem::remove(frames_dir / "index.csv", ignored);
-    const auto setup_start = Clock::now();
-    sim::SetupOptions setup_options;
-    setup_options.packing_cache_dir = options.packing_cache_dir;
-    setup_options.cancelled = [this] {
-      std::lock_guard lock(mutex);
-      return stop_requested;
-    };
-    sim::RunSetup setup = sim::setup_run(scene0, setup_options);
-    const double setup_seconds = std::chrono::duration<double>(Clock::now() - setup_start).count();
-    char text[512];
-    std::snprintf(text, sizeof text,
-                  "%s; iterations %d; residual %.6g -> %.6g; from cache %s; cache file %s",
-                  scene0.packing.enabled ? "Colagrossi packing" : "lattice (packing disabled)",
-                  setup.packing.iterations, setup.packing.initial_residual,
-                  setup.packing.final_residual, setup.packing.from_cache ? "yes" : "no",
-                  setup.packing.cache_file.empty() ? "-" : setup.packing.cache_file.c_str());
-    packing = text;
-    if (scene0.packing.enabled)
-      log->progress("packing: {}, {} iterations, residual {:.3g} -> {:.3g} ({:.1f} s){}{}",
-                    setup.packing.from_cache  ? "from cache"
-                    : setup.packing.converged ? "converged"
-                                              : "NOT converged (max_iterations reached)",
-                    setup.packing.iterations, setup.packing.initial_residual,
-                    setup.packing.final_residual, setup_seconds,
-                    setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
-    set_phase("setting up");  // the solver (and any MPI job) from the packed particles
-    simulation = options.solvers.make
-                     ? options.solvers.make(scene0, std::move(setup.particles))
-                     : sim::make_simulation(setup.solver, std::move(setup.particles));
+    simulation = set_up(scene0, packing);
   }
   set_phase("stepping");
 
-  // Every output goes to the run directory: if it is deleted or replaced while the run goes on,
-  // further writes would vanish into unlinked files, so the run fails instead, saying why.
-  const auto identity = directory_identity(directory);
-  auto last_directory_check = Clock::now();
-  const auto check_directory = [&] {
-    if (std::chrono::duration<double>(Clock::now() - last_directory_check).count() <
-        options.directory_check_seconds)
-      return;
-    last_directory_check = Clock::now();
-    if (directory_identity(directory) != identity)
-      throw std::runtime_error("the run directory '" + directory.string() +
-                               "' was deleted or replaced while the run was running; its "
-                               "outputs could no longer be written");
-  };
-  analysis::TimeSeriesWriter timeseries(directory / "timeseries.csv",
-                                        sim::case_diagnostic_names(scene0), checkpoint.has_value());
-  analysis::DissipationEstimator dissipation(current.run.analysis.dissipation_window);
-  // A resumed run refills the trailing window from its time series, so that ε(t) continues as
-  // in an uninterrupted run.
-  if (checkpoint) seed_dissipation(directory / "timeseries.csv", simulation->time(), dissipation);
-  // -de_v/dt of the last row written: travels with each analysis snapshot (SPEC §5, the first of
-  // the three dissipation estimates of stats/snapshots.csv).
-  double latest_dissipation = std::numeric_limits<double>::quiet_NaN();
-  std::vector<MetricsSample> batch;
-  auto last_flush = Clock::now();
-  const auto flush_metrics = [&] {
-    if (batch.empty()) return;
-    {
-      std::lock_guard lock(mutex);
-      latest = batch.back();
-    }
-    for_each_observer([&](RunObserver& o) { o.on_metrics(batch); });
-    batch.clear();
-    last_flush = Clock::now();
-  };
-  const auto record = [&](const sim::StepDiagnostics& d) {
-    // Summed where the particles live (a distributed run gathers nothing for them).
-    const std::vector<double> values = sim::case_diagnostic_names(current.run.scene).empty()
-                                           ? std::vector<double>{}
-                                           : simulation->case_diagnostics(current.run.scene);
-    const double epsilon = dissipation.add(d.time, d.kinetic_energy);
-    latest_dissipation = epsilon;
-    timeseries.write(d, epsilon, values);
-    MetricsSample m{d.time,      d.step, d.dt, d.kinetic_energy, epsilon, d.max_density_deviation,
-                    d.max_speed, {}};
-    const std::vector<std::string> names = sim::case_diagnostic_names(current.run.scene);
-    for (std::size_t k = 0; k < names.size() && k < values.size(); ++k)
-      m.case_values.emplace_back(names[k], values[k]);
-    batch.push_back(std::move(m));
-  };
-  if (!checkpoint) record(simulation->diagnostics());
-
-  // Checkpoints at multiples of checkpoint.every and/or every checkpoint.every_seconds of wall
-  // time, the newest checkpoint.keep kept; always one when the run is stopped (to resume it).
-  auto last_checkpoint_wall = Clock::now();
-  std::uint64_t last_checkpoint_step = std::numeric_limits<std::uint64_t>::max();
-  const auto save_checkpoint = [&] {
-    if (simulation->step_count() == last_checkpoint_step) return;
-    std::filesystem::create_directories(checkpoint_dir);
-    const io::CheckpointMetadata metadata{run_spec_to_json(current).dump(), SPHLES_VERSION,
-                                          packing};
-    const auto file = checkpoint_dir / io::checkpoint_file_name(simulation->step_count());
-    io::write_checkpoint(file, simulation->state(), metadata,
-                         {.gzip_level = current.run.scene.checkpoint.compression});
-    io::write_checkpoint_xdmf(file, simulation->state());
-    const auto files = io::list_checkpoints(checkpoint_dir);
-    for (std::size_t k = static_cast<std::size_t>(current.run.scene.checkpoint.keep);
-         k < files.size(); ++k) {
-      std::filesystem::remove(files[k]);
-      std::filesystem::remove(io::checkpoint_xdmf_path(files[k]));
-    }
-    last_checkpoint_wall = Clock::now();
-    last_checkpoint_step = simulation->step_count();
-    // run.json follows the checkpoints: after a crash it says where a resume continues.
-    std::lock_guard lock(mutex);
-    time = simulation->time();
-    step = simulation->step_count();
-    last_checkpoint = io::checkpoint_file_name(simulation->step_count());
-    try_write_run_file_locked();
-  };
-
-  // Consumers on their own threads, created when the scene first needs them.
-  // Destroyed in reverse order: the pipeline (which feeds the renderer) stops first.
-  std::unique_ptr<analysis::RunDirectoryWriter> writer;
-  std::unique_ptr<RenderSink> renderer;
-  std::atomic<RenderSink*> render_target{nullptr};  // read by the analysis thread
-  std::unique_ptr<analysis::AnalysisPipeline> pipeline;
-  const auto on_image = [this](const RenderedImage& image) {
-    ImageEvent event{image.field, image.time, image.step, image.file, image.png, Clock::now()};
-    {
-      std::lock_guard lock(mutex);
-      latest_images[image.field] = event;
-    }
-    for_each_observer([&](RunObserver& o) { o.on_image(event); });
-  };
-  const auto ensure_consumers = [&] {
-    if (current.render.enabled() && !renderer) {
-      renderer = std::make_unique<RenderSink>(current.render, current.run.scene.name, frames_dir,
-                                              on_image, [this] { return wants_images(); });
-      render_target = renderer.get();
-    }
-    if (current.run.analysis.enabled() && !pipeline) {
-      writer = std::make_unique<analysis::RunDirectoryWriter>(
-          directory, io::SnapshotMetadata{run_spec_to_json(current).dump(), SPHLES_VERSION});
-      pipeline = std::make_unique<analysis::AnalysisPipeline>(
-          current.run.analysis,
-          std::vector<analysis::FrameSink>{
-              [this, w = writer.get(), &render_target](const analysis::AnalysisFrame& frame) {
-                w->write(frame);
-                auto shared = std::make_shared<const analysis::AnalysisFrame>(frame);
-                {
-                  std::lock_guard lock(mutex);
-                  latest_frame = shared;
-                }
-                if (RenderSink* target = render_target.load()) target->post(shared);
-                for_each_observer([&](RunObserver& o) { o.on_analysis(shared); });
-              }});
-    }
-  };
-  ensure_consumers();
-  if (pipeline && !checkpoint)
-    pipeline->publish(analysis::make_snapshot(*simulation, latest_dissipation));
-
-  // Time-series rows (every step when output.timeseries_every is 0), analysis snapshots and
-  // checkpoints at their cadences in simulated time; steps are cut short to land on them.
-  const auto cadence = [&](double every) { return sim::Cadence(every, simulation->time()); };
-  sim::Cadence rows = cadence(current.run.scene.output.timeseries_every);
-  sim::Cadence snapshots = cadence(pipeline ? current.run.analysis.every : 0.0);
-  sim::Cadence checkpoints = cadence(current.run.scene.checkpoint.every);
-  auto progress = std::make_unique<sim::ProgressReporter>(
-      current.run.scene.end_time, current.run.scene.output.progress_every_seconds);
-  progress->update(simulation->diagnostics());
-  auto rate_wall = Clock::now();
-  std::uint64_t rate_step = simulation->step_count();
-  const auto publish_progress = [&](bool force) {
-    const auto now = Clock::now();
-    const double span = std::chrono::duration<double>(now - rate_wall).count();
-    std::lock_guard lock(mutex);
-    time = simulation->time();
-    step = simulation->step_count();
-    if (span >= 1.0 || force) {
-      if (span > 0.0 && step > rate_step)
-        steps_per_second = static_cast<double>(step - rate_step) / span;
-      rate_wall = now;
-      rate_step = step;
-    }
-    if (pipeline) {
-      const analysis::PipelineCounters c = pipeline->counters();
-      analysis_published = c.published;
-      analysis_dropped = c.dropped;
-    }
-    if (renderer) {
-      const RenderCounters c = renderer->counters();
-      frames_rendered = c.frames_rendered;
-      frames_skipped = c.frames_skipped;
-    }
-  };
-
-  bool stopped = false;
-  std::string stopped_reason;
-  for (;;) {
-    if (attention.load(std::memory_order_relaxed)) {
-      std::unique_lock lock(mutex);
-      if (pending) {
-        const ChangeScope scope = scope_of(pending_fields);
-        spec = std::move(*pending);
-        pending.reset();
-        pending_fields.clear();
-        ++revision;
-        end_time = spec.run.scene.end_time;
-        current = spec;
-        lock.unlock();
-        if (scope.solver) simulation = restore_solver(current.run.scene, simulation->state());
-        if (scope.analysis && pipeline) pipeline->set_config(current.run.analysis);
-        if (scope.render && renderer) renderer->set_config(current.render);
-        ensure_consumers();
-        rows = cadence(current.run.scene.output.timeseries_every);
-        snapshots = cadence(pipeline ? current.run.analysis.every : 0.0);
-        checkpoints = cadence(current.run.scene.checkpoint.every);
-        progress = std::make_unique<sim::ProgressReporter>(
-            current.run.scene.end_time, current.run.scene.output.progress_every_seconds);
-        lock.lock();
-      }
-      if (state == RunState::Paused && !stop_requested) {
-        lock.unlock();
-        flush_metrics();
-        lock.lock();
-        const auto paused_at = Clock::now();
-        holding = true;
-        changed.wait(lock, [&] { return state != RunState::Paused || stop_requested || pending; });
-        holding = false;
-        rate_wall += Clock::now() - paused_at;
-      }
-      if (stop_requested) {
-        stopped = true;
-        stopped_reason = stop_reason;
-      }
-      attention = pending.has_value() || state == RunState::Paused || stop_requested;
-      if (pending && !stopped) continue;
-    }
-    if (stopped) break;
-    const double end = current.run.scene.end_time;
-    if (sim::reached_end(simulation->time(), end)) break;
-
-    const double t = simulation->time();
-    const double max_dt =
-        checkpoints.limit_step(t, snapshots.limit_step(t, rows.limit_step(t, end - t)));
-    const auto step_start = Clock::now();
-    simulation->step(max_dt);
-    const sim::StepDiagnostics& d = simulation->diagnostics();
-    if (const bool row = rows.take(d.time); row || !rows.active()) record(d);
-    if (snapshots.take(d.time))
-      pipeline->publish(analysis::make_snapshot(*simulation, latest_dissipation));
-    bool checkpoint_due = checkpoints.take(d.time);
-    const double every_seconds = current.run.scene.checkpoint.every_seconds;
-    if (every_seconds > 0.0 &&
-        std::chrono::duration<double>(Clock::now() - last_checkpoint_wall).count() >= every_seconds)
-      checkpoint_due = true;
-    if (checkpoint_due) save_checkpoint();
-    {
-      std::lock_guard lock(mutex);
-      wall_seconds += std::chrono::duration<double>(Clock::now() - step_start).count();
-    }
-    publish_progress(false);
-    check_directory();
-    if (std::chrono::duration<double>(Clock::now() - last_flush).count() >=
-        options.metrics_batch_seconds)
-      flush_metrics();
-    if (const std::string line = progress->update(d); !line.empty()) log->progress("{}", line);
-  }
-
-  log->progress("{}", progress->update(simulation->diagnostics(), true));
-  flush_metrics();
-  // Every run ends with a checkpoint, stopped or finished, so that it can be continued (raise
-  // time.end) and never has to start again from t = 0.
-  save_checkpoint();
-  if (pipeline) {
-    pipeline->close(/*drain=*/!stopped);
-    const analysis::PipelineCounters c = pipeline->counters();
-    log->progress("analysis: {} snapshots published, {} analysed, {} dropped, {:.1f} s busy",
-                  c.published, c.analysed, c.dropped, c.busy_seconds);
-  }
-  if (renderer) renderer->close(/*drain=*/!stopped);
-  publish_progress(true);
-  if (pipeline && !pipeline->error().empty())
-    throw std::runtime_error("analysis failed: " + pipeline->error());
-  if (writer && !writer->last_error().empty())
-    throw std::runtime_error("writing analysis products failed: " + writer->last_error());
-  if (renderer && !renderer->error().empty())
-    throw std::runtime_error("rendering failed: " + renderer->error());
+  Loop loop(*this, current, simulation, packing, checkpoint.has_value());
+  const bool stopped = loop.run();
+  loop.finish();
   json written = outputs_json(directory);
   log->progress("{}", outputs_summary(written));
   std::unique_lock lock(mutex);
   outputs = std::move(written);
   if (stopped) {
-    set_state(lock, RunState::Stopped, stopped_reason);
+    set_state(lock, RunState::Stopped, loop.stopped_reason());
   } else {
     log->progress("sphles run: finished, outputs in {}", directory.string());
     set_state(lock, RunState::Finished);
   }
+}
+
+/// A new run's particles (packed, from the packing cache, or the lattice) and its solver; a
+/// stop during the packing cancels it (sim::SetupCancelled).
+std::unique_ptr<sim::Simulation> Run::Impl::set_up(const sim::Scene& scene, std::string& packing) {
+  std::error_code ignored;
+  std::filesystem::remove(directory / "timeseries.csv", ignored);
+  std::filesystem::remove(directory / "frames" / "index.csv", ignored);
+  const auto setup_start = Clock::now();
+  sim::SetupOptions setup_options;
+  setup_options.packing_cache_dir = options.packing_cache_dir;
+  setup_options.cancelled = [this] {
+    std::lock_guard lock(mutex);
+    return stop_requested;
+  };
+  sim::RunSetup setup = sim::setup_run(scene, setup_options);
+  const double setup_seconds = std::chrono::duration<double>(Clock::now() - setup_start).count();
+  char text[512];
+  std::snprintf(text, sizeof text,
+                "%s; iterations %d; residual %.6g -> %.6g; from cache %s; cache file %s",
+                scene.packing.enabled ? "Colagrossi packing" : "lattice (packing disabled)",
+                setup.packing.iterations, setup.packing.initial_residual,
+                setup.packing.final_residual, setup.packing.from_cache ? "yes" : "no",
+                setup.packing.cache_file.empty() ? "-" : setup.packing.cache_file.c_str());
+  packing = text;
+  if (scene.packing.enabled)
+    log->progress("packing: {}, {} iterations, residual {:.3g} -> {:.3g} ({:.1f} s){}{}",
+                  setup.packing.from_cache  ? "from cache"
+                  : setup.packing.converged ? "converged"
+                                            : "NOT converged (max_iterations reached)",
+                  setup.packing.iterations, setup.packing.initial_residual,
+                  setup.packing.final_residual, setup_seconds,
+                  setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
+  set_phase("setting up");  // the solver (and any MPI job) from the packed particles
+  return options.solvers.make ? options.solvers.make(scene, std::move(setup.particles))
+                              : sim::make_simulation(setup.solver, std::move(setup.particles));
 }
 
 }  // namespace sphles::control
