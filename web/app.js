@@ -49,6 +49,16 @@ const PHASE_TEXT = {
   'setting up': 'setting up…',
 };
 const LIVE_PRODUCTS = ['energy', 'spectrum', 'vorticity', 'slices', 'sfs_stats'];
+/** Labels of the analysis products the form offers (the names come from the scene schema). */
+const PRODUCT_LABELS = {
+  energy: 'energy, dissipation',
+  spectrum: 'E(k) spectra',
+  vorticity: '⟨ω²⟩',
+  slices: 'slice images',
+  sfs_stats: 'τ_SFS statistics',
+  particles: 'particle snapshots (HDF5 + XDMF)',
+  fields: 'grid fields (.vti)',
+};
 
 const $ = (id) => document.getElementById(id);
 
@@ -250,6 +260,7 @@ async function cloneSelectedRun() {
   fillCreateForm();
   $('create-live').checked = false;  // the clone keeps its own analysis and render sections
   $('create-every').disabled = true;
+  for (const box of productBoxes()) box.disabled = true;
   $('create-name').value = `${scene.name ?? detail.id}-clone`;
   $('create-ranks').value = String(detail.ranks ?? 1);
   showStatus('create-status', `Form filled with run ${detail.id}'s scene: edit, then Create.`, 'ok');
@@ -272,6 +283,8 @@ function fillCreateForm() {
     'subfilter.model': preset.subfilter_model,
     'time.end': preset.end_time,
   };
+  const products = defaultProducts(preset);
+  for (const box of productBoxes()) box.checked = products.has(box.value);
   for (const input of $('create-form').querySelectorAll('[data-path]')) {
     const path = input.dataset.path;
     let value = getPath(preset.scene, path);
@@ -309,10 +322,15 @@ function buildCreateRequest() {
   if ($('create-live').checked) {
     const every = Number($('create-every').value);
     if (!(every > 0)) throw new Error("'analysis.every' must be > 0 for live analysis");
-    const products = new Set([...(getPath(preset.scene, 'analysis.products') ?? []), ...LIVE_PRODUCTS]);
-    const sliceFields = new Set([...(getPath(preset.scene, 'analysis.slice.fields') ?? []), ...IMAGE_FIELDS]);
-    patch.analysis = { every, products: [...products], slice: { fields: [...sliceFields] } };
-    patch.render = { fields: IMAGE_FIELDS, combined: false };
+    const products = productBoxes().filter((b) => b.checked).map((b) => b.value);
+    if (!products.length) throw new Error("'analysis.products': choose at least one product for live analysis");
+    patch.analysis = { every, products };
+    if (products.includes('slices')) {
+      // The live images are the slices rendered: ω² and |τ_SFS| beside what the preset slices.
+      const sliceFields = new Set([...(getPath(preset.scene, 'analysis.slice.fields') ?? []), ...IMAGE_FIELDS]);
+      patch.analysis.slice = { fields: [...sliceFields] };
+      patch.render = { fields: IMAGE_FIELDS, combined: false };
+    }
   }
   const invalid = sceneSchemaError(mergePatch(preset.scene ?? {}, patch));
   if (invalid) throw new Error(`scene: ${invalid}`);
@@ -413,6 +431,37 @@ async function onEstimate() {
 
 // ---------------------------------------------------------------- scene schema
 
+/** The products a preset's live analysis starts with: the live ones and the preset's own. */
+function defaultProducts(preset) {
+  return new Set([...(getPath(preset?.scene, 'analysis.products') ?? []), ...LIVE_PRODUCTS]);
+}
+
+/** The form's analysis-product check boxes (one per name the scene schema declares). */
+function productBoxes() {
+  return [...$('create-products').querySelectorAll('input[type=checkbox]')];
+}
+
+/** The product check boxes from the schema's names, keeping what was checked. */
+function renderProductBoxes(node) {
+  const names = node?.items?.enum;
+  if (!Array.isArray(names)) return;
+  const checked = new Set(productBoxes().filter((b) => b.checked).map((b) => b.value));
+  const fresh = !productBoxes().length;
+  $('create-products').title = node.description ?? '';
+  $('create-products').replaceChildren(...names.map((name) => {
+    const label = document.createElement('label');
+    label.className = 'check';
+    const box = document.createElement('input');
+    box.type = 'checkbox';
+    box.value = name;
+    box.dataset.product = name;
+    box.checked = (fresh ? defaultProducts(selectedPreset()) : checked).has(name);
+    box.disabled = !$('create-live').checked;
+    label.append(box, ` ${PRODUCT_LABELS[name] ?? name}`);
+    return label;
+  }));
+}
+
 /** The schema of a dotted scene field in the scene schema (GET /api/schema/scene), or null. */
 function schemaNode(schema, path) {
   let node = schema;
@@ -438,6 +487,7 @@ function applySceneSchema(schema) {
   if (typeof window.ajv7 === 'function') {
     app.validateScene = new window.ajv7({ strict: false, allErrors: false }).compile(schema);
   }
+  renderProductBoxes(schemaNode(schema, 'analysis.products'));
   for (const el of document.querySelectorAll('[data-path]')) {
     const node = schemaNode(schema, el.dataset.path);
     if (!node) continue;
@@ -1316,7 +1366,11 @@ function main() {
   $('btn-clone').addEventListener('click', cloneSelectedRun);
   $('files-refresh').addEventListener('click', refreshFiles);
   $('create-preset').addEventListener('change', fillCreateForm);
-  $('create-live').addEventListener('change', () => { $('create-every').disabled = !$('create-live').checked; });
+  $('create-live').addEventListener('change', () => {
+    const live = $('create-live').checked;
+    $('create-every').disabled = !live;
+    for (const box of productBoxes()) box.disabled = !live;
+  });
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);
   $('frame-scrubber').addEventListener('input', onScrub);
   $('btn-live').addEventListener('click', goLive);

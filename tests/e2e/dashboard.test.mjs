@@ -216,6 +216,8 @@ async function run() {
   // the Galilean-invariant ALE form of its extra stress; checked in the run's scene below.
   await page.selectOption('#create-scheme', 'transport_velocity');
   await page.selectOption('#create-ale', 'full');
+  // The particle snapshot product (issue 20), chosen beside the live ones.
+  await page.check('#create-products input[data-product="particles"]');
   await page.fill('#create-name', 'e2e-tgv2d');
   await page.fill('#create-ranks', '2');  // the solver in a 2-rank MPI job (the server's --launcher)
   await page.check('#create-start');
@@ -492,6 +494,15 @@ async function run() {
   if (scheme.type !== 'transport_velocity' || scheme.ale_correction !== 'full')
     fail(`the run's scheme is not the form's choice: ${JSON.stringify(scheme)}`);
   pass('scheme and ALE correction chosen in the form are the run\'s');
+  const products = detail.scene?.analysis?.products ?? [];
+  if (!products.includes('particles') || !products.includes('spectrum'))
+    fail(`the run's analysis products are not the form's choice: ${JSON.stringify(products)}`);
+  const snapshotFiles = await waitFor('a particle snapshot in the run\'s files', async () => {
+    const files = await (await fetch(`${base}/api/runs/${created.id}/files`)).json();
+    const list = (files.files ?? files).filter((f) => /^snapshots\/particles_.*\.h5$/.test(f.path ?? f.name ?? ''));
+    return list.length ? list : null;
+  }, 20_000);
+  pass(`the particle snapshot product chosen in the form is written (${snapshotFiles.length} snapshot files)`);
   if (detail.ranks !== 2) fail(`the run's rank count is not the form's 2: ${detail.ranks}`);
   if (!(await text(page, '#run-case')).includes('2 MPI ranks')) fail('the run detail does not show its 2 MPI ranks');
   pass('the run was created with the form\'s 2 MPI ranks and shows them');
