@@ -155,13 +155,16 @@ inline void add(double& sum, const double (&c)[K]) {
 }
 
 /// Σ over one particle's list of the evaluator's masked contributions (the loop body shared by
-/// both passes). With Record, keep_out[k] is 0xFF when entry k lies inside the support,
-/// 0 < r < H, else 0 (for the compaction).
+/// both passes). With Record, keep_out[k] is 0xFFFFFFFF when entry k lies inside the support,
+/// 0 < r < H, else 0 (for the compaction). The mark is 32 bits wide like the list entries: the
+/// vectoriser sizes the loop by its narrowest type, and a byte mark made it take 32 entries per
+/// iteration (8 vectors of doubles) and leave up to 31 of a particle's entries to a scalar
+/// remainder; with 32-bit marks it takes 8 and leaves at most 7 (docs/performance.md).
 template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
 inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
                       const typename E::Own& own_ref, const double (&xi_ref)[Dim],
                       std::span<const std::uint32_t> js, double support2, double (&sum)[E::outputs],
-                      std::uint8_t* keep_out) {
+                      std::uint32_t* keep_out) {
   constexpr int K = E::outputs;
   // Local copies: their members (array pointers, constants) are then known not to change in the
   // loop, so the loads become gathers from invariant bases and the loop vectorises.
@@ -183,7 +186,7 @@ inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
     // vectorise.
     const bool in_support = pair.r2 < support2;
     const bool separate = pair.r2 > 0.0;
-    if constexpr (Record) keep_out[k] = (in_support & separate) ? 0xFF : 0x00;
+    if constexpr (Record) keep_out[k] = (in_support & separate) ? 0xFFFFFFFFu : 0u;
     e.pair(own, pair, c);
     const bool inside = !TestSupport || (in_support & (E::coincident_pairs || separate));
     for (int o = 0; o < K; ++o) c[o] = inside ? c[o] : reduction_identity<E>();
@@ -219,29 +222,31 @@ inline void sum_pairs(const E& evaluator, const Geometry& geometry_ref,
 
 }  // namespace pair_loop_detail
 
-/// How this build sums a particle's pairs: "simd<W>" (lanes of W doubles, the widest vector the
-/// build targets and lets the vectoriser use, SPHLES_VECTOR_WIDTH) or "ordered" (list order,
-/// SPHLES_SIMD=OFF). Results of two builds agree bitwise only when this agrees.
+/// How this build sums a particle's pairs: "simd<W>-i32" (lanes of W doubles, the widest vector
+/// the build targets and lets the vectoriser use, SPHLES_VECTOR_WIDTH; every loop's vector
+/// length set by its 32-bit list entries, so that a vector of entries spans several vectors of
+/// doubles) or "ordered" (list order, SPHLES_SIMD=OFF). Results of two builds agree bitwise only
+/// when this agrees; the packing cache keys on it.
 inline const char* pair_loop_summation() {
   if constexpr (kDefaultSummation == Summation::Ordered) return "ordered";
 #if defined(__AVX512F__) && (!defined(SPHLES_VECTOR_BITS) || SPHLES_VECTOR_BITS >= 512)
-  return "simd8";
+  return "simd8-i32";
 #elif defined(__AVX__)
-  return "simd4";
+  return "simd4-i32";
 #else
-  return "simd2";
+  return "simd2-i32";
 #endif
 }
 
 namespace pair_loop_detail {
 
 /// One particle's whole pass: its own values, the sum over its pairs, the evaluator's finish.
-/// With Record, keep[k] is 0xFF for a list entry k inside the support, else 0 (keep has
+/// With Record, keep[k] is 0xFFFFFFFF for a list entry k inside the support, else 0 (keep has
 /// list.of(i).size()).
 template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
 inline void evaluate_particle(const E& e, const Geometry& geometry,
                               std::span<const std::uint32_t> js, std::size_t i, double support2,
-                              std::uint8_t* keep) {
+                              std::uint32_t* keep) {
   const typename E::Own own = e.own(i);
   double xi[Dim];
   geometry.position(i, xi);
@@ -282,7 +287,7 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
   const auto last = static_cast<std::ptrdiff_t>(end);
 #pragma omp parallel
   {
-    std::vector<std::uint8_t> keep;
+    std::vector<std::uint32_t> keep;
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t si = first; si < last; ++si) {
       const auto i = static_cast<std::size_t>(si);

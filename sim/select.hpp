@@ -35,4 +35,26 @@ inline std::size_t append_selected(const std::uint32_t* members, const std::uint
   return used;
 }
 
+/// The same with 32-bit selections (each 0 or 0xFFFFFFFF): the mask a vectorised loop over
+/// 32-bit list entries writes without narrowing, so that the loop's vector length is set by its
+/// indices, not by a byte (sim/pair_loop.hpp).
+inline std::size_t append_selected(const std::uint32_t* members, const std::uint32_t* selected,
+                                   std::size_t count, std::uint32_t* out) {
+  std::size_t used = 0, k = 0;
+#if defined(__AVX512F__)
+  for (; k + 16 <= count; k += 16) {
+    const __m512i marks = _mm512_loadu_si512(selected + k);
+    const __mmask16 mask = _mm512_test_epi32_mask(marks, marks);
+    const __m512i indices = _mm512_loadu_si512(members + k);
+    _mm512_storeu_si512(out + used, _mm512_maskz_compress_epi32(mask, indices));
+    used += static_cast<std::size_t>(__builtin_popcount(mask));
+  }
+#endif
+  for (; k < count; ++k) {
+    out[used] = members[k];
+    used += selected[k] & 1u;
+  }
+  return used;
+}
+
 }  // namespace sphles::sim

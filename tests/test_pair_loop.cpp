@@ -14,6 +14,7 @@
 #include "sim/pair_loop.hpp"
 #include "sim/particle_shifting.hpp"
 #include "sim/physics.hpp"
+#include "sim/select.hpp"
 #include "sim/subfilter.hpp"
 #include "sim/transport_velocity.hpp"
 #include "test_support.hpp"
@@ -279,6 +280,35 @@ struct FarthestInSupport {
 
 // Custom reductions (identity + accumulate) see exactly the in-support pairs; a particle with
 // none keeps the identity.
+// The stream compaction behind the list build (byte marks) and the density pass (32-bit marks):
+// both keep exactly the marked members, in order, for counts around the 16-wide vector blocks.
+TEST(PairLoop, AppendSelectedKeepsTheMarkedMembersInOrder) {
+  std::mt19937 random(7);
+  for (std::size_t count = 0; count <= 49; ++count) {
+    std::vector<std::uint32_t> members(count), wide(count);
+    std::vector<std::uint8_t> bytes(count);
+    std::vector<std::uint32_t> expected;
+    for (std::size_t k = 0; k < count; ++k) {
+      members[k] = static_cast<std::uint32_t>(random());
+      const bool keep = random() % 3 != 0;
+      bytes[k] = keep ? 0xFF : 0x00;
+      wide[k] = keep ? 0xFFFFFFFFu : 0u;
+      if (keep) expected.push_back(members[k]);
+    }
+    std::vector<std::uint32_t> out_bytes(count + 16, 0xDEADBEEF), out_wide(count + 16, 0xDEADBEEF);
+    const std::size_t kept_bytes =
+        append_selected(members.data(), bytes.data(), count, out_bytes.data());
+    const std::size_t kept_wide =
+        append_selected(members.data(), wide.data(), count, out_wide.data());
+    ASSERT_EQ(kept_bytes, expected.size()) << "count " << count;
+    ASSERT_EQ(kept_wide, expected.size()) << "count " << count;
+    for (std::size_t k = 0; k < expected.size(); ++k) {
+      EXPECT_EQ(out_bytes[k], expected[k]) << "count " << count << ", entry " << k;
+      EXPECT_EQ(out_wide[k], expected[k]) << "count " << count << ", entry " << k;
+    }
+  }
+}
+
 TEST(PairLoop, CustomReductionsSeeTheSupportAndStartFromTheIdentity) {
   testing::RandomFlow flow = prepared_flow(3, 10, 4);
   const SolverConfig& c = flow.config;
