@@ -69,6 +69,8 @@ const app = {
   validateScene: null,  // ajv's validator of that schema, when the page has ajv
   compared: new Map(),  // run id → {label, time, energy, dissipation, spectrum} overlaid on the plots
   selectedId: null,
+  autoSelect: true,    // pick a run for the user (on opening the page, until one is closed)
+  runsGeneration: 0,   // run deletions by this page: older run lists are stale
   summary: null,  // run summary of the selected run (from the list, the stream or an action)
   detail: null,   // run detail (scene, changeable, counters)
   stream: null,
@@ -139,7 +141,10 @@ function finite(v) {
 
 async function pollRuns() {
   try {
+    const generation = app.runsGeneration;
     const runs = await api.runs();
+    // A list asked for before this page deleted a run may still hold it: wait for the next.
+    if (generation !== app.runsGeneration) return;
     app.runs = Array.isArray(runs) ? runs : [];
     const el = $('api-state');
     el.dataset.state = 'open';
@@ -149,7 +154,8 @@ async function pollRuns() {
       const s = app.runs.find((r) => r.id === app.selectedId);
       if (s) mergeSummary(s);
       else deselectRun();  // deleted elsewhere
-    } else if (app.runs.length) {
+    } else if (app.runs.length && app.autoSelect) {
+      // On opening the page only: the run the address names, else the newest active one.
       const fromHash = new URLSearchParams(location.hash.slice(1)).get('run');
       const pick = app.runs.find((r) => r.id === fromHash) ??
         [...app.runs].reverse().find((r) => ACTIVE.has(r.state)) ?? app.runs[app.runs.length - 1];
@@ -708,6 +714,7 @@ function estimateRemaining(s) {
 }
 
 function deselectRun() {
+  app.autoSelect = false;  // the user closed it (or it was deleted): none is picked for them
   if (app.stream) app.stream.close();
   app.stream = null;
   app.selectedId = null;
@@ -728,6 +735,7 @@ async function deleteRun(id) {
   cancelRunRequests(id);
   try {
     await api.remove(id);
+    app.runsGeneration += 1;
     app.runs = app.runs.filter((r) => r.id !== id);
     app.busy = false;
     deselectRun();

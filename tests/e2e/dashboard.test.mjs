@@ -530,6 +530,11 @@ async function run() {
   page.once('dialog', (d) => d.accept());
   await page.click('#btn-delete');
   await waitFor('the clone deleted', async () => page.locator('#run-detail').isHidden(), 10_000);
+  // ... and stays closed: no run list asked for before the delete re-selects the deleted run,
+  // and the page picks no other run for the user (one poll period and more).
+  await page.waitForTimeout(2_500);
+  if (await page.locator('#run-detail').isVisible())
+    fail(`after the delete the page selected run "${await text(page, '#run-title')}"`);
   // The run's reference requests are held until after its delete: the page must cancel what it
   // still has under way for the run, so that nothing of it reaches the server once it is gone
   // (a held GET let through after the DELETE answers 404, which fails the page-error check).
