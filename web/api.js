@@ -76,13 +76,13 @@ export class ApiError extends Error {
  * @param {M} method
  * @param {P} path
  * @param {{ params?: Record<string, string>, query?: Record<string, string | number>,
- *           body?: Body<P, M>, text?: boolean }} [options]
+ *           body?: Body<P, M>, text?: boolean, timeoutMs?: number }} [options]
  * @returns {Promise<Reply<P, M>>}
  */
-function call(method, path, { params = {}, query, body, text = false } = {}) {
+function call(method, path, { params = {}, query, body, text = false, timeoutMs = 0 } = {}) {
   let target = String(path).replace(/\{(\w+)\}/g, (_, name) => encodeURIComponent(params[name] ?? ''));
   if (query) target += `?${new URLSearchParams(Object.entries(query).map(([k, v]) => [k, String(v)]))}`;
-  return request(method.toUpperCase(), target, body, { text });
+  return request(method.toUpperCase(), target, body, { text, timeoutMs });
 }
 
 /** Requests under way, by their path: those of a run are cancelled before it is deleted, so that
@@ -103,10 +103,12 @@ export function cancelRunRequests(id) {
  * @param {string} method
  * @param {string} path
  * @param {unknown} body
- * @param {{ text?: boolean }} [options]
+ * @param {{ text?: boolean, timeoutMs?: number }} [options] timeoutMs > 0: the request (answer
+ *   and body) is abandoned after so long, rejecting with status 0, so that a poll never waits
+ *   for ever on an answer that does not come
  * @returns {Promise<any>}
  */
-async function request(method, path, body, { text: asText = false } = {}) {
+async function request(method, path, body, { text: asText = false, timeoutMs = 0 } = {}) {
   /** @type {Record<string, string>} */
   const headers = { Accept: asText ? 'text/plain' : 'application/json' };
   const token = getToken();
@@ -120,14 +122,18 @@ async function request(method, path, body, { text: asText = false } = {}) {
   }
   let response;
   let text;
+  let timedOut = false;
+  const timer = timeoutMs > 0 ? setTimeout(() => { timedOut = true; controller.abort(); }, timeoutMs) : 0;
   inFlight.set(controller, path);
   try {
     response = await fetch(path, init);
     text = await response.text();
   } catch (e) {
+    if (timedOut) throw new ApiError(0, `no answer within ${timeoutMs / 1000} s`, null);
     if (controller.signal.aborted) throw new ApiError(0, 'request cancelled', null, true);
     throw new ApiError(0, `server unreachable (${e instanceof Error ? e.message : e})`, null);
   } finally {
+    clearTimeout(timer);
     inFlight.delete(controller);
   }
   if (asText && response.ok) return text;
@@ -162,7 +168,8 @@ export const api = {
   health: () => call('get', '/api/health'),
   presets: () => call('get', '/api/presets'),
   sceneSchema: () => call('get', '/api/schema/scene'),
-  runs: () => call('get', '/api/runs'),
+  /** The run list (polled every few seconds): abandoned after 4 s, so that the next poll runs. */
+  runs: () => call('get', '/api/runs', { timeoutMs: 4000 }),
   /** @param {string} id */
   run: (id) => call('get', '/api/runs/{id}', ofRun(id)),
   /** @param {Body<'/api/runs', 'post'>} body */
