@@ -104,6 +104,11 @@ function showStatus(id, text, kind = '') {
   el.dataset.kind = kind;
 }
 
+/** Whether `e` is a request this page cancelled itself (not an error to show). */
+function isCancelled(e) {
+  return e instanceof ApiError && e.cancelled;
+}
+
 function errorText(e) {
   if (e instanceof ApiError) {
     if (e.status === 401) return `${e.message} — set the server's token in the Token field.`;
@@ -265,8 +270,7 @@ async function cloneSelectedRun() {
   $('create-preset').value = '0';
   fillCreateForm();
   $('create-live').checked = false;  // the clone keeps its own analysis and render sections
-  $('create-every').disabled = true;
-  for (const box of productBoxes()) box.disabled = true;
+  applyLiveChoice();
   $('create-name').value = `${scene.name ?? detail.id}-clone`;
   $('create-ranks').value = String(detail.ranks ?? 1);
   showStatus('create-status', `Form filled with run ${detail.id}'s scene: edit, then Create.`, 'ok');
@@ -440,6 +444,13 @@ async function onEstimate() {
 /** The products a preset's live analysis starts with: the live ones and the preset's own. */
 function defaultProducts(preset) {
   return new Set([...(getPath(preset?.scene, 'analysis.products') ?? []), ...LIVE_PRODUCTS]);
+}
+
+/** The live-analysis fields of the form follow its *Live analysis* check box. */
+function applyLiveChoice() {
+  const live = $('create-live').checked;
+  $('create-every').disabled = !live;
+  for (const box of productBoxes()) box.disabled = !live;
 }
 
 /** The form's analysis-product check boxes (one per name the scene schema declares). */
@@ -640,7 +651,7 @@ async function backfill(id) {
     if (app.live) showLatestSavedFrames();
     scheduleRedraw();
   } catch (e) {
-    if (id === app.selectedId && !(e instanceof ApiError && e.cancelled)) showStatus('control-status', `Could not load the run: ${errorText(e)}`, 'error');
+    if (id === app.selectedId && !isCancelled(e)) showStatus('control-status', `Could not load the run: ${errorText(e)}`, 'error');
   }
 }
 
@@ -970,7 +981,7 @@ async function loadReference(id, until) {
     app.reference = { id, label: r.label, source: r.source, time, energy: col('kinetic_energy'), dissipation: col('dissipation'), until: until ?? Infinity, complete };
     app.referenceRetry = { failures: 0, at: 0 };
   } catch (e) {
-    if (id === app.selectedId && !(e instanceof ApiError && e.cancelled)) {
+    if (id === app.selectedId && !isCancelled(e)) {
       // A refetch that fails keeps the curve it had; the next try waits 1, 2, 4 … 60 s.
       if (!app.reference) app.referenceWhy = errorText(e);
       const failures = app.referenceRetry.failures + 1;
@@ -1374,11 +1385,7 @@ function main() {
   $('btn-clone').addEventListener('click', cloneSelectedRun);
   $('files-refresh').addEventListener('click', refreshFiles);
   $('create-preset').addEventListener('change', fillCreateForm);
-  $('create-live').addEventListener('change', () => {
-    const live = $('create-live').checked;
-    $('create-every').disabled = !live;
-    for (const box of productBoxes()) box.disabled = !live;
-  });
+  $('create-live').addEventListener('change', applyLiveChoice);
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);
   $('frame-scrubber').addEventListener('input', onScrub);
   $('btn-live').addEventListener('click', goLive);
