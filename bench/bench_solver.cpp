@@ -79,7 +79,7 @@ void set_counters(benchmark::State& state, const Fixture& f) {
       benchmark::Counter(f.pairs_inside, benchmark::Counter::kIsIterationInvariantRate);
   state.counters["N_ngb"] = f.pairs_inside / static_cast<double>(f.setup.particles.size());
   state.counters["list_per_particle"] =
-      static_cast<double>(f.search->list().indices.size()) / f.setup.particles.size();
+      static_cast<double>(f.search->list().num_entries()) / f.setup.particles.size();
   state.counters["threads"] = omp_get_max_threads();
 }
 

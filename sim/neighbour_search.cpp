@@ -19,6 +19,12 @@ namespace {
 /// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
 constexpr std::size_t kStoreSlack = 8;
 
+/// A build's region for a range of particles holds this many times the entries per particle
+/// expected (from the last build) times the range's particles.
+constexpr double kRegionMargin = 1.1;
+/// When a region overflows, the estimate grows at least by this factor for the next round.
+constexpr double kRegrowth = 1.25;
+
 /// Particle indices sorted by cell into `members`, and where each cell's members begin into
 /// `start` (num_cells + 1 entries). Within a cell, members follow `visit` when it is not empty (a
 /// permutation of the indices), else ascending index (a stable counting sort).
@@ -307,49 +313,93 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     return used;
   };
 
-  // One scan per particle: each thread fills a buffer for a contiguous range of particles, the
-  // buffers are then placed at their offsets. Per-particle content and order do not depend on
-  // the thread count.
-  // A list still held by a reader (an analysis snapshot) is left intact: build into a new one.
-  if (!list_ || list_.use_count() > 1) list_ = std::make_shared<NeighbourList>();
+  // A list still held by a reader (an analysis snapshot) is left intact: build into the spare
+  // one if its reader has let it go, else into a new one.
+  if (list_ && list_.use_count() > 1) {
+    std::swap(list_, spare_);
+    if (list_ && list_.use_count() > 1) list_.reset();
+  }
+  if (!list_) list_ = std::make_shared<NeighbourList>();
   NeighbourList& list = *list_;
-  list.offsets.assign(listed + 1, 0);
-  std::vector<std::vector<std::uint32_t>>& buffers = buffers_;
-  buffers.resize(static_cast<std::size_t>(omp_get_max_threads()));
-  std::vector<std::size_t> range_begin(buffers.size() + 1, listed);
-  std::vector<std::size_t> range_used(buffers.size(), 0);
-#pragma omp parallel
-  {
-    const auto thread = static_cast<std::size_t>(omp_get_thread_num());
-    const auto threads = static_cast<std::size_t>(omp_get_num_threads());
-    const std::size_t begin = listed * thread / threads, end = listed * (thread + 1) / threads;
-    range_begin[thread] = begin;
-    // `buffer` is kept at least max_candidates (+ the vector stores' overshoot) longer than the
-    // entries in use, so candidates are written unconditionally and kept by advancing `used`.
-    // It only grows: its pages stay mapped from one build to the next.
-    std::vector<std::uint32_t>& buffer = buffers[thread];
-    std::vector<std::uint8_t> keep;
-    std::size_t used = 0;
-    for (std::size_t i = begin; i < end; ++i) {
-      if (buffer.size() < used + max_candidates + kStoreSlack)
-        buffer.resize(2 * (used + max_candidates + kStoreSlack));
-      const std::size_t found = visit(i, buffer.data() + used, keep);
-      list.offsets[i + 1] = found;
-      used += found;
+  list.start.resize(listed);
+  list.count.resize(listed);
+
+  // One scan per particle, written straight into the list: each of `chunks` contiguous ranges of
+  // particles fills its own region of list.indices, sized from the entries per particle of the
+  // last build (or the number density at the first). A range that outgrows its region goes on in
+  // a new region appended to the list. (Per-thread buffers copied into the list afterwards kept a
+  // second array as large as the list, a third of the solver's memory.) A particle's entries do
+  // not depend on the thread count or on where its region lies.
+  double per_particle = entries_per_particle_;
+  if (per_particle <= 0.0) {
+    double volume = 1.0;
+    for (int d = 0; d < Dim; ++d) volume *= box_.length[d];
+    const double pi = std::acos(-1.0);
+    const double ball = Dim == 2 ? pi * radius2 : 4.0 / 3.0 * pi * radius2 * radius;
+    per_particle = static_cast<double>(n) / volume * ball;
+  }
+  const std::size_t room = max_candidates + kStoreSlack;  // what one scan may write
+  struct Range {
+    std::size_t first, next, end;  // particles: the range, and the next one to scan
+    std::size_t at, limit;         // where the next entries go in list.indices, and the region end
+    std::size_t written;           // entries of the range's particles so far
+  };
+  const auto chunks = static_cast<std::size_t>(std::max(1, omp_get_max_threads()));
+  std::vector<Range> ranges(chunks);
+  std::size_t top = 0;
+  const auto place = [&](Range& r) {
+    const auto wanted = static_cast<std::size_t>(kRegionMargin * per_particle *
+                                                 static_cast<double>(r.end - r.next));
+    r.at = top;
+    r.limit = top + wanted + room;
+    top = r.limit;
+  };
+  for (std::size_t t = 0; t < chunks; ++t) {
+    const std::size_t first = listed * t / chunks, end = listed * (t + 1) / chunks;
+    ranges[t] = {first, first, end, 0, 0, 0};
+    place(ranges[t]);
+  }
+  const auto num_chunks = static_cast<std::ptrdiff_t>(chunks);
+  for (bool first_round = true;; first_round = false) {
+    // Grown with headroom, so that the next builds' few per cent more entries fit without a
+    // reallocation (which maps and zeroes a new array, and is the next step's interaction list's
+    // too); at the first round nothing is kept, so a reallocation need not copy.
+    if (list.indices.size() < top) {
+      const auto grown = static_cast<std::size_t>(kRegionMargin * static_cast<double>(top));
+      if (first_round && list.indices.capacity() < top) list.indices.clear();
+      list.indices.resize(list.indices.capacity() >= top ? top : grown);
     }
-    range_used[thread] = used;
-  }
-  for (std::size_t i = 0; i < listed; ++i) list.offsets[i + 1] += list.offsets[i];
-  list.indices.resize(list.offsets[listed]);
-  const auto num_buffers = static_cast<std::ptrdiff_t>(buffers.size());
 #pragma omp parallel for schedule(static, 1)
-  for (std::ptrdiff_t t = 0; t < num_buffers; ++t) {
-    const auto thread = static_cast<std::size_t>(t);
-    const std::uint32_t* buffer = buffers[thread].data();
-    std::copy(
-        buffer, buffer + range_used[thread],
-        list.indices.begin() + static_cast<std::ptrdiff_t>(list.offsets[range_begin[thread]]));
+    for (std::ptrdiff_t t = 0; t < num_chunks; ++t) {
+      Range& r = ranges[static_cast<std::size_t>(t)];
+      std::vector<std::uint8_t> keep;
+      for (; r.next < r.end && r.at + room <= r.limit; ++r.next) {
+        const std::size_t found = visit(r.next, list.indices.data() + r.at, keep);
+        list.start[r.next] = r.at;
+        list.count[r.next] = static_cast<std::uint32_t>(found);
+        r.at += found;
+        r.written += found;
+      }
+    }
+    // Ranges that outgrew their regions: new regions at the end, sized from what this build has
+    // seen so far (at least a quarter more than before, so that the rounds end quickly).
+    std::size_t done = 0, written = 0;
+    bool pending = false;
+    for (const Range& r : ranges) {
+      done += r.next - r.first;
+      written += r.written;
+      pending = pending || r.next < r.end;
+    }
+    if (!pending) break;
+    const double seen = done == 0 ? 0.0 : static_cast<double>(written) / static_cast<double>(done);
+    per_particle = std::max(seen, kRegrowth * per_particle);
+    for (Range& r : ranges)
+      if (r.next < r.end) place(r);
   }
+  list.entries = 0;
+  for (const std::uint32_t c : list.count) list.entries += c;
+  entries_per_particle_ =
+      listed == 0 ? 0.0 : static_cast<double>(list.entries) / static_cast<double>(listed);
 
   for (int d = 0; d < Dim; ++d) reference_positions_[d].assign(positions.x[d], positions.x[d] + n);
   ++num_builds_;

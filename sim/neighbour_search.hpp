@@ -2,7 +2,7 @@
 //
 // The search borrows positions and owns no particle data (CompactNSearch style): it returns a
 // cell-major sort order that the caller applies to every field in one place
-// (ParticleArrays::reorder), then builds a compressed (CSR) list of all j != i with
+// (ParticleArrays::reorder), then builds a list of all j != i with
 // |x_i - x_j| < cutoff + skin under the minimum-image convention. Lists are rebuilt when some
 // particle has moved more than skin/2 since the last build, so the list stays complete for the
 // cutoff in between. Each particle's list is built independently in a fixed order: the result is
@@ -20,14 +20,20 @@
 
 namespace sphles::sim {
 
-/// Compressed neighbour list: the neighbours of i are indices[offsets[i] .. offsets[i+1]).
+/// Neighbour list: the neighbours of i are indices[start[i] .. start[i] + count[i]). A particle's
+/// entries are contiguous; between the segments of particles built by different threads there
+/// may be unused entries (each thread writes its particles straight into a region of `indices`).
 struct NeighbourList {
-  std::vector<std::size_t> offsets;
+  std::vector<std::size_t> start;
+  std::vector<std::uint32_t> count;
   std::vector<std::uint32_t> indices;
+  /// Σ count: the entries in use.
+  std::size_t entries = 0;
 
-  std::size_t num_particles() const { return offsets.empty() ? 0 : offsets.size() - 1; }
+  std::size_t num_particles() const { return count.size(); }
+  std::size_t num_entries() const { return entries; }
   std::span<const std::uint32_t> of(std::size_t i) const {
-    return {indices.data() + offsets[i], offsets[i + 1] - offsets[i]};
+    return {indices.data() + start[i], count[i]};
   }
 };
 
@@ -114,8 +120,11 @@ class VerletNeighbourSearch {
   static inline const NeighbourList kEmptyList{};
   std::array<std::vector<double>, 3> reference_positions_;
   std::size_t num_builds_ = 0;
-  /// Per-thread candidate buffers of build(), kept between builds (their pages stay mapped).
-  std::vector<std::vector<std::uint32_t>> buffers_;
+  /// A list a reader held at the last build, kept to build into once the reader lets it go
+  /// (a fresh list of this size is mapped and zeroed page by page, which is slow on this VM).
+  std::shared_ptr<NeighbourList> spare_;
+  /// Entries per listed particle of the last build: sizes the regions of the next one.
+  double entries_per_particle_ = 0.0;
   /// The other per-particle scratch of build(), kept for the same reason.
   struct BuildScratch {
     std::vector<std::uint32_t> cell, cell_members, rank;

@@ -100,7 +100,7 @@ class InteractionList {
 
   /// Makes room for the segments of `verlet` (called by compacting_pair_pass).
   void prepare(const NeighbourList& verlet) {
-    offsets_ = verlet.offsets;  // a copy: the Verlet list may be rebuilt while this one is read
+    offsets_ = verlet.start;  // a copy: the Verlet list may be rebuilt while this one is read
     indices_.resize(verlet.indices.size());
     count_.assign(verlet.num_particles(), 0);
   }

@@ -273,7 +273,7 @@ class SphSolver final : public Simulation {
   /// The mean list length over every process' owned particles, for the diagnostics: it changes
   /// only when the lists are built.
   void count_neighbours() {
-    mean_neighbours_ = static_cast<double>(exchange_->sum(search_.list().indices.size())) /
+    mean_neighbours_ = static_cast<double>(exchange_->sum(search_.list().num_entries())) /
                        static_cast<double>(exchange_->sum(std::uint64_t{owned_}));
   }
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <random>
 #include <set>
 
@@ -160,6 +161,55 @@ TEST_P(NeighbourSearchTest, CellOrderByIdMakesListsIndependentOfTheArrayOrder) {
   for (std::size_t k = 0; k < subset.size(); ++k) part.id[k] = subset[k];
   const auto lists = ids_of_lists(part);
   for (std::uint64_t g = 0; g < p.size() / 4; ++g) EXPECT_EQ(lists[g], reference[g]) << g;
+}
+
+// The build writes each thread's particles into a region of the list sized from the last build
+// (or the number density at the first); a clustered set overflows those regions many times over.
+// The lists must still equal brute force, whether the estimate comes from the density or from a
+// sparse earlier build; and a list a reader holds stays as it was through later builds.
+TEST(NeighbourSearch, ClusteredSetsOverflowTheRegionsAndStillEqualBruteForce) {
+  for (const int dim : {2, 3}) {
+    const SearchCase c{dim, {1.0, 1.0, dim == 3 ? 1.0 : 0.0}, 0.08, 0.01, 1200};
+    const PeriodicBox box{dim, c.length};
+    const ParticleArrays uniform = random_particles(c, 31);
+    ParticleArrays clustered = uniform;  // 9 in 10 particles in a ball of radius 0.05 at 0.98
+    for (std::size_t i = 0; i < clustered.size(); ++i)
+      if (i % 10 != 0)
+        for (int d = 0; d < dim; ++d)
+          clustered.position[d][i] =
+              wrap_periodic(0.98 + 0.1 * (uniform.position[d][i] - 0.5), c.length[d]);
+    const auto check = [&](const VerletNeighbourSearch& search, const ParticleArrays& p,
+                           const NeighbourList& list, const char* what) {
+      const auto expected = brute_force(p, box, search.list_radius());
+      ASSERT_EQ(list.num_particles(), p.size()) << what;
+      std::size_t entries = 0;
+      for (std::size_t i = 0; i < p.size(); ++i) {
+        const auto span = list.of(i);
+        EXPECT_EQ(std::set<std::uint32_t>(span.begin(), span.end()), expected[i])
+            << what << ": particle " << i << " (" << dim << "D)";
+        EXPECT_EQ(span.size(), expected[i].size()) << what << ": particle " << i;
+        entries += span.size();
+      }
+      EXPECT_EQ(list.num_entries(), entries) << what;
+    };
+    {
+      VerletNeighbourSearch fresh(box, c.cutoff, c.skin);
+      fresh.build(view_positions(clustered));
+      check(fresh, clustered, fresh.list(), "clustered, first build");
+    }
+    VerletNeighbourSearch search(box, c.cutoff, c.skin);
+    search.build(view_positions(uniform));
+    const std::shared_ptr<const NeighbourList> held = search.shared_list();
+    const NeighbourList copy = *held;
+    search.build(view_positions(clustered));  // into a new list: the reader holds the first
+    check(search, clustered, search.list(), "clustered after uniform");
+    search.build(view_positions(uniform));  // into the second list again; the first is still held
+    check(search, uniform, search.list(), "uniform again");
+    EXPECT_EQ(held->start, copy.start);
+    EXPECT_EQ(held->count, copy.count);
+    EXPECT_EQ(held->indices, copy.indices);
+    check(search, uniform, *held, "the held list");
+  }
 }
 
 TEST(NeighbourSearch, RejectsBoxSmallerThanSupportDiameter) {

@@ -233,7 +233,7 @@ TEST(PairLoop, InteractionListIsTheVerletListCutToTheSupport) {
         kept += expected.size();
       }
       EXPECT_EQ(pairs.num_pairs(), kept);
-      EXPECT_LT(kept, search.list().indices.size());  // the skin's entries are gone
+      EXPECT_LT(kept, search.list().num_entries());  // the skin's entries are gone
       const PeriodicGeometry<kDim> geometry(c.box, p);
       const auto momentum = [&] {
         return ThesisMomentum<kDim, std::remove_cvref_t<decltype(kernel)>, false>(
