@@ -390,14 +390,15 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
       written += r.written;
       pending = pending || r.next < r.end;
     }
-    if (!pending) break;
+    if (!pending) {
+      list.entries = written;
+      break;
+    }
     const double seen = done == 0 ? 0.0 : static_cast<double>(written) / static_cast<double>(done);
     per_particle = std::max(seen, kRegrowth * per_particle);
     for (Range& r : ranges)
       if (r.next < r.end) place(r);
   }
-  list.entries = 0;
-  for (const std::uint32_t c : list.count) list.entries += c;
   entries_per_particle_ =
       listed == 0 ? 0.0 : static_cast<double>(list.entries) / static_cast<double>(listed);
 

@@ -172,7 +172,7 @@ TEST(NeighbourSearch, ClusteredSetsOverflowTheRegionsAndStillEqualBruteForce) {
     const SearchCase c{dim, {1.0, 1.0, dim == 3 ? 1.0 : 0.0}, 0.08, 0.01, 1200};
     const PeriodicBox box{dim, c.length};
     const ParticleArrays uniform = random_particles(c, 31);
-    ParticleArrays clustered = uniform;  // 9 in 10 particles in a ball of radius 0.05 at 0.98
+    ParticleArrays clustered = uniform;  // 9 in 10 particles in a cube of side 0.1 at 0.98
     for (std::size_t i = 0; i < clustered.size(); ++i)
       if (i % 10 != 0)
         for (int d = 0; d < dim; ++d)
