@@ -118,50 +118,83 @@ std::uint32_t nearest_to_point(const CellList& cells, const std::array<double, 3
   return winner->index;
 }
 
+/// The nearest particle of every node of `block` (x fastest), and the largest squared distance
+/// to a nearest particle (minimum image).
 template <int Dim>
-void fill_map(const CellList& cells, NearestParticleMap& map) {
-  const Grid& grid = map.grid;
-  const int m = grid.points_per_side;
+NearestInBlock fill_block(const CellList& cells, const sim::ParticleArrays& particles,
+                          const Grid& grid, const NodeBlock& block) {
   const double h = grid.spacing();
-  const std::ptrdiff_t rows = Dim == 3 ? static_cast<std::ptrdiff_t>(m) * m : m;
+  const double length = grid.length;
+  const double half_length = 0.5 * length;
+  NearestInBlock result;
+  result.particle.assign(block.size(), 0);
+  const auto row_length = static_cast<std::size_t>(block.count[0]);
+  const std::ptrdiff_t rows = static_cast<std::ptrdiff_t>(block.count[1]) * block.count[2];
+  double max_r2 = 0.0;
   // Nodes are independent: any schedule gives the same map. Dynamic rows balance clustered sets.
-#pragma omp parallel
+#pragma omp parallel reduction(max : max_r2)
   {
     std::vector<Candidate> candidates;
 #pragma omp for schedule(dynamic, 1)
     for (std::ptrdiff_t row = 0; row < rows; ++row) {
-      const int j = static_cast<int>(row % m);
-      const int k = static_cast<int>(row / m);
+      const int j = block.first[1] + static_cast<int>(row % block.count[1]);
+      const int k = block.first[2] + static_cast<int>(row / block.count[1]);
       std::array<double, 3> x{0.0, j * h, k * h};
-      const std::size_t row_start = grid.index(0, j, k);
-      for (int i = 0; i < m; ++i) {
-        x[0] = i * h;
-        map.particle[row_start + static_cast<std::size_t>(i)] =
-            nearest_to_point<Dim>(cells, x, grid.length, candidates);
+      std::uint32_t* nearest = result.particle.data() + static_cast<std::size_t>(row) * row_length;
+      for (std::size_t a = 0; a < row_length; ++a) {
+        x[0] = (block.first[0] + static_cast<int>(a)) * h;
+        const std::uint32_t p = nearest_to_point<Dim>(cells, x, length, candidates);
+        nearest[a] = p;
+        double r2 = 0.0;
+        for (int d = 0; d < Dim; ++d) {
+          const double dx = sim::minimum_image(
+              x[static_cast<std::size_t>(d)] - particles.position[static_cast<std::size_t>(d)][p],
+              length, half_length);
+          r2 += dx * dx;
+        }
+        max_r2 = std::max(max_r2, r2);
       }
     }
   }
+  result.max_distance2 = max_r2;
+  return result;
+}
+
+NearestInBlock nearest_in_block(const Grid& grid, const sim::ParticleArrays& particles,
+                                const NodeBlock& block, int cells_per_side, const char* what) {
+  check_particles(grid, particles, what);
+  if (particles.id.size() != particles.size())
+    throw std::invalid_argument(std::string(what) + ": particle ids missing");
+  for (int d = 0; d < 3; ++d) {
+    const auto k = static_cast<std::size_t>(d);
+    const int side = d < grid.dimension ? grid.points_per_side : 1;
+    if (block.first[k] < 0 || block.count[k] < 0 || block.first[k] + block.count[k] > side)
+      throw std::invalid_argument(std::string(what) + ": node block outside the grid (axis " +
+                                  std::to_string(d) + ")");
+  }
+  const CellList cells = build_cell_list(grid, particles, std::max(cells_per_side, 1));
+  return grid.dimension == 3 ? fill_block<3>(cells, particles, grid, block)
+                             : fill_block<2>(cells, particles, grid, block);
 }
 
 }  // namespace
 
-NearestParticleMap nearest_particle_map(const Grid& grid, const sim::ParticleArrays& particles) {
-  check_particles(grid, particles, "nearest_particle_map");
-  const std::size_t n = particles.size();
-  if (particles.id.size() != n)
-    throw std::invalid_argument("nearest_particle_map: particle ids missing");
+NearestInBlock nearest_particles_in_block(const Grid& grid, const sim::ParticleArrays& particles,
+                                          const NodeBlock& block, int cells_per_side) {
+  return nearest_in_block(grid, particles, block, cells_per_side, "nearest_particles_in_block");
+}
 
+NearestParticleMap nearest_particle_map(const Grid& grid, const sim::ParticleArrays& particles) {
   // About one particle per cell: C = N^(1/n) cells per side.
-  const double per_side = std::pow(static_cast<double>(n), 1.0 / grid.dimension);
-  const CellList cells = build_cell_list(grid, particles, static_cast<int>(std::lround(per_side)));
+  const double per_side = std::pow(static_cast<double>(particles.size()), 1.0 / grid.dimension);
+  NodeBlock all;
+  for (int d = 0; d < grid.dimension; ++d)
+    all.count[static_cast<std::size_t>(d)] = grid.points_per_side;
   NearestParticleMap map;
   map.grid = grid;
-  map.particle.assign(grid.size(), 0);
-  if (grid.dimension == 3) {
-    fill_map<3>(cells, map);
-  } else {
-    fill_map<2>(cells, map);
-  }
+  map.particle = nearest_in_block(grid, particles, all, static_cast<int>(std::lround(per_side)),
+                                  "nearest_particle_map")
+                     .particle;
   return map;
 }
 

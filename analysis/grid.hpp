@@ -54,6 +54,32 @@ struct NearestParticleMap {
 
 NearestParticleMap nearest_particle_map(const Grid& grid, const sim::ParticleArrays& particles);
 
+/// A block of nodes: [first[d], first[d] + count[d]) along each axis d < dimension (count 1 and
+/// first 0 beyond it).
+struct NodeBlock {
+  std::array<int, 3> first{0, 0, 0};
+  std::array<int, 3> count{1, 1, 1};
+  std::size_t size() const {
+    return static_cast<std::size_t>(count[0]) * static_cast<std::size_t>(count[1]) *
+           static_cast<std::size_t>(count[2]);
+  }
+};
+
+/// The nearest particles of a block's nodes, x fastest, and the largest of the nodes' squared
+/// distances to them.
+struct NearestInBlock {
+  std::vector<std::uint32_t> particle;
+  double max_distance2 = 0.0;
+};
+
+/// nearest_particle_map for the nodes of `block` only, with a cell list of `cells_per_side` cells
+/// per side (nearest_particle_map takes N^(1/n)). For particles that are only those near the
+/// block (a rank's own particles and its halo, par/): the answer is the whole set's whenever
+/// every particle left out lies further than sqrt(max_distance2) (times a relative 1e-12 for the
+/// ties) from every node of the block.
+NearestInBlock nearest_particles_in_block(const Grid& grid, const sim::ParticleArrays& particles,
+                                          const NodeBlock& block, int cells_per_side);
+
 /// Velocity of the nearest particle at every node; with remove_mean, the spatial mean over the
 /// nodes is subtracted from each component (SPEC §5).
 VectorField sample_velocity(const NearestParticleMap& map, const sim::ParticleArrays& particles,

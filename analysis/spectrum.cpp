@@ -27,6 +27,10 @@ std::mutex& fftw_planner_mutex() {
   return mutex;
 }
 
+int signed_wavenumber(int q, int m) {
+  return 2 * q <= m ? q : q - m;
+}
+
 /// An r2c plan of an M^n real array (x fastest, i.e. x is FFTW's last, halved dimension) with
 /// its own input and output buffers.
 class RealToComplexTransform {
@@ -89,68 +93,93 @@ void check_velocity(const VectorField& velocity) {
 
 }  // namespace
 
+std::unique_lock<std::mutex> fftw_planner_lock() {
+  return std::unique_lock<std::mutex>(fftw_planner_mutex());
+}
+
+ShellSums empty_shell_sums(int dimension, int points_per_side) {
+  if (dimension != 2 && dimension != 3)
+    throw std::invalid_argument("energy spectrum: dimension must be 2 or 3");
+  if (points_per_side <= 0) throw std::invalid_argument("energy spectrum: empty grid");
+  ShellSums sums;
+  sums.dimension = dimension;
+  sums.points_per_side = points_per_side;
+  // Shell of every integer |k|² / Δk²: p = nint(|k| / Δk). No |k|/Δk is a half-integer, since
+  // (p + ½)² is never an integer, so rounding has no ties.
+  const int half = points_per_side / 2;  // largest |k| / Δk per axis
+  const int max_q2 = dimension * half * half;
+  sums.shell_of.resize(static_cast<std::size_t>(max_q2) + 1);
+  for (int q2 = 0; q2 <= max_q2; ++q2)
+    sums.shell_of[static_cast<std::size_t>(q2)] =
+        static_cast<int>(std::lround(std::sqrt(static_cast<double>(q2))));
+  const auto num_shells = static_cast<std::size_t>(sums.shell_of.back()) + 1;  // to the corner
+  sums.modulus2.assign(num_shells, 0.0);
+  sums.k2_modulus2.assign(num_shells, 0.0);
+  return sums;
+}
+
+void add_transform_planes(ShellSums& sums, const double* interleaved, int first_plane, int planes) {
+  const int m = sums.points_per_side;
+  const int kx_count = m / 2 + 1;
+  const int rows = sums.dimension == 3 ? m : 1;  // y rows per plane
+  std::size_t n = 0;
+  for (int plane = first_plane; plane < first_plane + planes; ++plane) {
+    // 3D: the plane is z and its rows y; 2D: the plane is y.
+    const int k_plane = signed_wavenumber(plane, m);
+    for (int qy = 0; qy < rows; ++qy) {
+      const int ky = sums.dimension == 3 ? signed_wavenumber(qy, m) : 0;
+      for (int kx = 0; kx < kx_count; ++kx, ++n) {
+        const double weight = (kx == 0 || 2 * kx == m) ? 1.0 : 2.0;
+        const double re = interleaved[2 * n];
+        const double im = interleaved[2 * n + 1];
+        const double modulus2 = re * re + im * im;
+        const int q2 = kx * kx + ky * ky + k_plane * k_plane;
+        const auto shell = static_cast<std::size_t>(sums.shell_of[static_cast<std::size_t>(q2)]);
+        sums.modulus2[shell] += weight * modulus2;
+        sums.k2_modulus2[shell] += weight * modulus2 * q2;
+      }
+    }
+  }
+}
+
+EnergySpectrum spectrum_from_shell_sums(const ShellSums& sums, double length) {
+  // û = M^-n (FFTW output); E(k_p) = Σ_shell ½ |û|² / Δk (SPEC §5, Durran et al. 2017).
+  EnergySpectrum spectrum;
+  spectrum.delta_k = 2.0 * std::numbers::pi / length;
+  double nodes = 1.0;
+  for (int d = 0; d < sums.dimension; ++d) nodes *= sums.points_per_side;
+  const double inv_nodes = 1.0 / nodes;
+  const double scale = 0.5 * inv_nodes * inv_nodes / spectrum.delta_k;
+  const std::size_t shells = sums.modulus2.size();
+  spectrum.wavenumber.resize(shells);
+  spectrum.energy.resize(shells);
+  spectrum.k2_energy.resize(shells);
+  const double delta_k2 = spectrum.delta_k * spectrum.delta_k;
+  for (std::size_t p = 0; p < shells; ++p) {
+    spectrum.wavenumber[p] = static_cast<double>(p) * spectrum.delta_k;
+    spectrum.energy[p] = scale * sums.modulus2[p];
+    spectrum.k2_energy[p] = scale * delta_k2 * sums.k2_modulus2[p];
+  }
+  return spectrum;
+}
+
 EnergySpectrum energy_spectrum(const VectorField& velocity) {
   check_velocity(velocity);
   const Grid& grid = velocity.grid;
   const int dim = grid.dimension;
   const int m = grid.points_per_side;
-  const int half = m / 2;  // largest |k| / Δk per axis
-  const int kx_count = half + 1;
-
-  // Shell of every integer |k|² / Δk²: p = nint(|k| / Δk). No |k|/Δk is a half-integer, since
-  // (p + ½)² is never an integer, so rounding has no ties.
-  const int max_q2 = dim * half * half;
-  std::vector<int> shell_of(static_cast<std::size_t>(max_q2) + 1);
-  for (int q2 = 0; q2 <= max_q2; ++q2)
-    shell_of[q2] = static_cast<int>(std::lround(std::sqrt(static_cast<double>(q2))));
-  const int num_shells = shell_of[max_q2] + 1;  // all shells up to the corner of the cube
-
-  // Σ over shell modes of weight |FFTW output|², weight 2 for 0 < k_x < M/2 (the r2c half
-  // spectrum stores k and not its conjugate partner -k), else 1 (k_x = 0 and, for even M, the
-  // Nyquist plane k_x = M/2, whose partners are stored themselves).
-  std::vector<double> shell_sum(static_cast<std::size_t>(num_shells), 0.0);
-  std::vector<double> shell_k2_sum(static_cast<std::size_t>(num_shells), 0.0);
-  const auto signed_index = [m](int q) { return 2 * q <= m ? q : q - m; };
+  ShellSums sums = empty_shell_sums(dim, m);
   RealToComplexTransform transform(dim, m);
   const std::size_t nodes = grid.size();
-  const int z_count = dim == 3 ? m : 1;
+  const int planes = m;  // z (3D) or y (2D)
   for (int c = 0; c < dim; ++c) {
     const std::vector<double>& u = velocity.component[c];
     double* in = transform.input();
     for (std::size_t n = 0; n < nodes; ++n) in[n] = u[n];
     transform.execute();
-    const fftw_complex* out = transform.output();
-    std::size_t n = 0;
-    for (int qz = 0; qz < z_count; ++qz) {
-      const int kz = dim == 3 ? signed_index(qz) : 0;
-      for (int qy = 0; qy < m; ++qy) {
-        const int ky = signed_index(qy);
-        for (int kx = 0; kx < kx_count; ++kx, ++n) {
-          const double weight = (kx == 0 || 2 * kx == m) ? 1.0 : 2.0;
-          const double modulus2 = out[n][0] * out[n][0] + out[n][1] * out[n][1];
-          const int q2 = kx * kx + ky * ky + kz * kz;
-          shell_sum[shell_of[q2]] += weight * modulus2;
-          shell_k2_sum[shell_of[q2]] += weight * modulus2 * q2;
-        }
-      }
-    }
+    add_transform_planes(sums, reinterpret_cast<const double*>(transform.output()), 0, planes);
   }
-
-  // û = M^-n (FFTW output); E(k_p) = Σ_shell ½ |û|² / Δk (SPEC §5, Durran et al. 2017).
-  EnergySpectrum spectrum;
-  spectrum.delta_k = 2.0 * std::numbers::pi / grid.length;
-  const double inv_nodes = 1.0 / static_cast<double>(nodes);
-  const double scale = 0.5 * inv_nodes * inv_nodes / spectrum.delta_k;
-  spectrum.wavenumber.resize(shell_sum.size());
-  spectrum.energy.resize(shell_sum.size());
-  spectrum.k2_energy.resize(shell_sum.size());
-  const double delta_k2 = spectrum.delta_k * spectrum.delta_k;
-  for (std::size_t p = 0; p < shell_sum.size(); ++p) {
-    spectrum.wavenumber[p] = static_cast<double>(p) * spectrum.delta_k;
-    spectrum.energy[p] = scale * shell_sum[p];
-    spectrum.k2_energy[p] = scale * delta_k2 * shell_k2_sum[p];
-  }
-  return spectrum;
+  return spectrum_from_shell_sums(sums, grid.length);
 }
 
 double spectrum_energy(const EnergySpectrum& spectrum) {

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <limits>
+#include <mutex>
 #include <vector>
 
 #include "analysis/grid.hpp"
@@ -26,6 +27,37 @@ struct EnergySpectrum {
 /// The mean is not removed here (sample_velocity(..., true) does that): a mean flow shows up as
 /// E(k_0) Δk = ½|ū|², so that Parseval holds for any field.
 EnergySpectrum energy_spectrum(const VectorField& velocity);
+
+/// The shell sums energy_spectrum bins an r2c transform into, apart so that a transform split
+/// over processes (par/, FFTW's MPI interface) bins its part of the modes the same way and adds
+/// the processes' sums. The transform is FFTW's r2c of an M^n grid, x fastest, i.e. of FFTW's
+/// row-major array [z][y][x] (3D) or [y][x] (2D), whose output holds M/2 + 1 x modes.
+struct ShellSums {
+  int dimension = 3;
+  int points_per_side = 0;
+  /// Shell p = nint(|k| / Δk) of every integer |k|² / Δk² up to the corner of the cube.
+  std::vector<int> shell_of;
+  /// Σ over each shell's modes of w |FFTW output|², w = 2 for 0 < k_x < M/2 (the conjugate
+  /// partner is not stored), else 1; and the same times |k|² / Δk².
+  std::vector<double> modulus2;
+  std::vector<double> k2_modulus2;
+};
+
+/// Empty sums for the r2c transforms of an M^n grid (dimension 2 or 3).
+ShellSums empty_shell_sums(int dimension, int points_per_side);
+
+/// Adds `planes` consecutive planes of an r2c output to the sums: complex values as
+/// (re, im) pairs, a plane being one z (3D: M × (M/2 + 1) values) or one y (2D: M/2 + 1 values)
+/// of the whole transform, the first of them plane `first_plane`.
+void add_transform_planes(ShellSums& sums, const double* interleaved, int first_plane, int planes);
+
+/// E(k_p) and the |k|²-weighted sums from the sums of every mode of the transforms of the
+/// velocity components on a grid of side `length` (û = M^-n FFTW output, SPEC §5).
+EnergySpectrum spectrum_from_shell_sums(const ShellSums& sums, double length);
+
+/// FFTW's planner is not thread-safe: every plan made or destroyed in the program (here and in
+/// par/) is made under this lock.
+std::unique_lock<std::mutex> fftw_planner_lock();
 
 /// Σ_p E(k_p) Δk.
 double spectrum_energy(const EnergySpectrum& spectrum);

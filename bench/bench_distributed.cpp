@@ -3,7 +3,8 @@
 // each rank with the OpenMP threads OMP_NUM_THREADS gives it. Prints, on rank 0, the median wall
 // time per step (the slowest rank's), the share of it the exchange took on the rank where it
 // took most (migration, halo builds and refreshes, global reductions, including the wait for
-// other ranks), the bytes sent per step and the halo size.
+// other ranks), the bytes sent per step and the halo size; then the median time of the energy
+// spectrum computed where the particles live (par/spectrum.hpp, M = 2 per_side, 3 calls).
 //
 //   mpiexec -n 2 build/bench/bench_distributed [--per_side=48] [--steps=40] [--warmup=5]
 //   OMP_NUM_THREADS=2 mpiexec -n 1 build/bench/bench_distributed   (the one-rank reference)
@@ -22,6 +23,7 @@
 
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
+#include "par/spectrum.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/scene.hpp"
@@ -144,16 +146,32 @@ int run(const Options& o) {
   double max_copies = 0.0;
   MPI_Reduce(&copies_per_owned, &max_copies, 1, MPI_DOUBLE, MPI_MAX, 0, MPI_COMM_WORLD);
   const auto builds = static_cast<double>(after.halo_builds - before.halo_builds);
+
+  // The spectrum of the run's state on M^3 nodes, M = 2 per_side, as the analysis grids it.
+  sim::ParticleArrays state = simulation->particles();
+  state.truncate(simulation->owned_count());
+  std::vector<double> spectrum_seconds;
+  for (int k = 0; k < 3; ++k) {
+    MPI_Barrier(MPI_COMM_WORLD);
+    const double start = MPI_Wtime();
+    const analysis::EnergySpectrum spectrum =
+        par::distributed_energy_spectrum(d, state, 2 * o.per_side);
+    double seconds = MPI_Wtime() - start, slowest = 0.0;
+    MPI_Allreduce(&seconds, &slowest, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+    spectrum_seconds.push_back(slowest);
+  }
   if (rank == 0) {
     std::printf(
         "particles %zu  ranks %d (%d x %d x %d)  threads per rank %d  steps %d (after %d)\n"
         "median step %.1f ms  mean step %.1f ms  exchange share (max over ranks) %.1f %%\n"
         "bytes sent per step, all ranks: %.2f MB  halo copies per owned particle (max) %.2f  "
         "list rebuilds per step %.2f\nsolver memory per owned particle (max over ranks, "
-        "resident growth over the solver's set-up and warm-up) %.0f B\n",
+        "resident growth over the solver's set-up and warm-up) %.0f B\n"
+        "energy spectrum on %d^3 nodes where the particles live: median %.1f ms\n",
         total, ranks, d.dims()[0], d.dims()[1], d.dims()[2], omp_get_max_threads(), o.steps,
         o.warmup, 1e3 * median(step_seconds), 1e3 * wall / o.steps, 100.0 * max_share,
-        all_bytes / 1e6, max_copies, builds / o.steps, max_solver_bytes);
+        all_bytes / 1e6, max_copies, builds / o.steps, max_solver_bytes, 2 * o.per_side,
+        1e3 * median(spectrum_seconds));
   }
   return 0;
 }

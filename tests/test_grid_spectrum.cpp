@@ -526,6 +526,54 @@ TEST(NearestParticleMap, EqualsBruteForce2D) {
   }
 }
 
+/// A block of nodes (a rank's part of the grid, par/) gets the whole map's particles, with any
+/// number of cells, and the largest of its nodes' nearest distances; a block outside the grid is
+/// refused naming the axis.
+TEST(NearestParticleMap, BlockEqualsTheWholeMapOnItsNodes) {
+  for (const int dim : {2, 3}) {
+    SCOPED_TRACE("dimension " + std::to_string(dim));
+    const Grid grid = make_grid(dim, 18, 1.0);
+    const sim::ParticleArrays particles =
+        random_particles(dim, dim == 3 ? 300 : 150, 1.0, Layout::kClustered, 41);
+    const NearestParticleMap map = nearest_particle_map(grid, particles);
+    NodeBlock block;
+    block.first = {3, 5, dim == 3 ? 2 : 0};
+    block.count = {7, 4, dim == 3 ? 9 : 1};
+    for (const int cells : {1, 4, 9}) {
+      const NearestInBlock got = nearest_particles_in_block(grid, particles, block, cells);
+      ASSERT_EQ(got.particle.size(), block.size());
+      double max_r2 = 0.0;
+      std::size_t n = 0, mismatches = 0;
+      for (int k = 0; k < block.count[2]; ++k)
+        for (int j = 0; j < block.count[1]; ++j)
+          for (int i = 0; i < block.count[0]; ++i, ++n) {
+            const std::size_t node =
+                grid.index(block.first[0] + i, block.first[1] + j, block.first[2] + k);
+            if (got.particle[n] != map.particle[node]) ++mismatches;
+            const std::array<double, 3> x = node_position(grid, node);
+            double r2 = 0.0;
+            for (int d = 0; d < dim; ++d) {
+              const double dx =
+                  sim::minimum_image(x[d] - particles.position[d][map.particle[node]], 1.0, 0.5);
+              r2 += dx * dx;
+            }
+            max_r2 = std::max(max_r2, r2);
+          }
+      EXPECT_EQ(mismatches, 0u) << cells << " cells per side";
+      EXPECT_EQ(got.max_distance2, max_r2);
+    }
+    NodeBlock outside = block;
+    outside.first[1] = 15;  // 15 + 4 > 18
+    try {
+      nearest_particles_in_block(grid, particles, outside, 4);
+      ADD_FAILURE() << "a block outside the grid was accepted";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("outside the grid (axis 1)"), std::string::npos)
+          << e.what();
+    }
+  }
+}
+
 TEST(NearestParticleMap, FastOnTheTargetSize) {
   // 96³ nodes over 48³ perturbed lattice particles, on one thread.
   const sim::PeriodicBox box{.dimension = 3, .length = {1.0, 1.0, 1.0}};

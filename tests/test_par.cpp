@@ -8,15 +8,19 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <random>
 #include <string>
 #include <tuple>
 #include <vector>
 
+#include "analysis/grid.hpp"
+#include "analysis/spectrum.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
+#include "par/spectrum.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/kernels.hpp"
@@ -59,11 +63,8 @@ sim::ParticleArrays global_set(int dim, std::size_t n, std::uint64_t seed) {
   return p;
 }
 
-/// The particles of `all` this rank owns, in id order.
-sim::ParticleArrays owned_part(const Decomposition& d, const sim::ParticleArrays& all) {
-  std::vector<std::uint32_t> mine;
-  for (std::size_t i = 0; i < all.size(); ++i)
-    if (d.owns(all, i)) mine.push_back(static_cast<std::uint32_t>(i));
+/// The particles `mine` of `all` (indices), in that order, with every field and id.
+sim::ParticleArrays subset(const sim::ParticleArrays& all, const std::vector<std::uint32_t>& mine) {
   sim::ParticleArrays p;
   p.dimension = all.dimension;
   p.resize(mine.size());
@@ -73,6 +74,14 @@ sim::ParticleArrays owned_part(const Decomposition& d, const sim::ParticleArrays
     for (std::size_t k = 0; k < mine.size(); ++k) (*to[f])[k] = (*from[f])[mine[k]];
   for (std::size_t k = 0; k < mine.size(); ++k) p.id[k] = all.id[mine[k]];
   return p;
+}
+
+/// The particles of `all` this rank owns, in id order.
+sim::ParticleArrays owned_part(const Decomposition& d, const sim::ParticleArrays& all) {
+  std::vector<std::uint32_t> mine;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    if (d.owns(all, i)) mine.push_back(static_cast<std::uint32_t>(i));
+  return subset(all, mine);
 }
 
 using Entry = std::tuple<std::uint64_t, double, double, double>;  // id and position
@@ -653,6 +662,90 @@ TEST(ExactAllreduce, KineticEnergyEqualsOneProcessBitForBit) {
   const double distributed = allreduce(d, energy(p)).value();
   EXPECT_EQ(distributed, one);
   EXPECT_GT(one, 0.0);
+}
+
+/// The spectrum of particles spread over the ranks against the one-process spectrum of all of
+/// them (SPEC §5 gridding, FFTW r2c): every shell to 1e-12 relative (of the shell, or of the
+/// largest shell for shells below 1e-6 of it), and the same bits on every rank.
+/// The ranks start from the owners of the positions shifted by `drift` spacings along x, as if
+/// the particles had moved since the last migration.
+template <int Dim>
+void distributed_spectrum_equals_one_process(int per_side, double drift) {
+  const sim::ParticleArrays all = perturbed_lattice(Dim, per_side, 11);
+  const double spacing = kLength / per_side;
+  const Decomposition d(MPI_COMM_WORLD, box_of(Dim), 2.5 * spacing, spacing);
+  sim::ParticleArrays earlier = all;
+  for (double& x : earlier.position[0]) x = sim::wrap_periodic(x + drift * spacing, kLength);
+  sim::ParticleArrays mine = owned_part(d, earlier);
+  for (std::size_t k = 0; k < mine.size(); ++k)
+    mine.position[0][k] = all.position[0][static_cast<std::size_t>(mine.id[k])];
+  const int m = 2 * per_side;  // spacing Δl / 2, as the analysis grids
+  const analysis::EnergySpectrum got = distributed_energy_spectrum(d, mine, m);
+
+  analysis::Grid grid;
+  grid.dimension = Dim;
+  grid.points_per_side = m;
+  grid.length = kLength;
+  const analysis::EnergySpectrum expected = analysis::energy_spectrum(
+      analysis::sample_velocity(analysis::nearest_particle_map(grid, all), all, true));
+  ASSERT_EQ(got.energy.size(), expected.energy.size());
+  EXPECT_EQ(got.delta_k, expected.delta_k);
+  const double top = *std::max_element(expected.energy.begin(), expected.energy.end());
+  const double top_k2 = *std::max_element(expected.k2_energy.begin(), expected.k2_energy.end());
+  double worst = 0.0;
+  for (std::size_t p = 0; p < expected.energy.size(); ++p) {
+    EXPECT_EQ(got.wavenumber[p], expected.wavenumber[p]);
+    const double scale = std::max(std::abs(expected.energy[p]), 1e-6 * top);
+    const double error = std::abs(got.energy[p] - expected.energy[p]) / scale;
+    worst = std::max(worst, error);
+    EXPECT_LT(error, 1e-12) << "shell " << p;
+    const double scale_k2 = std::max(std::abs(expected.k2_energy[p]), 1e-6 * top_k2);
+    EXPECT_LT(std::abs(got.k2_energy[p] - expected.k2_energy[p]) / scale_k2, 1e-12)
+        << "shell " << p;
+  }
+  EXPECT_GT(top, 0.0);
+  // Every rank holds rank 0's bits.
+  std::vector<double> first = got.energy;
+  MPI_Bcast(first.data(), static_cast<int>(first.size()), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+  EXPECT_TRUE(all_ranks(first == got.energy));
+  if (d.rank() == 0)
+    std::printf("[ spectrum %dD, %d ranks ] largest relative shell difference %.3g\n", Dim,
+                d.size(), worst);
+}
+
+TEST(DistributedSpectrum, EqualsOneProcessSpectrum2D) {
+  distributed_spectrum_equals_one_process<2>(32, 0.0);
+}
+TEST(DistributedSpectrum, EqualsOneProcessSpectrum3D) {
+  distributed_spectrum_equals_one_process<3>(16, 0.0);
+}
+TEST(DistributedSpectrum, ParticlesOutsideTheirSubBoxesMoveFirst) {
+  distributed_spectrum_equals_one_process<2>(32, 0.7);
+  distributed_spectrum_equals_one_process<3>(16, -0.7);
+}
+
+/// Particles only in x < L/2: on more than one rank some node's nearest particle is further
+/// than the halo width, and every rank refuses, naming the halo; one process sees every
+/// particle and computes the spectrum.
+TEST(DistributedSpectrum, VoidWiderThanTheHaloIsRefusedOnEveryRank) {
+  const sim::ParticleArrays lattice = perturbed_lattice(2, 32, 5);
+  std::vector<std::uint32_t> kept;
+  for (std::size_t i = 0; i < lattice.size(); ++i)
+    if (lattice.position[0][i] < 0.5 * kLength) kept.push_back(static_cast<std::uint32_t>(i));
+  const sim::ParticleArrays all = subset(lattice, kept);
+  const double spacing = kLength / 32;
+  const Decomposition d(MPI_COMM_WORLD, box_of(2), 2.5 * spacing, spacing);
+  if (d.size() == 1) {
+    EXPECT_NO_THROW(distributed_energy_spectrum(d, owned_part(d, all), 64));
+    return;
+  }
+  bool refused = false;
+  try {
+    distributed_energy_spectrum(d, owned_part(d, all), 64);
+  } catch (const std::invalid_argument& e) {
+    refused = std::string(e.what()).find("halo width") != std::string::npos;
+  }
+  EXPECT_TRUE(all_ranks(refused));
 }
 
 }  // namespace

@@ -1,0 +1,32 @@
+// The kinetic-energy spectrum of SPEC §5 where the particles live (issue 19: distributed
+// analysis). Each rank grids the velocity on the nodes inside its sub-box from its own particles
+// and a halo (nearest particle, as analysis::nearest_particle_map decides it for the whole set),
+// the nodes go to the slabs of FFTW's MPI r2c transform (libfftw3-mpi), each rank bins its slab's
+// modes into shells (analysis::ShellSums, the binning of the one-process spectrum), and the
+// ranks' shell sums are added in rank order. No rank holds more than its particles, its halo,
+// its nodes and its slab: the grid and the particles are never gathered.
+//
+// The answer equals analysis::energy_spectrum(sample_velocity(nearest_particle_map(...), ...,
+// true)) of all particles to round-off (the distributed transform adds in another order; the
+// tests ask for 1e-12 relative), and is the same bits on every rank.
+#pragma once
+
+#include "analysis/spectrum.hpp"
+#include "par/decomposition.hpp"
+#include "sim/particles.hpp"
+
+namespace sphles::par {
+
+/// The spectrum of the velocity of the particles that `owned` holds on the ranks of d (on each
+/// rank its own particles, with ids, each particle on one rank: inside that rank's sub-box or at
+/// most one sub-box away along each axis, as between two migrations), gridded on M^n nodes
+/// (M = points_per_side) over the box, the spatial mean removed (SPEC §5). The box must be a
+/// cube. Collective over d.comm(); returns the same spectrum on every rank. Throws
+/// std::invalid_argument (on every rank) when a node's nearest particle is further than d's halo
+/// width, so that a particle of another rank might be nearer (a void in the particles wider than
+/// the halo).
+analysis::EnergySpectrum distributed_energy_spectrum(const Decomposition& d,
+                                                     const sim::ParticleArrays& owned,
+                                                     int points_per_side);
+
+}  // namespace sphles::par
