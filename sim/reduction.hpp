@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <array>
+#include <bit>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -57,24 +58,33 @@ class ExactSum {
  public:
   /// 32-bit digits held in 64-bit limbs, so that a limb takes 2^31 additions before a carry.
   static constexpr int kLimbs = 72;
-  /// Exponent of the lowest limb's lowest bit: below the smallest subnormal's 2^-1126 mantissa
-  /// position (frexp scales it to a 53-bit integer), a multiple of 32.
+  /// Exponent of the lowest limb's lowest bit: a multiple of 32 below the unit 2^-1074 of the
+  /// subnormals (the largest numbers' unit, 2^971, lands in limb 66 of 72).
   static constexpr int kLowestExponent = -1152;
 
   void add(double x) {
-    if (x == 0.0) return;
-    if (!std::isfinite(x)) {
+    // The IEEE 754 fields of x: |x| = m 2^unit exactly, with m the 52 stored bits plus the
+    // hidden bit (normal numbers) or without it (subnormals, unit -1074). Read from the bits,
+    // not by frexp and ldexp: those are library calls, and this runs for every particle and
+    // every sum of each step's diagnostics.
+    const auto bits = std::bit_cast<std::uint64_t>(x);
+    const auto biased = static_cast<int>((bits >> 52) & 0x7ff);
+    if (biased == 0x7ff) {  // ±∞ or NaN
       special_ += x;
       return;
     }
-    int exponent = 0;
-    const double fraction = std::frexp(x, &exponent);  // x = fraction 2^exponent, ½ ≤ |f| < 1
-    const auto mantissa = static_cast<std::int64_t>(std::ldexp(fraction, 53));  // exact
-    const int offset = exponent - 53 - kLowestExponent;  // bit position of the mantissa's unit
-    const auto magnitude = static_cast<Uint128>(mantissa < 0 ? -mantissa : mantissa)
-                           << (offset % 32);
+    std::uint64_t m = bits & ((std::uint64_t{1} << 52) - 1);
+    int unit = -1074;
+    if (biased != 0) {
+      m |= std::uint64_t{1} << 52;
+      unit = biased - 1075;
+    } else if (m == 0) {
+      return;  // ±0
+    }
+    const int offset = unit - kLowestExponent;  // bit position of the mantissa's unit
+    const auto magnitude = static_cast<Uint128>(m) << (offset % 32);
     const int k = offset / 32;
-    const std::int64_t sign = mantissa < 0 ? -1 : 1;
+    const std::int64_t sign = (bits >> 63) != 0 ? -1 : 1;
     limbs_[static_cast<std::size_t>(k)] += sign * static_cast<std::int64_t>(magnitude & kDigit);
     limbs_[static_cast<std::size_t>(k) + 1] +=
         sign * static_cast<std::int64_t>((magnitude >> 32) & kDigit);

@@ -70,6 +70,14 @@ TEST(ExactSum, ExactWhereFloatingPointSumsAreNot) {
   EXPECT_EQ(exact({tiny, tiny, tiny}), 3.0 * tiny);
   EXPECT_EQ(exact({-2.5, 1.0}), -1.5);
   EXPECT_EQ(exact({}), 0.0);
+  EXPECT_EQ(exact({-0.0, 0.0, -0.0}), 0.0);
+  // The ends of the range: the largest double, and subnormals adding up to the smallest normal.
+  const double huge = std::numeric_limits<double>::max();
+  EXPECT_EQ(exact({huge, -huge, huge}), huge);
+  EXPECT_EQ(exact({-huge, tiny}), -huge);
+  const double smallest_normal = std::numeric_limits<double>::min();
+  EXPECT_EQ(exact({smallest_normal - tiny, tiny}), smallest_normal);
+  EXPECT_EQ(exact({smallest_normal, -tiny}), smallest_normal - tiny);
   // Ten times the double nearest 0.1 is 1 + 5.55e-17, which rounds to 1 (the naive sum gives
   // 0.9999999999999999).
   EXPECT_EQ(exact(std::vector<double>(10, 0.1)), 1.0);
