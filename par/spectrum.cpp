@@ -84,9 +84,10 @@ class DistributedTransform {
                                             : static_cast<std::size_t>(j - first_plane_);
     return row * padded + static_cast<std::size_t>(i);
   }
-  /// Transforms `real` (real_count() values in the padded layout); collective.
-  const double* transform(const std::vector<double>& real) {
-    std::copy(real.begin(), real.end(), input_);
+  /// The real input, real_count() values in the padded layout.
+  double* input() { return input_; }
+  /// Transforms the input; collective. The output as (re, im) pairs.
+  const double* execute() {
     fftw_execute(plan_);
     return reinterpret_cast<const double*>(output_);
   }
@@ -120,37 +121,98 @@ bool on_every_rank(const Decomposition& d, bool ok) {
 
 }  // namespace
 
-analysis::EnergySpectrum distributed_energy_spectrum(const Decomposition& d,
-                                                     const sim::ParticleArrays& owned,
-                                                     int points_per_side) {
-  const int dim = d.dimension();
-  const int m = points_per_side;
-  const sim::PeriodicBox& box = d.box();
-  for (int a = 1; a < dim; ++a)
-    if (box.length[static_cast<std::size_t>(a)] != box.length[0])
-      throw std::invalid_argument("distributed_energy_spectrum: the box must be a cube");
-  if (m < 2)
-    throw std::invalid_argument("distributed_energy_spectrum: points_per_side must be >= 2");
+struct DistributedSpectrum::Impl {
+  const Decomposition& d;
   analysis::Grid grid;
-  grid.dimension = dim;
-  grid.points_per_side = m;
-  grid.length = box.length[0];
-  const double spacing = grid.spacing();
+  /// This rank's nodes, and every rank's blocks and slabs (the planes [first, first + count) of
+  /// the slow axis: z in 3D, y in 2D, FFTW's first, distributed dimension).
+  analysis::NodeBlock block;
+  std::vector<analysis::NodeBlock> blocks;
+  std::vector<std::array<int, 2>> slabs;
+  DistributedTransform transform;
+  /// Doubles sent to and received from each rank, and where they start.
+  std::vector<int> send_count, send_offset, receive_count, receive_offset;
+  /// Kept between calls: the particles with their halo, the messages.
+  sim::ParticleArrays local;
+  std::vector<double> send, received;
+
+  Impl(const Decomposition& decomposition, int m)
+      : d(decomposition), transform(decomposition.dimension(), m, decomposition.comm()) {
+    const int dim = d.dimension();
+    grid.dimension = dim;
+    grid.points_per_side = m;
+    grid.length = d.box().length[0];
+    for (int a = 0; a < dim; ++a) {
+      const auto k = static_cast<std::size_t>(a);
+      own_nodes(d, a, m, grid.spacing(), block.first[k], block.count[k]);
+    }
+    const auto ranks = static_cast<std::size_t>(d.size());
+    std::vector<int> layout(8 * ranks);  // per rank: block first[3], count[3]; slab first, count
+    const int mine[8] = {block.first[0],          block.first[1],    block.first[2],
+                         block.count[0],          block.count[1],    block.count[2],
+                         transform.first_plane(), transform.planes()};
+    MPI_Allgather(mine, 8, MPI_INT, layout.data(), 8, MPI_INT, d.comm());
+    blocks.resize(ranks);
+    slabs.resize(ranks);
+    for (std::size_t r = 0; r < ranks; ++r) {
+      for (std::size_t a = 0; a < 3; ++a) {
+        blocks[r].first[a] = layout[8 * r + a];
+        blocks[r].count[a] = layout[8 * r + 3 + a];
+      }
+      slabs[r] = {layout[8 * r + 6], layout[8 * r + 7]};
+    }
+    // Rank r sends rank q, per component, the nodes of its planes inside q's slab: a block's
+    // nodes of one plane are contiguous (x fastest), so that is one run, placed by q without
+    // indices since q knows r's block.
+    send_count.assign(ranks, 0);
+    send_offset.assign(ranks, 0);
+    receive_count.assign(ranks, 0);
+    receive_offset.assign(ranks, 0);
+    const auto me = static_cast<std::size_t>(d.rank());
+    for (std::size_t q = 0; q < ranks; ++q) {
+      send_count[q] = static_cast<int>(run(block, q) * static_cast<std::size_t>(dim));
+      receive_count[q] = static_cast<int>(run(blocks[q], me) * static_cast<std::size_t>(dim));
+      if (q > 0) {
+        send_offset[q] = send_offset[q - 1] + send_count[q - 1];
+        receive_offset[q] = receive_offset[q - 1] + receive_count[q - 1];
+      }
+    }
+  }
+
+  /// Planes [lo, hi) of block b inside the slab of rank q.
+  std::array<int, 2> overlap(const analysis::NodeBlock& b, std::size_t q) const {
+    const auto slow = static_cast<std::size_t>(grid.dimension - 1);
+    const int lo = std::max(b.first[slow], slabs[q][0]);
+    const int hi = std::min(b.first[slow] + b.count[slow], slabs[q][0] + slabs[q][1]);
+    return {lo, std::max(lo, hi)};
+  }
+  std::size_t plane_size(const analysis::NodeBlock& b) const {
+    return static_cast<std::size_t>(b.count[0]) *
+           static_cast<std::size_t>(grid.dimension == 3 ? b.count[1] : 1);
+  }
+  /// Nodes of block b in the slab of rank q, per component.
+  std::size_t run(const analysis::NodeBlock& b, std::size_t q) const {
+    const std::array<int, 2> planes = overlap(b, q);
+    return static_cast<std::size_t>(planes[1] - planes[0]) * plane_size(b);
+  }
+
+  analysis::EnergySpectrum compute(const sim::ParticleArrays& owned);
+};
+
+analysis::EnergySpectrum DistributedSpectrum::Impl::compute(const sim::ParticleArrays& owned) {
+  const int dim = grid.dimension;
+  const auto components = static_cast<std::size_t>(dim);
+  const auto ranks = static_cast<std::size_t>(d.size());
 
   // This rank's particles (those that left its sub-box since the last migration moved to their
   // owners) and the halo around its sub-box, at their own positions in [0, L).
-  sim::ParticleArrays local = owned;
+  local = owned;
   migrate(d, local);
   Halo::build(d, local, HaloPositions::Wrapped);
   std::uint64_t my_count = owned.size(), total = 0;
   MPI_Allreduce(&my_count, &total, 1, MPI_UINT64_T, MPI_SUM, d.comm());
 
   // Nearest particles of this rank's nodes; a cell list of the whole set's density.
-  analysis::NodeBlock block;
-  for (int a = 0; a < dim; ++a) {
-    const auto k = static_cast<std::size_t>(a);
-    own_nodes(d, a, m, spacing, block.first[k], block.count[k]);
-  }
   analysis::NearestInBlock nearest;
   bool found = true;
   if (block.size() > 0 && local.size() > 0) {
@@ -174,98 +236,64 @@ analysis::EnergySpectrum distributed_energy_spectrum(const Decomposition& d,
         " m) on some rank, so a particle of another rank may be nearer: the particles leave a "
         "void wider than the halo");
 
-  // Velocities at the nodes, the spatial mean over all nodes removed (SPEC §5), summed exactly.
+  // The spatial mean of the velocity over all nodes (SPEC §5), summed exactly.
   const std::size_t nodes = block.size();
-  std::array<std::vector<double>, 3> u;
-  std::array<sim::ExactSum, 3> sums;
-  for (int c = 0; c < dim; ++c) {
-    const auto k = static_cast<std::size_t>(c);
-    u[k].resize(nodes);
-    for (std::size_t n = 0; n < nodes; ++n) {
-      u[k][n] = local.velocity[k][nearest.particle[n]];
-      sums[k].add(u[k][n]);
-    }
-  }
-  allreduce(d, std::span<sim::ExactSum>(sums.data(), static_cast<std::size_t>(dim)));
-  const double grid_nodes = static_cast<double>(grid.size());
-  for (int c = 0; c < dim; ++c) {
-    const auto k = static_cast<std::size_t>(c);
-    const double mean = sums[k].value() / grid_nodes;
-    for (double& value : u[k]) value -= mean;
-  }
+  const std::uint32_t* nearest_particle = nearest.particle.data();
+  std::array<const double*, 3> velocity{};
+  for (std::size_t c = 0; c < components; ++c) velocity[c] = local.velocity[c].data();
+  std::array<sim::ExactSum, 3> sums =
+      sim::exact_sums<3>(nodes, [&](std::size_t n, std::array<double, 3>& t) {
+        for (std::size_t c = 0; c < 3; ++c)
+          t[c] = c < components ? velocity[c][nearest_particle[n]] : 0.0;
+      });
+  allreduce(d, std::span<sim::ExactSum>(sums.data(), components));
+  std::array<double, 3> mean{};
+  for (std::size_t c = 0; c < components; ++c)
+    mean[c] = sums[c].value() / static_cast<double>(grid.size());
 
-  // The nodes to the ranks whose slabs hold them: records (node index, u_0 .. u_{n-1}), in
-  // rank order, each rank's in this rank's node order.
-  DistributedTransform transform(dim, m, d.comm());
-  const int ranks = d.size();
-  std::vector<int> slab_first(static_cast<std::size_t>(ranks));
-  std::vector<int> slab_count(static_cast<std::size_t>(ranks));
-  const int my_first = transform.first_plane(), my_planes = transform.planes();
-  MPI_Allgather(&my_first, 1, MPI_INT, slab_first.data(), 1, MPI_INT, d.comm());
-  MPI_Allgather(&my_planes, 1, MPI_INT, slab_count.data(), 1, MPI_INT, d.comm());
-  const int slow_axis = dim - 1;  // z (3D) or y (2D): FFTW's first, distributed dimension
-  const auto owner_of_plane = [&](int plane) {
-    for (int r = 0; r < ranks; ++r) {
-      const auto k = static_cast<std::size_t>(r);
-      if (plane >= slab_first[k] && plane < slab_first[k] + slab_count[k]) return r;
+  // The fluctuation at the nodes, straight into the messages: to rank q, per component, the
+  // run of this block's planes inside q's slab.
+  send.resize(static_cast<std::size_t>(send_offset.back() + send_count.back()));
+  for (std::size_t q = 0; q < ranks; ++q) {
+    const std::size_t length = run(block, q);
+    const auto slow = static_cast<std::size_t>(dim - 1);
+    const std::size_t begin =
+        static_cast<std::size_t>(overlap(block, q)[0] - block.first[slow]) * plane_size(block);
+    for (std::size_t c = 0; c < components; ++c) {
+      double* out = send.data() + send_offset[q] + c * length;
+      const double* v = velocity[c];
+      const double mean_c = mean[c];
+      const auto signed_length = static_cast<std::ptrdiff_t>(length);
+#pragma omp parallel for schedule(static)
+      for (std::ptrdiff_t k = 0; k < signed_length; ++k)
+        out[k] = v[nearest_particle[begin + static_cast<std::size_t>(k)]] - mean_c;
     }
-    throw std::logic_error("distributed_energy_spectrum: a plane outside FFTW's slabs");
-  };
-  const auto node_coordinates = [&](std::size_t n) {
-    const auto nx = static_cast<std::size_t>(block.count[0]);
-    const auto ny = static_cast<std::size_t>(block.count[1]);
-    return std::array<int, 3>{block.first[0] + static_cast<int>(n % nx),
-                              block.first[1] + static_cast<int>((n / nx) % ny),
-                              block.first[2] + static_cast<int>(n / (nx * ny))};
-  };
-  const int record = 1 + dim;
-  std::vector<int> destination(nodes);
-  std::vector<int> send_count(static_cast<std::size_t>(ranks), 0);
-  for (std::size_t n = 0; n < nodes; ++n) {
-    destination[n] = owner_of_plane(node_coordinates(n)[static_cast<std::size_t>(slow_axis)]);
-    send_count[static_cast<std::size_t>(destination[n])] += record;
   }
-  std::vector<int> send_offset(static_cast<std::size_t>(ranks), 0);
-  for (int r = 1; r < ranks; ++r)
-    send_offset[static_cast<std::size_t>(r)] =
-        send_offset[static_cast<std::size_t>(r - 1)] + send_count[static_cast<std::size_t>(r - 1)];
-  std::vector<double> send(nodes * static_cast<std::size_t>(record));
-  std::vector<int> cursor = send_offset;
-  for (std::size_t n = 0; n < nodes; ++n) {
-    const std::array<int, 3> ijk = node_coordinates(n);
-    double* out = send.data() + cursor[static_cast<std::size_t>(destination[n])];
-    cursor[static_cast<std::size_t>(destination[n])] += record;
-    out[0] = static_cast<double>(grid.index(ijk[0], ijk[1], ijk[2]));  // exact below 2^53
-    for (int c = 0; c < dim; ++c) out[1 + c] = u[static_cast<std::size_t>(c)][n];
-  }
-  std::vector<int> receive_count(static_cast<std::size_t>(ranks));
-  MPI_Alltoall(send_count.data(), 1, MPI_INT, receive_count.data(), 1, MPI_INT, d.comm());
-  std::vector<int> receive_offset(static_cast<std::size_t>(ranks), 0);
-  for (int r = 1; r < ranks; ++r)
-    receive_offset[static_cast<std::size_t>(r)] = receive_offset[static_cast<std::size_t>(r - 1)] +
-                                                  receive_count[static_cast<std::size_t>(r - 1)];
-  std::vector<double> received(
-      static_cast<std::size_t>(receive_offset.back() + receive_count.back()));
+  received.resize(static_cast<std::size_t>(receive_offset.back() + receive_count.back()));
   MPI_Alltoallv(send.data(), send_count.data(), send_offset.data(), MPI_DOUBLE, received.data(),
                 receive_count.data(), receive_offset.data(), MPI_DOUBLE, d.comm());
 
-  // This rank's slab of every component, then the transforms and the shell sums of its modes.
-  std::array<std::vector<double>, 3> slab;
-  for (int c = 0; c < dim; ++c)
-    slab[static_cast<std::size_t>(c)].assign(transform.real_count(), 0.0);
-  const auto side = static_cast<std::uint64_t>(m);
-  for (std::size_t at = 0; at < received.size(); at += static_cast<std::size_t>(record)) {
-    const auto index = static_cast<std::uint64_t>(received[at]);
-    const auto i = static_cast<int>(index % side);
-    const auto j = static_cast<int>((index / side) % side);
-    const auto k = static_cast<int>(index / (side * side));
-    const std::size_t where = transform.real_index(i, j, k);
-    for (int c = 0; c < dim; ++c)
-      slab[static_cast<std::size_t>(c)][where] = received[at + 1 + static_cast<std::size_t>(c)];
-  }
-  analysis::ShellSums shells = analysis::empty_shell_sums(dim, m);
-  for (int c = 0; c < dim; ++c) {
-    const double* modes = transform.transform(slab[static_cast<std::size_t>(c)]);
+  // Per component: this rank's slab in FFTW's padded input, row by row of each sender's block
+  // (the blocks tile the grid, so every row is written), the transform, and the shell sums of
+  // the slab's modes.
+  analysis::ShellSums shells = analysis::empty_shell_sums(dim, grid.points_per_side);
+  const auto me = static_cast<std::size_t>(d.rank());
+  for (std::size_t c = 0; c < components; ++c) {
+    double* input = transform.input();
+    for (std::size_t r = 0; r < ranks; ++r) {
+      const analysis::NodeBlock& b = blocks[r];
+      const std::array<int, 2> planes = overlap(b, me);
+      const auto row = static_cast<std::size_t>(b.count[0]);
+      const int rows = dim == 3 ? b.count[1] : 1;
+      const double* from = received.data() + receive_offset[r] + c * run(b, me);
+      for (int plane = planes[0]; plane < planes[1]; ++plane)
+        for (int y = 0; y < rows; ++y, from += row) {
+          const std::size_t at = dim == 3 ? transform.real_index(b.first[0], b.first[1] + y, plane)
+                                          : transform.real_index(b.first[0], plane, 0);
+          std::copy_n(from, row, input + at);
+        }
+    }
+    const double* modes = transform.execute();
     if (transform.planes() > 0)
       analysis::add_transform_planes(shells, modes, transform.first_plane(), transform.planes());
   }
@@ -276,19 +304,41 @@ analysis::EnergySpectrum distributed_energy_spectrum(const Decomposition& d,
   std::copy(shells.modulus2.begin(), shells.modulus2.end(), mine.begin());
   std::copy(shells.k2_modulus2.begin(), shells.k2_modulus2.end(),
             mine.begin() + static_cast<std::ptrdiff_t>(count));
-  std::vector<double> all(mine.size() * static_cast<std::size_t>(ranks));
+  std::vector<double> all(mine.size() * ranks);
   MPI_Allgather(mine.data(), static_cast<int>(mine.size()), MPI_DOUBLE, all.data(),
                 static_cast<int>(mine.size()), MPI_DOUBLE, d.comm());
   std::fill(shells.modulus2.begin(), shells.modulus2.end(), 0.0);
   std::fill(shells.k2_modulus2.begin(), shells.k2_modulus2.end(), 0.0);
-  for (int r = 0; r < ranks; ++r) {
-    const double* from = all.data() + static_cast<std::size_t>(r) * mine.size();
+  for (std::size_t r = 0; r < ranks; ++r) {
+    const double* from = all.data() + r * mine.size();
     for (std::size_t p = 0; p < count; ++p) {
       shells.modulus2[p] += from[p];
       shells.k2_modulus2[p] += from[count + p];
     }
   }
   return analysis::spectrum_from_shell_sums(shells, grid.length);
+}
+
+DistributedSpectrum::DistributedSpectrum(const Decomposition& d, int points_per_side) {
+  const sim::PeriodicBox& box = d.box();
+  for (int a = 1; a < d.dimension(); ++a)
+    if (box.length[static_cast<std::size_t>(a)] != box.length[0])
+      throw std::invalid_argument("distributed_energy_spectrum: the box must be a cube");
+  if (points_per_side < 2)
+    throw std::invalid_argument("distributed_energy_spectrum: points_per_side must be >= 2");
+  impl_ = std::make_unique<Impl>(d, points_per_side);
+}
+
+DistributedSpectrum::~DistributedSpectrum() = default;
+
+analysis::EnergySpectrum DistributedSpectrum::compute(const sim::ParticleArrays& owned) {
+  return impl_->compute(owned);
+}
+
+analysis::EnergySpectrum distributed_energy_spectrum(const Decomposition& d,
+                                                     const sim::ParticleArrays& owned,
+                                                     int points_per_side) {
+  return DistributedSpectrum(d, points_per_side).compute(owned);
 }
 
 }  // namespace sphles::par

@@ -666,7 +666,8 @@ TEST(ExactAllreduce, KineticEnergyEqualsOneProcessBitForBit) {
 
 /// The spectrum of particles spread over the ranks against the one-process spectrum of all of
 /// them (SPEC §5 gridding, FFTW r2c): every shell to 1e-12 relative (of the shell, or of the
-/// largest shell for shells below 1e-6 of it), and the same bits on every rank.
+/// largest shell for shells below 1e-6 of it), and the same bits on every rank and from a new
+/// DistributedSpectrum as from one used before.
 /// The ranks start from the owners of the positions shifted by `drift` spacings along x, as if
 /// the particles had moved since the last migration.
 template <int Dim>
@@ -680,7 +681,14 @@ void distributed_spectrum_equals_one_process(int per_side, double drift) {
   for (std::size_t k = 0; k < mine.size(); ++k)
     mine.position[0][k] = all.position[0][static_cast<std::size_t>(mine.id[k])];
   const int m = 2 * per_side;  // spacing Δl / 2, as the analysis grids
-  const analysis::EnergySpectrum got = distributed_energy_spectrum(d, mine, m);
+  // A second call of one object (its plan and buffers reused) after a call on other velocities.
+  DistributedSpectrum spectra(d, m);
+  sim::ParticleArrays other = mine;
+  for (double& v : other.velocity[0]) v = 2.0 * v + 1.0;
+  const analysis::EnergySpectrum before = spectra.compute(other);
+  const analysis::EnergySpectrum got = spectra.compute(mine);
+  EXPECT_NE(before.energy, got.energy);
+  EXPECT_EQ(distributed_energy_spectrum(d, mine, m).energy, got.energy);
 
   analysis::Grid grid;
   grid.dimension = Dim;
