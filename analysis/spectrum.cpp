@@ -11,11 +11,12 @@
 #include <fftw3.h>
 
 #include <cmath>
+#include <cstddef>
 #include <mutex>
-#include <new>
 #include <numbers>
 #include <stdexcept>
 
+#include "analysis/fftw_r2c.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::analysis {
@@ -35,49 +36,27 @@ int signed_wavenumber(int q, int m) {
 /// its own input and output buffers.
 class RealToComplexTransform {
  public:
-  RealToComplexTransform(int dimension, int points_per_side) {
-    const auto m = static_cast<std::size_t>(points_per_side);
-    real_size_ = 1;
-    for (int d = 0; d < dimension; ++d) real_size_ *= m;
-    complex_size_ = real_size_ / m * (m / 2 + 1);
-    const int dims[3] = {points_per_side, points_per_side, points_per_side};
-    std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-    input_ = fftw_alloc_real(real_size_);
-    output_ = fftw_alloc_complex(complex_size_);
-    if (input_ != nullptr && output_ != nullptr)
-      plan_ = fftw_plan_dft_r2c(dimension, dims, input_, output_, FFTW_ESTIMATE);
-    if (plan_ == nullptr) {
-      release();
-      throw std::bad_alloc();
-    }
-  }
-  RealToComplexTransform(const RealToComplexTransform&) = delete;
-  RealToComplexTransform& operator=(const RealToComplexTransform&) = delete;
-  ~RealToComplexTransform() {
-    std::lock_guard<std::mutex> lock(fftw_planner_mutex());
-    release();
-  }
+  RealToComplexTransform(int dimension, int points_per_side)
+      : plan_(real_size(dimension, points_per_side),
+              real_size(dimension, points_per_side) / static_cast<std::size_t>(points_per_side) *
+                  static_cast<std::size_t>(points_per_side / 2 + 1),
+              [&](double* in, fftw_complex* out) {
+                const int dims[3] = {points_per_side, points_per_side, points_per_side};
+                return fftw_plan_dft_r2c(dimension, dims, in, out, FFTW_ESTIMATE);
+              }) {}
 
-  double* input() { return input_; }
-  const fftw_complex* output() const { return output_; }
-  std::size_t complex_size() const { return complex_size_; }
-  void execute() { fftw_execute(plan_); }
+  double* input() { return plan_.input(); }
+  const fftw_complex* output() const { return plan_.output(); }
+  void execute() { plan_.execute(); }
 
  private:
-  void release() {  // caller holds the planner lock
-    if (plan_ != nullptr) fftw_destroy_plan(plan_);
-    fftw_free(output_);
-    fftw_free(input_);
-    plan_ = nullptr;
-    output_ = nullptr;
-    input_ = nullptr;
+  static std::size_t real_size(int dimension, int points_per_side) {
+    std::size_t n = 1;
+    for (int d = 0; d < dimension; ++d) n *= static_cast<std::size_t>(points_per_side);
+    return n;
   }
 
-  std::size_t real_size_ = 0;
-  std::size_t complex_size_ = 0;
-  double* input_ = nullptr;
-  fftw_complex* output_ = nullptr;
-  fftw_plan plan_ = nullptr;
+  R2cPlan plan_;
 };
 
 void check_velocity(const VectorField& velocity) {

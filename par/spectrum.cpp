@@ -15,6 +15,7 @@
 #include <string>
 #include <vector>
 
+#include "analysis/fftw_r2c.hpp"
 #include "analysis/grid.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
@@ -42,38 +43,17 @@ void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& fir
 /// the slowest axis (z in 3D, y in 2D) in its padded real layout, and its part of the output.
 class DistributedTransform {
  public:
-  DistributedTransform(int dimension, int m, MPI_Comm comm) : dimension_(dimension), m_(m) {
-    static std::once_flag initialised;
-    std::call_once(initialised, [] { fftw_mpi_init(); });
-    std::array<ptrdiff_t, 3> complex_dims{m, m, m};
-    complex_dims[static_cast<std::size_t>(dimension - 1)] = m / 2 + 1;
-    const std::array<ptrdiff_t, 3> real_dims{m, m, m};
-    const std::unique_lock<std::mutex> lock = analysis::fftw_planner_lock();
-    const ptrdiff_t alloc =
-        fftw_mpi_local_size(dimension, complex_dims.data(), comm, &local_planes_, &first_plane_);
-    // An alloc of at least one element: a rank without planes still takes part in the plan.
-    const auto complex_count = static_cast<std::size_t>(std::max<ptrdiff_t>(alloc, 1));
-    input_ = fftw_alloc_real(2 * complex_count);
-    output_ = fftw_alloc_complex(complex_count);
-    if (input_ != nullptr && output_ != nullptr)
-      plan_ =
-          fftw_mpi_plan_dft_r2c(dimension, real_dims.data(), input_, output_, comm, FFTW_ESTIMATE);
-    if (plan_ == nullptr) {
-      release();
-      throw std::bad_alloc();
-    }
-    real_count_ = 2 * complex_count;
-  }
-  DistributedTransform(const DistributedTransform&) = delete;
-  DistributedTransform& operator=(const DistributedTransform&) = delete;
-  ~DistributedTransform() {
-    const std::unique_lock<std::mutex> lock = analysis::fftw_planner_lock();
-    release();
-  }
+  DistributedTransform(int dimension, int m, MPI_Comm comm)
+      : dimension_(dimension),
+        m_(m),
+        complex_count_(local_size(dimension, m, comm, local_planes_, first_plane_)),
+        plan_(2 * complex_count_, complex_count_, [&](double* in, fftw_complex* out) {
+          const std::array<ptrdiff_t, 3> real_dims{m, m, m};
+          return fftw_mpi_plan_dft_r2c(dimension, real_dims.data(), in, out, comm, FFTW_ESTIMATE);
+        }) {}
 
   int first_plane() const { return static_cast<int>(first_plane_); }
   int planes() const { return static_cast<int>(local_planes_); }
-  std::size_t real_count() const { return real_count_; }
   /// Where node (i, j, k) of this rank's slab sits in the padded real input (x padded to
   /// 2 (M/2 + 1) values).
   std::size_t real_index(int i, int j, int k) const {
@@ -84,32 +64,34 @@ class DistributedTransform {
                                             : static_cast<std::size_t>(j - first_plane_);
     return row * padded + static_cast<std::size_t>(i);
   }
-  /// The real input, real_count() values in the padded layout.
-  double* input() { return input_; }
+  /// The real input, 2 (M/2 + 1) values per row of the slab.
+  double* input() { return plan_.input(); }
   /// Transforms the input; collective. The output as (re, im) pairs.
   const double* execute() {
-    fftw_execute(plan_);
-    return reinterpret_cast<const double*>(output_);
+    plan_.execute();
+    return reinterpret_cast<const double*>(plan_.output());
   }
 
  private:
-  void release() {  // caller holds the planner lock
-    if (plan_ != nullptr) fftw_destroy_plan(plan_);
-    fftw_free(output_);
-    fftw_free(input_);
-    plan_ = nullptr;
-    output_ = nullptr;
-    input_ = nullptr;
+  /// This rank's planes of FFTW's distribution, and the complex values its buffers need (at
+  /// least one: a rank without planes still takes part in the plan).
+  static std::size_t local_size(int dimension, int m, MPI_Comm comm, ptrdiff_t& planes,
+                                ptrdiff_t& first) {
+    static std::once_flag initialised;
+    std::call_once(initialised, [] { fftw_mpi_init(); });
+    std::array<ptrdiff_t, 3> complex_dims{m, m, m};
+    complex_dims[static_cast<std::size_t>(dimension - 1)] = m / 2 + 1;
+    const ptrdiff_t alloc =
+        fftw_mpi_local_size(dimension, complex_dims.data(), comm, &planes, &first);
+    return static_cast<std::size_t>(std::max<ptrdiff_t>(alloc, 1));
   }
 
   int dimension_;
   int m_;
   ptrdiff_t local_planes_ = 0;
   ptrdiff_t first_plane_ = 0;
-  std::size_t real_count_ = 0;
-  double* input_ = nullptr;
-  fftw_complex* output_ = nullptr;
-  fftw_plan plan_ = nullptr;
+  std::size_t complex_count_;
+  analysis::R2cPlan plan_;
 };
 
 /// True on every rank when `ok` holds on every rank of d.
