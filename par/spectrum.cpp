@@ -9,8 +9,9 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <mutex>
-#include <new>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -39,21 +40,39 @@ void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& fir
   if (count == 0) first = 0;
 }
 
-/// FFTW's MPI r2c transform of an M^n grid over the ranks of a communicator: this rank's slab of
-/// the slowest axis (z in 3D, y in 2D) in its padded real layout, and its part of the output.
+/// This rank's part of FFTW's MPI distribution of an M^n r2c transform: the planes
+/// [first, first + planes) of the slowest axis (z in 3D, y in 2D), and the complex values its
+/// buffers need (at least one: a rank without planes still takes part in the plan). Allocates
+/// nothing.
+struct Slab {
+  ptrdiff_t first = 0;
+  ptrdiff_t planes = 0;
+  std::size_t complex_count = 1;
+
+  Slab(int dimension, int m, MPI_Comm comm) {
+    static std::once_flag initialised;
+    std::call_once(initialised, [] { fftw_mpi_init(); });
+    std::array<ptrdiff_t, 3> complex_dims{m, m, m};
+    complex_dims[static_cast<std::size_t>(dimension - 1)] = m / 2 + 1;
+    const ptrdiff_t alloc =
+        fftw_mpi_local_size(dimension, complex_dims.data(), comm, &planes, &first);
+    complex_count = static_cast<std::size_t>(std::max<ptrdiff_t>(alloc, 1));
+  }
+};
+
+/// FFTW's MPI r2c transform of an M^n grid over the ranks of a communicator: this rank's slab in
+/// its padded real layout, and its part of the output.
 class DistributedTransform {
  public:
-  DistributedTransform(int dimension, int m, MPI_Comm comm)
+  DistributedTransform(int dimension, int m, const Slab& slab, MPI_Comm comm)
       : dimension_(dimension),
         m_(m),
-        complex_count_(local_size(dimension, m, comm, local_planes_, first_plane_)),
-        plan_(2 * complex_count_, complex_count_, [&](double* in, fftw_complex* out) {
+        first_plane_(slab.first),
+        plan_(2 * slab.complex_count, slab.complex_count, [&](double* in, fftw_complex* out) {
           const std::array<ptrdiff_t, 3> real_dims{m, m, m};
           return fftw_mpi_plan_dft_r2c(dimension, real_dims.data(), in, out, comm, FFTW_ESTIMATE);
         }) {}
 
-  int first_plane() const { return static_cast<int>(first_plane_); }
-  int planes() const { return static_cast<int>(local_planes_); }
   /// Where node (i, j, k) of this rank's slab sits in the padded real input (x padded to
   /// 2 (M/2 + 1) values).
   std::size_t real_index(int i, int j, int k) const {
@@ -73,24 +92,9 @@ class DistributedTransform {
   }
 
  private:
-  /// This rank's planes of FFTW's distribution, and the complex values its buffers need (at
-  /// least one: a rank without planes still takes part in the plan).
-  static std::size_t local_size(int dimension, int m, MPI_Comm comm, ptrdiff_t& planes,
-                                ptrdiff_t& first) {
-    static std::once_flag initialised;
-    std::call_once(initialised, [] { fftw_mpi_init(); });
-    std::array<ptrdiff_t, 3> complex_dims{m, m, m};
-    complex_dims[static_cast<std::size_t>(dimension - 1)] = m / 2 + 1;
-    const ptrdiff_t alloc =
-        fftw_mpi_local_size(dimension, complex_dims.data(), comm, &planes, &first);
-    return static_cast<std::size_t>(std::max<ptrdiff_t>(alloc, 1));
-  }
-
   int dimension_;
   int m_;
-  ptrdiff_t local_planes_ = 0;
-  ptrdiff_t first_plane_ = 0;
-  std::size_t complex_count_;
+  ptrdiff_t first_plane_;
   analysis::R2cPlan plan_;
 };
 
@@ -111,7 +115,8 @@ struct DistributedSpectrum::Impl {
   analysis::NodeBlock block;
   std::vector<analysis::NodeBlock> blocks;
   std::vector<std::array<int, 2>> slabs;
-  DistributedTransform transform;
+  Slab slab;
+  std::optional<DistributedTransform> transform;  // planned once the layout is known to fit
   /// Doubles sent to and received from each rank, and where they start.
   std::vector<int> send_count, send_offset, receive_count, receive_offset;
   /// Kept between calls: the particles with their halo, the messages.
@@ -119,7 +124,7 @@ struct DistributedSpectrum::Impl {
   std::vector<double> send, received;
 
   Impl(const Decomposition& decomposition, int m)
-      : d(decomposition), transform(decomposition.dimension(), m, decomposition.comm()) {
+      : d(decomposition), slab(decomposition.dimension(), m, decomposition.comm()) {
     const int dim = d.dimension();
     grid.dimension = dim;
     grid.points_per_side = m;
@@ -130,9 +135,14 @@ struct DistributedSpectrum::Impl {
     }
     const auto ranks = static_cast<std::size_t>(d.size());
     std::vector<int> layout(8 * ranks);  // per rank: block first[3], count[3]; slab first, count
-    const int mine[8] = {block.first[0],          block.first[1],    block.first[2],
-                         block.count[0],          block.count[1],    block.count[2],
-                         transform.first_plane(), transform.planes()};
+    const int mine[8] = {block.first[0],
+                         block.first[1],
+                         block.first[2],
+                         block.count[0],
+                         block.count[1],
+                         block.count[2],
+                         static_cast<int>(slab.first),
+                         static_cast<int>(slab.planes)};
     MPI_Allgather(mine, 8, MPI_INT, layout.data(), 8, MPI_INT, d.comm());
     blocks.resize(ranks);
     slabs.resize(ranks);
@@ -151,6 +161,21 @@ struct DistributedSpectrum::Impl {
     receive_count.assign(ranks, 0);
     receive_offset.assign(ranks, 0);
     const auto me = static_cast<std::size_t>(d.rank());
+    // MPI counts and displacements are ints: every rank's messages in all must stay below 2^31
+    // values.
+    std::size_t sent = 0, received_total = 0;
+    for (std::size_t q = 0; q < ranks; ++q) {
+      sent += run(block, q) * static_cast<std::size_t>(dim);
+      received_total += run(blocks[q], me) * static_cast<std::size_t>(dim);
+    }
+    const auto limit = static_cast<std::size_t>(std::numeric_limits<int>::max());
+    if (!on_every_rank(d, sent <= limit && received_total <= limit))
+      throw std::invalid_argument(
+          "distributed_energy_spectrum: " + std::to_string(m) + "^" + std::to_string(dim) +
+          " nodes on " + std::to_string(ranks) +
+          " ranks put more than 2^31 velocity values on one rank, more than MPI's int counts "
+          "allow: use more ranks or fewer points per side");
+    transform.emplace(dim, m, slab, d.comm());
     for (std::size_t q = 0; q < ranks; ++q) {
       send_count[q] = static_cast<int>(run(block, q) * static_cast<std::size_t>(dim));
       receive_count[q] = static_cast<int>(run(blocks[q], me) * static_cast<std::size_t>(dim));
@@ -261,7 +286,7 @@ analysis::EnergySpectrum DistributedSpectrum::Impl::compute(const sim::ParticleA
   analysis::ShellSums shells = analysis::empty_shell_sums(dim, grid.points_per_side);
   const auto me = static_cast<std::size_t>(d.rank());
   for (std::size_t c = 0; c < components; ++c) {
-    double* input = transform.input();
+    double* input = transform->input();
     for (std::size_t r = 0; r < ranks; ++r) {
       const analysis::NodeBlock& b = blocks[r];
       const std::array<int, 2> planes = overlap(b, me);
@@ -270,14 +295,15 @@ analysis::EnergySpectrum DistributedSpectrum::Impl::compute(const sim::ParticleA
       const double* from = received.data() + receive_offset[r] + c * run(b, me);
       for (int plane = planes[0]; plane < planes[1]; ++plane)
         for (int y = 0; y < rows; ++y, from += row) {
-          const std::size_t at = dim == 3 ? transform.real_index(b.first[0], b.first[1] + y, plane)
-                                          : transform.real_index(b.first[0], plane, 0);
+          const std::size_t at = dim == 3 ? transform->real_index(b.first[0], b.first[1] + y, plane)
+                                          : transform->real_index(b.first[0], plane, 0);
           std::copy_n(from, row, input + at);
         }
     }
-    const double* modes = transform.execute();
-    if (transform.planes() > 0)
-      analysis::add_transform_planes(shells, modes, transform.first_plane(), transform.planes());
+    const double* modes = transform->execute();
+    if (slab.planes > 0)
+      analysis::add_transform_planes(shells, modes, static_cast<int>(slab.first),
+                                     static_cast<int>(slab.planes));
   }
 
   // Every rank's sums, added in rank order on every rank: the same bits everywhere.

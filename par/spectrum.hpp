@@ -25,7 +25,9 @@ namespace sphles::par {
 /// buffers cost more in page faults than the transform). The box must be a cube.
 class DistributedSpectrum {
  public:
-  /// Collective over d.comm() (FFTW plans the transform); d must outlive this object.
+  /// Collective over d.comm() (FFTW plans the transform); d must outlive this object. Throws
+  /// std::invalid_argument (on every rank) for a box that is not a cube, M < 2, or a grid whose
+  /// velocity values on one rank would exceed MPI's int counts (2^31).
   DistributedSpectrum(const Decomposition& d, int points_per_side);
   ~DistributedSpectrum();
   DistributedSpectrum(const DistributedSpectrum&) = delete;

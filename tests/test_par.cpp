@@ -732,6 +732,20 @@ TEST(DistributedSpectrum, ParticlesOutsideTheirSubBoxesMoveFirst) {
   distributed_spectrum_equals_one_process<3>(16, -0.7);
 }
 
+/// A grid whose values on one rank would pass MPI's int counts is refused on every rank before
+/// anything of its size is allocated (10^10 nodes: 1.25·10^9 or more on each of up to 8 ranks).
+TEST(DistributedSpectrum, GridBeyondMpiCountsIsRefusedBeforeAllocating) {
+  const double spacing = kLength / 32;
+  const Decomposition d(MPI_COMM_WORLD, box_of(2), 2.5 * spacing, spacing);
+  bool refused = false;
+  try {
+    DistributedSpectrum spectra(d, 100000);
+  } catch (const std::invalid_argument& e) {
+    refused = std::string(e.what()).find("MPI's int counts") != std::string::npos;
+  }
+  EXPECT_TRUE(all_ranks(refused));
+}
+
 /// Particles only in x < L/2: on more than one rank some node's nearest particle is further
 /// than the halo width, and every rank refuses, naming the halo; one process sees every
 /// particle and computes the spectrum.
