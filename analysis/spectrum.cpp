@@ -38,8 +38,8 @@ class RealToComplexTransform {
  public:
   RealToComplexTransform(int dimension, int points_per_side)
       : plan_(real_size(dimension, points_per_side),
-              real_size(dimension, points_per_side) / static_cast<std::size_t>(points_per_side) *
-                  static_cast<std::size_t>(points_per_side / 2 + 1),
+              real_size(dimension - 1, points_per_side) *
+                  static_cast<std::size_t>(points_per_side / 2 + 1),  // x halved
               [&](double* in, fftw_complex* out) {
                 const int dims[3] = {points_per_side, points_per_side, points_per_side};
                 return fftw_plan_dft_r2c(dimension, dims, in, out, FFTW_ESTIMATE);
@@ -50,6 +50,7 @@ class RealToComplexTransform {
   void execute() { plan_.execute(); }
 
  private:
+  /// M^n.
   static std::size_t real_size(int dimension, int points_per_side) {
     std::size_t n = 1;
     for (int d = 0; d < dimension; ++d) n *= static_cast<std::size_t>(points_per_side);

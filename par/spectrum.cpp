@@ -11,6 +11,7 @@
 #include <cstdint>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -156,33 +157,32 @@ struct DistributedSpectrum::Impl {
     // Rank r sends rank q, per component, the nodes of its planes inside q's slab: a block's
     // nodes of one plane are contiguous (x fastest), so that is one run, placed by q without
     // indices since q knows r's block.
-    send_count.assign(ranks, 0);
-    send_offset.assign(ranks, 0);
-    receive_count.assign(ranks, 0);
-    receive_offset.assign(ranks, 0);
     const auto me = static_cast<std::size_t>(d.rank());
+    std::vector<std::size_t> sends(ranks), receives(ranks);
+    for (std::size_t q = 0; q < ranks; ++q) {
+      sends[q] = run(block, q) * static_cast<std::size_t>(dim);
+      receives[q] = run(blocks[q], me) * static_cast<std::size_t>(dim);
+    }
     // MPI counts and displacements are ints: every rank's messages in all must stay below 2^31
     // values.
-    std::size_t sent = 0, received_total = 0;
-    for (std::size_t q = 0; q < ranks; ++q) {
-      sent += run(block, q) * static_cast<std::size_t>(dim);
-      received_total += run(blocks[q], me) * static_cast<std::size_t>(dim);
-    }
     const auto limit = static_cast<std::size_t>(std::numeric_limits<int>::max());
-    if (!on_every_rank(d, sent <= limit && received_total <= limit))
+    const auto total = [](const std::vector<std::size_t>& v) {
+      return std::accumulate(v.begin(), v.end(), std::size_t{0});
+    };
+    if (!on_every_rank(d, total(sends) <= limit && total(receives) <= limit))
       throw std::invalid_argument(
           "distributed_energy_spectrum: " + std::to_string(m) + "^" + std::to_string(dim) +
           " nodes on " + std::to_string(ranks) +
           " ranks put more than 2^31 velocity values on one rank, more than MPI's int counts "
           "allow: use more ranks or fewer points per side");
     transform.emplace(dim, m, slab, d.comm());
-    for (std::size_t q = 0; q < ranks; ++q) {
-      send_count[q] = static_cast<int>(run(block, q) * static_cast<std::size_t>(dim));
-      receive_count[q] = static_cast<int>(run(blocks[q], me) * static_cast<std::size_t>(dim));
-      if (q > 0) {
-        send_offset[q] = send_offset[q - 1] + send_count[q - 1];
-        receive_offset[q] = receive_offset[q - 1] + receive_count[q - 1];
-      }
+    send_count.assign(sends.begin(), sends.end());
+    receive_count.assign(receives.begin(), receives.end());
+    send_offset.assign(ranks, 0);
+    receive_offset.assign(ranks, 0);
+    for (std::size_t q = 1; q < ranks; ++q) {
+      send_offset[q] = send_offset[q - 1] + send_count[q - 1];
+      receive_offset[q] = receive_offset[q - 1] + receive_count[q - 1];
     }
   }
 
