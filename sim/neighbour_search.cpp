@@ -203,43 +203,54 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
       // row, so a scalar remainder would cost as much as the vector part). The same operations
       // in the same order as the portable loop (#else), so the list is the same.
       (void)keep;
+      // Every loop invariant in a local: the index store below is of a type that may alias
+      // anything, so values reached through the captures (the arrays' pointers, xi, the box)
+      // would otherwise be reloaded and re-broadcast at every block.
+      const double* const x0 = sorted[0].data();
+      const double* const x1 = sorted[1].data();
+      const double* const x2 = sorted[Dim == 3 ? 2 : 0].data();
+      const std::uint32_t* const member = cell_members.data();
+      std::uint32_t* const dest = out;
+      const std::size_t me = self;
+      std::size_t kept = used;
       const __m512d xi0 = _mm512_set1_pd(xi[0]), xi1 = _mm512_set1_pd(xi[1]),
                     xi2 = _mm512_set1_pd(xi[Dim == 3 ? 2 : 0]);
-      const auto image = [](__m512d dx, double len, double half) {
-        const __m512d l = _mm512_set1_pd(len);
-        dx =
-            _mm512_mask_sub_pd(dx, _mm512_cmp_pd_mask(dx, _mm512_set1_pd(half), _CMP_GT_OQ), dx, l);
-        return _mm512_mask_add_pd(dx, _mm512_cmp_pd_mask(dx, _mm512_set1_pd(-half), _CMP_LT_OQ), dx,
-                                  l);
-      };
+      const __m512d len0 = _mm512_set1_pd(length[0]), len1 = _mm512_set1_pd(length[1]),
+                    len2 = _mm512_set1_pd(length[Dim == 3 ? 2 : 0]);
+      const __m512d half0 = _mm512_set1_pd(half_length[0]), half1 = _mm512_set1_pd(half_length[1]),
+                    half2 = _mm512_set1_pd(half_length[Dim == 3 ? 2 : 0]);
+      const __m512d low0 = _mm512_set1_pd(-half_length[0]), low1 = _mm512_set1_pd(-half_length[1]),
+                    low2 = _mm512_set1_pd(-half_length[Dim == 3 ? 2 : 0]);
       const __m512d r2_limit = _mm512_set1_pd(radius2);
+      const auto image = [](__m512d dx, __m512d l, __m512d half, __m512d low) {
+        dx = _mm512_mask_sub_pd(dx, _mm512_cmp_pd_mask(dx, half, _CMP_GT_OQ), dx, l);
+        return _mm512_mask_add_pd(dx, _mm512_cmp_pd_mask(dx, low, _CMP_LT_OQ), dx, l);
+      };
       for (std::size_t k = 0; k < count; k += 8) {
         const std::size_t left = count - k;
         const auto live = static_cast<__mmask8>(left >= 8 ? 0xFF : (1u << left) - 1u);
         const std::size_t at = begin + k;
         const __m512d dx =
-            image(_mm512_sub_pd(xi0, _mm512_maskz_loadu_pd(live, sorted[0].data() + at)), length[0],
-                  half_length[0]);
+            image(_mm512_sub_pd(xi0, _mm512_maskz_loadu_pd(live, x0 + at)), len0, half0, low0);
         const __m512d dy =
-            image(_mm512_sub_pd(xi1, _mm512_maskz_loadu_pd(live, sorted[1].data() + at)), length[1],
-                  half_length[1]);
+            image(_mm512_sub_pd(xi1, _mm512_maskz_loadu_pd(live, x1 + at)), len1, half1, low1);
         __m512d r2 = _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy));
         if constexpr (Dim == 3) {
           const __m512d dz =
-              image(_mm512_sub_pd(xi2, _mm512_maskz_loadu_pd(live, sorted[2].data() + at)),
-                    length[2], half_length[2]);
+              image(_mm512_sub_pd(xi2, _mm512_maskz_loadu_pd(live, x2 + at)), len2, half2, low2);
           r2 = _mm512_add_pd(r2, _mm512_mul_pd(dz, dz));
         }
         auto inside =
             static_cast<unsigned>(_mm512_mask_cmp_pd_mask(live, r2, r2_limit, _CMP_LT_OQ));
-        if (self >= at && self < at + 8) inside &= ~(1u << (self - at));  // j != i
-        const __m256i members = _mm256_maskz_loadu_epi32(live, cell_members.data() + at);
+        if (me >= at && me < at + 8) inside &= ~(1u << (me - at));  // j != i
+        const __m256i members = _mm256_maskz_loadu_epi32(live, member + at);
         // Compress in a register and store all 8 lanes (a masked compress-store is slow on some
         // cores); the lanes past the kept ones are overwritten by the next block or ignored.
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(out + used),
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(dest + kept),
                             _mm256_maskz_compress_epi32(static_cast<__mmask8>(inside), members));
-        used += static_cast<std::size_t>(__builtin_popcount(inside));
+        kept += static_cast<std::size_t>(__builtin_popcount(inside));
       }
+      used = kept;
 #else
       if (keep.size() < count) keep.resize(count);
       std::uint8_t* inside = keep.data();
