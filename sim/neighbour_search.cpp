@@ -272,21 +272,38 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
       used += append_selected(cell_members.data() + begin, inside, count, out + used);
 #endif
     };
-    const auto wrap_cell = [&](int d, int k) { return (k + cells_[d]) % cells_[d]; };
+    // Cell k of axis d, k in [-cells, 2 cells) (a cell index plus an offset of at most one box):
+    // a compare instead of an integer division, which the scan of every row would wait for.
+    const auto wrap_cell = [&](int d, int k) {
+      const int n = cells_[d];
+      return k < 0 ? k + n : (k >= n ? k - n : k);
+    };
     // The x cells of one row in visiting order, as runs of consecutive cells; with pruning only
     // those within `reach` (the chord's half-length) of x_i.
     const auto scan_row = [&](std::size_t row_start, double reach) {
+      if (prune) {
+        // The wanted x offsets are one interval around 0 (the slab distance grows with |offset|);
+        // its cells in offset order are one run, or two where the interval wraps around the box.
+        int lo = -kCellsPerRadius, hi = kCellsPerRadius;
+        while (lo < 0 && slab_distance(0, lo) > reach) ++lo;
+        while (hi > 0 && slab_distance(0, hi) > reach) --hi;
+        const int first = wrap_cell(0, ci[0] + lo);
+        const int end = first + (hi - lo) + 1;  // one past the last cell, unwrapped
+        const std::size_t* const row = cell_start.data() + row_start;
+        if (end <= cells_[0]) {
+          scan(row[first], row[end]);
+        } else {
+          scan(row[first], row[cells_[0]]);
+          scan(row[0], row[end - cells_[0]]);
+        }
+        return;
+      }
       const std::vector<int>& xs = offsets[0];
       std::size_t k = 0;
-      const auto wanted = [&](std::size_t m) { return !prune || slab_distance(0, xs[m]) <= reach; };
       while (k < xs.size()) {
-        if (!wanted(k)) {
-          ++k;
-          continue;
-        }
         const int first = wrap_cell(0, ci[0] + xs[k]);
         int last = first;
-        while (k + 1 < xs.size() && wanted(k + 1) && wrap_cell(0, ci[0] + xs[k + 1]) == last + 1) {
+        while (k + 1 < xs.size() && wrap_cell(0, ci[0] + xs[k + 1]) == last + 1) {
           ++last;
           ++k;
         }
