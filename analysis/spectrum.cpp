@@ -34,31 +34,15 @@ int signed_wavenumber(int q, int m) {
 
 /// An r2c plan of an M^n real array (x fastest, i.e. x is FFTW's last, halved dimension) with
 /// its own input and output buffers.
-class RealToComplexTransform {
- public:
-  RealToComplexTransform(int dimension, int points_per_side)
-      : plan_(real_size(dimension, points_per_side),
-              real_size(dimension - 1, points_per_side) *
-                  static_cast<std::size_t>(points_per_side / 2 + 1),  // x halved
-              [&](double* in, fftw_complex* out) {
-                const int dims[3] = {points_per_side, points_per_side, points_per_side};
-                return fftw_plan_dft_r2c(dimension, dims, in, out, FFTW_ESTIMATE);
-              }) {}
-
-  double* input() { return plan_.input(); }
-  const fftw_complex* output() const { return plan_.output(); }
-  void execute() { plan_.execute(); }
-
- private:
-  /// M^n.
-  static std::size_t real_size(int dimension, int points_per_side) {
-    std::size_t n = 1;
-    for (int d = 0; d < dimension; ++d) n *= static_cast<std::size_t>(points_per_side);
-    return n;
-  }
-
-  R2cPlan plan_;
-};
+R2cPlan real_to_complex_transform(int dimension, int points_per_side) {
+  const auto m = static_cast<std::size_t>(points_per_side);
+  std::size_t rows = 1;  // M^(n-1)
+  for (int d = 1; d < dimension; ++d) rows *= m;
+  return R2cPlan(rows * m, rows * (m / 2 + 1), [&](double* in, fftw_complex* out) {
+    const int dims[3] = {points_per_side, points_per_side, points_per_side};
+    return fftw_plan_dft_r2c(dimension, dims, in, out, FFTW_ESTIMATE);
+  });
+}
 
 void check_velocity(const VectorField& velocity) {
   const Grid& grid = velocity.grid;
@@ -149,7 +133,7 @@ EnergySpectrum energy_spectrum(const VectorField& velocity) {
   const int dim = grid.dimension;
   const int m = grid.points_per_side;
   ShellSums sums = empty_shell_sums(dim, m);
-  RealToComplexTransform transform(dim, m);
+  const R2cPlan transform = real_to_complex_transform(dim, m);
   const std::size_t nodes = grid.size();
   const int planes = m;  // z (3D) or y (2D)
   for (int c = 0; c < dim; ++c) {
