@@ -99,7 +99,7 @@ std::vector<std::string> set_arguments(const json& document) {
 // doing a trivial run (libraries, threads: about 80 MiB). Small runs of both dimensions, with
 // and without analysis products; lattice starts keep them short.
 TEST(ResourceEstimate, MemoryIsWithinAFactorOfTheMeasuredPeakRss) {
-  constexpr double kRssSlack = 1024.0 * 1024;
+  constexpr double kRssSlack = 2.0 * 1024 * 1024;
   const fs::path dir = scratch("rss");
   const json analysis = {{"every", 0.05},
                          {"products", {"energy", "spectrum", "vorticity", "slices", "sfs_stats"}}};
@@ -148,8 +148,9 @@ TEST(ResourceEstimate, MemoryIsWithinAFactorOfTheMeasuredPeakRss) {
     std::printf("%-32s estimate %9s  measured %9s  ratio %.2f\n", c.label.c_str(),
                 format_bytes(e.memory_bytes).c_str(), format_bytes(measured).c_str(), ratio);
     // Within a factor, up to an absolute slack: below a few MiB the peak RSS moves with
-    // glibc's heap trimming and mmap threshold (the 2D 32² run measured 456 KiB on one machine
-    // and 940 KiB on another for the same 1.2 MiB estimate).
+    // glibc's heap trimming and mmap threshold (the 2D 32² run measured 456 KiB on one machine,
+    // 940 KiB on another and, in one of three CI runs on a third, 20 KiB above the trivial
+    // run's peak for the same 1.2 MiB estimate), so the slack is 2 MiB.
     EXPECT_GE(e.memory_bytes, 0.7 * measured - kRssSlack)
         << c.label << ": " << describe_memory(e, 6);
     EXPECT_LE(e.memory_bytes, 2.0 * measured + kRssSlack)
