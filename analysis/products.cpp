@@ -3,6 +3,8 @@
 #include <chrono>
 #include <cmath>
 #include <numbers>
+#include <set>
+#include <utility>
 
 #include "analysis/grid.hpp"
 #include "analysis/local_fit.hpp"
@@ -108,8 +110,17 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
   return analyse(SnapshotPtr(std::shared_ptr<const Snapshot>(), &snapshot), config);
 }
 
-AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& config) {
+AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& asked) {
   const Snapshot& snapshot = *snapshot_ptr;
+  // A snapshot without particles (make_snapshot: every product it was taken for came from the
+  // ranks) serves only the products that do not need them.
+  AnalysisConfig reduced;
+  if (!snapshot.has_particles) {
+    reduced = asked;
+    std::erase_if(reduced.products,
+                  [](Product p) { return p != Product::Energy && p != Product::Spectrum; });
+  }
+  const AnalysisConfig& config = snapshot.has_particles ? asked : reduced;
   const auto start = std::chrono::steady_clock::now();
   AnalysisFrame frame;
   frame.time = snapshot.time;
@@ -145,9 +156,12 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   const bool particle_estimate = estimate != VorticityEstimate::Grid;
   const bool need_particle_vorticity =
       particle_estimate && (need_grid_vorticity || need_particle_omega2);
+  // The spectrum the ranks computed (Snapshot::velocity_spectrum) serves energy and spectrum.
+  const EnergySpectrum* ranks_spectrum =
+      snapshot.velocity_spectrum ? &*snapshot.velocity_spectrum : nullptr;
   const bool need_velocity_grid =
-      config.wants(Product::Energy) || config.wants(Product::Spectrum) || want_field_velocity ||
-      (!particle_estimate && (need_grid_vorticity || need_particle_omega2));
+      (!ranks_spectrum && (config.wants(Product::Energy) || config.wants(Product::Spectrum))) ||
+      want_field_velocity || (!particle_estimate && (need_grid_vorticity || need_particle_omega2));
   const bool shepard_velocity_grid = config.gridding.velocity == VelocityGridding::Shepard;
   const bool has_eddy_viscosity = snapshot.particles.eddy_viscosity.size() == snapshot.size();
   const bool want_eddy_slice = config.wants(Product::Slices) &&
@@ -158,6 +172,25 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
   // The node → particle map serves the nearest-particle velocity and the τ_SFS and ν_t grids.
   const bool need_map =
       (need_velocity_grid && !shepard_velocity_grid) || want_stress_grid || want_eddy_grid;
+  const auto spectrum_product = [&](EnergySpectrum spectrum) {
+    SpectrumProduct p;
+    p.spectrum = std::move(spectrum);
+    p.kinetic_energy_grid = spectrum_energy(p.spectrum);
+    p.dissipation = spectral_dissipation(p.spectrum, snapshot.fluid.kinematic_viscosity());
+    p.kernel_wavenumber = 2.0 * std::numbers::pi / (2.0 * snapshot.support_radius);
+    p.resolution_wavenumber = std::numbers::pi / snapshot.particle_spacing;
+    p.dissipation_resolved = spectral_dissipation(p.spectrum, snapshot.fluid.kinematic_viscosity(),
+                                                  p.resolution_wavenumber);
+    p.length_scale = config.spectrum_length_scale;
+    return p;
+  };
+  if (ranks_spectrum) {
+    // ½⟨|u'|²⟩ on the grid by Parseval (spectrum.hpp): grid_kinetic_energy to round-off.
+    if (config.wants(Product::Energy))
+      frame.grid_kinetic_energy = timed("energy", [&] { return spectrum_energy(*ranks_spectrum); });
+    if (config.wants(Product::Spectrum))
+      frame.spectrum = timed("spectrum", [&] { return spectrum_product(*ranks_spectrum); });
+  }
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {
     frame.total_seconds = 0.0;
@@ -185,22 +218,11 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& con
       return v;
     });
 
-  if (config.wants(Product::Energy))
+  if (!ranks_spectrum && config.wants(Product::Energy))
     frame.grid_kinetic_energy = timed("energy", [&] { return grid_kinetic_energy(*velocity); });
-  if (config.wants(Product::Spectrum)) {
-    frame.spectrum = timed("spectrum", [&] {
-      SpectrumProduct p;
-      p.spectrum = energy_spectrum(*velocity);
-      p.kinetic_energy_grid = spectrum_energy(p.spectrum);
-      p.dissipation = spectral_dissipation(p.spectrum, snapshot.fluid.kinematic_viscosity());
-      p.kernel_wavenumber = 2.0 * std::numbers::pi / (2.0 * snapshot.support_radius);
-      p.resolution_wavenumber = std::numbers::pi / snapshot.particle_spacing;
-      p.dissipation_resolved = spectral_dissipation(
-          p.spectrum, snapshot.fluid.kinematic_viscosity(), p.resolution_wavenumber);
-      p.length_scale = config.spectrum_length_scale;
-      return p;
-    });
-  }
+  if (!ranks_spectrum && config.wants(Product::Spectrum))
+    frame.spectrum =
+        timed("spectrum", [&] { return spectrum_product(energy_spectrum(*velocity)); });
 
   // One neighbour list for the per-particle passes (the solver's, when the snapshot has it).
   std::shared_ptr<const sim::NeighbourList> neighbours;

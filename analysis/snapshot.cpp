@@ -1,10 +1,15 @@
 #include "analysis/snapshot.hpp"
 
+#include <stdexcept>
+
+#include "analysis/products.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::analysis {
 
-SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissipation) {
+namespace {
+
+std::shared_ptr<Snapshot> describe(const sim::Simulation& simulation, double energy_dissipation) {
   auto snapshot = std::make_shared<Snapshot>();
   const sim::SolverConfig& config = simulation.config();
   snapshot->time = simulation.time();
@@ -16,8 +21,51 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissi
   snapshot->fluid = config.fluid;
   snapshot->kinetic_energy = simulation.diagnostics().kinetic_energy;
   snapshot->energy_dissipation = energy_dissipation;
-  snapshot->particles = simulation.particles();
-  snapshot->neighbours = simulation.neighbour_list();
+  return snapshot;
+}
+
+void copy_particles(const sim::Simulation& simulation, Snapshot& snapshot) {
+  snapshot.particles = simulation.particles();
+  snapshot.neighbours = simulation.neighbour_list();
+}
+
+bool cubic(const sim::PeriodicBox& box) {
+  for (int a = 1; a < box.dimension; ++a)
+    if (box.length[static_cast<std::size_t>(a)] != box.length[0]) return false;
+  return true;
+}
+
+}  // namespace
+
+DistributedProducts::~DistributedProducts() = default;
+
+SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissipation) {
+  auto snapshot = describe(simulation, energy_dissipation);
+  copy_particles(simulation, *snapshot);
+  return snapshot;
+}
+
+SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
+                          double energy_dissipation) {
+  auto snapshot = describe(simulation, energy_dissipation);
+  const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
+  const bool wants_spectrum = config.wants(Product::Energy) || config.wants(Product::Spectrum);
+  if (ranks && wants_spectrum && config.gridding.velocity == VelocityGridding::Nearest &&
+      cubic(snapshot->box)) {
+    try {
+      snapshot->velocity_spectrum =
+          ranks->velocity_spectrum(analysis_grid(*snapshot, config).points_per_side);
+    } catch (const std::invalid_argument&) {
+      // The ranks could not grid it (a void wider than their halo): gathered and gridded whole.
+    }
+  }
+  bool needs_particles = !snapshot->velocity_spectrum;
+  for (const Product p : config.products)
+    needs_particles = needs_particles || (p != Product::Energy && p != Product::Spectrum);
+  if (needs_particles)
+    copy_particles(simulation, *snapshot);
+  else
+    snapshot->has_particles = false;
   return snapshot;
 }
 

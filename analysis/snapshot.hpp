@@ -5,8 +5,11 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <vector>
 
+#include "analysis/config.hpp"
+#include "analysis/spectrum.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
@@ -35,6 +38,15 @@ struct Snapshot {
   /// The solver's Verlet list for these positions (covers the kernel support), or null; lets
   /// τ_SFS skip its own neighbour search.
   std::shared_ptr<const sim::NeighbourList> neighbours;
+  /// The velocity spectrum of SPEC §5 on analysis_grid's nodes, computed where the particles
+  /// live by a solver spread over MPI ranks (DistributedProducts); the products "energy" and
+  /// "spectrum" take it instead of gridding `particles`. Empty otherwise.
+  std::optional<EnergySpectrum> velocity_spectrum;
+  /// False when make_snapshot left `particles` (and `neighbours`) empty because every product
+  /// asked for came from the ranks (velocity_spectrum): nothing was gathered. The products that
+  /// need particles are then skipped for this snapshot (a live change asked for them after it
+  /// was taken).
+  bool has_particles = true;
 
   int dimension() const { return box.dimension; }
   std::size_t size() const { return particles.size(); }
@@ -42,9 +54,29 @@ struct Snapshot {
 
 using SnapshotPtr = std::shared_ptr<const Snapshot>;
 
+/// What a solver spread over MPI ranks computes where its particles live, so that analysis need
+/// not gather them to one process (issue 19). A sim::Simulation that also derives from this
+/// (par's distributed solver, launch's job solver) is asked by make_snapshot.
+class DistributedProducts {
+ public:
+  virtual ~DistributedProducts();  // out of line: one vtable and typeinfo for dynamic_cast
+  /// The spectrum of SPEC §5 of the current velocity on M^n nodes over the box (M =
+  /// points_per_side): nearest-particle gridding, the spatial mean removed; equal to
+  /// energy_spectrum(sample_velocity(nearest_particle_map(...), particles, true)) of all
+  /// particles to round-off. Throws std::invalid_argument when the ranks cannot compute it
+  /// (a void in the particles wider than their halo); make_snapshot then gathers.
+  virtual EnergySpectrum velocity_spectrum(int points_per_side) const = 0;
+};
+
 /// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
 /// current -de_v/dt (the simulation does not keep a history).
 SnapshotPtr make_snapshot(const sim::Simulation& simulation,
+                          double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
+
+/// The same for the products `config` asks for: when the simulation is DistributedProducts and
+/// the velocity is gridded by nearest particle on a cubic box, the energy and spectrum come
+/// from the ranks, and the particles are gathered only when another product needs them.
+SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
 
 }  // namespace sphles::analysis

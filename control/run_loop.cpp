@@ -124,8 +124,7 @@ class Run::Impl::Loop {
     else
       record(simulation_->diagnostics());
     ensure_consumers();
-    if (pipeline_ && !resumed)
-      pipeline_->publish(analysis::make_snapshot(*simulation_, latest_dissipation_));
+    if (pipeline_ && !resumed) publish_snapshot();
     reset_cadences();
     progress_->update(simulation_->diagnostics());
     rate_wall_ = Clock::now();
@@ -178,8 +177,7 @@ class Run::Impl::Loop {
     simulation_->step(max_dt);
     const sim::StepDiagnostics& d = simulation_->diagnostics();
     if (const bool row = rows_.take(d.time); row || !rows_.active()) record(d);
-    if (snapshots_.take(d.time))
-      pipeline_->publish(analysis::make_snapshot(*simulation_, latest_dissipation_));
+    if (snapshots_.take(d.time)) publish_snapshot();
     bool checkpoint_due = checkpoints_.take(d.time);
     const double every_seconds = current_.run.scene.checkpoint.every_seconds;
     if (every_seconds > 0.0 && seconds_since(last_checkpoint_wall_) >= every_seconds)
@@ -278,6 +276,18 @@ class Run::Impl::Loop {
   }
 
   /// A time-series row and a metrics sample of the step.
+  /// The analysis snapshot of now for the products the pipeline is configured for; a
+  /// distributed solver computes the energy and spectrum on its ranks (make_snapshot).
+  void publish_snapshot() {
+    analysis::SnapshotPtr snapshot =
+        analysis::make_snapshot(*simulation_, pipeline_->config(), latest_dissipation_);
+    if (snapshot->velocity_spectrum)
+      run_.log->debug("analysis at t = {}: spectrum computed on the ranks, {}", snapshot->time,
+                      snapshot->has_particles ? "particles gathered for the other products"
+                                              : "no particles gathered");
+    pipeline_->publish(std::move(snapshot));
+  }
+
   void record(const sim::StepDiagnostics& d) {
     // Summed where the particles live (a distributed run gathers nothing for them).
     const std::vector<std::string> names = sim::case_diagnostic_names(current_.run.scene);

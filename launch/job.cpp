@@ -12,12 +12,14 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <limits>
 #include <mutex>
 #include <nlohmann/json.hpp>
 #include <random>
 #include <thread>
 #include <vector>
 
+#include "analysis/snapshot.hpp"
 #include "launch/channel.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/state_view.hpp"
@@ -282,7 +284,7 @@ class Job {
 };
 
 /// The job's solver as the run sees it.
-class RemoteSimulation final : public sim::Simulation {
+class RemoteSimulation final : public sim::Simulation, public analysis::DistributedProducts {
  public:
   RemoteSimulation(std::shared_ptr<Job> job, std::uint64_t generation, sim::SolverConfig config,
                    SolverStatus status)
@@ -312,6 +314,24 @@ class RemoteSimulation final : public sim::Simulation {
     std::vector<double> values = d.doubles();
     d.finish();
     return values;
+  }
+
+  /// Computed by the job's ranks where the particles live (the job's solver is par's); only the
+  /// spectrum crosses the channel.
+  analysis::EnergySpectrum velocity_spectrum(int points_per_side) const override {
+    job_->require_current(generation_);
+    Encoder e;
+    e.u64(static_cast<std::uint64_t>(points_per_side));
+    Message reply = job_->request(MessageKind::Spectrum, e, "the spectrum failed");
+    if (reply.kind != MessageKind::Values) throw ProtocolError("expected a values reply");
+    Decoder d(reply.body);
+    analysis::EnergySpectrum spectrum;
+    spectrum.delta_k = d.f64();
+    spectrum.wavenumber = d.doubles();
+    spectrum.energy = d.doubles();
+    spectrum.k2_energy = d.doubles();
+    d.finish();
+    return spectrum;
   }
 
   const sim::ParticleArrays& particles() const override { return whole().particles; }
@@ -467,6 +487,23 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           if (!simulation) throw std::logic_error("case diagnostics before the solver was made");
           kind = MessageKind::Values;
           reply.doubles(simulation->case_diagnostics(scene));
+          break;
+        }
+        case MessageKind::Spectrum: {
+          const std::uint64_t points = d.u64();
+          d.finish();
+          if (!simulation) throw std::logic_error("a spectrum before the solver was made");
+          const auto* ranks = dynamic_cast<const analysis::DistributedProducts*>(simulation.get());
+          if (!ranks || points < 2 || points > std::numeric_limits<int>::max())
+            throw std::invalid_argument("the job's solver does not compute a spectrum on " +
+                                        std::to_string(points) + " points per side");
+          const analysis::EnergySpectrum spectrum =
+              ranks->velocity_spectrum(static_cast<int>(points));
+          kind = MessageKind::Values;
+          reply.f64(spectrum.delta_k);
+          reply.doubles(spectrum.wavenumber);
+          reply.doubles(spectrum.energy);
+          reply.doubles(spectrum.k2_energy);
           break;
         }
         case MessageKind::State:

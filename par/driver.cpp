@@ -7,8 +7,10 @@
 #include <string>
 #include <thread>
 
+#include "analysis/snapshot.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
+#include "par/spectrum.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
@@ -24,7 +26,8 @@ enum class Command : int {
   Restore = 2,
   Step = 3,
   Gather = 4,
-  CaseDiagnostics = 5
+  CaseDiagnostics = 5,
+  Spectrum = 6
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -73,6 +76,19 @@ struct Member {
   std::unique_ptr<Decomposition> decomposition;
   std::shared_ptr<MpiExchange> exchange;
   std::unique_ptr<sim::Simulation> local;
+  /// The analysis spectrum's plan and buffers, kept while its grid stays the same.
+  std::unique_ptr<DistributedSpectrum> spectrum;
+  int spectrum_points = 0;
+
+  /// Collective: the velocity spectrum of SPEC §5 on M^n nodes, from the owned particles.
+  analysis::EnergySpectrum velocity_spectrum(int points_per_side) {
+    if (!spectrum || spectrum_points != points_per_side) {
+      spectrum.reset();
+      spectrum = std::make_unique<DistributedSpectrum>(*decomposition, points_per_side);
+      spectrum_points = points_per_side;
+    }
+    return spectrum->compute(local->state().particles);
+  }
 };
 
 /// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
@@ -109,7 +125,7 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
 }
 
 /// The distributed solver as rank 0's Run sees it.
-class DistributedSimulation final : public sim::Simulation {
+class DistributedSimulation final : public sim::Simulation, public analysis::DistributedProducts {
  public:
   DistributedSimulation(MPI_Comm comm, std::unique_ptr<Member> member)
       : comm_(comm), m_(std::move(member)) {}
@@ -130,6 +146,12 @@ class DistributedSimulation final : public sim::Simulation {
     std::string json = sim::scene_to_json(scene).dump();
     broadcast_string(comm_, json);
     return m_->local->case_diagnostics(scene);
+  }
+
+  /// Every rank grids its own particles and a slab of the transform (par/spectrum.hpp).
+  analysis::EnergySpectrum velocity_spectrum(int points_per_side) const override {
+    send_command(comm_, Command::Spectrum, points_per_side);
+    return m_->velocity_spectrum(points_per_side);
   }
 
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
@@ -223,6 +245,9 @@ void serve_commands(MPI_Comm comm) {
           break;
         case Command::Gather:
           if (member) gather_state(*member->decomposition, member->local->state(), 0);
+          break;
+        case Command::Spectrum:
+          if (member) member->velocity_spectrum(static_cast<int>(header[1]));
           break;
         case Command::CaseDiagnostics: {
           std::string json;

@@ -247,6 +247,48 @@ TEST(Products, TaylorGreen3DSpectrumSliceAndStatistics) {
               1e-18);
 }
 
+/// A snapshot whose spectrum the ranks computed (Snapshot::velocity_spectrum, make_snapshot of
+/// a distributed solver): energy and spectrum come from it and match what the particles give
+/// (here the same spectrum computed from them); without particles (nothing gathered), the
+/// products that need particles are left out of that frame instead of failing.
+TEST(Products, SpectrumComputedOnTheRanksServesEnergyAndSpectrum) {
+  const SnapshotPtr gathered = small_tgv_snapshot("tgv3d", 16);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Energy, Product::Spectrum};
+  const AnalysisFrame whole = analyse(*gathered, config);
+  ASSERT_TRUE(whole.spectrum && whole.grid_kinetic_energy);
+
+  auto ranks = std::make_shared<Snapshot>(*gathered);
+  ranks->particles = sim::ParticleArrays{};
+  ranks->neighbours.reset();
+  ranks->has_particles = false;
+  ranks->velocity_spectrum = whole.spectrum->spectrum;
+  config.products.insert(Product::Vorticity);
+  config.products.insert(Product::SubfilterStatistics);
+  const AnalysisFrame frame = analyse(*ranks, config);
+  ASSERT_TRUE(frame.spectrum && frame.grid_kinetic_energy);
+  EXPECT_EQ(frame.spectrum->spectrum.energy, whole.spectrum->spectrum.energy);
+  EXPECT_EQ(frame.spectrum->dissipation, whole.spectrum->dissipation);
+  EXPECT_EQ(frame.spectrum->dissipation_resolved, whole.spectrum->dissipation_resolved);
+  // ½⟨|u'|²⟩ by Parseval from the shells against the sum over the nodes.
+  EXPECT_NEAR(*frame.grid_kinetic_energy, *whole.grid_kinetic_energy,
+              1e-13 * *whole.grid_kinetic_energy);
+  EXPECT_FALSE(frame.vorticity);
+  EXPECT_FALSE(frame.subfilter);
+  for (const auto& [stage, seconds] : frame.timings) {
+    EXPECT_NE(stage, "grid_velocity") << "the spectrum was computed on the ranks";
+    EXPECT_NE(stage, "grid_map");
+  }
+
+  // With particles (another product needed them) the same spectrum and the other products.
+  auto both = std::make_shared<Snapshot>(*gathered);
+  both->velocity_spectrum = whole.spectrum->spectrum;
+  const AnalysisFrame full = analyse(*both, config);
+  ASSERT_TRUE(full.spectrum && full.vorticity && full.subfilter);
+  EXPECT_EQ(full.spectrum->spectrum.energy, whole.spectrum->spectrum.energy);
+}
+
 TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {
   const SnapshotPtr snapshot = small_tgv_snapshot("tgv2d", 32, 0.2);
   AnalysisConfig config;

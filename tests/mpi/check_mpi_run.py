@@ -5,7 +5,8 @@ Runs a small 2D Taylor-Green scene three ways and compares, with h5py, every par
 the final checkpoints (sorted by particle id: one process writes its own order, a distributed
 run writes id order) and the time series:
   1. one process;
-  2. 2 MPI ranks from the start;
+  2. 2 MPI ranks from the start, with the energy and spectrum computed on the ranks (no particle
+     gathered for the analysis) and equal to one process's to 1e-12;
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`).
 Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
@@ -21,10 +22,12 @@ import time
 
 import h5py
 import numpy as np
+from compare_spectra import compare_spectra
 
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "packing.enabled=false",
     "checkpoint.every=0.1", "checkpoint.keep=10",
+    "analysis.every=0.05", 'analysis.products=["energy","spectrum"]',
 ]
 
 
@@ -75,9 +78,17 @@ def main():
     mpi = [mpiexec, "--oversubscribe", "--bind-to", "none", "-n"]
 
     run([sphles, "run", scene, *settings, "--out", one], env)
-    log = run(mpi + ["2", sphles, "run", scene, *settings, "--out", two], env)
+    log = run(mpi + ["2", sphles, "run", scene, *settings, "--out", two, "--log-level", "debug"],
+              env)
     if "spans 2 MPI ranks" not in log:
         sys.exit("the 2-rank run did not say it spans 2 ranks:\n" + log)
+    # Energy and spectrum only: computed on the ranks, no particle gathered for the analysis.
+    where = log.count("spectrum computed on the ranks, no particles gathered")
+    if where != 5:
+        sys.exit(f"expected 5 analysis snapshots computed on the ranks, the log says {where}:\n"
+                 + log[-2000:])
+    spectra, worst = compare_spectra(one, two, "2 ranks")
+    print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:
