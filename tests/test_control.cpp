@@ -13,6 +13,7 @@
 #include "control/run.hpp"
 #include "control/run_manager.hpp"
 #include "io/checkpoint.hpp"
+#include "scratch_directory.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::control {
@@ -23,10 +24,7 @@ using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
 std::filesystem::path fresh_directory(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("sphles_control_" + name + "_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  return dir;
+  return sphles::scratch::scratch_directory("control", name, false);
 }
 
 /// 16² Taylor-Green at Re = 100 on a lattice; about 40 steps per 0.1 s of simulated time.

@@ -16,6 +16,7 @@
 #include <unistd.h>
 #include "launch/channel.hpp"
 #include "launch/job.hpp"
+#include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
@@ -23,11 +24,7 @@ namespace sphles::launch {
 namespace {
 
 std::filesystem::path fresh_directory(const std::string& name) {
-  const std::filesystem::path dir = std::filesystem::temp_directory_path() /
-                                    ("sphles_launch_" + name + "_" + std::to_string(::getpid()));
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
+  return sphles::scratch::scratch_directory("launch", name);
 }
 
 /// Particles with random bits in every array (NaN and infinities included), ν_t when asked.

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "logging/logging.hpp"
+#include "scratch_directory.hpp"
 
 namespace sphles::logging {
 namespace {
@@ -16,11 +17,7 @@ namespace {
 namespace fs = std::filesystem;
 
 fs::path fresh_directory(const std::string& name) {
-  const fs::path dir =
-      fs::temp_directory_path() / ("sphles_logging_" + name + "_" + std::to_string(::getpid()));
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
+  return sphles::scratch::scratch_directory("logging", name);
 }
 
 std::string text_of(const fs::path& file) {
