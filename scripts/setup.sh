@@ -12,7 +12,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
   python3 python3-matplotlib python3-h5py python3-websocket
-  paraview xvfb xauth
+  paraview xvfb xauth qemu-user
 )
 
 missing=()
