@@ -35,13 +35,9 @@ constexpr double kIndex = sizeof(std::uint32_t);  // NeighbourList::indices, gri
 constexpr double kSize = sizeof(std::size_t);     // NeighbourList::offsets, cell starts
 constexpr double kId = sizeof(std::uint64_t);
 
-/// A Verlet build (sim/neighbour_search.cpp) fills one buffer per thread that doubles when it
-/// runs short, so at the end it holds between 1 and 2 times its share of the list, and the last
-/// doubling briefly holds the old and the new buffer (up to 3 times); the list's own indices
-/// exist beside them. glibc keeps most freed buffers resident for the next build, so the peak
-/// RSS of a run settles at about the list plus 3 times the list (measured: tests/
-/// test_resources.cpp).
-constexpr double kBuildBuffersOverList = 3.0;
+/// A Verlet build (sim/neighbour_search.cpp) writes each thread's lists straight into its region
+/// of the list, sized with a margin over the entries expected (VerletNeighbourSearch::
+/// kRegionMargin); beside the list it needs only the cell sort's arrays.
 
 /// Up to this list radius (in units of Δl) a lattice start (packing disabled) counts its lattice
 /// neighbours exactly; beyond it, and for packed starts, the list ball's volume is used.
@@ -137,6 +133,9 @@ struct ListModel {
   double list_bytes = 0.0;
   double build_bytes = 0.0;  // transient of a build beside the list
   double cells = 0.0;
+  /// The solver's InteractionList (sim/pair_loop.hpp): the in-support pairs the density pass
+  /// compacts, allocated at the Verlet list's size, with its own offsets and counts.
+  double interaction_bytes = 0.0;
 };
 
 ListModel list_model(const sim::Scene& s, double skin_fraction) {
@@ -153,13 +152,15 @@ ListModel list_model(const sim::Scene& s, double skin_fraction) {
   m.neighbours =
       std::min(neighbours_in_radius(dim, radius / spacing, !s.packing.enabled), particles - 1.0);
   const double pairs = particles * m.neighbours;
-  m.list_bytes = (particles + 1.0) * kSize + pairs * kIndex;
+  // Start and count per particle; the indices with the build's margin.
+  const double indices = sim::VerletNeighbourSearch::kRegionMargin * pairs * kIndex;
+  m.list_bytes = particles * (kSize + kIndex) + indices;
+  m.interaction_bytes = particles * (kSize + kIndex) + indices;
   const double cell_size = radius / sim::VerletNeighbourSearch::kCellsPerRadius;
   m.cells = std::pow(std::max(1.0, std::floor(s.box_length() / cell_size)), dim);
-  // Thread buffers; cell of every particle, counting sort (starts, fill, members); the
-  // locality order and the reorder scratch before it are smaller.
-  m.build_bytes = kBuildBuffersOverList * pairs * kIndex + 2.0 * (m.cells + 1.0) * kSize +
-                  2.0 * particles * kIndex;
+  // Cell of every particle, counting sort (starts, fill, members); the locality order and the
+  // reorder scratch before it are smaller.
+  m.build_bytes = 2.0 * (m.cells + 1.0) * kSize + 2.0 * particles * kIndex;
   return m;
 }
 
@@ -415,9 +416,11 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
       {"particles", n * solver_per_particle,
        n_text + " x " + count_text(solver_per_particle) + " B"},
       {"neighbour_list", list.list_bytes, list_text + " x 4 B"},
+      {"interaction_list", list.interaction_bytes,
+       "pairs inside the support, allocated at the list's size"},
       build_larger
           ? MemoryPart{"neighbour_build", list.build_bytes,
-                       "rebuild buffers (3 x the list) and " + count_text(list.cells) + " cells"}
+                       "the cell sort of a rebuild, " + count_text(list.cells) + " cells"}
           : MemoryPart{"checkpoint_copy", state_copy,
                        "solver state copied to write, and the file assembled in memory twice"},
   };

@@ -224,13 +224,19 @@ double RunManager::admit(const RunSpec& spec) const {
 double RunManager::admit(const ResourceEstimate& estimate) const {
   if (const std::optional<std::string> refusal =
           check_memory(estimate, options_.max_memory_bytes)) {
+    // The solver's own parts (particles, lists, checkpoint copy) already beyond the limit: the
+    // particle count is what to change. Otherwise the largest part names the scene key.
+    double solver_bytes = 0.0;
+    for (const MemoryPart& part : estimate.memory)
+      if (field_of(part.name) == "particles_per_side") solver_bytes += part.bytes;
     std::string field = "particles_per_side";
     double largest = -1.0;
-    for (const MemoryPart& part : estimate.memory)
-      if (part.bytes > largest) {
-        largest = part.bytes;
-        field = field_of(part.name);
-      }
+    if (solver_bytes <= options_.max_memory_bytes)
+      for (const MemoryPart& part : estimate.memory)
+        if (part.bytes > largest) {
+          largest = part.bytes;
+          field = field_of(part.name);
+        }
     throw AdmissionError(field, *refusal);
   }
   const std::optional<double> free = free_disk_bytes(options_.data_directory);

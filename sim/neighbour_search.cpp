@@ -19,9 +19,7 @@ namespace {
 /// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
 constexpr std::size_t kStoreSlack = 8;
 
-/// A build's region for a range of particles holds this many times the entries per particle
-/// expected (from the last build) times the range's particles.
-constexpr double kRegionMargin = 1.1;
+constexpr double kRegionMargin = VerletNeighbourSearch::kRegionMargin;
 /// When a region overflows, the estimate grows at least by this factor for the next round.
 constexpr double kRegrowth = 1.25;
 

@@ -59,6 +59,10 @@ class VerletNeighbourSearch {
  public:
   /// Cells per list radius: 2 scans (5/2)^n list-radius volumes instead of 3^n.
   static constexpr int kCellsPerRadius = 2;
+  /// A build's region for a range of particles holds this many times the entries per particle
+  /// expected (from the last build) times the range's particles: the list's indices are about
+  /// this many times its entries (control/resources.cpp).
+  static constexpr double kRegionMargin = 1.1;
 
   /// cutoff: interaction radius (kernel support H); skin: extra list radius. The skin is reduced
   /// automatically when the box is too small for minimum-image lists of radius cutoff + skin.
