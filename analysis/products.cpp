@@ -117,8 +117,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   AnalysisConfig reduced;
   if (!snapshot.has_particles) {
     reduced = asked;
-    std::erase_if(reduced.products,
-                  [](Product p) { return p != Product::Energy && p != Product::Spectrum; });
+    std::erase_if(reduced.products, [](Product p) { return !served_by_ranks(p); });
   }
   const AnalysisConfig& config = snapshot.has_particles ? asked : reduced;
   const auto start = std::chrono::steady_clock::now();

@@ -1,5 +1,6 @@
 #include "analysis/snapshot.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "analysis/products.hpp"
@@ -49,7 +50,7 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
                           double energy_dissipation) {
   auto snapshot = describe(simulation, energy_dissipation);
   const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
-  const bool wants_spectrum = config.wants(Product::Energy) || config.wants(Product::Spectrum);
+  const bool wants_spectrum = std::ranges::any_of(config.products, served_by_ranks);
   if (ranks && wants_spectrum && config.gridding.velocity == VelocityGridding::Nearest &&
       cubic(snapshot->box)) {
     try {
@@ -59,9 +60,8 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
       // The ranks could not grid it (a void wider than their halo): gathered and gridded whole.
     }
   }
-  bool needs_particles = !snapshot->velocity_spectrum;
-  for (const Product p : config.products)
-    needs_particles = needs_particles || (p != Product::Energy && p != Product::Spectrum);
+  const bool needs_particles =
+      !snapshot->velocity_spectrum || !std::ranges::all_of(config.products, served_by_ranks);
   if (needs_particles)
     copy_particles(simulation, *snapshot);
   else

@@ -68,6 +68,12 @@ class DistributedProducts {
   virtual EnergySpectrum velocity_spectrum(int points_per_side) const = 0;
 };
 
+/// Whether DistributedProducts serves product p (energy and spectrum), so that a snapshot for it
+/// needs no particles.
+inline bool served_by_ranks(Product p) {
+  return p == Product::Energy || p == Product::Spectrum;
+}
+
 /// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
 /// current -de_v/dt (the simulation does not keep a history).
 SnapshotPtr make_snapshot(const sim::Simulation& simulation,

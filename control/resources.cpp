@@ -155,7 +155,7 @@ ListModel list_model(const sim::Scene& s, double skin_fraction) {
   // Start and count per particle; the indices with the build's margin.
   const double indices = sim::VerletNeighbourSearch::kRegionMargin * pairs * kIndex;
   m.list_bytes = particles * (kSize + kIndex) + indices;
-  m.interaction_bytes = particles * (kSize + kIndex) + indices;
+  m.interaction_bytes = m.list_bytes;  // allocated at the list's size
   const double cell_size = radius / sim::VerletNeighbourSearch::kCellsPerRadius;
   m.cells = std::pow(std::max(1.0, std::floor(s.box_length() / cell_size)), dim);
   // Cell of every particle, counting sort (starts, fill, members); the locality order and the

@@ -87,7 +87,9 @@ struct Member {
       spectrum = std::make_unique<DistributedSpectrum>(*decomposition, points_per_side);
       spectrum_points = points_per_side;
     }
-    return spectrum->compute(local->state().particles);
+    sim::ParticleArrays owned = local->particles();
+    owned.truncate(local->owned_count());  // without the halo copies
+    return spectrum->compute(owned);
   }
 };
 

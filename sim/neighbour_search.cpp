@@ -19,7 +19,6 @@ namespace {
 /// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
 constexpr std::size_t kStoreSlack = 8;
 
-constexpr double kRegionMargin = VerletNeighbourSearch::kRegionMargin;
 /// When a region overflows, the estimate grows at least by this factor for the next round.
 constexpr double kRegrowth = 1.25;
 
