@@ -4,6 +4,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/neighbour_search.hpp"
+
 namespace sphles::analysis {
 
 void check_grid(const Grid& grid) {
@@ -54,7 +56,11 @@ CellList build_cell_list(const Grid& grid, const sim::ParticleArrays& particles,
       c = c * c_side + static_cast<std::size_t>(cells.cell_of(particles.position[d][i]));
     cell[i] = c;
   }
-  // Counting sort by cell (stable; the order within a cell does not affect the result).
+  // Counting sort by cell, a cell's members in ascending id: a gather visits the same particles
+  // in the same order whatever their order in `particles` (one process, or a rank's own particles
+  // and halo, par/), so its sums are the same bits.
+  std::vector<std::uint32_t> visit;
+  if (particles.id.size() == n) visit = sim::order_by_key(particles.id);
   cells.cell_start.assign(num_cells + 1, 0);
   for (std::size_t i = 0; i < n; ++i) ++cells.cell_start[cell[i] + 1];
   for (std::size_t c = 0; c < num_cells; ++c) cells.cell_start[c + 1] += cells.cell_start[c];
@@ -62,7 +68,8 @@ CellList build_cell_list(const Grid& grid, const sim::ParticleArrays& particles,
   for (int d = 0; d < dim; ++d) cells.sorted_position[d].resize(n);
   cells.sorted_id.resize(n);
   cells.sorted_index.resize(n);
-  for (std::size_t i = 0; i < n; ++i) {
+  for (std::size_t v = 0; v < n; ++v) {
+    const std::size_t i = visit.empty() ? v : visit[v];
     const std::size_t k = fill[cell[i]]++;
     for (int d = 0; d < dim; ++d) cells.sorted_position[d][k] = particles.position[d][i];
     cells.sorted_id[k] = i < particles.id.size() ? particles.id[i] : i;  // ids: nearest map only

@@ -108,7 +108,7 @@ inline double shepard_value(double weighted_sum, double weight_sum) {
 /// Kernel-weighted (Shepard) interpolation of per-particle fields onto the nodes:
 ///   f(x_n) = Σ_j f_j W(x_n - x_j) V_j / Σ_j W(x_n - x_j) V_j   (minimum image),
 /// with the particles' volumes V_j (A.1). Reproduces a constant exactly and is smooth where the
-/// particles are. Each node gathers its particles in a fixed order (cells, then ascending index),
+/// particles are. Each node gathers its particles in a fixed order (cells, then ascending id),
 /// so the result does not depend on the thread count. Every field must hold one value per
 /// particle; positions must lie in [0, L].
 std::vector<std::vector<double>> shepard_sample(const Grid& grid,

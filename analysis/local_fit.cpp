@@ -1,5 +1,6 @@
 #include "analysis/local_fit.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 #include <string>
 #include <type_traits>
@@ -46,7 +47,7 @@ void gradient_fill(const KernelT& weight, const CellList& cells, const Grid& gri
                    const sim::ParticleArrays& particles,
                    std::vector<sim::VelocityGradient>& gradient) {
   const std::vector<int> offsets = gather_offsets(cells);
-  const auto n = static_cast<std::ptrdiff_t>(particles.size());
+  const auto n = static_cast<std::ptrdiff_t>(gradient.size());
   const auto velocity = [&](std::uint32_t j, int f) { return particles.velocity[f][j]; };
 #pragma omp parallel
   {
@@ -100,14 +101,15 @@ void sample_fill(const KernelT& weight, const CellList& cells, const Grid& grid,
 
 std::vector<sim::VelocityGradient> fitted_velocity_gradient(const Grid& grid,
                                                             const sim::ParticleArrays& particles,
-                                                            const FitSettings& fit) {
+                                                            const FitSettings& fit,
+                                                            std::size_t centres) {
   check_fit(grid, particles, fit, "fitted velocity gradient");
   for (int d = 0; d < grid.dimension; ++d)
     if (particles.velocity[d].size() != particles.size())
       throw std::invalid_argument(
           "fitted velocity gradient: velocity arrays do not match the particles");
   const CellList cells = build_gather_cell_list(grid, particles, fit.radius);
-  std::vector<sim::VelocityGradient> gradient(particles.size());
+  std::vector<sim::VelocityGradient> gradient(std::min(centres, particles.size()));
   sim::with_kernel(fit.weight, grid.dimension, fit.radius, [&](const auto& weight) {
     constexpr int kDim = std::remove_cvref_t<decltype(weight)>::dimension;
     gradient_fill<kDim>(weight, cells, grid, particles, gradient);

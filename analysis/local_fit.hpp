@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
@@ -185,14 +186,17 @@ struct FitSettings {
 /// ∂v_a/∂x_b at every particle (J[a][b], as sim::VelocityGradient) from the local fit of degree
 /// kGradientFitDegree to the velocities of the particles within R, the particle itself included.
 /// `grid` gives the periodic box (its length and dimension). Needs the particles' volumes.
-/// Independent of the thread count.
-std::vector<sim::VelocityGradient> fitted_velocity_gradient(const Grid& grid,
-                                                            const sim::ParticleArrays& particles,
-                                                            const FitSettings& fit);
+/// With `centres` < the particle count, only the first `centres` particles are fitted (a rank's
+/// own particles, whose halo follows them: par/) and the result holds that many. Independent of
+/// the thread count and of the particles' order (the fits gather in id order, cell_list.hpp).
+std::vector<sim::VelocityGradient> fitted_velocity_gradient(
+    const Grid& grid, const sim::ParticleArrays& particles, const FitSettings& fit,
+    std::size_t centres = std::numeric_limits<std::size_t>::max());
 
 /// Per-particle fields (at most 3) at grid nodes from the local fit of degree
 /// kInterpolationFitDegree: out[f][k] is field f at node nodes[k], or at node k when `nodes` is
-/// empty (the whole grid). Needs the particles' volumes. Independent of the thread count.
+/// empty (the whole grid). Needs the particles' volumes. Independent of the thread count and of
+/// the particles' order.
 std::vector<std::vector<double>> fitted_sample(const Grid& grid,
                                                const sim::ParticleArrays& particles,
                                                const FitSettings& fit,

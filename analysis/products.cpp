@@ -79,23 +79,13 @@ SliceProduct extract_slice(const Grid& grid, const std::vector<double>& field, S
   return s;
 }
 
-/// |ω|² at the given grid nodes (all when empty) from the local quadratic fit of the particle
-/// vorticity's components (the "mls" estimate).
-std::vector<double> fitted_vorticity_squared(const Grid& grid, const sim::ParticleArrays& particles,
-                                             const FitSettings& fit, const ParticleVorticity& omega,
-                                             std::span<const std::size_t> nodes) {
-  std::vector<std::span<const double>> components;
-  for (const std::vector<double>& c : omega.component)
-    if (!c.empty()) components.emplace_back(c);
-  const std::vector<std::vector<double>> sampled =
-      fitted_sample(grid, particles, fit, components, nodes);
-  std::vector<double> squared(sampled.front().size(), 0.0);
-  for (const std::vector<double>& c : sampled)
-    for (std::size_t n = 0; n < squared.size(); ++n) squared[n] += c[n] * c[n];
-  return squared;
-}
-
 }  // namespace
+
+std::vector<std::size_t> slice_nodes(const Grid& grid, const SliceConfig& config) {
+  std::vector<std::size_t> nodes;
+  slice_layout(grid, SliceField::VorticitySquared, config, nodes);
+  return nodes;
+}
 
 Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config) {
   Grid grid;
@@ -112,12 +102,34 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
 
 AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& asked) {
   const Snapshot& snapshot = *snapshot_ptr;
+  // The "mls" ⟨ω²⟩ and ω² slice the ranks computed, when they are what `asked` wants.
+  const RanksVorticity* ranks_vorticity = nullptr;
+  bool ranks_slice = false;
+  if (snapshot.vorticity && asked.gridding.vorticity == VorticityEstimate::Mls) {
+    const VorticityRequest wanted = vorticity_request(snapshot, asked);
+    const VorticityRequest& done = snapshot.vorticity->request;
+    if (done.points_per_side == wanted.points_per_side && done.fit_radius == wanted.fit_radius)
+      ranks_vorticity = &*snapshot.vorticity;
+    ranks_slice = ranks_vorticity && done == wanted && wanted.slice;
+  }
   // A snapshot without particles (make_snapshot: every product it was taken for came from the
   // ranks) serves only the products that do not need them.
   AnalysisConfig reduced;
   if (!snapshot.has_particles) {
     reduced = asked;
-    std::erase_if(reduced.products, [](Product p) { return !served_by_ranks(p); });
+    std::erase_if(reduced.products, [&](Product p) {
+      switch (p) {
+        case Product::Energy:
+        case Product::Spectrum:
+          return !snapshot.velocity_spectrum;
+        case Product::Vorticity:
+          return !ranks_vorticity;
+        case Product::Slices:
+          return !ranks_slice || !served_by_ranks(asked, p);
+        default:
+          return true;
+      }
+    });
   }
   const AnalysisConfig& config = snapshot.has_particles ? asked : reduced;
   const auto start = std::chrono::steady_clock::now();
@@ -131,6 +143,8 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
 
   const bool want_vorticity_slice =
       config.wants(Product::Slices) && config.slice.fields.contains(SliceField::VorticitySquared);
+  const bool slice_from_ranks = want_vorticity_slice && ranks_slice;
+  const bool vorticity_from_ranks = config.wants(Product::Vorticity) && ranks_vorticity;
   const bool want_stress_slice = config.wants(Product::Slices) &&
                                  config.slice.fields.contains(SliceField::SubfilterStressNorm);
   const bool want_particles = config.wants(Product::Particles);
@@ -146,7 +160,8 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_grid ||
                            particle_field(SliceField::SubfilterStressNorm);
   // ω² on the grid (mean, slice, fields) and at the particles (histogram, particle snapshot).
-  const bool need_grid_vorticity = config.wants(Product::Vorticity) || want_vorticity_slice ||
+  const bool need_grid_vorticity = (config.wants(Product::Vorticity) && !vorticity_from_ranks) ||
+                                   (want_vorticity_slice && !slice_from_ranks) ||
                                    grid_field(SliceField::VorticitySquared);
   const bool need_particle_omega2 =
       config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared);
@@ -190,6 +205,22 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     if (config.wants(Product::Spectrum))
       frame.spectrum = timed("spectrum", [&] { return spectrum_product(*ranks_spectrum); });
   }
+  if (vorticity_from_ranks)
+    frame.vorticity = timed("vorticity", [&] {
+      VorticityProduct p;
+      p.estimate = VorticityEstimate::Mls;
+      p.mean_vorticity_squared = ranks_vorticity->mean_vorticity_squared;
+      p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
+      return p;
+    });
+  if (slice_from_ranks)
+    frame.slices.push_back(timed("slice_omega2", [&] {
+      std::vector<std::size_t> nodes;
+      SliceProduct slice = slice_layout(analysis_grid(snapshot, config),
+                                        SliceField::VorticitySquared, config.slice, nodes);
+      slice.values = ranks_vorticity->slice;
+      return slice;
+    }));
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {
     // Nothing from the particles; the ranks' spectrum may have made energy and spectrum.
@@ -262,7 +293,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
       }
       return squared_magnitude(vorticity(*velocity));
     });
-  if (config.wants(Product::Vorticity)) {
+  if (config.wants(Product::Vorticity) && !vorticity_from_ranks) {
     VorticityProduct p;
     p.estimate = estimate;
     // mls: the volume-weighted mean over the particles, Σ V ω² / Σ V (the fits are pointwise,
@@ -302,7 +333,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     });
   }
 
-  if (want_vorticity_slice)
+  if (want_vorticity_slice && !slice_from_ranks)
     frame.slices.push_back(timed("slice_omega2", [&] {
       if (!vorticity_squared.empty())
         return extract_slice(grid, vorticity_squared, SliceField::VorticitySquared, config.slice);

@@ -21,6 +21,26 @@ class Simulation;
 
 namespace sphles::analysis {
 
+/// The "mls" vorticity products (the default estimate, config.hpp) as asked of the ranks of a
+/// distributed solver: the analysis grid, the fits' radius and the slice.
+struct VorticityRequest {
+  int points_per_side = 0;  // M of the analysis grid
+  double fit_radius = 0.0;  // R [m] of the local fits (gridding.fit_radius · H)
+  bool slice = false;       // whether ω² on the slice's nodes is wanted
+  int slice_axis = 0;       // SliceConfig::axis and position (3D)
+  double slice_position = 0.0;
+  bool operator==(const VorticityRequest&) const = default;
+};
+
+/// What the ranks return for a VorticityRequest: the "mls" ⟨ω²⟩ and the ω² slice, the same
+/// bits as analyse computes them from all particles.
+struct RanksVorticity {
+  VorticityRequest request;
+  double mean_vorticity_squared = 0.0;  // Σ_i V_i ω_i² / Σ_i V_i over every particle [1/s²]
+  /// ω² at the slice's nodes (slice_nodes, products.hpp), in that order; empty unless asked.
+  std::vector<double> slice;
+};
+
 struct Snapshot {
   double time = 0.0;
   std::uint64_t step = 0;
@@ -42,6 +62,9 @@ struct Snapshot {
   /// live by a solver spread over MPI ranks (DistributedProducts); the products "energy" and
   /// "spectrum" take it instead of gridding `particles`. Empty otherwise.
   std::optional<EnergySpectrum> velocity_spectrum;
+  /// The "mls" ⟨ω²⟩ and ω² slice computed where the particles live (DistributedProducts); the
+  /// products "vorticity" and "slices" (ω²) take them when the request matches. Empty otherwise.
+  std::optional<RanksVorticity> vorticity;
   /// False when make_snapshot left `particles` (and `neighbours`) empty because every product
   /// asked for came from the ranks (velocity_spectrum): nothing was gathered. The products that
   /// need particles are then skipped for this snapshot (a live change asked for them after it
@@ -66,13 +89,20 @@ class DistributedProducts {
   /// particles to round-off. Throws std::invalid_argument when the ranks cannot compute it
   /// (a void in the particles wider than their halo); make_snapshot then gathers.
   virtual EnergySpectrum velocity_spectrum(int points_per_side) const = 0;
+  /// The "mls" vorticity products of `request` (vorticity_request): each rank fits ω at its own
+  /// particles and ω² at its slice nodes from its particles and their halo. Throws
+  /// std::invalid_argument when the ranks cannot (fits wider than the halo); make_snapshot then
+  /// gathers.
+  virtual RanksVorticity fitted_vorticity(const VorticityRequest& request) const = 0;
 };
 
-/// Whether DistributedProducts serves product p (energy and spectrum), so that a snapshot for it
-/// needs no particles.
-inline bool served_by_ranks(Product p) {
-  return p == Product::Energy || p == Product::Spectrum;
-}
+/// Whether DistributedProducts can serve product p as `config` asks for it (energy and spectrum
+/// gridded by nearest particle; vorticity and the ω² slice by the "mls" estimate), so that a
+/// snapshot for it needs no particles.
+bool served_by_ranks(const AnalysisConfig& config, Product p);
+
+/// The VorticityRequest of `config` for the snapshot's grid and kernel.
+VorticityRequest vorticity_request(const Snapshot& snapshot, const AnalysisConfig& config);
 
 /// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
 /// current -de_v/dt (the simulation does not keep a history).
@@ -81,7 +111,8 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation,
 
 /// The same for the products `config` asks for: when the simulation is DistributedProducts and
 /// the velocity is gridded by nearest particle on a cubic box, the energy and spectrum come
-/// from the ranks, and the particles are gathered only when another product needs them.
+/// from the ranks, as do the "mls" vorticity and ω² slice, and the particles are gathered only
+/// when another product needs them.
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
 

@@ -125,12 +125,17 @@ ParticleVorticity particle_vorticity(const Snapshot& snapshot,
 
 ParticleVorticity fitted_particle_vorticity(const Snapshot& snapshot, const Grid& grid,
                                             const FitSettings& fit) {
-  const sim::ParticleArrays& p = snapshot.particles;
-  const int dim = snapshot.dimension();
-  const std::vector<sim::VelocityGradient> gradient = fitted_velocity_gradient(grid, p, fit);
+  return fitted_particle_vorticity(snapshot.particles, grid, fit, snapshot.size());
+}
+
+ParticleVorticity fitted_particle_vorticity(const sim::ParticleArrays& p, const Grid& grid,
+                                            const FitSettings& fit, std::size_t centres) {
+  const int dim = grid.dimension;
+  const std::vector<sim::VelocityGradient> gradient =
+      fitted_velocity_gradient(grid, p, fit, centres);
   ParticleVorticity omega;
   omega.dimension = dim;
-  const std::size_t n = p.size();
+  const std::size_t n = gradient.size();
   for (int a = dim == 3 ? 0 : 2; a < 3; ++a) omega.component[a].resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const std::array<double, 3> w = curl(gradient[i]);
@@ -139,16 +144,23 @@ ParticleVorticity fitted_particle_vorticity(const Snapshot& snapshot, const Grid
   return omega;
 }
 
+std::array<sim::ExactSum, 2> volume_weighted_sums(const sim::ParticleArrays& particles,
+                                                  const std::vector<double>& values) {
+  if (values.size() > particles.size() || particles.volume.size() != particles.size())
+    throw std::invalid_argument("volume-weighted mean: one value and one volume per particle");
+  return sim::exact_sums<2>(values.size(), [&](std::size_t i, std::array<double, 2>& t) {
+    t[0] = particles.volume[i] * values[i];
+    t[1] = particles.volume[i];
+  });
+}
+
 double volume_weighted_mean(const sim::ParticleArrays& particles,
                             const std::vector<double>& values) {
-  if (values.size() != particles.size() || particles.volume.size() != particles.size())
+  if (values.size() != particles.size())
     throw std::invalid_argument("volume-weighted mean: one value and one volume per particle");
   if (values.empty()) return 0.0;
-  const double weighted = sim::deterministic_sum(
-      values.size(), [&](std::size_t i) { return particles.volume[i] * values[i]; });
-  const double volume =
-      sim::deterministic_sum(values.size(), [&](std::size_t i) { return particles.volume[i]; });
-  return weighted / volume;
+  const std::array<sim::ExactSum, 2> sums = volume_weighted_sums(particles, values);
+  return sums[0].value() / sums[1].value();
 }
 
 std::shared_ptr<const sim::NeighbourList> snapshot_neighbours(const Snapshot& snapshot) {
@@ -157,6 +169,20 @@ std::shared_ptr<const sim::NeighbourList> snapshot_neighbours(const Snapshot& sn
   sim::VerletNeighbourSearch search(snapshot.box, snapshot.support_radius, 0.0);
   search.build(sim::view_positions(snapshot.particles));
   return search.shared_list();
+}
+
+std::vector<double> fitted_vorticity_squared(const Grid& grid, const sim::ParticleArrays& particles,
+                                             const FitSettings& fit, const ParticleVorticity& omega,
+                                             std::span<const std::size_t> nodes) {
+  std::vector<std::span<const double>> components;
+  for (const std::vector<double>& c : omega.component)
+    if (!c.empty()) components.emplace_back(c);
+  const std::vector<std::vector<double>> sampled =
+      fitted_sample(grid, particles, fit, components, nodes);
+  std::vector<double> squared(sampled.front().size(), 0.0);
+  for (const std::vector<double>& c : sampled)
+    for (std::size_t n = 0; n < squared.size(); ++n) squared[n] += c[n] * c[n];
+  return squared;
 }
 
 double mean_value(const std::vector<double>& values) {

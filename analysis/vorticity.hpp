@@ -5,12 +5,14 @@
 
 #include <array>
 #include <memory>
+#include <span>
 #include <vector>
 
 #include "analysis/grid.hpp"
 #include "analysis/local_fit.hpp"
 #include "analysis/snapshot.hpp"
 #include "sim/neighbour_search.hpp"
+#include "sim/reduction.hpp"
 #include "sim/subfilter.hpp"
 
 namespace sphles::analysis {
@@ -55,8 +57,24 @@ ParticleVorticity particle_vorticity(const Snapshot& snapshot,
 /// itself, not of its kernel-filtered version. `grid` gives the periodic box.
 ParticleVorticity fitted_particle_vorticity(const Snapshot& snapshot, const Grid& grid,
                                             const FitSettings& fit);
+/// The same for the first `centres` of `particles` (a rank's own particles; the fits also see
+/// its halo behind them): the same bits as for those particles in the whole set.
+ParticleVorticity fitted_particle_vorticity(const sim::ParticleArrays& particles, const Grid& grid,
+                                            const FitSettings& fit, std::size_t centres);
 
-/// Σ_i V_i f_i / Σ_i V_i over the particles (fixed-order sums): the volume average of a
+/// |ω|² at the given grid nodes (all when empty) from the local quadratic fit of the particle
+/// vorticity's components (the "mls" estimate's grid values; fitted_sample): omega holds one
+/// value per particle of `particles`.
+std::vector<double> fitted_vorticity_squared(const Grid& grid, const sim::ParticleArrays& particles,
+                                             const FitSettings& fit, const ParticleVorticity& omega,
+                                             std::span<const std::size_t> nodes);
+
+/// Σ_i V_i f_i and Σ_i V_i over the first values.size() particles, summed exactly
+/// (sim::ExactSum): the same bits in any order and over any split of the particles.
+std::array<sim::ExactSum, 2> volume_weighted_sums(const sim::ParticleArrays& particles,
+                                                  const std::vector<double>& values);
+
+/// Σ_i V_i f_i / Σ_i V_i over the particles (volume_weighted_sums): the volume average of a
 /// per-particle field (A.1 volumes).
 double volume_weighted_mean(const sim::ParticleArrays& particles,
                             const std::vector<double>& values);

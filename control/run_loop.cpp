@@ -277,12 +277,18 @@ class Run::Impl::Loop {
 
   /// A time-series row and a metrics sample of the step.
   /// The analysis snapshot of now for the products the pipeline is configured for; a
-  /// distributed solver computes the energy and spectrum on its ranks (make_snapshot).
+  /// distributed solver computes the energy, spectrum and "mls" vorticity on its ranks
+  /// (make_snapshot).
   void publish_snapshot() {
     analysis::SnapshotPtr snapshot =
         analysis::make_snapshot(*simulation_, pipeline_->config(), latest_dissipation_);
-    if (snapshot->velocity_spectrum)
-      run_.log->debug("analysis at t = {}: spectrum computed on the ranks, {}", snapshot->time,
+    const char* ranks = snapshot->velocity_spectrum && snapshot->vorticity
+                            ? "spectrum and vorticity"
+                        : snapshot->velocity_spectrum ? "spectrum"
+                        : snapshot->vorticity         ? "vorticity"
+                                                      : nullptr;
+    if (ranks)
+      run_.log->debug("analysis at t = {}: {} computed on the ranks, {}", snapshot->time, ranks,
                       snapshot->has_particles ? "particles gathered for the other products"
                                               : "no particles gathered");
     pipeline_->publish(std::move(snapshot));

@@ -33,7 +33,8 @@ enum class MessageKind : std::uint32_t {
   Error = 9,             // a request failed on the job: what, and the blow-up facts if it was one
   CaseDiagnostics = 10,  // scene JSON → Values (Simulation::case_diagnostics)
   Values = 11,
-  Spectrum = 12,  // points per side → Values (Δk, then wavenumbers, energies, k² energies)
+  Spectrum = 12,   // points per side → Values (Δk, then wavenumbers, energies, k² energies)
+  Vorticity = 13,  // analysis::VorticityRequest → Values (⟨ω²⟩, then the slice's ω²)
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

@@ -1,5 +1,6 @@
 #include "par/decomposition.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 #include <string>
@@ -95,6 +96,18 @@ bool Decomposition::owns(const sim::ParticleArrays& p, std::size_t i) const {
     if (x < lower(a) || x >= upper(a)) return false;
   }
   return true;
+}
+
+void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& first, int& count) {
+  const int mine = d.coords()[static_cast<std::size_t>(axis)];
+  first = m;
+  count = 0;
+  for (int i = 0; i < m; ++i)
+    if (d.coordinate_of(axis, i * spacing) == mine) {
+      first = std::min(first, i);
+      ++count;
+    }
+  if (count == 0) first = 0;
 }
 
 }  // namespace sphles::par

@@ -74,4 +74,9 @@ class Decomposition {
   std::array<int, 3> upper_rank_{0, 0, 0};
 };
 
+/// The grid nodes i h (i in [0, m), spacing h) whose position along `axis` lies in this rank's
+/// sub-box: [first, first + count), a contiguous range since the sub-box bounds increase with
+/// the coordinate; first = 0 when count = 0.
+void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& first, int& count);
+
 }  // namespace sphles::par

@@ -12,6 +12,7 @@
 #include "par/exchange.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
+#include "par/vorticity.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/state_view.hpp"
@@ -27,7 +28,8 @@ enum class Command : int {
   Step = 3,
   Gather = 4,
   CaseDiagnostics = 5,
-  Spectrum = 6
+  Spectrum = 6,
+  Vorticity = 7
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -70,6 +72,20 @@ void broadcast_string(MPI_Comm comm, std::string& text) {
   MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, comm);
 }
 
+/// Sends a vorticity request from rank 0 to every rank (as doubles: every field is a small
+/// integer or a length).
+analysis::VorticityRequest broadcast_request(MPI_Comm comm, analysis::VorticityRequest r) {
+  double fields[5] = {static_cast<double>(r.points_per_side), r.fit_radius, r.slice ? 1.0 : 0.0,
+                      static_cast<double>(r.slice_axis), r.slice_position};
+  MPI_Bcast(fields, 5, MPI_DOUBLE, 0, comm);
+  r.points_per_side = static_cast<int>(fields[0]);
+  r.fit_radius = fields[1];
+  r.slice = fields[2] != 0.0;
+  r.slice_axis = static_cast<int>(fields[3]);
+  r.slice_position = fields[4];
+  return r;
+}
+
 /// One rank's part of a distributed solver.
 struct Member {
   sim::SolverConfig config;
@@ -90,6 +106,13 @@ struct Member {
     sim::ParticleArrays owned = local->particles();
     owned.truncate(local->owned_count());  // without the halo copies
     return spectrum->compute(owned);
+  }
+
+  /// Collective: the "mls" vorticity products of `request`, from the owned particles.
+  analysis::RanksVorticity fitted_vorticity(const analysis::VorticityRequest& request) const {
+    sim::ParticleArrays owned = local->particles();
+    owned.truncate(local->owned_count());
+    return distributed_fitted_vorticity(*decomposition, owned, config.kernel, request);
   }
 };
 
@@ -154,6 +177,13 @@ class DistributedSimulation final : public sim::Simulation, public analysis::Dis
   analysis::EnergySpectrum velocity_spectrum(int points_per_side) const override {
     send_command(comm_, Command::Spectrum, points_per_side);
     return m_->velocity_spectrum(points_per_side);
+  }
+
+  /// Every rank fits ω at its own particles and slice nodes (par/vorticity.hpp).
+  analysis::RanksVorticity fitted_vorticity(
+      const analysis::VorticityRequest& request) const override {
+    send_command(comm_, Command::Vorticity);
+    return m_->fitted_vorticity(broadcast_request(comm_, request));
   }
 
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
@@ -251,6 +281,11 @@ void serve_commands(MPI_Comm comm) {
         case Command::Spectrum:
           if (member) member->velocity_spectrum(static_cast<int>(header[1]));
           break;
+        case Command::Vorticity: {
+          const analysis::VorticityRequest request = broadcast_request(comm, {});
+          if (member) member->fitted_vorticity(request);
+          break;
+        }
         case Command::CaseDiagnostics: {
           std::string json;
           broadcast_string(comm, json);

@@ -27,20 +27,6 @@ namespace sphles::par {
 
 namespace {
 
-/// The nodes i h (h = L/M) whose sub-box coordinate along `axis` is this rank's: a contiguous
-/// range, since the sub-box bounds increase with the coordinate.
-void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& first, int& count) {
-  const int mine = d.coords()[static_cast<std::size_t>(axis)];
-  first = m;
-  count = 0;
-  for (int i = 0; i < m; ++i)
-    if (d.coordinate_of(axis, i * spacing) == mine) {
-      first = std::min(first, i);
-      ++count;
-    }
-  if (count == 0) first = 0;
-}
-
 /// This rank's part of FFTW's MPI distribution of an M^n r2c transform: the planes
 /// [first, first + planes) of the slowest axis (z in 3D, y in 2D), and the complex values its
 /// buffers need (at least one: a rank without planes still takes part in the plan). Allocates

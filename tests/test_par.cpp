@@ -15,13 +15,16 @@
 #include <vector>
 
 #include "analysis/grid.hpp"
+#include "analysis/products.hpp"
 #include "analysis/spectrum.hpp"
+#include "analysis/vorticity.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
+#include "par/vorticity.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
@@ -664,6 +667,18 @@ TEST(ExactAllreduce, KineticEnergyEqualsOneProcessBitForBit) {
   EXPECT_GT(one, 0.0);
 }
 
+/// This rank's particles as the owners of `all` shifted by `drift` along x left them (as if the
+/// particles had moved since the last migration), at their positions in `all`.
+sim::ParticleArrays owned_before_drift(const Decomposition& d, const sim::ParticleArrays& all,
+                                       double drift) {
+  sim::ParticleArrays earlier = all;
+  for (double& x : earlier.position[0]) x = sim::wrap_periodic(x + drift, kLength);
+  sim::ParticleArrays mine = owned_part(d, earlier);
+  for (std::size_t k = 0; k < mine.size(); ++k)
+    mine.position[0][k] = all.position[0][static_cast<std::size_t>(mine.id[k])];
+  return mine;
+}
+
 /// The spectrum of particles spread over the ranks against the one-process spectrum of all of
 /// them (SPEC §5 gridding, FFTW r2c): every shell to 1e-12 relative (of the shell, or of the
 /// largest shell for shells below 1e-6 of it), and the same bits on every rank and from a new
@@ -675,11 +690,7 @@ void distributed_spectrum_equals_one_process(int per_side, double drift) {
   const sim::ParticleArrays all = perturbed_lattice(Dim, per_side, 11);
   const double spacing = kLength / per_side;
   const Decomposition d(MPI_COMM_WORLD, box_of(Dim), 2.5 * spacing, spacing);
-  sim::ParticleArrays earlier = all;
-  for (double& x : earlier.position[0]) x = sim::wrap_periodic(x + drift * spacing, kLength);
-  sim::ParticleArrays mine = owned_part(d, earlier);
-  for (std::size_t k = 0; k < mine.size(); ++k)
-    mine.position[0][k] = all.position[0][static_cast<std::size_t>(mine.id[k])];
+  const sim::ParticleArrays mine = owned_before_drift(d, all, drift * spacing);
   const int m = 2 * per_side;  // spacing Δl / 2, as the analysis grids
   // A second call of one object (its plan and buffers reused) after a call on other velocities.
   DistributedSpectrum spectra(d, m);
@@ -730,6 +741,77 @@ TEST(DistributedSpectrum, EqualsOneProcessSpectrum3D) {
 TEST(DistributedSpectrum, ParticlesOutsideTheirSubBoxesMoveFirst) {
   distributed_spectrum_equals_one_process<2>(32, 0.7);
   distributed_spectrum_equals_one_process<3>(16, -0.7);
+}
+
+/// The "mls" vorticity products of particles spread over the ranks against the analysis' own
+/// functions on all of them in one process, in reverse id order: ⟨ω²⟩ and every value of the
+/// slice the same bits (the fits gather in cell and id order, whatever the particles' order and
+/// split). The ranks start as in the spectrum test, `drift` spacings from their owners.
+template <int Dim>
+void distributed_vorticity_equals_one_process(int per_side, double drift) {
+  sim::ParticleArrays all = perturbed_lattice(Dim, per_side, 23);
+  const double spacing = kLength / per_side;
+  for (std::size_t i = 0; i < all.size(); ++i)
+    all.volume[i] = std::pow(spacing, Dim) * (1.0 + 0.1 * std::sin(3.0 * static_cast<double>(i)));
+  const Decomposition d(MPI_COMM_WORLD, box_of(Dim), 2.5 * spacing, spacing);
+  const sim::ParticleArrays mine = owned_before_drift(d, all, drift * spacing);
+
+  analysis::VorticityRequest request;
+  request.points_per_side = 2 * per_side;
+  request.fit_radius = 2.5 * spacing;  // as far as the halo reaches
+  request.slice = true;
+  request.slice_axis = Dim == 3 ? 1 : 0;
+  request.slice_position = 0.4 * kLength;
+  const analysis::RanksVorticity got =
+      distributed_fitted_vorticity(d, mine, sim::KernelType::WendlandC4, request);
+
+  std::vector<std::uint32_t> reverse(all.size());
+  for (std::size_t i = 0; i < all.size(); ++i)
+    reverse[i] = static_cast<std::uint32_t>(all.size() - 1 - i);
+  const sim::ParticleArrays one = subset(all, reverse);
+  const analysis::Grid grid{Dim, request.points_per_side, kLength};
+  const analysis::FitSettings fit{sim::KernelType::WendlandC4, request.fit_radius};
+  const analysis::ParticleVorticity omega =
+      analysis::fitted_particle_vorticity(one, grid, fit, one.size());
+  const double mean = analysis::volume_weighted_mean(one, omega.squared_magnitude());
+  analysis::SliceConfig slice;
+  slice.axis = request.slice_axis;
+  slice.position = request.slice_position;
+  const std::vector<double> values =
+      analysis::fitted_vorticity_squared(grid, one, fit, omega, analysis::slice_nodes(grid, slice));
+
+  EXPECT_GT(mean, 0.0);
+  EXPECT_EQ(got.mean_vorticity_squared, mean);
+  EXPECT_TRUE(all_ranks(got.mean_vorticity_squared == mean));
+  if (d.rank() == 0) {
+    EXPECT_EQ(got.slice, values);
+  } else {
+    EXPECT_TRUE(got.slice.empty());
+  }
+  EXPECT_EQ(got.request, request);
+
+  // Fits reaching further than the halo are refused on every rank (one rank has no halo).
+  request.fit_radius = 3.0 * spacing;
+  bool refused = false;
+  try {
+    distributed_fitted_vorticity(d, mine, sim::KernelType::WendlandC4, request);
+  } catch (const std::invalid_argument& e) {
+    refused = std::string(e.what()).find("halo") != std::string::npos;
+  }
+  bool alone = true;
+  for (int a = 0; a < Dim; ++a) alone = alone && d.dims()[static_cast<std::size_t>(a)] == 1;
+  EXPECT_TRUE(all_ranks(refused != alone));
+}
+
+TEST(DistributedVorticity, EqualsOneProcessBitForBit2D) {
+  distributed_vorticity_equals_one_process<2>(32, 0.0);
+}
+TEST(DistributedVorticity, EqualsOneProcessBitForBit3D) {
+  distributed_vorticity_equals_one_process<3>(16, 0.0);
+}
+TEST(DistributedVorticity, ParticlesOutsideTheirSubBoxesMoveFirst) {
+  distributed_vorticity_equals_one_process<2>(32, -0.7);
+  distributed_vorticity_equals_one_process<3>(16, 0.7);
 }
 
 /// A grid whose values on one rank would pass MPI's int counts is refused on every rank before

@@ -5,8 +5,9 @@ Runs a small 2D Taylor-Green scene three ways and compares, with h5py, every par
 the final checkpoints (sorted by particle id: one process writes its own order, a distributed
 run writes id order) and the time series:
   1. one process;
-  2. 2 MPI ranks from the start, with the energy and spectrum computed on the ranks (no particle
-     gathered for the analysis) and equal to one process's to 1e-12;
+  2. 2 MPI ranks from the start, with the energy and spectrum computed on the ranks and equal to
+     one process's to 1e-12, and the fitted vorticity's ⟨ω²⟩ and ω² slices computed on the ranks
+     and equal to one process's bit for bit (no particle gathered for the analysis);
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`).
 Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
@@ -27,7 +28,8 @@ from compare_spectra import compare_spectra
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "packing.enabled=false",
     "checkpoint.every=0.1", "checkpoint.keep=10",
-    "analysis.every=0.05", 'analysis.products=["energy","spectrum"]',
+    "analysis.every=0.05", 'analysis.products=["energy","spectrum","vorticity","slices"]',
+    'analysis.slice.fields=["omega2"]',
 ]
 
 
@@ -65,6 +67,29 @@ def same_final_state(reference, other, label):
     print(f"{label}: {len(a['id'])} particles, {len(a)} arrays equal bit for bit")
 
 
+def same_vorticity(reference, other, label):
+    """⟨ω²⟩ and ν⟨ω²⟩ of every snapshot, and every ω² slice, equal bit for bit."""
+    def means(run_dir):
+        with open(os.path.join(run_dir, "stats", "snapshots.csv")) as f:
+            return [(r["t"], r["mean_omega2"], r["dissipation_vorticity"])
+                    for r in csv.DictReader(f)]
+    a, b = means(reference), means(other)
+    if not a or a != b:
+        sys.exit(f"{label}: mean_omega2 differs from one process:\n{a}\n{b}")
+    if any(float(m) <= 0.0 for _, m, _ in a):
+        sys.exit(f"{label}: a mean_omega2 is not positive: {a}")
+    names = sorted(n for n in os.listdir(os.path.join(reference, "slices")) if n.endswith(".npy"))
+    if len(names) != len(a):
+        sys.exit(f"{label}: expected {len(a)} omega2 slices, found {names}")
+    for name in names:
+        x = np.load(os.path.join(reference, "slices", name))
+        y = np.load(os.path.join(other, "slices", name))
+        if x.shape != y.shape or not np.array_equal(x, y):
+            sys.exit(f"{label}: slice {name} differs from one process")
+    print(f"{label}: {len(a)} values of mean_omega2 and {len(names)} omega2 slices computed on "
+          "the ranks equal one process's bit for bit")
+
+
 def main():
     sphles, mpiexec, work = sys.argv[1:4]
     scene = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scenes",
@@ -82,13 +107,14 @@ def main():
               env)
     if "spans 2 MPI ranks" not in log:
         sys.exit("the 2-rank run did not say it spans 2 ranks:\n" + log)
-    # Energy and spectrum only: computed on the ranks, no particle gathered for the analysis.
-    where = log.count("spectrum computed on the ranks, no particles gathered")
+    # Computed on the ranks, no particle gathered for the analysis.
+    where = log.count("spectrum and vorticity computed on the ranks, no particles gathered")
     if where != 5:
         sys.exit(f"expected 5 analysis snapshots computed on the ranks, the log says {where}:\n"
                  + log[-2000:])
     spectra, worst = compare_spectra(one, two, "2 ranks")
     print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
+    same_vorticity(one, two, "2 ranks")
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:
