@@ -10,6 +10,7 @@
 #include "analysis/local_fit.hpp"
 #include "analysis/subfilter_stress.hpp"
 #include "analysis/vorticity.hpp"
+#include "sim/reduction.hpp"
 
 namespace sphles::analysis {
 
@@ -102,33 +103,19 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
 
 AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& asked) {
   const Snapshot& snapshot = *snapshot_ptr;
-  // The "mls" ⟨ω²⟩ and ω² slice the ranks computed, when they are what `asked` wants.
-  const RanksVorticity* ranks_vorticity = nullptr;
-  bool ranks_slice = false;
-  if (snapshot.vorticity && asked.gridding.vorticity == VorticityEstimate::Mls) {
-    const VorticityRequest wanted = vorticity_request(snapshot, asked);
-    const VorticityRequest& done = snapshot.vorticity->request;
-    if (done.points_per_side == wanted.points_per_side && done.fit_radius == wanted.fit_radius)
-      ranks_vorticity = &*snapshot.vorticity;
-    ranks_slice = ranks_vorticity && done == wanted && wanted.slice;
-  }
+  // The particle products the ranks computed, when they are what `asked` wants (a live change
+  // may have changed the configuration since the snapshot was taken).
+  const RanksProducts* ranks =
+      snapshot.ranks && snapshot.ranks->request == ranks_request(snapshot, asked) ? &*snapshot.ranks
+                                                                                  : nullptr;
   // A snapshot without particles (make_snapshot: every product it was taken for came from the
   // ranks) serves only the products that do not need them.
   AnalysisConfig reduced;
   if (!snapshot.has_particles) {
     reduced = asked;
     std::erase_if(reduced.products, [&](Product p) {
-      switch (p) {
-        case Product::Energy:
-        case Product::Spectrum:
-          return !snapshot.velocity_spectrum;
-        case Product::Vorticity:
-          return !ranks_vorticity;
-        case Product::Slices:
-          return !ranks_slice || !served_by_ranks(asked, p);
-        default:
-          return true;
-      }
+      if (p == Product::Energy || p == Product::Spectrum) return !snapshot.velocity_spectrum;
+      return !ranks || !served_by_ranks(asked, p);
     });
   }
   const AnalysisConfig& config = snapshot.has_particles ? asked : reduced;
@@ -143,10 +130,12 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
 
   const bool want_vorticity_slice =
       config.wants(Product::Slices) && config.slice.fields.contains(SliceField::VorticitySquared);
-  const bool slice_from_ranks = want_vorticity_slice && ranks_slice;
-  const bool vorticity_from_ranks = config.wants(Product::Vorticity) && ranks_vorticity;
   const bool want_stress_slice = config.wants(Product::Slices) &&
                                  config.slice.fields.contains(SliceField::SubfilterStressNorm);
+  const bool vorticity_from_ranks = config.wants(Product::Vorticity) && ranks;
+  const bool slice_from_ranks = want_vorticity_slice && ranks;
+  const bool stress_slice_from_ranks = want_stress_slice && ranks;
+  const bool statistics_from_ranks = config.wants(Product::SubfilterStatistics) && ranks;
   const bool want_particles = config.wants(Product::Particles);
   const bool want_fields = config.wants(Product::Fields);
   const auto grid_field = [&](SliceField f) {
@@ -156,15 +145,16 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   const auto particle_field = [&](SliceField f) {
     return want_particles && config.particle_fields.contains(f);
   };
-  const bool want_stress_grid = want_stress_slice || grid_field(SliceField::SubfilterStressNorm);
-  const bool need_stress = config.wants(Product::SubfilterStatistics) || want_stress_grid ||
-                           particle_field(SliceField::SubfilterStressNorm);
+  const bool want_statistics = config.wants(Product::SubfilterStatistics) && !statistics_from_ranks;
+  const bool want_stress_grid = (want_stress_slice && !stress_slice_from_ranks) ||
+                                grid_field(SliceField::SubfilterStressNorm);
+  const bool need_stress =
+      want_statistics || want_stress_grid || particle_field(SliceField::SubfilterStressNorm);
   // ω² on the grid (mean, slice, fields) and at the particles (histogram, particle snapshot).
   const bool need_grid_vorticity = (config.wants(Product::Vorticity) && !vorticity_from_ranks) ||
                                    (want_vorticity_slice && !slice_from_ranks) ||
                                    grid_field(SliceField::VorticitySquared);
-  const bool need_particle_omega2 =
-      config.wants(Product::SubfilterStatistics) || particle_field(SliceField::VorticitySquared);
+  const bool need_particle_omega2 = want_statistics || particle_field(SliceField::VorticitySquared);
   const VorticityEstimate estimate = config.gridding.vorticity;
   // The particle and mls estimates start from ω on every particle; grid from the gridded velocity.
   const bool particle_estimate = estimate != VorticityEstimate::Grid;
@@ -209,18 +199,22 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     frame.vorticity = timed("vorticity", [&] {
       VorticityProduct p;
       p.estimate = VorticityEstimate::Mls;
-      p.mean_vorticity_squared = ranks_vorticity->mean_vorticity_squared;
+      p.mean_vorticity_squared = ranks->mean_vorticity_squared;
       p.dissipation = snapshot.fluid.kinematic_viscosity() * p.mean_vorticity_squared;  // (4.6)
       return p;
     });
+  // A slice of the ranks' values: the layout of the analysis grid, their values.
+  const auto ranks_slice = [&](SliceField field, const std::vector<double>& values) {
+    std::vector<std::size_t> nodes;
+    SliceProduct slice = slice_layout(analysis_grid(snapshot, config), field, config.slice, nodes);
+    slice.values = values;
+    return slice;
+  };
   if (slice_from_ranks)
-    frame.slices.push_back(timed("slice_omega2", [&] {
-      std::vector<std::size_t> nodes;
-      SliceProduct slice = slice_layout(analysis_grid(snapshot, config),
-                                        SliceField::VorticitySquared, config.slice, nodes);
-      slice.values = ranks_vorticity->slice;
-      return slice;
-    }));
+    frame.slices.push_back(ranks_slice(SliceField::VorticitySquared, ranks->slice_omega2));
+  if (statistics_from_ranks) frame.subfilter = *ranks->statistics;
+  if (stress_slice_from_ranks)
+    frame.slices.push_back(ranks_slice(SliceField::SubfilterStressNorm, ranks->slice_tau));
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {
     // Nothing from the particles; the ranks' spectrum may have made energy and spectrum.
@@ -312,23 +306,26 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
 
   std::optional<SubfilterStressField> stress;
   if (need_stress)
-    stress = timed("subfilter_stress",
-                   [&] { return implicit_subfilter_stress(snapshot, neighbour_list()); });
+    stress = timed("subfilter_stress", [&] { return implicit_subfilter_stress(snapshot); });
 
-  if (config.wants(Product::SubfilterStatistics)) {
+  if (want_statistics) {
     frame.subfilter = timed("sfs_statistics", [&] {
+      // As the ranks of a distributed run compute it (par/particle_products.hpp): maxima, an
+      // exact sum, counts.
       SubfilterStatisticsProduct p;
-      double sum = 0.0;
-      for (const double t : stress->norm) {
-        p.max_norm = std::max(p.max_norm, t);
-        sum += t;
-      }
-      p.mean_norm = stress->norm.empty() ? 0.0 : sum / static_cast<double>(stress->norm.size());
-      p.joint = normalised_bivariate_histogram(stress->norm, particle_vorticity_squared,
-                                               config.histogram_bins, config.histogram_bins);
+      const std::vector<double>& norm = stress->norm;
+      p.max_norm = max_value(norm);
+      p.mean_norm =
+          norm.empty()
+              ? 0.0
+              : sim::exact_sum(norm.size(), [&](std::size_t i) { return norm[i]; }).value() /
+                    static_cast<double>(norm.size());
+      p.joint = bivariate_histogram(norm, particle_vorticity_squared, p.max_norm,
+                                    max_value(particle_vorticity_squared), config.histogram_bins,
+                                    config.histogram_bins);
       if (snapshot.dimension() == 2)
         p.alignment = principal_direction_alignment(*stress, particles, config.angle_bins,
-                                                    config.angle_threshold);
+                                                    config.angle_threshold, p.max_norm);
       return p;
     });
   }
@@ -345,7 +342,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   std::vector<double> stress_grid;  // |τ_SFS| at the nearest particle of each node
   if (want_stress_grid)
     stress_grid = timed("grid_tau_sfs", [&] { return sample_scalar(*map, stress->norm); });
-  if (want_stress_slice)
+  if (want_stress_slice && !stress_slice_from_ranks)
     frame.slices.push_back(timed("slice_tau_sfs", [&] {
       return extract_slice(grid, stress_grid, SliceField::SubfilterStressNorm, config.slice);
     }));

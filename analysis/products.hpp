@@ -58,13 +58,6 @@ struct GridFieldsProduct {
   std::vector<GridScalarField> scalars;
 };
 
-struct SubfilterStatisticsProduct {
-  double max_norm = 0.0;                    // max_i |τ_SFS,i| [Pa]
-  double mean_norm = 0.0;                   // mean_i |τ_SFS,i| [Pa]
-  Histogram2D joint;                        // (τ*, ω²*)
-  std::optional<AngleHistogram> alignment;  // 2D runs: γ between t_I and v (chapter 4)
-};
-
 /// Per-particle data for an HDF5/XDMF snapshot: the snapshot itself plus requested fields.
 struct ParticleFieldProduct {
   SliceField field = SliceField::VorticitySquared;

@@ -48,23 +48,34 @@ bool served_by_ranks(const AnalysisConfig& config, Product p) {
     case Product::Spectrum:
       return config.gridding.velocity == VelocityGridding::Nearest;
     case Product::Vorticity:
+    case Product::SubfilterStatistics:
       return mls;
     case Product::Slices:
-      return mls && config.slice.fields == std::set<SliceField>{SliceField::VorticitySquared};
+      return mls && std::ranges::all_of(config.slice.fields, [](SliceField f) {
+               return f == SliceField::VorticitySquared || f == SliceField::SubfilterStressNorm;
+             });
     default:
       return false;
   }
 }
 
-VorticityRequest vorticity_request(const Snapshot& snapshot, const AnalysisConfig& config) {
-  VorticityRequest r;
+RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config) {
+  RanksRequest r;
   r.points_per_side = analysis_grid(snapshot, config).points_per_side;
   r.fit_radius = config.gridding.fit_radius * snapshot.support_radius;
-  r.slice =
-      config.wants(Product::Slices) && config.slice.fields.contains(SliceField::VorticitySquared);
-  if (r.slice) {
+  r.vorticity = config.wants(Product::Vorticity);
+  const bool slices = config.wants(Product::Slices);
+  r.slice_omega2 = slices && config.slice.fields.contains(SliceField::VorticitySquared);
+  r.slice_tau = slices && config.slice.fields.contains(SliceField::SubfilterStressNorm);
+  if (r.slice_omega2 || r.slice_tau) {
     r.slice_axis = config.slice.axis;
     r.slice_position = config.slice.position;
+  }
+  r.statistics = config.wants(Product::SubfilterStatistics);
+  if (r.statistics) {
+    r.histogram_bins = config.histogram_bins;
+    r.angle_bins = config.angle_bins;
+    r.angle_threshold = config.angle_threshold;
   }
   return r;
 }
@@ -79,48 +90,35 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
                           double energy_dissipation) {
   auto snapshot = describe(simulation, energy_dissipation);
   const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
-  const auto served = [&](Product p) { return ranks && served_by_ranks(config, p); };
+  const bool on_ranks = ranks && cubic(snapshot->box);
+  const auto served = [&](Product p) { return on_ranks && served_by_ranks(config, p); };
   // What the ranks could not compute (they throw std::invalid_argument: a void wider than their
   // halo) is gathered and computed whole.
-  const bool spectrum = served(Product::Energy) || served(Product::Spectrum);
-  if (spectrum && (config.wants(Product::Energy) || config.wants(Product::Spectrum)) &&
-      cubic(snapshot->box)) {
+  if ((config.wants(Product::Energy) && served(Product::Energy)) ||
+      (config.wants(Product::Spectrum) && served(Product::Spectrum))) {
     try {
       snapshot->velocity_spectrum =
           ranks->velocity_spectrum(analysis_grid(*snapshot, config).points_per_side);
     } catch (const std::invalid_argument&) {
     }
   }
-  // Only when no other product needs ω at every particle (which analyse would then compute from
-  // the gathered particles anyway): the histogram of sfs_stats, ω² in particle snapshots or on
-  // the whole grid.
-  const bool particle_vorticity_needed =
-      config.wants(Product::SubfilterStatistics) ||
-      (config.wants(Product::Particles) &&
-       config.particle_fields.contains(SliceField::VorticitySquared)) ||
-      (config.wants(Product::Fields) && config.grid_fields.contains(SliceField::VorticitySquared));
-  if (!particle_vorticity_needed &&
-      ((config.wants(Product::Vorticity) && served(Product::Vorticity)) ||
-       (config.wants(Product::Slices) && served(Product::Slices)))) {
+  // The particle products only when the ranks serve every product, so that nothing is gathered
+  // (with particles gathered for another product, analyse computes them from those).
+  const bool all_served = !config.products.empty() && std::ranges::all_of(config.products, served);
+  const bool particle_products = config.wants(Product::Vorticity) ||
+                                 config.wants(Product::Slices) ||
+                                 config.wants(Product::SubfilterStatistics);
+  if (all_served && particle_products) {
     try {
-      snapshot->vorticity = ranks->fitted_vorticity(vorticity_request(*snapshot, config));
+      snapshot->ranks = ranks->particle_products(ranks_request(*snapshot, config));
     } catch (const std::invalid_argument&) {
     }
   }
   const auto from_ranks = [&](Product p) {
-    switch (p) {
-      case Product::Energy:
-      case Product::Spectrum:
-        return snapshot->velocity_spectrum.has_value();
-      case Product::Vorticity:
-        return snapshot->vorticity.has_value();
-      case Product::Slices:
-        return snapshot->vorticity.has_value() && served(Product::Slices);
-      default:
-        return false;
-    }
+    return p == Product::Energy || p == Product::Spectrum ? snapshot->velocity_spectrum.has_value()
+                                                          : snapshot->ranks.has_value();
   };
-  if (!config.products.empty() && std::ranges::all_of(config.products, from_ranks))
+  if (all_served && std::ranges::all_of(config.products, from_ranks))
     snapshot->has_particles = false;
   else
     copy_particles(simulation, *snapshot);

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "analysis/config.hpp"
+#include "analysis/histograms.hpp"
 #include "analysis/spectrum.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
@@ -21,24 +22,35 @@ class Simulation;
 
 namespace sphles::analysis {
 
-/// The "mls" vorticity products (the default estimate, config.hpp) as asked of the ranks of a
-/// distributed solver: the analysis grid, the fits' radius and the slice.
-struct VorticityRequest {
-  int points_per_side = 0;  // M of the analysis grid
-  double fit_radius = 0.0;  // R [m] of the local fits (gridding.fit_radius · H)
-  bool slice = false;       // whether ω² on the slice's nodes is wanted
-  int slice_axis = 0;       // SliceConfig::axis and position (3D)
+/// The particle products a distributed solver's ranks compute where the particles live
+/// (DistributedProducts::particle_products), as a run's configuration asks for them: the
+/// "mls" vorticity (the default estimate, config.hpp), the ω² and |τ_SFS| slices and the
+/// chapter-4 statistics.
+struct RanksRequest {
+  int points_per_side = 0;    // M of the analysis grid
+  double fit_radius = 0.0;    // R [m] of the local fits (gridding.fit_radius · H)
+  bool vorticity = false;     // product "vorticity": ⟨ω²⟩
+  bool slice_omega2 = false;  // product "slices": ω² (fitted) and |τ_SFS| (nearest particle)
+  bool slice_tau = false;
+  int slice_axis = 0;  // SliceConfig::axis and position (3D), when a slice is asked
   double slice_position = 0.0;
-  bool operator==(const VorticityRequest&) const = default;
+  bool statistics = false;  // product "sfs_stats", with its bins and threshold
+  int histogram_bins = 0;
+  int angle_bins = 0;
+  double angle_threshold = 0.0;
+  bool operator==(const RanksRequest&) const = default;
 };
 
-/// What the ranks return for a VorticityRequest: the "mls" ⟨ω²⟩ and the ω² slice, the same
-/// bits as analyse computes them from all particles.
-struct RanksVorticity {
-  VorticityRequest request;
+/// What the ranks return for a RanksRequest: the same bits as analyse computes from all
+/// particles in one process.
+struct RanksProducts {
+  RanksRequest request;
   double mean_vorticity_squared = 0.0;  // Σ_i V_i ω_i² / Σ_i V_i over every particle [1/s²]
-  /// ω² at the slice's nodes (slice_nodes, products.hpp), in that order; empty unless asked.
-  std::vector<double> slice;
+  /// ω² and |τ_SFS| at the slice's nodes (slice_nodes, products.hpp), in that order; each empty
+  /// unless asked.
+  std::vector<double> slice_omega2;
+  std::vector<double> slice_tau;
+  std::optional<SubfilterStatisticsProduct> statistics;
 };
 
 struct Snapshot {
@@ -62,9 +74,10 @@ struct Snapshot {
   /// live by a solver spread over MPI ranks (DistributedProducts); the products "energy" and
   /// "spectrum" take it instead of gridding `particles`. Empty otherwise.
   std::optional<EnergySpectrum> velocity_spectrum;
-  /// The "mls" ⟨ω²⟩ and ω² slice computed where the particles live (DistributedProducts); the
-  /// products "vorticity" and "slices" (ω²) take them when the request matches. Empty otherwise.
-  std::optional<RanksVorticity> vorticity;
+  /// The particle products computed where the particles live (DistributedProducts); the
+  /// products "vorticity", "slices" and "sfs_stats" take them when their request is the one
+  /// the analysis' configuration makes (ranks_request). Empty otherwise.
+  std::optional<RanksProducts> ranks;
   /// False when make_snapshot left `particles` (and `neighbours`) empty because every product
   /// asked for came from the ranks (velocity_spectrum): nothing was gathered. The products that
   /// need particles are then skipped for this snapshot (a live change asked for them after it
@@ -89,20 +102,20 @@ class DistributedProducts {
   /// particles to round-off. Throws std::invalid_argument when the ranks cannot compute it
   /// (a void in the particles wider than their halo); make_snapshot then gathers.
   virtual EnergySpectrum velocity_spectrum(int points_per_side) const = 0;
-  /// The "mls" vorticity products of `request` (vorticity_request): each rank fits ω at its own
-  /// particles and ω² at its slice nodes from its particles and their halo. Throws
-  /// std::invalid_argument when the ranks cannot (fits wider than the halo); make_snapshot then
-  /// gathers.
-  virtual RanksVorticity fitted_vorticity(const VorticityRequest& request) const = 0;
+  /// The particle products of `request` (ranks_request): each rank computes them for its own
+  /// particles and slice nodes from its particles and their halo, and the ranks reduce. Throws
+  /// std::invalid_argument when the ranks cannot (fits wider than the halo, a void wider than
+  /// the halo); make_snapshot then gathers.
+  virtual RanksProducts particle_products(const RanksRequest& request) const = 0;
 };
 
-/// Whether DistributedProducts can serve product p as `config` asks for it (energy and spectrum
-/// gridded by nearest particle; vorticity and the ω² slice by the "mls" estimate), so that a
-/// snapshot for it needs no particles.
+/// Whether DistributedProducts can serve product p as `config` asks for it: energy and spectrum
+/// gridded by nearest particle; vorticity, the ω² and |τ_SFS| slices and sfs_stats with the
+/// "mls" vorticity estimate. A snapshot for products all served needs no particles.
 bool served_by_ranks(const AnalysisConfig& config, Product p);
 
-/// The VorticityRequest of `config` for the snapshot's grid and kernel.
-VorticityRequest vorticity_request(const Snapshot& snapshot, const AnalysisConfig& config);
+/// The RanksRequest of `config` for the snapshot's grid and kernel.
+RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config);
 
 /// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
 /// current -de_v/dt (the simulation does not keep a history).
@@ -111,8 +124,8 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation,
 
 /// The same for the products `config` asks for: when the simulation is DistributedProducts and
 /// the velocity is gridded by nearest particle on a cubic box, the energy and spectrum come
-/// from the ranks, as do the "mls" vorticity and ω² slice, and the particles are gathered only
-/// when another product needs them.
+/// from the ranks; when every product asked for is served_by_ranks, the others come from the
+/// ranks too and nothing is gathered; otherwise the particles are gathered for them.
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
 

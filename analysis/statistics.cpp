@@ -17,16 +17,21 @@ int bin_of(double u, int bins) {
   return std::min(static_cast<int>(scaled), bins - 1);
 }
 
+}  // namespace
+
 double max_value(std::span<const double> values) {
   double m = 0.0;
   for (const double v : values) m = std::max(m, v);
   return m;
 }
 
-}  // namespace
-
 Histogram2D normalised_bivariate_histogram(std::span<const double> x, std::span<const double> y,
                                            int bins_x, int bins_y) {
+  return bivariate_histogram(x, y, max_value(x), max_value(y), bins_x, bins_y);
+}
+
+Histogram2D bivariate_histogram(std::span<const double> x, std::span<const double> y, double max_x,
+                                double max_y, int bins_x, int bins_y) {
   if (x.size() != y.size())
     throw std::invalid_argument("bivariate histogram: x and y differ in length");
   if (bins_x < 1 || bins_y < 1)
@@ -36,7 +41,6 @@ Histogram2D normalised_bivariate_histogram(std::span<const double> x, std::span<
   h.bins_y = bins_y;
   h.counts.assign(static_cast<std::size_t>(bins_x) * static_cast<std::size_t>(bins_y), 0);
   // (τ*, ω²*) = (τ / max τ, ω² / max ω²) (SPEC §5); a zero maximum maps every value to 0.
-  const double max_x = max_value(x), max_y = max_value(y);
   const double scale_x = max_x > 0.0 ? 1.0 / max_x : 0.0;
   const double scale_y = max_y > 0.0 ? 1.0 / max_y : 0.0;
   for (std::size_t i = 0; i < x.size(); ++i) {
@@ -51,18 +55,18 @@ Histogram2D normalised_bivariate_histogram(std::span<const double> x, std::span<
 
 AngleHistogram principal_direction_alignment(const SubfilterStressField& stress,
                                              const sim::ParticleArrays& particles, int bins,
-                                             double threshold) {
+                                             double threshold, double max_norm) {
   if (bins < 1) throw std::invalid_argument("angle histogram: bin count must be >= 1");
-  if (stress.norm.size() != particles.size() || stress.direction.size() != particles.size())
+  if (stress.norm.size() > particles.size() || stress.direction.size() != stress.norm.size())
     throw std::invalid_argument("angle histogram: stress field does not match the particles");
   const int dim = stress.dimension;
   AngleHistogram h;
   h.bins = bins;
   h.threshold = threshold;
   h.counts.assign(static_cast<std::size_t>(bins), 0);
-  const double max_norm = max_value(stress.norm);
+  if (std::isnan(max_norm)) max_norm = max_value(stress.norm);
   if (!(max_norm > 0.0)) return h;  // no stress anywhere: no direction is defined
-  for (std::size_t i = 0; i < particles.size(); ++i) {
+  for (std::size_t i = 0; i < stress.norm.size(); ++i) {
     if (!(stress.norm[i] / max_norm > threshold)) continue;   // τ_SFS,i / max > threshold (§5)
     const std::array<double, 3>& t = stress.direction[i][0];  // t_I (unit)
     double v[3] = {0.0, 0.0, 0.0};

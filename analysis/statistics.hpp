@@ -3,37 +3,30 @@
 #pragma once
 
 #include <cstdint>
+#include <limits>
 #include <span>
 #include <vector>
 
+#include "analysis/histograms.hpp"
 #include "analysis/subfilter_stress.hpp"
 
 namespace sphles::analysis {
 
-/// Counts on a regular bins_x × bins_y grid over [0, 1]²; values equal to 1 go into the last
-/// bin. counts[bx + bins_x * by].
-struct Histogram2D {
-  int bins_x = 0;
-  int bins_y = 0;
-  std::vector<std::uint64_t> counts;
-  std::uint64_t total = 0;
-};
-
 /// Histogram of (x_i / max x, y_i / max y) for all i (a zero maximum maps every value to 0).
 Histogram2D normalised_bivariate_histogram(std::span<const double> x, std::span<const double> y,
                                            int bins_x, int bins_y);
+/// The same with the maxima given (those of a larger set, the particles of every rank: par/);
+/// total = x.size().
+Histogram2D bivariate_histogram(std::span<const double> x, std::span<const double> y, double max_x,
+                                double max_y, int bins_x, int bins_y);
 
-/// Counts of the smallest angle γ ∈ [0, π/2] between the line of t_I and v_i, over `bins`
-/// equal bins, for particles with norm_i / max norm > threshold and |v_i| > 0.
-struct AngleHistogram {
-  int bins = 0;
-  double threshold = 0.1;
-  std::vector<std::uint64_t> counts;
-  std::uint64_t total = 0;
-};
+/// The largest value, 0 for none (or none positive).
+double max_value(std::span<const double> values);
 
-AngleHistogram principal_direction_alignment(const SubfilterStressField& stress,
-                                             const sim::ParticleArrays& particles, int bins,
-                                             double threshold);
+/// Over the particles of `stress` (the first stress.norm.size() of `particles`), with τ* taken
+/// against `max_norm` (max_value(stress.norm) when NaN).
+AngleHistogram principal_direction_alignment(
+    const SubfilterStressField& stress, const sim::ParticleArrays& particles, int bins,
+    double threshold, double max_norm = std::numeric_limits<double>::quiet_NaN());
 
 }  // namespace sphles::analysis

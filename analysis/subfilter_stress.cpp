@@ -106,30 +106,31 @@ void principal_axes(const std::array<double, 6>& t, double& norm, std::array<dou
 
 }  // namespace
 
-SubfilterStressField implicit_subfilter_stress(const Snapshot& snapshot,
-                                               const sim::NeighbourList& neighbours) {
-  const sim::ParticleArrays& p = snapshot.particles;
-  const int dim = snapshot.dimension();
+SubfilterStressField implicit_subfilter_stress(const sim::ParticleArrays& p,
+                                               const sim::PeriodicBox& box, sim::KernelType kernel,
+                                               double support_radius, std::size_t centres) {
+  const int dim = box.dimension;
   if (dim != 2 && dim != 3) throw std::invalid_argument("sub-filter stress: dimension must be 2/3");
   if (p.dimension != dim)
     throw std::invalid_argument("sub-filter stress: particle and box dimensions differ");
-  if (neighbours.num_particles() != p.size())
-    throw std::invalid_argument("sub-filter stress: neighbour list does not match the particles");
+  centres = std::min(centres, p.size());
+  sim::VerletNeighbourSearch search(box, support_radius, 0.0);
+  search.build(sim::view_positions(p), sim::order_by_key(p.id), centres);
+  const sim::NeighbourList& neighbours = search.list();
 
   SubfilterStressField field;
   field.dimension = dim;
-  field.tensor.resize(p.size());
-  field.norm.resize(p.size());
-  field.principal.resize(p.size());
-  field.direction.resize(p.size());
+  field.tensor.resize(centres);
+  field.norm.resize(centres);
+  field.principal.resize(centres);
+  field.direction.resize(centres);
 
-  sim::with_kernel(snapshot.kernel, dim, snapshot.support_radius, [&](const auto& kernel) {
-    constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
-    sim::pair_pass<kDim>(
-        StressSum<kDim, std::remove_cvref_t<decltype(kernel)>>(kernel, p, field.tensor),
-        sim::PeriodicGeometry<kDim>(snapshot.box, p), neighbours, kernel.support_radius(), 0,
-        p.size());
-    const auto n = static_cast<std::ptrdiff_t>(p.size());
+  sim::with_kernel(kernel, dim, support_radius, [&](const auto& w) {
+    constexpr int kDim = std::remove_cvref_t<decltype(w)>::dimension;
+    sim::pair_pass<kDim>(StressSum<kDim, std::remove_cvref_t<decltype(w)>>(w, p, field.tensor),
+                         sim::PeriodicGeometry<kDim>(box, p), neighbours, w.support_radius(), 0,
+                         centres);
+    const auto n = static_cast<std::ptrdiff_t>(centres);
 #pragma omp parallel for schedule(static, 512)
     for (std::ptrdiff_t si = 0; si < n; ++si) {
       const auto i = static_cast<std::size_t>(si);
@@ -140,9 +141,8 @@ SubfilterStressField implicit_subfilter_stress(const Snapshot& snapshot,
 }
 
 SubfilterStressField implicit_subfilter_stress(const Snapshot& snapshot) {
-  sim::VerletNeighbourSearch search(snapshot.box, snapshot.support_radius, 0.0);
-  search.build(sim::view_positions(snapshot.particles));
-  return implicit_subfilter_stress(snapshot, search.list());
+  return implicit_subfilter_stress(snapshot.particles, snapshot.box, snapshot.kernel,
+                                   snapshot.support_radius, snapshot.size());
 }
 
 }  // namespace sphles::analysis

@@ -277,15 +277,15 @@ class Run::Impl::Loop {
 
   /// A time-series row and a metrics sample of the step.
   /// The analysis snapshot of now for the products the pipeline is configured for; a
-  /// distributed solver computes the energy, spectrum and "mls" vorticity on its ranks
-  /// (make_snapshot).
+  /// distributed solver computes the energy, spectrum and, when it serves every product, the
+  /// particle products on its ranks (make_snapshot).
   void publish_snapshot() {
     analysis::SnapshotPtr snapshot =
         analysis::make_snapshot(*simulation_, pipeline_->config(), latest_dissipation_);
-    const char* ranks = snapshot->velocity_spectrum && snapshot->vorticity
-                            ? "spectrum and vorticity"
+    const char* ranks = snapshot->velocity_spectrum && snapshot->ranks
+                            ? "spectrum and particle products"
                         : snapshot->velocity_spectrum ? "spectrum"
-                        : snapshot->vorticity         ? "vorticity"
+                        : snapshot->ranks             ? "particle products"
                                                       : nullptr;
     if (ranks)
       run_.log->debug("analysis at t = {}: {} computed on the ranks, {}", snapshot->time, ranks,

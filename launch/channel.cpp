@@ -173,6 +173,106 @@ sim::StepDiagnostics decode_diagnostics(Decoder& d) {
   return g;
 }
 
+namespace {
+
+/// A small non-negative integer of a request (a count of points or bins, an axis).
+int small_int(Decoder& d, const char* what) {
+  const std::uint64_t v = d.u64();
+  if (v > static_cast<std::uint64_t>(std::numeric_limits<int>::max()))
+    throw ProtocolError(std::string("particle products: ") + what + " out of range");
+  return static_cast<int>(v);
+}
+
+// The request's flags, one bit each.
+constexpr std::uint64_t kVorticity = 1, kSliceOmega2 = 2, kSliceTau = 4, kStatistics = 8;
+
+void encode(Encoder& e, const analysis::Histogram2D& h) {
+  e.u64(static_cast<std::uint64_t>(h.bins_x));
+  e.u64(static_cast<std::uint64_t>(h.bins_y));
+  e.u64s(h.counts);
+  e.u64(h.total);
+}
+
+analysis::Histogram2D decode_histogram(Decoder& d) {
+  analysis::Histogram2D h;
+  h.bins_x = small_int(d, "histogram bins");
+  h.bins_y = small_int(d, "histogram bins");
+  h.counts = d.u64s();
+  h.total = d.u64();
+  return h;
+}
+
+}  // namespace
+
+void encode(Encoder& e, const analysis::RanksRequest& r) {
+  e.u64(static_cast<std::uint64_t>(r.points_per_side));
+  e.f64(r.fit_radius);
+  e.u64((r.vorticity ? kVorticity : 0) | (r.slice_omega2 ? kSliceOmega2 : 0) |
+        (r.slice_tau ? kSliceTau : 0) | (r.statistics ? kStatistics : 0));
+  e.u64(static_cast<std::uint64_t>(r.slice_axis));
+  e.f64(r.slice_position);
+  e.u64(static_cast<std::uint64_t>(r.histogram_bins));
+  e.u64(static_cast<std::uint64_t>(r.angle_bins));
+  e.f64(r.angle_threshold);
+}
+
+analysis::RanksRequest decode_ranks_request(Decoder& d) {
+  analysis::RanksRequest r;
+  r.points_per_side = small_int(d, "points per side");
+  r.fit_radius = d.f64();
+  const std::uint64_t flags = d.u64();
+  r.vorticity = (flags & kVorticity) != 0;
+  r.slice_omega2 = (flags & kSliceOmega2) != 0;
+  r.slice_tau = (flags & kSliceTau) != 0;
+  r.statistics = (flags & kStatistics) != 0;
+  r.slice_axis = small_int(d, "slice axis");
+  if (r.slice_axis > 2) throw ProtocolError("particle products: slice axis out of range");
+  r.slice_position = d.f64();
+  r.histogram_bins = small_int(d, "histogram bins");
+  r.angle_bins = small_int(d, "angle bins");
+  r.angle_threshold = d.f64();
+  return r;
+}
+
+void encode(Encoder& e, const analysis::RanksProducts& p) {
+  encode(e, p.request);
+  e.f64(p.mean_vorticity_squared);
+  e.doubles(p.slice_omega2);
+  e.doubles(p.slice_tau);
+  e.u64(p.statistics ? 1 : 0);
+  if (!p.statistics) return;
+  const analysis::SubfilterStatisticsProduct& s = *p.statistics;
+  e.f64(s.max_norm);
+  e.f64(s.mean_norm);
+  encode(e, s.joint);
+  e.u64(s.alignment ? 1 : 0);
+  if (!s.alignment) return;
+  e.u64(static_cast<std::uint64_t>(s.alignment->bins));
+  e.f64(s.alignment->threshold);
+  e.u64s(s.alignment->counts);
+  e.u64(s.alignment->total);
+}
+
+analysis::RanksProducts decode_ranks_products(Decoder& d) {
+  analysis::RanksProducts p;
+  p.request = decode_ranks_request(d);
+  p.mean_vorticity_squared = d.f64();
+  p.slice_omega2 = d.doubles();
+  p.slice_tau = d.doubles();
+  if (d.u64() == 0) return p;
+  analysis::SubfilterStatisticsProduct& s = p.statistics.emplace();
+  s.max_norm = d.f64();
+  s.mean_norm = d.f64();
+  s.joint = decode_histogram(d);
+  if (d.u64() == 0) return p;
+  analysis::AngleHistogram& a = s.alignment.emplace();
+  a.bins = small_int(d, "angle bins");
+  a.threshold = d.f64();
+  a.counts = d.u64s();
+  a.total = d.u64();
+  return p;
+}
+
 void encode(Encoder& e, const SolverStatus& s) {
   e.f64(s.time);
   e.u64(s.step);

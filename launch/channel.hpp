@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "analysis/snapshot.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::launch {
@@ -33,8 +34,8 @@ enum class MessageKind : std::uint32_t {
   Error = 9,             // a request failed on the job: what, and the blow-up facts if it was one
   CaseDiagnostics = 10,  // scene JSON → Values (Simulation::case_diagnostics)
   Values = 11,
-  Spectrum = 12,   // points per side → Values (Δk, then wavenumbers, energies, k² energies)
-  Vorticity = 13,  // analysis::VorticityRequest → Values (⟨ω²⟩, then the slice's ω²)
+  Spectrum = 12,  // points per side → Values (Δk, then wavenumbers, energies, k² energies)
+  ParticleProducts = 13,  // analysis::RanksRequest → Values (analysis::RanksProducts)
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.
@@ -87,6 +88,13 @@ void encode(Encoder& e, const sim::SolverState& s);
 sim::SolverState decode_state(Decoder& d);
 void encode(Encoder& e, const sim::StepDiagnostics& diagnostics);
 sim::StepDiagnostics decode_diagnostics(Decoder& d);
+
+/// The ParticleProducts request and its reply (analysis/snapshot.hpp). Decoding refuses
+/// counts and bins that do not fit their types.
+void encode(Encoder& e, const analysis::RanksRequest& request);
+analysis::RanksRequest decode_ranks_request(Decoder& d);
+void encode(Encoder& e, const analysis::RanksProducts& products);
+analysis::RanksProducts decode_ranks_products(Decoder& d);
 
 /// A solver's progress after a request: what the Status message carries.
 struct SolverStatus {

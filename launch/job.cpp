@@ -334,24 +334,18 @@ class RemoteSimulation final : public sim::Simulation, public analysis::Distribu
     return spectrum;
   }
 
-  /// The "mls" ⟨ω²⟩ and ω² slice, computed by the job's ranks (par/vorticity.hpp).
-  analysis::RanksVorticity fitted_vorticity(
-      const analysis::VorticityRequest& request) const override {
+  /// The particle products of `request`, computed by the job's ranks
+  /// (par/particle_products.hpp).
+  analysis::RanksProducts particle_products(const analysis::RanksRequest& request) const override {
     job_->require_current(generation_);
     Encoder e;
-    e.u64(static_cast<std::uint64_t>(request.points_per_side));
-    e.f64(request.fit_radius);
-    e.u64(request.slice ? 1 : 0);
-    e.u64(static_cast<std::uint64_t>(request.slice_axis));
-    e.f64(request.slice_position);
-    Message reply = job_->request(MessageKind::Vorticity, e, "the vorticity failed");
+    encode(e, request);
+    Message reply = job_->request(MessageKind::ParticleProducts, e, "the particle products failed");
     if (reply.kind != MessageKind::Values) throw ProtocolError("expected a values reply");
     Decoder d(reply.body);
-    analysis::RanksVorticity result;
-    result.request = request;
-    result.mean_vorticity_squared = d.f64();
-    result.slice = d.doubles();
+    analysis::RanksProducts result = decode_ranks_products(d);
     d.finish();
+    if (!(result.request == request)) throw ProtocolError("the job answered another request");
     return result;
   }
 
@@ -527,25 +521,15 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           reply.doubles(spectrum.k2_energy);
           break;
         }
-        case MessageKind::Vorticity: {
-          analysis::VorticityRequest r;
-          const std::uint64_t points = d.u64();
-          r.fit_radius = d.f64();
-          r.slice = d.u64() != 0;
-          const std::uint64_t axis = d.u64();
-          r.slice_position = d.f64();
+        case MessageKind::ParticleProducts: {
+          const analysis::RanksRequest r = decode_ranks_request(d);
           d.finish();
-          if (!simulation) throw std::logic_error("a vorticity before the solver was made");
+          if (!simulation) throw std::logic_error("particle products before the solver was made");
           const auto* ranks = dynamic_cast<const analysis::DistributedProducts*>(simulation.get());
-          if (!ranks || points < 1 || points > std::numeric_limits<int>::max() || axis > 2)
-            throw std::invalid_argument("the job's solver does not compute the vorticity on " +
-                                        std::to_string(points) + " points per side");
-          r.points_per_side = static_cast<int>(points);
-          r.slice_axis = static_cast<int>(axis);
-          const analysis::RanksVorticity result = ranks->fitted_vorticity(r);
+          if (!ranks)
+            throw std::invalid_argument("the job's solver does not compute particle products");
           kind = MessageKind::Values;
-          reply.f64(result.mean_vorticity_squared);
-          reply.doubles(result.slice);
+          encode(reply, ranks->particle_products(r));
           break;
         }
         case MessageKind::State:

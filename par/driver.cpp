@@ -10,9 +10,9 @@
 #include "analysis/snapshot.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
+#include "par/particle_products.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
-#include "par/vorticity.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/state_view.hpp"
@@ -29,7 +29,7 @@ enum class Command : int {
   Gather = 4,
   CaseDiagnostics = 5,
   Spectrum = 6,
-  Vorticity = 7
+  ParticleProducts = 7
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -72,17 +72,32 @@ void broadcast_string(MPI_Comm comm, std::string& text) {
   MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, comm);
 }
 
-/// Sends a vorticity request from rank 0 to every rank (as doubles: every field is a small
-/// integer or a length).
-analysis::VorticityRequest broadcast_request(MPI_Comm comm, analysis::VorticityRequest r) {
-  double fields[5] = {static_cast<double>(r.points_per_side), r.fit_radius, r.slice ? 1.0 : 0.0,
-                      static_cast<double>(r.slice_axis), r.slice_position};
-  MPI_Bcast(fields, 5, MPI_DOUBLE, 0, comm);
+/// Sends a particle-products request from rank 0 to every rank (as doubles: every field is a
+/// flag, a small integer or a length).
+analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r) {
+  double fields[11] = {static_cast<double>(r.points_per_side),
+                       r.fit_radius,
+                       r.vorticity ? 1.0 : 0.0,
+                       r.slice_omega2 ? 1.0 : 0.0,
+                       r.slice_tau ? 1.0 : 0.0,
+                       static_cast<double>(r.slice_axis),
+                       r.slice_position,
+                       r.statistics ? 1.0 : 0.0,
+                       static_cast<double>(r.histogram_bins),
+                       static_cast<double>(r.angle_bins),
+                       r.angle_threshold};
+  MPI_Bcast(fields, 11, MPI_DOUBLE, 0, comm);
   r.points_per_side = static_cast<int>(fields[0]);
   r.fit_radius = fields[1];
-  r.slice = fields[2] != 0.0;
-  r.slice_axis = static_cast<int>(fields[3]);
-  r.slice_position = fields[4];
+  r.vorticity = fields[2] != 0.0;
+  r.slice_omega2 = fields[3] != 0.0;
+  r.slice_tau = fields[4] != 0.0;
+  r.slice_axis = static_cast<int>(fields[5]);
+  r.slice_position = fields[6];
+  r.statistics = fields[7] != 0.0;
+  r.histogram_bins = static_cast<int>(fields[8]);
+  r.angle_bins = static_cast<int>(fields[9]);
+  r.angle_threshold = fields[10];
   return r;
 }
 
@@ -108,11 +123,12 @@ struct Member {
     return spectrum->compute(owned);
   }
 
-  /// Collective: the "mls" vorticity products of `request`, from the owned particles.
-  analysis::RanksVorticity fitted_vorticity(const analysis::VorticityRequest& request) const {
+  /// Collective: the particle products of `request`, from the owned particles.
+  analysis::RanksProducts particle_products(const analysis::RanksRequest& request) const {
     sim::ParticleArrays owned = local->particles();
     owned.truncate(local->owned_count());
-    return distributed_fitted_vorticity(*decomposition, owned, config.kernel, request);
+    return distributed_particle_products(*decomposition, owned, config.kernel,
+                                         config.support_radius, request);
   }
 };
 
@@ -179,11 +195,11 @@ class DistributedSimulation final : public sim::Simulation, public analysis::Dis
     return m_->velocity_spectrum(points_per_side);
   }
 
-  /// Every rank fits ω at its own particles and slice nodes (par/vorticity.hpp).
-  analysis::RanksVorticity fitted_vorticity(
-      const analysis::VorticityRequest& request) const override {
-    send_command(comm_, Command::Vorticity);
-    return m_->fitted_vorticity(broadcast_request(comm_, request));
+  /// Every rank computes them for its own particles and slice nodes
+  /// (par/particle_products.hpp).
+  analysis::RanksProducts particle_products(const analysis::RanksRequest& request) const override {
+    send_command(comm_, Command::ParticleProducts);
+    return m_->particle_products(broadcast_request(comm_, request));
   }
 
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
@@ -281,9 +297,9 @@ void serve_commands(MPI_Comm comm) {
         case Command::Spectrum:
           if (member) member->velocity_spectrum(static_cast<int>(header[1]));
           break;
-        case Command::Vorticity: {
-          const analysis::VorticityRequest request = broadcast_request(comm, {});
-          if (member) member->fitted_vorticity(request);
+        case Command::ParticleProducts: {
+          const analysis::RanksRequest request = broadcast_request(comm, {});
+          if (member) member->particle_products(request);
           break;
         }
         case Command::CaseDiagnostics: {

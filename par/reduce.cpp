@@ -37,4 +37,15 @@ void allreduce(const Decomposition& d, std::span<sim::ExactSum> partial) {
                                            special[s]);
 }
 
+bool on_every_rank(const Decomposition& d, bool ok) {
+  int mine = ok ? 1 : 0, all = 0;
+  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, d.comm());
+  return all == 1;
+}
+
+void allreduce_counts(const Decomposition& d, std::span<std::uint64_t> counts) {
+  MPI_Allreduce(MPI_IN_PLACE, counts.data(), static_cast<int>(counts.size()), MPI_UINT64_T, MPI_SUM,
+                d.comm());
+}
+
 }  // namespace sphles::par

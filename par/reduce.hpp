@@ -2,6 +2,7 @@
 // (issue 19: diagnostics the same bits for any number of ranks).
 #pragma once
 
+#include <cstdint>
 #include <span>
 
 #include "par/decomposition.hpp"
@@ -14,5 +15,12 @@ namespace sphles::par {
 sim::ExactSum allreduce(const Decomposition& d, sim::ExactSum partial);
 /// The same for several sums at once (one message), in place.
 void allreduce(const Decomposition& d, std::span<sim::ExactSum> partial);
+
+/// True on every rank when `ok` holds on every rank of d (a check every rank must agree on
+/// before a collective call that one of them cannot make). Collective over d.comm().
+bool on_every_rank(const Decomposition& d, bool ok);
+
+/// Every rank's counts added, element by element, on every rank. Collective over d.comm().
+void allreduce_counts(const Decomposition& d, std::span<std::uint64_t> counts);
 
 }  // namespace sphles::par

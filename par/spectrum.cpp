@@ -85,13 +85,6 @@ class DistributedTransform {
   analysis::R2cPlan plan_;
 };
 
-/// True on every rank when `ok` holds on every rank of d.
-bool on_every_rank(const Decomposition& d, bool ok) {
-  int mine = ok ? 1 : 0, all = 0;
-  MPI_Allreduce(&mine, &all, 1, MPI_INT, MPI_MIN, d.comm());
-  return all == 1;
-}
-
 }  // namespace
 
 struct DistributedSpectrum::Impl {

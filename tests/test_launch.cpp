@@ -15,7 +15,6 @@
 
 #include <unistd.h>
 #include "analysis/products.hpp"
-#include "analysis/vorticity.hpp"
 #include "launch/channel.hpp"
 #include "launch/job.hpp"
 #include "scratch_directory.hpp"
@@ -352,34 +351,30 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   expect_same_by_id(local->particles(), remote->particles());
   EXPECT_EQ(remote->neighbour_list()->num_particles(), local->particles().size());
 
-  // The "mls" vorticity computed on the job's ranks against the analysis of all particles here:
-  // the same bits (par/vorticity.hpp); the request's fields cross the channel.
+  // The particle products computed on the job's ranks against the analysis of all particles
+  // here: the same bits (par/particle_products.hpp); request and reply cross the channel.
   const auto* ranks = dynamic_cast<const analysis::DistributedProducts*>(remote.get());
   ASSERT_NE(ranks, nullptr);
-  const sim::SolverConfig& c = local->config();
-  analysis::VorticityRequest request;
-  request.points_per_side = 64;
-  request.fit_radius = c.support_radius;
-  request.slice = true;
-  request.slice_axis = 2;
-  request.slice_position = 1.0;
-  const analysis::RanksVorticity got = ranks->fitted_vorticity(request);
+  const analysis::SnapshotPtr here = analysis::make_snapshot(*local);
+  analysis::AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {analysis::Product::Vorticity, analysis::Product::Slices,
+                     analysis::Product::SubfilterStatistics};
+  const analysis::AnalysisFrame frame = analysis::analyse(here, config);
+  ASSERT_TRUE(frame.vorticity && frame.subfilter && frame.subfilter->alignment);
+  ASSERT_EQ(frame.slices.size(), 2u);
+  analysis::RanksRequest request = analysis::ranks_request(*here, config);
+  const analysis::RanksProducts got = ranks->particle_products(request);
   EXPECT_EQ(got.request, request);
-  const analysis::Grid grid{2, request.points_per_side, c.box.length[0]};
-  const analysis::FitSettings fit{c.kernel, request.fit_radius};
-  const sim::ParticleArrays& mine = local->particles();
-  const analysis::ParticleVorticity omega =
-      analysis::fitted_particle_vorticity(mine, grid, fit, mine.size());
-  EXPECT_EQ(got.mean_vorticity_squared,
-            analysis::volume_weighted_mean(mine, omega.squared_magnitude()));
-  analysis::SliceConfig slice;
-  slice.axis = request.slice_axis;
-  slice.position = request.slice_position;
-  EXPECT_EQ(got.slice, analysis::fitted_vorticity_squared(grid, mine, fit, omega,
-                                                          analysis::slice_nodes(grid, slice)));
-  EXPECT_EQ(got.slice.size(), 64u * 64u) << "2D: the slice is the whole grid";
-  request.fit_radius = 3.0 * c.support_radius;  // further than the halo: refused, typed
-  EXPECT_THROW(ranks->fitted_vorticity(request), std::invalid_argument);
+  EXPECT_EQ(got.mean_vorticity_squared, frame.vorticity->mean_vorticity_squared);
+  EXPECT_EQ(got.slice_omega2, frame.slices[0].values);
+  EXPECT_EQ(got.slice_tau, frame.slices[1].values);
+  ASSERT_TRUE(got.statistics && got.statistics->alignment);
+  EXPECT_EQ(got.statistics->mean_norm, frame.subfilter->mean_norm);
+  EXPECT_EQ(got.statistics->joint.counts, frame.subfilter->joint.counts);
+  EXPECT_EQ(got.statistics->alignment->counts, frame.subfilter->alignment->counts);
+  request.fit_radius *= 3.0;  // further than the halo: refused, typed
+  EXPECT_THROW(ranks->particle_products(request), std::invalid_argument);
 
   // A live change: the job's solver replaced from a state, the old one stale, the job the same.
   std::unique_ptr<sim::Simulation> changed = solvers.restore(scene, remote->state());

@@ -21,10 +21,10 @@
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/halo.hpp"
+#include "par/particle_products.hpp"
 #include "par/reduce.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
-#include "par/vorticity.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
@@ -743,58 +743,85 @@ TEST(DistributedSpectrum, ParticlesOutsideTheirSubBoxesMoveFirst) {
   distributed_spectrum_equals_one_process<3>(16, -0.7);
 }
 
-/// The "mls" vorticity products of particles spread over the ranks against the analysis' own
-/// functions on all of them in one process, in reverse id order: ⟨ω²⟩ and every value of the
-/// slice the same bits (the fits gather in cell and id order, whatever the particles' order and
-/// split). The ranks start as in the spectrum test, `drift` spacings from their owners.
+/// A perturbed 32² lattice with the particles of x ≥ L/2 left out (a void wider than a halo).
+sim::ParticleArrays left_half_lattice() {
+  const sim::ParticleArrays lattice = perturbed_lattice(2, 32, 5);
+  std::vector<std::uint32_t> kept;
+  for (std::size_t i = 0; i < lattice.size(); ++i)
+    if (lattice.position[0][i] < 0.5 * kLength) kept.push_back(static_cast<std::uint32_t>(i));
+  return subset(lattice, kept);
+}
+
+/// The particle products of particles spread over the ranks (the "mls" ⟨ω²⟩, the ω² and |τ_SFS|
+/// slices, sfs_stats) against analysis::analyse of all of them in one process, in reverse id
+/// order: the same bits (the fits and τ_SFS sums visit their particles in an order set by
+/// positions and ids alone). The ranks start as in the spectrum test, `drift` spacings from
+/// their owners.
 template <int Dim>
-void distributed_vorticity_equals_one_process(int per_side, double drift) {
+void distributed_particle_products_equal_one_process(int per_side, double drift) {
   sim::ParticleArrays all = perturbed_lattice(Dim, per_side, 23);
   const double spacing = kLength / per_side;
   for (std::size_t i = 0; i < all.size(); ++i)
     all.volume[i] = std::pow(spacing, Dim) * (1.0 + 0.1 * std::sin(3.0 * static_cast<double>(i)));
-  const Decomposition d(MPI_COMM_WORLD, box_of(Dim), 2.5 * spacing, spacing);
+  const double support = 2.5 * spacing;  // H, as far as the halo reaches
+  const Decomposition d(MPI_COMM_WORLD, box_of(Dim), support, spacing);
   const sim::ParticleArrays mine = owned_before_drift(d, all, drift * spacing);
-
-  analysis::VorticityRequest request;
-  request.points_per_side = 2 * per_side;
-  request.fit_radius = 2.5 * spacing;  // as far as the halo reaches
-  request.slice = true;
-  request.slice_axis = Dim == 3 ? 1 : 0;
-  request.slice_position = 0.4 * kLength;
-  const analysis::RanksVorticity got =
-      distributed_fitted_vorticity(d, mine, sim::KernelType::WendlandC4, request);
 
   std::vector<std::uint32_t> reverse(all.size());
   for (std::size_t i = 0; i < all.size(); ++i)
     reverse[i] = static_cast<std::uint32_t>(all.size() - 1 - i);
-  const sim::ParticleArrays one = subset(all, reverse);
-  const analysis::Grid grid{Dim, request.points_per_side, kLength};
-  const analysis::FitSettings fit{sim::KernelType::WendlandC4, request.fit_radius};
-  const analysis::ParticleVorticity omega =
-      analysis::fitted_particle_vorticity(one, grid, fit, one.size());
-  const double mean = analysis::volume_weighted_mean(one, omega.squared_magnitude());
-  analysis::SliceConfig slice;
-  slice.axis = request.slice_axis;
-  slice.position = request.slice_position;
-  const std::vector<double> values =
-      analysis::fitted_vorticity_squared(grid, one, fit, omega, analysis::slice_nodes(grid, slice));
+  analysis::Snapshot one;
+  one.box = box_of(Dim);
+  one.kernel = sim::KernelType::WendlandC4;
+  one.support_radius = support;
+  one.particle_spacing = spacing;
+  one.particles = subset(all, reverse);
+  analysis::AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {analysis::Product::Vorticity, analysis::Product::Slices,
+                     analysis::Product::SubfilterStatistics};
+  config.slice.axis = Dim == 3 ? 1 : 0;
+  config.slice.position = 0.4 * kLength;
+  config.histogram_bins = 20;
+  const analysis::AnalysisFrame frame = analysis::analyse(one, config);
+  ASSERT_TRUE(frame.vorticity && frame.subfilter);
+  ASSERT_EQ(frame.slices.size(), 2u);
 
-  EXPECT_GT(mean, 0.0);
-  EXPECT_EQ(got.mean_vorticity_squared, mean);
-  EXPECT_TRUE(all_ranks(got.mean_vorticity_squared == mean));
-  if (d.rank() == 0) {
-    EXPECT_EQ(got.slice, values);
-  } else {
-    EXPECT_TRUE(got.slice.empty());
-  }
+  const analysis::RanksRequest request = analysis::ranks_request(one, config);
+  EXPECT_TRUE(request.vorticity && request.slice_omega2 && request.slice_tau && request.statistics);
+  const analysis::RanksProducts got =
+      distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, request);
   EXPECT_EQ(got.request, request);
+  EXPECT_GT(frame.vorticity->mean_vorticity_squared, 0.0);
+  EXPECT_EQ(got.mean_vorticity_squared, frame.vorticity->mean_vorticity_squared);
+  ASSERT_TRUE(got.statistics);
+  const analysis::SubfilterStatisticsProduct& want = *frame.subfilter;
+  EXPECT_GT(want.max_norm, 0.0);
+  EXPECT_EQ(got.statistics->max_norm, want.max_norm);
+  EXPECT_EQ(got.statistics->mean_norm, want.mean_norm);
+  EXPECT_EQ(got.statistics->joint.counts, want.joint.counts);
+  EXPECT_EQ(got.statistics->joint.total, want.joint.total);
+  EXPECT_EQ(got.statistics->joint.total, all.size());
+  ASSERT_EQ(got.statistics->alignment.has_value(), Dim == 2);
+  if (Dim == 2) {
+    EXPECT_EQ(got.statistics->alignment->counts, want.alignment->counts);
+    EXPECT_EQ(got.statistics->alignment->total, want.alignment->total);
+    EXPECT_GT(want.alignment->total, 0u);
+  }
+  if (d.rank() == 0) {
+    EXPECT_EQ(got.slice_omega2, frame.slices[0].values);
+    EXPECT_EQ(got.slice_tau, frame.slices[1].values);
+  } else {
+    EXPECT_TRUE(got.slice_omega2.empty() && got.slice_tau.empty());
+  }
+  EXPECT_TRUE(all_ranks(!::testing::Test::HasFailure()));
 
   // Fits reaching further than the halo are refused on every rank (one rank has no halo).
-  request.fit_radius = 3.0 * spacing;
+  analysis::RanksRequest wide = request;
+  wide.fit_radius = 1.2 * support;
   bool refused = false;
   try {
-    distributed_fitted_vorticity(d, mine, sim::KernelType::WendlandC4, request);
+    distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, wide);
   } catch (const std::invalid_argument& e) {
     refused = std::string(e.what()).find("halo") != std::string::npos;
   }
@@ -803,15 +830,41 @@ void distributed_vorticity_equals_one_process(int per_side, double drift) {
   EXPECT_TRUE(all_ranks(refused != alone));
 }
 
-TEST(DistributedVorticity, EqualsOneProcessBitForBit2D) {
-  distributed_vorticity_equals_one_process<2>(32, 0.0);
+TEST(DistributedParticleProducts, EqualOneProcessBitForBit2D) {
+  distributed_particle_products_equal_one_process<2>(32, 0.0);
 }
-TEST(DistributedVorticity, EqualsOneProcessBitForBit3D) {
-  distributed_vorticity_equals_one_process<3>(16, 0.0);
+TEST(DistributedParticleProducts, EqualOneProcessBitForBit3D) {
+  distributed_particle_products_equal_one_process<3>(16, 0.0);
 }
-TEST(DistributedVorticity, ParticlesOutsideTheirSubBoxesMoveFirst) {
-  distributed_vorticity_equals_one_process<2>(32, -0.7);
-  distributed_vorticity_equals_one_process<3>(16, 0.7);
+TEST(DistributedParticleProducts, ParticlesOutsideTheirSubBoxesMoveFirst) {
+  distributed_particle_products_equal_one_process<2>(32, -0.7);
+  distributed_particle_products_equal_one_process<3>(16, 0.7);
+}
+
+/// Particles only in x < L/2: a |τ_SFS| slice node's nearest particle lies further than the
+/// halo on some rank, and every rank refuses, naming the halo (one process answers).
+TEST(DistributedParticleProducts, VoidWiderThanTheHaloIsRefusedOnEveryRank) {
+  const sim::ParticleArrays all = left_half_lattice();
+  const double spacing = kLength / 32;
+  const Decomposition d(MPI_COMM_WORLD, box_of(2), 2.5 * spacing, spacing);
+  analysis::RanksRequest request;
+  request.points_per_side = 64;
+  request.slice_tau = true;
+  const auto products = [&] {
+    return distributed_particle_products(d, owned_part(d, all), sim::KernelType::WendlandC4,
+                                         2.0 * spacing, request);
+  };
+  if (d.size() == 1) {
+    EXPECT_NO_THROW(products());
+    return;
+  }
+  bool refused = false;
+  try {
+    products();
+  } catch (const std::invalid_argument& e) {
+    refused = std::string(e.what()).find("halo width") != std::string::npos;
+  }
+  EXPECT_TRUE(all_ranks(refused));
 }
 
 /// A grid whose values on one rank would pass MPI's int counts is refused on every rank before
@@ -832,11 +885,7 @@ TEST(DistributedSpectrum, GridBeyondMpiCountsIsRefusedBeforeAllocating) {
 /// than the halo width, and every rank refuses, naming the halo; one process sees every
 /// particle and computes the spectrum.
 TEST(DistributedSpectrum, VoidWiderThanTheHaloIsRefusedOnEveryRank) {
-  const sim::ParticleArrays lattice = perturbed_lattice(2, 32, 5);
-  std::vector<std::uint32_t> kept;
-  for (std::size_t i = 0; i < lattice.size(); ++i)
-    if (lattice.position[0][i] < 0.5 * kLength) kept.push_back(static_cast<std::uint32_t>(i));
-  const sim::ParticleArrays all = subset(lattice, kept);
+  const sim::ParticleArrays all = left_half_lattice();
   const double spacing = kLength / 32;
   const Decomposition d(MPI_COMM_WORLD, box_of(2), 2.5 * spacing, spacing);
   if (d.size() == 1) {

@@ -292,72 +292,81 @@ TEST(Products, SpectrumComputedOnTheRanksServesEnergyAndSpectrum) {
   EXPECT_EQ(full.spectrum->spectrum.energy, whole.spectrum->spectrum.energy);
 }
 
-/// A snapshot carrying the "mls" ⟨ω²⟩ and ω² slice from the ranks (Snapshot::vorticity): the
-/// vorticity product and the ω² slice are those values, with or without particles; a request
-/// that no longer matches the configuration (a live change moved the slice) is not used: without
-/// particles the slice is left out, with particles it is computed from them.
-TEST(Products, VorticityComputedOnTheRanksServesTheMeanAndTheSlice) {
-  const SnapshotPtr gathered = small_tgv_snapshot("tgv3d", 16);
+/// A snapshot carrying the particle products from the ranks (Snapshot::ranks): the vorticity
+/// product, both slices and sfs_stats are those values, with or without particles; a request
+/// that no longer matches the configuration (a live change moved the slice) is not used:
+/// without particles those products are left out, with particles they are computed from them.
+TEST(Products, ParticleProductsComputedOnTheRanksServeTheirProducts) {
+  const SnapshotPtr gathered = small_tgv_snapshot("tgv2d", 32, 0.2);
   AnalysisConfig config;
   config.every = 1.0;
-  config.products = {Product::Vorticity, Product::Slices};
-  config.slice.fields = {SliceField::VorticitySquared};
+  config.products = {Product::Vorticity, Product::Slices, Product::SubfilterStatistics};
   ASSERT_EQ(config.gridding.vorticity, VorticityEstimate::Mls);
-  EXPECT_TRUE(served_by_ranks(config, Product::Vorticity));
-  EXPECT_TRUE(served_by_ranks(config, Product::Slices));
+  for (const Product p : config.products) EXPECT_TRUE(served_by_ranks(config, p));
   const AnalysisFrame whole = analyse(*gathered, config);
-  ASSERT_TRUE(whole.vorticity);
-  ASSERT_EQ(whole.slices.size(), 1u);
+  ASSERT_TRUE(whole.vorticity && whole.subfilter && whole.subfilter->alignment);
+  ASSERT_EQ(whole.slices.size(), 2u);
 
   // Values unlike the particles' own, so that the test sees where the frame took them from.
-  RanksVorticity ranks_values;
-  ranks_values.request = vorticity_request(*gathered, config);
-  EXPECT_TRUE(ranks_values.request.slice);
+  RanksProducts ranks_values;
+  ranks_values.request = ranks_request(*gathered, config);
   ranks_values.mean_vorticity_squared = 2.0 * whole.vorticity->mean_vorticity_squared;
-  ranks_values.slice = whole.slices[0].values;
-  for (double& v : ranks_values.slice) v += 1.0;
+  ranks_values.slice_omega2 = whole.slices[0].values;
+  for (double& v : ranks_values.slice_omega2) v += 1.0;
+  ranks_values.slice_tau = whole.slices[1].values;
+  for (double& v : ranks_values.slice_tau) v += 2.0;
+  ranks_values.statistics = *whole.subfilter;
+  ranks_values.statistics->max_norm += 1.0;
 
   auto ranks = std::make_shared<Snapshot>(*gathered);
   ranks->particles = sim::ParticleArrays{};
   ranks->neighbours.reset();
   ranks->has_particles = false;
-  ranks->vorticity = ranks_values;
+  ranks->ranks = ranks_values;
   const AnalysisFrame frame = analyse(*ranks, config);
-  ASSERT_TRUE(frame.vorticity);
+  ASSERT_TRUE(frame.vorticity && frame.subfilter);
   EXPECT_EQ(frame.vorticity->mean_vorticity_squared, ranks_values.mean_vorticity_squared);
   EXPECT_EQ(frame.vorticity->dissipation,
             gathered->fluid.kinematic_viscosity() * ranks_values.mean_vorticity_squared);
   EXPECT_EQ(frame.vorticity->estimate, VorticityEstimate::Mls);
-  ASSERT_EQ(frame.slices.size(), 1u);
-  EXPECT_EQ(frame.slices[0].values, ranks_values.slice);
+  EXPECT_EQ(frame.subfilter->max_norm, ranks_values.statistics->max_norm);
+  EXPECT_EQ(frame.subfilter->joint.counts, whole.subfilter->joint.counts);
+  ASSERT_EQ(frame.slices.size(), 2u);
+  EXPECT_EQ(frame.slices[0].field, SliceField::VorticitySquared);
+  EXPECT_EQ(frame.slices[0].values, ranks_values.slice_omega2);
+  EXPECT_EQ(frame.slices[1].field, SliceField::SubfilterStressNorm);
+  EXPECT_EQ(frame.slices[1].values, ranks_values.slice_tau);
+  EXPECT_EQ(frame.slices[1].units, whole.slices[1].units);
   EXPECT_EQ(frame.slices[0].width, whole.slices[0].width);
-  EXPECT_EQ(frame.slices[0].position, whole.slices[0].position);
-  for (const auto& [stage, seconds] : frame.timings)
-    EXPECT_NE(stage, "particle_vorticity") << "the vorticity was computed on the ranks";
+  for (const auto& [stage, seconds] : frame.timings) {
+    EXPECT_NE(stage, "particle_vorticity") << "computed on the ranks";
+    EXPECT_NE(stage, "subfilter_stress") << "computed on the ranks";
+  }
 
-  // The slice moved since the snapshot: without particles no ω² slice, the mean still served.
+  // The configuration changed since the snapshot: without particles nothing of it is used.
   AnalysisConfig moved = config;
-  moved.slice.position = 1.0;
+  moved.histogram_bins = 10;
   const AnalysisFrame stale = analyse(*ranks, moved);
-  EXPECT_TRUE(stale.vorticity);
+  EXPECT_FALSE(stale.vorticity || stale.subfilter);
   EXPECT_TRUE(stale.slices.empty());
-  // With particles: the mean from the ranks, the moved slice from the particles.
+  // With particles the products come from them.
   auto both = std::make_shared<Snapshot>(*gathered);
-  both->vorticity = ranks_values;
+  both->ranks = ranks_values;
   const AnalysisFrame mixed = analyse(*both, moved);
-  ASSERT_TRUE(mixed.vorticity);
-  EXPECT_EQ(mixed.vorticity->mean_vorticity_squared, ranks_values.mean_vorticity_squared);
-  ASSERT_EQ(mixed.slices.size(), 1u);
-  EXPECT_EQ(mixed.slices[0].values, analyse(*gathered, moved).slices[0].values);
+  ASSERT_TRUE(mixed.vorticity && mixed.subfilter);
+  EXPECT_EQ(mixed.vorticity->mean_vorticity_squared, whole.vorticity->mean_vorticity_squared);
+  EXPECT_EQ(mixed.slices[0].values, whole.slices[0].values);
 
   // Other estimates, and slices of other fields, are not served by the ranks.
   AnalysisConfig particle = config;
   particle.gridding.vorticity = VorticityEstimate::Particle;
   EXPECT_FALSE(served_by_ranks(particle, Product::Vorticity));
-  AnalysisConfig stress = config;
-  stress.slice.fields.insert(SliceField::SubfilterStressNorm);
-  EXPECT_FALSE(served_by_ranks(stress, Product::Slices));
-  EXPECT_FALSE(served_by_ranks(config, Product::SubfilterStatistics));
+  EXPECT_FALSE(served_by_ranks(particle, Product::SubfilterStatistics));
+  AnalysisConfig eddy = config;
+  eddy.slice.fields.insert(SliceField::EddyViscosity);
+  EXPECT_FALSE(served_by_ranks(eddy, Product::Slices));
+  EXPECT_FALSE(served_by_ranks(config, Product::Particles));
+  EXPECT_FALSE(served_by_ranks(config, Product::Fields));
 }
 
 TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {

@@ -6,8 +6,9 @@ the final checkpoints (sorted by particle id: one process writes its own order, 
 run writes id order) and the time series:
   1. one process;
   2. 2 MPI ranks from the start, with the energy and spectrum computed on the ranks and equal to
-     one process's to 1e-12, and the fitted vorticity's ⟨ω²⟩ and ω² slices computed on the ranks
-     and equal to one process's bit for bit (no particle gathered for the analysis);
+     one process's to 1e-12, and the particle products (the fitted vorticity's ⟨ω²⟩, the ω² and
+     |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
+     for bit (no particle gathered for the analysis);
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`).
 Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
@@ -28,8 +29,8 @@ from compare_spectra import compare_spectra
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "packing.enabled=false",
     "checkpoint.every=0.1", "checkpoint.keep=10",
-    "analysis.every=0.05", 'analysis.products=["energy","spectrum","vorticity","slices"]',
-    'analysis.slice.fields=["omega2"]',
+    "analysis.every=0.05",
+    'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats"]',
 ]
 
 
@@ -67,27 +68,40 @@ def same_final_state(reference, other, label):
     print(f"{label}: {len(a['id'])} particles, {len(a)} arrays equal bit for bit")
 
 
-def same_vorticity(reference, other, label):
-    """⟨ω²⟩ and ν⟨ω²⟩ of every snapshot, and every ω² slice, equal bit for bit."""
-    def means(run_dir):
+def same_particle_products(reference, other, label):
+    """<omega^2>, nu <omega^2> and the tau_SFS maxima and means of every snapshot, every slice and
+    every histogram file equal bit for bit."""
+    columns = ("t", "mean_omega2", "dissipation_vorticity", "tau_sfs_max", "tau_sfs_mean")
+
+    def values(run_dir):
         with open(os.path.join(run_dir, "stats", "snapshots.csv")) as f:
-            return [(r["t"], r["mean_omega2"], r["dissipation_vorticity"])
-                    for r in csv.DictReader(f)]
-    a, b = means(reference), means(other)
+            return [tuple(r[c] for c in columns) for r in csv.DictReader(f)]
+    a, b = values(reference), values(other)
     if not a or a != b:
-        sys.exit(f"{label}: mean_omega2 differs from one process:\n{a}\n{b}")
-    if any(float(m) <= 0.0 for _, m, _ in a):
-        sys.exit(f"{label}: a mean_omega2 is not positive: {a}")
+        sys.exit(f"{label}: {columns} differ from one process:\n{a}\n{b}")
+    if any(float(row[1]) <= 0.0 or float(row[3]) <= 0.0 for row in a):
+        sys.exit(f"{label}: a mean_omega2 or tau_sfs_max is not positive: {a}")
+    histograms = sorted(n for n in os.listdir(os.path.join(reference, "stats"))
+                        if n != "snapshots.csv")
+    if not histograms or histograms != sorted(n for n in os.listdir(os.path.join(other, "stats"))
+                                              if n != "snapshots.csv"):
+        sys.exit(f"{label}: the runs wrote different statistics files: {histograms}")
+    for name in histograms:
+        with open(os.path.join(reference, "stats", name), "rb") as x, \
+                open(os.path.join(other, "stats", name), "rb") as y:
+            if x.read() != y.read():
+                sys.exit(f"{label}: stats/{name} differs from one process")
     names = sorted(n for n in os.listdir(os.path.join(reference, "slices")) if n.endswith(".npy"))
-    if len(names) != len(a):
-        sys.exit(f"{label}: expected {len(a)} omega2 slices, found {names}")
+    if len(names) != 2 * len(a):
+        sys.exit(f"{label}: expected {2 * len(a)} omega2 and tau_sfs slices, found {names}")
     for name in names:
         x = np.load(os.path.join(reference, "slices", name))
         y = np.load(os.path.join(other, "slices", name))
         if x.shape != y.shape or not np.array_equal(x, y):
             sys.exit(f"{label}: slice {name} differs from one process")
-    print(f"{label}: {len(a)} values of mean_omega2 and {len(names)} omega2 slices computed on "
-          "the ranks equal one process's bit for bit")
+    print(f"{label}: the particle products of {len(a)} snapshots computed on the ranks "
+          f"({len(histograms)} histogram files, {len(names)} slices) equal one process's bit "
+          "for bit")
 
 
 def main():
@@ -108,13 +122,14 @@ def main():
     if "spans 2 MPI ranks" not in log:
         sys.exit("the 2-rank run did not say it spans 2 ranks:\n" + log)
     # Computed on the ranks, no particle gathered for the analysis.
-    where = log.count("spectrum and vorticity computed on the ranks, no particles gathered")
+    where = log.count("spectrum and particle products computed on the ranks, "
+                      "no particles gathered")
     if where != 5:
         sys.exit(f"expected 5 analysis snapshots computed on the ranks, the log says {where}:\n"
                  + log[-2000:])
     spectra, worst = compare_spectra(one, two, "2 ranks")
     print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
-    same_vorticity(one, two, "2 ranks")
+    same_particle_products(one, two, "2 ranks")
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:

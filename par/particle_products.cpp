@@ -1,0 +1,231 @@
+#include "par/particle_products.hpp"
+
+#include <mpi.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "analysis/grid.hpp"
+#include "analysis/products.hpp"
+#include "analysis/statistics.hpp"
+#include "analysis/subfilter_stress.hpp"
+#include "analysis/vorticity.hpp"
+#include "par/halo.hpp"
+#include "par/reduce.hpp"
+#include "sim/reduction.hpp"
+
+namespace sphles::par {
+
+namespace {
+
+/// The slice's nodes inside this rank's sub-box, as a block of the grid (one plane thick along
+/// the slice's normal in 3D, every node of the sub-box in 2D), and where each of its nodes (x
+/// fastest) sits in the slice (analysis::slice_nodes order).
+struct SliceShare {
+  analysis::NodeBlock block;
+  std::vector<std::size_t> nodes;  // grid node indices, block order
+  std::vector<int> where;          // positions in the slice, block order
+  std::size_t slice_size = 0;
+};
+
+SliceShare slice_share(const Decomposition& d, const analysis::Grid& grid,
+                       const analysis::RanksRequest& request) {
+  const int dim = grid.dimension;
+  analysis::SliceConfig config;
+  config.axis = request.slice_axis;
+  config.position = request.slice_position;
+  const std::vector<std::size_t> slice = analysis::slice_nodes(grid, config);
+  SliceShare share;
+  share.slice_size = slice.size();
+  for (int a = 0; a < dim; ++a) {
+    const auto k = static_cast<std::size_t>(a);
+    own_nodes(d, a, grid.points_per_side, grid.spacing(), share.block.first[k],
+              share.block.count[k]);
+  }
+  const auto m = static_cast<std::size_t>(grid.points_per_side);
+  if (dim == 3) {
+    // The slice's plane along its normal: that of its first node.
+    const auto normal = static_cast<std::size_t>(config.axis);
+    const std::array<std::size_t, 3> at{slice[0] % m, (slice[0] / m) % m, slice[0] / (m * m)};
+    const auto plane = static_cast<int>(at[normal]);
+    const bool mine = plane >= share.block.first[normal] &&
+                      plane < share.block.first[normal] + share.block.count[normal];
+    share.block.first[normal] = mine ? plane : 0;
+    share.block.count[normal] = mine ? 1 : 0;
+  }
+  std::vector<std::pair<std::size_t, int>> position(slice.size());
+  for (std::size_t k = 0; k < slice.size(); ++k) position[k] = {slice[k], static_cast<int>(k)};
+  std::sort(position.begin(), position.end());
+  const analysis::NodeBlock& b = share.block;
+  for (int z = 0; z < b.count[2]; ++z)
+    for (int y = 0; y < b.count[1]; ++y)
+      for (int x = 0; x < b.count[0]; ++x) {
+        const std::size_t node = grid.index(b.first[0] + x, b.first[1] + y, b.first[2] + z);
+        const auto found = std::lower_bound(position.begin(), position.end(),
+                                            std::pair<std::size_t, int>{node, -1});
+        share.nodes.push_back(node);
+        share.where.push_back(found->second);
+      }
+  return share;
+}
+
+/// Rank 0 receives every rank's values and puts each at its position in the slice; the other
+/// ranks get an empty vector. Collective over d.comm().
+std::vector<double> gather_slice(const Decomposition& d, const SliceShare& share,
+                                 const std::vector<double>& values) {
+  const int sent = static_cast<int>(share.where.size());
+  std::vector<int> counts(static_cast<std::size_t>(d.size())), offsets(counts.size(), 0);
+  MPI_Gather(&sent, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, d.comm());
+  for (std::size_t r = 1; r < counts.size(); ++r) offsets[r] = offsets[r - 1] + counts[r - 1];
+  const bool root = d.rank() == 0;
+  std::vector<int> where(root ? share.slice_size : 0);
+  std::vector<double> received(root ? share.slice_size : 0);
+  MPI_Gatherv(share.where.data(), sent, MPI_INT, where.data(), counts.data(), offsets.data(),
+              MPI_INT, 0, d.comm());
+  MPI_Gatherv(values.data(), sent, MPI_DOUBLE, received.data(), counts.data(), offsets.data(),
+              MPI_DOUBLE, 0, d.comm());
+  std::vector<double> slice(root ? share.slice_size : 0);
+  for (std::size_t k = 0; k < received.size(); ++k)
+    slice[static_cast<std::size_t>(where[k])] = received[k];
+  return slice;
+}
+
+/// max over the ranks of each value, on every rank.
+void allreduce_max(const Decomposition& d, std::span<double> values) {
+  MPI_Allreduce(MPI_IN_PLACE, values.data(), static_cast<int>(values.size()), MPI_DOUBLE, MPI_MAX,
+                d.comm());
+}
+
+}  // namespace
+
+analysis::RanksProducts distributed_particle_products(const Decomposition& d,
+                                                      const sim::ParticleArrays& owned,
+                                                      sim::KernelType kernel, double support_radius,
+                                                      const analysis::RanksRequest& request) {
+  const int dim = d.dimension();
+  const sim::PeriodicBox& box = d.box();
+  for (int a = 1; a < dim; ++a)
+    if (box.length[static_cast<std::size_t>(a)] != box.length[0])
+      throw std::invalid_argument("distributed particle products: the box must be a cube");
+  const bool fits = request.vorticity || request.slice_omega2 || request.statistics;
+  const bool stress_needed = request.slice_tau || request.statistics;
+  const bool slice = request.slice_omega2 || request.slice_tau;
+  if (request.points_per_side < 1 ||
+      (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
+    throw std::invalid_argument(
+        "distributed particle products: needs points_per_side >= 1 and a fit radius in (0, L/2]");
+  bool alone = true;
+  for (int a = 0; a < dim; ++a) alone = alone && d.dims()[static_cast<std::size_t>(a)] == 1;
+  if (fits && !alone && request.fit_radius > d.halo_width())
+    throw std::invalid_argument(
+        "distributed particle products: the fits' radius " + std::to_string(request.fit_radius) +
+        " m reaches further than the halo (" + std::to_string(d.halo_width()) + " m)");
+  analysis::Grid grid;
+  grid.dimension = dim;
+  grid.points_per_side = request.points_per_side;
+  grid.length = box.length[0];
+  const analysis::FitSettings fit{kernel, request.fit_radius};
+
+  // This rank's particles (those that left its sub-box since the last migration moved to their
+  // owners), then the halo around its sub-box at their own positions in [0, L).
+  sim::ParticleArrays local = owned;
+  migrate(d, local);
+  const Halo halo = Halo::build(d, local, HaloPositions::Wrapped);
+  const std::size_t mine = halo.owned();
+  std::uint64_t total = mine;
+  allreduce_counts(d, std::span<std::uint64_t>(&total, 1));
+
+  analysis::RanksProducts result;
+  result.request = request;
+  // ω and ω² at the own particles (the "mls" estimate).
+  analysis::ParticleVorticity omega;
+  omega.dimension = dim;
+  if (fits && mine > 0) omega = analysis::fitted_particle_vorticity(local, grid, fit, mine);
+  const std::vector<double> omega2 = fits ? omega.squared_magnitude() : std::vector<double>{};
+  if (request.vorticity) {
+    std::array<sim::ExactSum, 2> sums = analysis::volume_weighted_sums(local, omega2);
+    allreduce(d, std::span<sim::ExactSum>(sums));
+    result.mean_vorticity_squared = sums[0].value() / sums[1].value();
+  }
+  // τ_SFS at the own particles.
+  analysis::SubfilterStressField stress;
+  if (stress_needed)
+    stress = analysis::implicit_subfilter_stress(local, box, kernel, support_radius, mine);
+
+  if (request.statistics) {
+    // As analyse computes sfs_stats: maxima, an exact sum, counts (analysis/products.cpp).
+    std::array<double, 2> maxima{analysis::max_value(stress.norm), analysis::max_value(omega2)};
+    allreduce_max(d, maxima);
+    const std::vector<double>& norm = stress.norm;
+    sim::ExactSum sum = sim::exact_sum(norm.size(), [&](std::size_t i) { return norm[i]; });
+    sum = allreduce(d, sum);
+    analysis::SubfilterStatisticsProduct p;
+    p.max_norm = maxima[0];
+    p.mean_norm = total == 0 ? 0.0 : sum.value() / static_cast<double>(total);
+    p.joint = analysis::bivariate_histogram(norm, omega2, maxima[0], maxima[1],
+                                            request.histogram_bins, request.histogram_bins);
+    allreduce_counts(d, p.joint.counts);
+    p.joint.total = total;
+    if (dim == 2) {
+      analysis::AngleHistogram a = analysis::principal_direction_alignment(
+          stress, local, request.angle_bins, request.angle_threshold, maxima[0]);
+      allreduce_counts(d, a.counts);
+      allreduce_counts(d, std::span<std::uint64_t>(&a.total, 1));
+      p.alignment = std::move(a);
+    }
+    result.statistics = std::move(p);
+  }
+  if (!slice) return result;
+
+  const SliceShare share = slice_share(d, grid, request);
+  // A rank with slice nodes and no particle near them cannot answer for them.
+  if (!on_every_rank(d, share.nodes.empty() || local.size() > 0))
+    throw std::invalid_argument(
+        "distributed particle products: a rank has slice nodes but no particle near them");
+  if (request.slice_omega2) {
+    // ω of the halo from its owners, then ω² fitted at the slice nodes.
+    std::vector<std::vector<double>*> fields;
+    for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
+      omega.component[c].resize(local.size());
+      fields.push_back(&omega.component[c]);
+    }
+    halo.update(d, fields);
+    std::vector<double> values;
+    if (!share.nodes.empty())
+      values = analysis::fitted_vorticity_squared(grid, local, fit, omega, share.nodes);
+    result.slice_omega2 = gather_slice(d, share, values);
+  }
+  if (request.slice_tau) {
+    // |τ_SFS| of the halo from its owners, then that of each slice node's nearest particle.
+    std::vector<double> norm = stress.norm;
+    norm.resize(local.size());
+    std::vector<double>* fields[] = {&norm};
+    halo.update(d, fields);
+    analysis::NearestInBlock nearest;
+    if (!share.nodes.empty()) {
+      const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
+      nearest = analysis::nearest_particles_in_block(grid, local, share.block,
+                                                     static_cast<int>(std::lround(per_side)));
+    }
+    // A particle left out of `local` is at least the halo width from every node of the sub-box;
+    // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
+    const double halo2 = d.halo_width() * d.halo_width();
+    if (!on_every_rank(d, alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
+      throw std::invalid_argument(
+          "distributed particle products: a slice node's nearest particle lies further than the "
+          "halo width (" +
+          std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
+    std::vector<double> values(share.nodes.size());
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = norm[nearest.particle[k]];
+    result.slice_tau = gather_slice(d, share, values);
+  }
+  return result;
+}
+
+}  // namespace sphles::par
