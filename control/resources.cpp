@@ -21,6 +21,7 @@
 #include "analysis/config.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/packing.hpp"
+#include "sim/pair_loop.hpp"
 #include "sim/subfilter.hpp"
 
 namespace sphles::control {
@@ -134,7 +135,7 @@ struct ListModel {
   double build_bytes = 0.0;  // transient of a build beside the list
   double cells = 0.0;
   /// The solver's InteractionList (sim/pair_loop.hpp): the in-support pairs the density pass
-  /// compacts, allocated at the Verlet list's size, with its own offsets and counts.
+  /// compacts, with headroom, and its own offsets and counts.
   double interaction_bytes = 0.0;
 };
 
@@ -155,7 +156,10 @@ ListModel list_model(const sim::Scene& s, double skin_fraction) {
   // Start and count per particle; the indices with the build's margin.
   const double indices = sim::VerletNeighbourSearch::kRegionMargin * pairs * kIndex;
   m.list_bytes = particles * (kSize + kIndex) + indices;
-  m.interaction_bytes = m.list_bytes;  // allocated at the list's size
+  const double in_support =
+      std::min(neighbours_in_radius(dim, cutoff / spacing, !s.packing.enabled), particles - 1.0);
+  m.interaction_bytes = particles * (kSize + kIndex) +
+                        sim::InteractionList::kMargin * particles * in_support * kIndex;
   const double cell_size = radius / sim::VerletNeighbourSearch::kCellsPerRadius;
   m.cells = std::pow(std::max(1.0, std::floor(s.box_length() / cell_size)), dim);
   // Cell of every particle, counting sort (starts, fill, members); the locality order and the
@@ -286,6 +290,17 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
     using Stress = analysis::SubfilterStressField;
     t.hold(particles * (sizeof(Stress::tensor[0]) + sizeof(Stress::norm[0]) +
                         sizeof(Stress::principal[0]) + sizeof(Stress::direction[0])));
+    // The sums' own list of radius H (analysis/subfilter_stress.hpp), built by the solver's
+    // search while the field fills: starts, counts and the pairs in the support with the
+    // build's margin; beside it the search's reference positions, cell of each particle, cell
+    // members and id order.
+    const double in_support =
+        std::min(neighbours_in_radius(dim, 0.5 * s.kernel_diameter() / s.particle_spacing(),
+                                      !s.packing.enabled),
+                 particles - 1.0);
+    t.transient(particles * (kSize + kIndex) +
+                sim::VerletNeighbourSearch::kRegionMargin * particles * in_support * kIndex +
+                particles * (dim * kDouble + 3.0 * kIndex));
   }
   if (a.particle_vorticity) {
     t.hold(particles * kSize);  // nearest node of each particle
@@ -417,7 +432,7 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
        n_text + " x " + count_text(solver_per_particle) + " B"},
       {"neighbour_list", list.list_bytes, list_text + " x 4 B"},
       {"interaction_list", list.interaction_bytes,
-       "pairs inside the support, allocated at the list's size"},
+       "pairs inside the support, with a tenth more room"},
       build_larger
           ? MemoryPart{"neighbour_build", list.build_bytes,
                        "the cell sort of a rebuild, " + count_text(list.cells) + " cells"}

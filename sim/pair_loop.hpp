@@ -31,6 +31,8 @@
 // and is reduced in list order.
 #pragma once
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <concepts>
 #include <cstddef>
@@ -87,25 +89,60 @@ class PeriodicGeometry {
 /// The pairs inside the kernel support (0 < r < H) of every particle, in Verlet-list order: the
 /// list the passes after the density pass of a force evaluation loop over (no support test, 40 %
 /// fewer entries than the Verlet list). Built by density pass (compacting_pair_pass) at the
-/// positions of that evaluation; valid until the positions change. The entries of i sit at the
-/// start of i's segment of the Verlet list it was built from.
+/// positions of that evaluation; valid until the positions change. Sized by its use: the
+/// entries of a block of particles sit together wherever the block's thread placed them, in an
+/// array of about kMargin times the pairs of the last pass (not the Verlet list's size).
 class InteractionList {
  public:
+  /// Headroom of the entries' array over the last pass' pairs, so that the next passes' few per
+  /// cent more pairs fit without growing it.
+  static constexpr double kMargin = 1.1;
+  /// Before the first pass, the array holds this share of the Verlet list's entries in 2D and
+  /// 3D (the support's share of a list with the default skin 0.15 H is (1/1.15)^n: 0.76 and
+  /// 0.66); a pass that needs more grows it once.
+  static constexpr double kFirstShare2D = 0.8;
+  static constexpr double kFirstShare3D = 0.7;
+
   std::size_t num_particles() const { return count_.size(); }
   std::span<const std::uint32_t> of(std::size_t i) const {
     return {indices_.data() + offsets_[i], count_[i]};
   }
   /// Pairs in the list (Σ_i of(i).size()).
   std::size_t num_pairs() const;
+  /// Entries the array holds (pairs and headroom).
+  std::size_t capacity() const { return indices_.size(); }
 
-  /// Makes room for the segments of `verlet` (called by compacting_pair_pass).
-  void prepare(const NeighbourList& verlet) {
-    offsets_ = verlet.start;  // a copy: the Verlet list may be rebuilt while this one is read
-    indices_.resize(verlet.indices.size());
-    count_.assign(verlet.num_particles(), 0);
+  /// Makes room for the pairs of `verlet`'s particles in `dimension` dimensions (called by
+  /// compacting_pair_pass): the array is kept, or sized from the last pass, or from `verlet`
+  /// before the first.
+  void prepare(const NeighbourList& verlet, int dimension) {
+    const std::size_t n = verlet.num_particles();
+    const std::size_t last = num_pairs();
+    offsets_.assign(n, 0);
+    count_.assign(n, 0);
+    const auto wanted =
+        static_cast<std::size_t>(last > 0 ? kMargin * static_cast<double>(last)
+                                          : (dimension == 3 ? kFirstShare3D : kFirstShare2D) *
+                                                static_cast<double>(verlet.num_entries()));
+    if (indices_.size() < wanted || (last > 0 && indices_.size() > 2 * wanted)) {
+      indices_.clear();  // nothing to keep: no copy
+      indices_.resize(wanted);
+    }
   }
-  std::uint32_t* segment(std::size_t i) { return indices_.data() + offsets_[i]; }
-  void set_count(std::size_t i, std::uint32_t count) { count_[i] = count; }
+  /// Entries [at, at + size) hold the pairs of particles first, first + 1, ... in order, with
+  /// counts `counts`: the block's place in the list.
+  void place(std::size_t first, std::span<const std::uint32_t> counts, std::size_t at) {
+    for (std::size_t k = 0; k < counts.size(); ++k) {
+      offsets_[first + k] = at;
+      count_[first + k] = counts[k];
+      at += counts[k];
+    }
+  }
+  std::uint32_t* entries(std::size_t at) { return indices_.data() + at; }
+  /// Grows the array to `size` entries, keeping those written.
+  void grow(std::size_t size) {
+    if (indices_.size() < size) indices_.resize(size);
+  }
 
  private:
   std::vector<std::size_t> offsets_;
@@ -282,23 +319,58 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
                           double support_radius, std::size_t begin, std::size_t end,
                           InteractionList& interactions) {
   const double support2 = support_radius * support_radius;
-  interactions.prepare(list);
-  const auto first = static_cast<std::ptrdiff_t>(begin);
-  const auto last = static_cast<std::ptrdiff_t>(end);
+  interactions.prepare(list, Dim);
+  // Blocks of particles, each compacted into its thread's buffer and copied to a range of the
+  // list reserved by an atomic counter; a block whose range lies beyond the array's end keeps
+  // its buffer until the array has grown.
+  constexpr std::size_t kBlock = 256;
+  const std::size_t blocks = end > begin ? (end - begin + kBlock - 1) / kBlock : 0;
+  const std::size_t capacity = interactions.capacity();
+  std::atomic<std::size_t> next{0};
+  struct Late {
+    std::size_t at;
+    std::vector<std::uint32_t> entries;
+  };
+  std::vector<Late> late;
+  const auto signed_blocks = static_cast<std::ptrdiff_t>(blocks);
 #pragma omp parallel
   {
-    std::vector<std::uint32_t> keep;
-#pragma omp for schedule(dynamic, 256)
-    for (std::ptrdiff_t si = first; si < last; ++si) {
-      const auto i = static_cast<std::size_t>(si);
-      const std::span<const std::uint32_t> js = list.of(i);
-      keep.resize(js.size());
-      pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support2,
-                                                              keep.data());
-      const std::size_t kept =
-          append_selected(js.data(), keep.data(), js.size(), interactions.segment(i));
-      interactions.set_count(i, static_cast<std::uint32_t>(kept));
+    std::vector<std::uint32_t> keep, buffer, counts;
+#pragma omp for schedule(dynamic, 1)
+    for (std::ptrdiff_t b = 0; b < signed_blocks; ++b) {
+      const std::size_t first = begin + static_cast<std::size_t>(b) * kBlock;
+      const std::size_t last = std::min(end, first + kBlock);
+      counts.resize(last - first);
+      std::size_t used = 0;
+      for (std::size_t i = first; i < last; ++i) {
+        const std::span<const std::uint32_t> js = list.of(i);
+        keep.resize(js.size());
+        pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support2,
+                                                                keep.data());
+        // append_selected writes up to all of i's candidates before counting the kept ones.
+        if (buffer.size() < used + js.size()) buffer.resize(2 * (used + js.size()));
+        const std::size_t kept =
+            append_selected(js.data(), keep.data(), js.size(), buffer.data() + used);
+        counts[i - first] = static_cast<std::uint32_t>(kept);
+        used += kept;
+      }
+      const std::size_t at = next.fetch_add(used, std::memory_order_relaxed);
+      interactions.place(first, counts, at);
+      if (at + used <= capacity) {
+        std::copy_n(buffer.data(), used, interactions.entries(at));
+      } else {
+#pragma omp critical(sphles_interaction_list_late)
+        late.push_back(
+            {at, std::vector<std::uint32_t>(buffer.begin(),
+                                            buffer.begin() + static_cast<std::ptrdiff_t>(used))});
+      }
     }
+  }
+  if (!late.empty()) {
+    interactions.grow(
+        static_cast<std::size_t>(InteractionList::kMargin * static_cast<double>(next.load())));
+    for (const Late& l : late)
+      std::copy(l.entries.begin(), l.entries.end(), interactions.entries(l.at));
   }
 }
 

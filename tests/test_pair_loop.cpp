@@ -203,6 +203,64 @@ TEST(PairLoop, LanesAndListOrderAgreeToRoundOff) {
 // The interaction list holds, for every particle, exactly the Verlet entries with 0 < r < H, in
 // Verlet order; a pass over it summed in list order equals the same pass over the Verlet list bit
 // for bit (the same pairs, the same order; the skin's entries add +0).
+/// Whether every particle's interaction list holds exactly its Verlet entries closer than
+/// `support` (r > 0), in Verlet order.
+void expect_cut_to(const InteractionList& pairs, const NeighbourList& verlet,
+                   const ParticleArrays& p, const PeriodicBox& box, double support) {
+  ASSERT_EQ(pairs.num_particles(), p.size());
+  std::size_t kept = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    std::vector<std::uint32_t> expected;
+    for (const std::uint32_t j : verlet.of(i)) {
+      double r2 = 0.0;
+      for (int d = 0; d < p.dimension; ++d) {
+        const double dx =
+            minimum_image(p.position[d][i] - p.position[d][j], box.length[d], 0.5 * box.length[d]);
+        r2 += dx * dx;
+      }
+      if (r2 < support * support && r2 > 0.0) expected.push_back(j);
+    }
+    const auto got = pairs.of(i);
+    ASSERT_EQ(std::vector<std::uint32_t>(got.begin(), got.end()), expected) << "particle " << i;
+    kept += expected.size();
+  }
+  EXPECT_EQ(pairs.num_pairs(), kept);
+}
+
+/// The list is sized by its use: after a pass at half the support (an eighth of the pairs in
+/// 3D, a quarter in 2D) a pass at the full support needs more than the array holds, grows it
+/// once, and holds the right pairs; the array is then about InteractionList::kMargin times the
+/// pairs, well below the Verlet list's entries.
+TEST(PairLoop, InteractionListIsSizedByItsUseAndGrowsWhenAPassNeedsMore) {
+  for (const int dim : {2, 3}) {
+    testing::RandomFlow flow = prepared_flow(dim, dim == 3 ? 12 : 36, 4);
+    const SolverConfig& c = flow.config;
+    ParticleArrays& p = flow.particles;
+    VerletNeighbourSearch search(c.box, c.support_radius, 0.15 * c.support_radius);
+    search.build(view_positions(p));
+    InteractionList pairs;
+    with_kernel(c.kernel, dim, 0.5 * c.support_radius, [&](const auto& half) {
+      constexpr int kDim = std::remove_cvref_t<decltype(half)>::dimension;
+      density_pass<kDim>(half, c.box, search.list(), c.fluid, p, &pairs);
+    });
+    expect_cut_to(pairs, search.list(), p, c.box, 0.5 * c.support_radius);
+    const std::size_t few = pairs.num_pairs();
+    EXPECT_LT(pairs.capacity(), search.list().num_entries());
+    with_kernel(c.kernel, dim, c.support_radius, [&](const auto& kernel) {
+      constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
+      density_pass<kDim>(kernel, c.box, search.list(), c.fluid, p, &pairs);
+    });
+    expect_cut_to(pairs, search.list(), p, c.box, c.support_radius);
+    // Sized from the first pass (kMargin times its pairs), the array had to grow.
+    EXPECT_GT(static_cast<double>(pairs.num_pairs()),
+              4.0 * InteractionList::kMargin * static_cast<double>(few));
+    EXPECT_GE(pairs.capacity(), pairs.num_pairs());
+    EXPECT_LE(static_cast<double>(pairs.capacity()),
+              InteractionList::kMargin * static_cast<double>(pairs.num_pairs()) + 1.0);
+    EXPECT_LT(pairs.capacity(), search.list().num_entries());
+  }
+}
+
 TEST(PairLoop, InteractionListIsTheVerletListCutToTheSupport) {
   for (const int dim : {2, 3}) {
     testing::RandomFlow flow = prepared_flow(dim, dim == 3 ? 12 : 36, 9);
@@ -214,25 +272,8 @@ TEST(PairLoop, InteractionListIsTheVerletListCutToTheSupport) {
     with_kernel(c.kernel, dim, c.support_radius, [&](const auto& kernel) {
       constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
       density_pass<kDim>(kernel, c.box, search.list(), c.fluid, p, &pairs);
-      const double h2 = c.support_radius * c.support_radius;
-      ASSERT_EQ(pairs.num_particles(), p.size());
-      std::size_t kept = 0;
-      for (std::size_t i = 0; i < p.size(); ++i) {
-        std::vector<std::uint32_t> expected;
-        for (const std::uint32_t j : search.list().of(i)) {
-          double r2 = 0.0;
-          for (int d = 0; d < kDim; ++d) {
-            const double dx = minimum_image(p.position[d][i] - p.position[d][j], c.box.length[d],
-                                            0.5 * c.box.length[d]);
-            r2 += dx * dx;
-          }
-          if (r2 < h2 && r2 > 0.0) expected.push_back(j);
-        }
-        const auto got = pairs.of(i);
-        ASSERT_EQ(std::vector<std::uint32_t>(got.begin(), got.end()), expected) << "particle " << i;
-        kept += expected.size();
-      }
-      EXPECT_EQ(pairs.num_pairs(), kept);
+      expect_cut_to(pairs, search.list(), p, c.box, c.support_radius);
+      const std::size_t kept = pairs.num_pairs();
       EXPECT_LT(kept, search.list().num_entries());  // the skin's entries are gone
       const PeriodicGeometry<kDim> geometry(c.box, p);
       const auto momentum = [&] {
