@@ -9,8 +9,8 @@
 #include <stdexcept>
 #include <type_traits>
 
+#include "analysis/cell_list.hpp"
 #include "sim/kernels.hpp"
-#include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::analysis {
@@ -18,51 +18,6 @@ namespace {
 
 // Tensor slot of the symmetric component (a, b), a, b < 3.
 constexpr int kSlot[3][3] = {{kXX, kXY, kXZ}, {kXY, kYY, kYZ}, {kXZ, kYZ, kZZ}};
-
-/// τ_SFS,i = Σ_j (v_j - v_i)(v_j - v_i)ᵀ W_ij M_j (3.27) as an evaluator of the pair loop
-/// (sim/pair_loop.hpp; outputs: the upper triangle, row by row). The self pair (absent from the
-/// list) would contribute zero; a particle on top of another counts.
-template <int Dim, class KernelT>
-struct StressSum {
-  static constexpr int outputs = Dim * (Dim + 1) / 2;
-  static constexpr bool coincident_pairs = true;
-  struct Own {
-    double v[Dim];
-  };
-
-  StressSum(const KernelT& kernel, const sim::ParticleArrays& p,
-            std::vector<std::array<double, 6>>& tensor)
-      : kernel_(kernel), mass_(p.mass.data()), tensor_(tensor.data()) {
-    for (int d = 0; d < Dim; ++d) v_[d] = p.velocity[d].data();
-  }
-
-  Own own(std::size_t i) const {
-    Own o;
-    for (int d = 0; d < Dim; ++d) o.v[d] = v_[d][i];
-    return o;
-  }
-  void pair(const Own& o, const sim::Pair<Dim>& q, double (&out)[outputs]) const {
-    const double weight = kernel_.value(q.r) * mass_[q.j];  // W_ij M_j
-    double dv[Dim];
-    for (int d = 0; d < Dim; ++d) dv[d] = v_[d][q.j] - o.v[d];
-    int slot = 0;
-    for (int a = 0; a < Dim; ++a)
-      for (int b = a; b < Dim; ++b) out[slot++] = dv[a] * dv[b] * weight;
-  }
-  void finish(std::size_t i, const Own&, const double (&sum)[outputs]) const {
-    std::array<double, 6>& t = tensor_[i];
-    t.fill(0.0);
-    int slot = 0;
-    for (int a = 0; a < Dim; ++a)
-      for (int b = a; b < Dim; ++b) t[kSlot[a][b]] = sum[slot++];
-  }
-
- private:
-  KernelT kernel_;
-  const double* v_[Dim];
-  const double* mass_;
-  std::array<double, 6>* tensor_;
-};
 
 /// Frobenius norm (4.7) and principal stresses/directions (4.8) of one tensor.
 template <int Dim>
@@ -114,27 +69,50 @@ SubfilterStressField implicit_subfilter_stress(const sim::ParticleArrays& p,
   if (p.dimension != dim)
     throw std::invalid_argument("sub-filter stress: particle and box dimensions differ");
   centres = std::min(centres, p.size());
-  sim::VerletNeighbourSearch search(box, support_radius, 0.0);
-  search.build(sim::view_positions(p), sim::order_by_key(p.id), centres);
-  const sim::NeighbourList& neighbours = search.list();
-
   SubfilterStressField field;
   field.dimension = dim;
   field.tensor.resize(centres);
   field.norm.resize(centres);
   field.principal.resize(centres);
   field.direction.resize(centres);
+  if (centres == 0) return field;
 
+  // The neighbours within H from the analysis' cell list (cells of side >= H/2, a cell's members
+  // in id order): an order set by positions and ids alone, and no list to hold.
+  Grid grid;
+  grid.dimension = dim;
+  grid.points_per_side = 1;
+  grid.length = box.length[0];
+  const CellList cells = build_gather_cell_list(grid, p, support_radius);
+  const std::vector<int> offsets = gather_offsets(cells);
   sim::with_kernel(kernel, dim, support_radius, [&](const auto& w) {
     constexpr int kDim = std::remove_cvref_t<decltype(w)>::dimension;
-    sim::pair_pass<kDim>(StressSum<kDim, std::remove_cvref_t<decltype(w)>>(w, p, field.tensor),
-                         sim::PeriodicGeometry<kDim>(box, p), neighbours, w.support_radius(), 0,
-                         centres);
     const auto n = static_cast<std::ptrdiff_t>(centres);
-#pragma omp parallel for schedule(static, 512)
+#pragma omp parallel for schedule(dynamic, 256)
     for (std::ptrdiff_t si = 0; si < n; ++si) {
       const auto i = static_cast<std::size_t>(si);
-      principal_axes<kDim>(field.tensor[i], field.norm[i], field.principal[i], field.direction[i]);
+      std::array<double, 3> x{0.0, 0.0, 0.0}, v{0.0, 0.0, 0.0};
+      for (int d = 0; d < kDim; ++d) {
+        x[d] = p.position[d][i];
+        v[d] = p.velocity[d][i];
+      }
+      // τ_SFS,i = Σ_j (v_j - v_i)(v_j - v_i)ᵀ W_ij M_j (3.27); j = i adds nothing, a particle on
+      // top of another counts.
+      std::array<double, 6>& t = field.tensor[i];
+      t.fill(0.0);
+      for_each_particle_within<kDim>(cells, offsets, x, support_radius, grid.length,
+                                     [&](std::uint32_t j, const std::array<double, 3>&, double r2) {
+                                       if (j == i) return;
+                                       const double weight =
+                                           w.value(std::sqrt(r2)) * p.mass[j];  // W_ij M_j
+                                       double dv[3] = {0.0, 0.0, 0.0};
+                                       for (int d = 0; d < kDim; ++d)
+                                         dv[d] = p.velocity[d][j] - v[d];
+                                       for (int a = 0; a < kDim; ++a)
+                                         for (int b = a; b < kDim; ++b)
+                                           t[kSlot[a][b]] += dv[a] * dv[b] * weight;
+                                     });
+      principal_axes<kDim>(t, field.norm[i], field.principal[i], field.direction[i]);
     }
   });
   return field;

@@ -26,10 +26,11 @@ struct SubfilterStressField {
 
 /// τ_SFS (3.27) of the first `centres` particles (a rank's own ones, its halo behind them: par/)
 /// in the periodic `box`, with the kernel `kernel` of support H (j = i contributes nothing).
-/// Principal axes from Eigen's self-adjoint eigen-solver. The neighbours come from a list of
-/// radius H built here whose cells hold their members in id order, so each particle sums its
-/// neighbours in an order set by positions and ids alone: the same bits for any order of the
-/// particles and on the ranks of a distributed run as in one process.
+/// Principal axes from Eigen's self-adjoint eigen-solver. The neighbours come from the
+/// analysis' cell list (cell_list.hpp: cells of side >= H/2 over the cubic box, a cell's
+/// members in id order), so each particle sums its neighbours in an order set by positions and
+/// ids alone: the same bits for any order of the particles and on the ranks of a distributed
+/// run as in one process.
 SubfilterStressField implicit_subfilter_stress(const sim::ParticleArrays& particles,
                                                const sim::PeriodicBox& box, sim::KernelType kernel,
                                                double support_radius, std::size_t centres);

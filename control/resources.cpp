@@ -290,17 +290,8 @@ AnalysisModel analysis_model(const sim::Scene& s, const analysis::AnalysisConfig
     using Stress = analysis::SubfilterStressField;
     t.hold(particles * (sizeof(Stress::tensor[0]) + sizeof(Stress::norm[0]) +
                         sizeof(Stress::principal[0]) + sizeof(Stress::direction[0])));
-    // The sums' own list of radius H (analysis/subfilter_stress.hpp), built by the solver's
-    // search while the field fills: starts, counts and the pairs in the support with the
-    // build's margin; beside it the search's reference positions, cell of each particle, cell
-    // members and id order.
-    const double in_support =
-        std::min(neighbours_in_radius(dim, 0.5 * s.kernel_diameter() / s.particle_spacing(),
-                                      !s.packing.enabled),
-                 particles - 1.0);
-    t.transient(particles * (kSize + kIndex) +
-                sim::VerletNeighbourSearch::kRegionMargin * particles * in_support * kIndex +
-                particles * (dim * kDouble + 3.0 * kIndex));
+    // The sums gather from the analysis' cell list (analysis/subfilter_stress.hpp).
+    t.transient(shepard_cells);
   }
   if (a.particle_vorticity) {
     t.hold(particles * kSize);  // nearest node of each particle
