@@ -98,16 +98,24 @@ bool Decomposition::owns(const sim::ParticleArrays& p, std::size_t i) const {
   return true;
 }
 
-void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& first, int& count) {
-  const int mine = d.coords()[static_cast<std::size_t>(axis)];
-  first = m;
-  count = 0;
-  for (int i = 0; i < m; ++i)
-    if (d.coordinate_of(axis, i * spacing) == mine) {
-      first = std::min(first, i);
-      ++count;
-    }
-  if (count == 0) first = 0;
+analysis::NodeBlock own_block(const Decomposition& d, const analysis::Grid& grid) {
+  analysis::NodeBlock block;
+  const int m = grid.points_per_side;
+  for (int a = 0; a < grid.dimension; ++a) {
+    const auto k = static_cast<std::size_t>(a);
+    const int mine = d.coords()[k];
+    int& first = block.first[k];
+    int& count = block.count[k];
+    first = m;
+    count = 0;
+    for (int i = 0; i < m; ++i)
+      if (d.coordinate_of(a, i * grid.spacing()) == mine) {
+        first = std::min(first, i);
+        ++count;
+      }
+    if (count == 0) first = 0;
+  }
+  return block;
 }
 
 }  // namespace sphles::par

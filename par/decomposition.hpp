@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <stdexcept>
 
+#include "analysis/grid.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::par {
@@ -74,9 +75,9 @@ class Decomposition {
   std::array<int, 3> upper_rank_{0, 0, 0};
 };
 
-/// The grid nodes i h (i in [0, m), spacing h) whose position along `axis` lies in this rank's
-/// sub-box: [first, first + count), a contiguous range since the sub-box bounds increase with
-/// the coordinate; first = 0 when count = 0.
-void own_nodes(const Decomposition& d, int axis, int m, double spacing, int& first, int& count);
+/// The nodes of `grid` (over the decomposition's box) whose positions lie in this rank's
+/// sub-box: along each axis a contiguous range, since the sub-box bounds increase with the
+/// coordinate (first 0 when a range is empty).
+analysis::NodeBlock own_block(const Decomposition& d, const analysis::Grid& grid);
 
 }  // namespace sphles::par

@@ -43,11 +43,7 @@ SliceShare slice_share(const Decomposition& d, const analysis::Grid& grid,
   const std::vector<std::size_t> slice = analysis::slice_nodes(grid, config);
   SliceShare share;
   share.slice_size = slice.size();
-  for (int a = 0; a < dim; ++a) {
-    const auto k = static_cast<std::size_t>(a);
-    own_nodes(d, a, grid.points_per_side, grid.spacing(), share.block.first[k],
-              share.block.count[k]);
-  }
+  share.block = own_block(d, grid);
   const auto m = static_cast<std::size_t>(grid.points_per_side);
   if (dim == 3) {
     // The slice's plane along its normal: that of its first node.

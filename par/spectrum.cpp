@@ -109,10 +109,7 @@ struct DistributedSpectrum::Impl {
     grid.dimension = dim;
     grid.points_per_side = m;
     grid.length = d.box().length[0];
-    for (int a = 0; a < dim; ++a) {
-      const auto k = static_cast<std::size_t>(a);
-      own_nodes(d, a, m, grid.spacing(), block.first[k], block.count[k]);
-    }
+    block = own_block(d, grid);
     const auto ranks = static_cast<std::size_t>(d.size());
     std::vector<int> layout(8 * ranks);  // per rank: block first[3], count[3]; slab first, count
     const int mine[8] = {block.first[0],
