@@ -317,9 +317,18 @@ class Run::Impl::Loop {
     const io::CheckpointMetadata metadata{run_spec_to_json(current_).dump(), SPHLES_VERSION,
                                           packing_};
     const auto file = checkpoint_dir_ / io::checkpoint_file_name(simulation_->step_count());
-    io::write_checkpoint(file, simulation_->state(), metadata,
-                         {.gzip_level = current_.run.scene.checkpoint.compression});
-    io::write_checkpoint_xdmf(file, simulation_->state());
+    const io::CheckpointWriteOptions options{.gzip_level =
+                                                 current_.run.scene.checkpoint.compression};
+    if (const auto* ranks = dynamic_cast<const io::DistributedCheckpoints*>(simulation_.get())) {
+      // A distributed solver's ranks write their own particles; none is gathered.
+      ranks->write_checkpoint(file, metadata, options);
+      run_.log->debug("checkpoint {} written by the ranks, no particles gathered",
+                      file.filename().string());
+    } else {
+      const sim::SolverState state = simulation_->state();
+      io::write_checkpoint(file, state, metadata, options);
+      io::write_checkpoint_xdmf(file, state);
+    }
     const auto files = io::list_checkpoints(checkpoint_dir_);
     for (std::size_t k = static_cast<std::size_t>(current_.run.scene.checkpoint.keep);
          k < files.size(); ++k) {

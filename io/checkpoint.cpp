@@ -14,6 +14,7 @@
 #include <sstream>
 #include <tuple>
 
+#include "io/checkpoint_collective.hpp"
 #include "io/hdf5_file.hpp"
 #include "sim/scene.hpp"
 
@@ -29,14 +30,24 @@ const char* kAxis[] = {"x", "y", "z"};
 
 // --- writing ---------------------------------------------------------------------------
 
+/// Where this process' particles go in the file's datasets: entries [first, first + count) of
+/// `total`, written with the data transfer properties `transfer` (collective for MPI-IO).
+struct Block {
+  hsize_t first = 0;
+  hsize_t total = 0;
+  hid_t transfer = H5P_DEFAULT;
+  bool eddy_viscosity = false;  // whether the run has ν_t (a process may hold no particles)
+};
+
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
                    const std::string& units, const CheckpointWriteOptions& options,
-                   const std::string& label) {
+                   const std::string& label, const Block& block) {
   const auto failed = [&] {
     return CheckpointError(label + ": cannot write dataset 'particles/" + name + "'");
   };
-  const hsize_t size = data.size();
+  const hsize_t size = block.total;
+  const hsize_t count = data.size();
   const Handle space(H5Screate_simple(1, &size, nullptr), H5Sclose);
   const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space.valid() || !properties.valid()) throw failed();
@@ -52,10 +63,107 @@ void write_dataset(hid_t group, const std::string& name, hid_t type, const std::
   const Handle dataset(H5Dcreate2(group, name.c_str(), type, space.get(), H5P_DEFAULT,
                                   properties.get(), H5P_DEFAULT),
                        H5Dclose);
-  if (!dataset.valid() ||
-      (size > 0 && H5Dwrite(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0))
-    throw failed();
+  if (!dataset.valid()) throw failed();
+  if (size > 0) {
+    // This process' entries; a process with none still takes part in a collective write.
+    const hsize_t one = 1;
+    const Handle memory(H5Screate_simple(1, count > 0 ? &count : &one, nullptr), H5Sclose);
+    const herr_t selected =
+        count > 0 ? H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &block.first, nullptr, &count,
+                                        nullptr)
+                  : std::min(H5Sselect_none(space.get()), H5Sselect_none(memory.get()));
+    if (!memory.valid() || selected < 0 ||
+        H5Dwrite(dataset.get(), type, memory.get(), space.get(), block.transfer, data.data()) < 0)
+      throw failed();
+  }
   write_string_attribute(dataset.get(), "units", units, label);
+}
+
+/// The whole checkpoint under `root`: its attributes, then the particle datasets with this
+/// process' particles (`state`) at `block`. Every process of a collective write makes the same
+/// calls with the same attribute values.
+void write_contents(hid_t root, const sim::SolverState& state, const CheckpointMetadata& metadata,
+                    const CheckpointWriteOptions& options, const std::string& label,
+                    const Block& block) {
+  const sim::ParticleArrays& p = state.particles;
+  const int dim = p.dimension;
+  write_string_attribute(root, "schema", kCheckpointSchema, label);
+  write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion, label);
+  write_string_attribute(root, "code_version", metadata.code_version, label);
+  write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, label);
+  write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
+                         static_cast<std::uint64_t>(block.total), label);
+  write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, label);
+  write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, label);
+  write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
+                         label);
+  write_string_attribute(root, "scene", metadata.scene_json, label);
+  write_string_attribute(root, "packing", metadata.packing, label);
+  write_string_attribute(root, "units",
+                         "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
+                         "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
+                         label);
+  const Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+                     H5Gclose);
+  if (!group.valid()) throw CheckpointError(label + ": cannot create group 'particles'");
+  const hid_t g = group.get();
+  const bool three = dim == 3;
+  for (int d = 0; d < dim; ++d) {
+    const std::string axis = kAxis[d];
+    write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], "m", options, label,
+                  block);
+    write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], "m/s", options, label,
+                  block);
+    write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], "m/s^2", options,
+                  label, block);
+    write_dataset(g, "list_reference_" + axis, H5T_NATIVE_DOUBLE, state.list_reference_positions[d],
+                  "m", options, label, block);
+  }
+  write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, three ? "kg" : "kg/m", options, label, block);
+  write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, three ? "m^3" : "m^2", options, label,
+                block);
+  write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, three ? "kg/m^3" : "kg/m^2", options,
+                label, block);
+  write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, "Pa", options, label, block);
+  write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, "1", options, label, block);
+  if (block.eddy_viscosity)
+    write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, "m^2/s", options, label,
+                  block);
+}
+
+void check_gzip_level(const CheckpointWriteOptions& options) {
+  if (options.gzip_level < 0 || options.gzip_level > 9)
+    throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
+}
+
+/// The failure of any process, agreed: the lowest failing rank's message on every process, or
+/// none. Collective.
+std::optional<std::string> agree(MPI_Comm comm, const std::optional<std::string>& failure) {
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const int mine = failure ? rank : size;
+  int lowest = size;
+  MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, comm);
+  if (lowest == size) return std::nullopt;
+  int length =
+      rank == lowest ? static_cast<int>(std::min<std::size_t>(failure->size(), 1 << 16)) : 0;
+  MPI_Bcast(&length, 1, MPI_INT, lowest, comm);
+  std::string text = rank == lowest ? failure->substr(0, static_cast<std::size_t>(length))
+                                    : std::string(static_cast<std::size_t>(length), '\0');
+  MPI_Bcast(text.data(), length, MPI_CHAR, lowest, comm);
+  return text;
+}
+
+/// Runs `step`, returning what it threw (or none).
+template <class Step>
+std::optional<std::string> attempt(Step&& step) {
+  try {
+    step();
+    return std::nullopt;
+  } catch (const std::exception& e) {
+    return std::string(e.what());
+  }
 }
 
 // --- reading ---------------------------------------------------------------------------
@@ -348,6 +456,8 @@ Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* g
 
 }  // namespace
 
+DistributedCheckpoints::~DistributedCheckpoints() = default;
+
 std::mutex& hdf5_library_mutex() {
   static std::mutex m;
   return m;
@@ -361,63 +471,128 @@ std::string checkpoint_file_name(std::uint64_t step) {
 
 void write_checkpoint(const std::filesystem::path& path, const sim::SolverState& state,
                       const CheckpointMetadata& metadata, const CheckpointWriteOptions& options) {
-  if (options.gzip_level < 0 || options.gzip_level > 9)
-    throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
+  check_gzip_level(options);
   const std::string label = "checkpoint '" + path.string() + "'";
-  const sim::ParticleArrays& p = state.particles;
-  const int dim = p.dimension;
   detail::FileImage image;
   {
     const std::lock_guard lock(hdf5_library_mutex());
     detail::MemoryFile h5(path, label);
-    const hid_t root = h5.get();
-    write_string_attribute(root, "schema", kCheckpointSchema, label);
-    write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kCheckpointSchemaVersion, label);
-    write_string_attribute(root, "code_version", metadata.code_version, label);
-    write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, dim, label);
-    write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
-                           static_cast<std::uint64_t>(p.size()), label);
-    write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, state.time, label);
-    write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, state.step, label);
-    write_scalar_attribute(root, "neighbour_builds", H5T_NATIVE_UINT64, state.neighbour_builds,
-                           label);
-    write_string_attribute(root, "scene", metadata.scene_json, label);
-    write_string_attribute(root, "packing", metadata.packing, label);
-    write_string_attribute(root, "units",
-                           "SI: position m, velocity m/s, acceleration m/s^2, mass kg (kg/m in "
-                           "2D), volume m^n, density kg/m^n, pressure Pa, eddy_viscosity m^2/s",
-                           label);
-    {
-      const Handle group(H5Gcreate2(root, "particles", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
-                         H5Gclose);
-      if (!group.valid()) throw CheckpointError(label + ": cannot create group 'particles'");
-      const hid_t g = group.get();
-      const bool three = dim == 3;
-      for (int d = 0; d < dim; ++d) {
-        const std::string axis = kAxis[d];
-        write_dataset(g, "position_" + axis, H5T_NATIVE_DOUBLE, p.position[d], "m", options, label);
-        write_dataset(g, "velocity_" + axis, H5T_NATIVE_DOUBLE, p.velocity[d], "m/s", options,
-                      label);
-        write_dataset(g, "acceleration_" + axis, H5T_NATIVE_DOUBLE, p.acceleration[d], "m/s^2",
-                      options, label);
-        write_dataset(g, "list_reference_" + axis, H5T_NATIVE_DOUBLE,
-                      state.list_reference_positions[d], "m", options, label);
-      }
-      write_dataset(g, "mass", H5T_NATIVE_DOUBLE, p.mass, three ? "kg" : "kg/m", options, label);
-      write_dataset(g, "volume", H5T_NATIVE_DOUBLE, p.volume, three ? "m^3" : "m^2", options,
-                    label);
-      write_dataset(g, "density", H5T_NATIVE_DOUBLE, p.density, three ? "kg/m^3" : "kg/m^2",
-                    options, label);
-      write_dataset(g, "pressure", H5T_NATIVE_DOUBLE, p.pressure, "Pa", options, label);
-      write_dataset(g, "id", H5T_NATIVE_UINT64, p.id, "1", options, label);
-      if (!p.eddy_viscosity.empty())
-        write_dataset(g, "eddy_viscosity", H5T_NATIVE_DOUBLE, p.eddy_viscosity, "m^2/s", options,
-                      label);
-    }
+    write_contents(h5.get(), state, metadata, options, label,
+                   {0, static_cast<hsize_t>(state.particles.size()), H5P_DEFAULT,
+                    !state.particles.eddy_viscosity.empty()});
     image = h5.finish();
   }
   // The disk write needs no HDF5 call, so it runs outside the library lock.
   detail::write_file_atomically(path, image, label);
+}
+
+std::uint64_t checkpoint_size_bound(int dimension, std::uint64_t particles, bool eddy_viscosity,
+                                    std::size_t metadata_bytes) {
+  // Per particle: position, velocity, acceleration and list reference per axis, mass, volume,
+  // density, pressure, id (8 bytes each), ν_t when the run has it.
+  const std::uint64_t datasets =
+      4 * static_cast<std::uint64_t>(dimension) + 5 + (eddy_viscosity ? 1 : 0);
+  const std::uint64_t chunks = (particles + (std::uint64_t{1} << 16) - 1) >> 16;
+  // A chunk's checksum (4 B) and index entry (< 64 B), a dataset's header and attributes (< 4 kB);
+  // gzip can grow incompressible data by < 0.1 %: 1 % and 1 MiB of margin.
+  const std::uint64_t raw = datasets * (8 * particles + 64 * chunks + 4096) + 2 * metadata_bytes;
+  return raw + raw / 100 + (std::uint64_t{1} << 20);
+}
+
+CheckpointShape write_checkpoint_collective(MPI_Comm comm, const std::filesystem::path& path,
+                                            const sim::SolverState& part, std::uint64_t first,
+                                            std::uint64_t total, const CheckpointMetadata& metadata,
+                                            const CheckpointWriteOptions& options) {
+  check_gzip_level(options);
+  const std::string label = "checkpoint '" + path.string() + "'";
+  int rank = 0;
+  MPI_Comm_rank(comm, &rank);
+  const auto fail = [&](const std::optional<std::string>& failure) {
+    if (!failure) return;
+    std::error_code ignored;  // the temporary may not exist yet
+    if (rank == 0) std::filesystem::remove(detail::temporary_name(path), ignored);
+    throw CheckpointError(*failure);
+  };
+
+  // The parts must tile [0, total).
+  const unsigned long long count = part.particles.size();
+  unsigned long long held = 0;
+  MPI_Allreduce(&count, &held, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
+  fail(agree(comm, held == total && first + count <= total
+                       ? std::nullopt
+                       : std::optional<std::string>(
+                             label + ": the processes hold " + std::to_string(held) +
+                             " particles for a checkpoint of " + std::to_string(total) + " (rank " +
+                             std::to_string(rank) + " holds [" + std::to_string(first) + ", " +
+                             std::to_string(first + count) + "))")));
+
+  // Whether the run has ν_t: a process may hold no particles.
+  const int mine = part.particles.eddy_viscosity.empty() ? 0 : 1;
+  int eddy_viscosity = 0;
+  MPI_Allreduce(&mine, &eddy_viscosity, 1, MPI_INT, MPI_MAX, comm);
+  fail(agree(comm, part.particles.eddy_viscosity.size() == (eddy_viscosity ? count : 0)
+                       ? std::nullopt
+                       : std::optional<std::string>(label + ": rank " + std::to_string(rank) +
+                                                    " has no eddy viscosity for its particles")));
+
+  // Room for the file before HDF5 touches the disk: every process' file-size limit, the file
+  // system's free space (rank 0, which names the temporary: its PID).
+  const std::uint64_t bound = checkpoint_size_bound(
+      part.particles.dimension, total, eddy_viscosity != 0,
+      metadata.scene_json.size() + metadata.code_version.size() + metadata.packing.size());
+  std::string temporary = detail::temporary_name(path);
+  int length = static_cast<int>(temporary.size());
+  MPI_Bcast(&length, 1, MPI_INT, 0, comm);
+  temporary.resize(static_cast<std::size_t>(length));
+  MPI_Bcast(temporary.data(), length, MPI_CHAR, 0, comm);
+  fail(agree(comm, attempt([&] {
+               detail::check_file_size_limit(bound, label);
+               if (rank == 0) detail::check_free_space(path, bound, label);
+             })));
+
+  const std::lock_guard lock(hdf5_library_mutex());
+  detail::silence_hdf5();
+  const Handle access(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  const Handle transfer(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+  const bool properties = access.valid() && transfer.valid() &&
+                          H5Pset_fapl_mpio(access.get(), comm, MPI_INFO_NULL) >= 0 &&
+                          H5Pset_coll_metadata_write(access.get(), true) >= 0 &&
+                          H5Pset_dxpl_mpio(transfer.get(), H5FD_MPIO_COLLECTIVE) >= 0;
+  fail(agree(comm, properties ? std::nullopt
+                              : std::optional<std::string>(
+                                    label + ": cannot set up the MPI-IO file access properties")));
+  // Opening is collective in MPI-IO: it succeeds or fails on every process alike.
+  hid_t file = H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get());
+  fail(agree(comm, file >= 0 ? std::nullopt
+                             : std::optional<std::string>(label + ": cannot create '" + temporary +
+                                                          "' through MPI-IO")));
+  const auto close_file = [&] {
+    const bool closed = H5Fclose(file) >= 0;
+    file = -1;
+    return closed;
+  };
+  // The temporary's blocks reserved, then the contents written; each step agreed, so that no
+  // process enters a collective call the others have left.
+  std::optional<std::string> failure = agree(comm, attempt([&] {
+                                               if (rank == 0)
+                                                 detail::reserve_space(temporary, bound, label);
+                                             }));
+  if (!failure)
+    failure = agree(comm, attempt([&] {
+                      write_contents(file, part, metadata, options, label,
+                                     {static_cast<hsize_t>(first), static_cast<hsize_t>(total),
+                                      transfer.get(), eddy_viscosity != 0});
+                    }));
+  const bool closed = close_file();
+  if (!failure)
+    failure = agree(
+        comm, closed ? std::nullopt
+                     : std::optional<std::string>(label + ": cannot close '" + temporary + "'"));
+  fail(failure);
+  fail(agree(comm, attempt([&] {
+               if (rank == 0) detail::commit_temporary(temporary, path, label);
+             })));
+  return {part.particles.dimension, total, part.time, eddy_viscosity != 0};
 }
 
 std::filesystem::path checkpoint_xdmf_path(const std::filesystem::path& checkpoint) {
@@ -425,9 +600,17 @@ std::filesystem::path checkpoint_xdmf_path(const std::filesystem::path& checkpoi
   return side.replace_extension(".xdmf2");
 }
 
+CheckpointShape CheckpointShape::of(const sim::SolverState& state) {
+  return {state.particles.dimension, static_cast<std::uint64_t>(state.particles.size()), state.time,
+          !state.particles.eddy_viscosity.empty()};
+}
+
 void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::SolverState& state) {
-  const sim::ParticleArrays& p = state.particles;
-  const std::string n = std::to_string(p.size());
+  write_checkpoint_xdmf(checkpoint, CheckpointShape::of(state));
+}
+
+void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const CheckpointShape& shape) {
+  const std::string n = std::to_string(shape.particles);
   const std::string file = checkpoint.filename().string();
   const auto item = [&](const std::string& dataset, const char* type = "Float") {
     return "<DataItem Dimensions=\"" + n + "\" NumberType=\"" + type +
@@ -438,8 +621,8 @@ void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::S
   // both). A 2D vector gets z = 0 * x, so that ParaView sees 3-vectors in both cases.
   const auto vector = [&](const std::string& prefix) {
     std::string components = item(prefix + "_x") + item(prefix + "_y");
-    const char* function = p.dimension == 3 ? "JOIN($0, $1, $2)" : "JOIN($0, $1, 0 * $0)";
-    if (p.dimension == 3) components += item(prefix + "_z");
+    const char* function = shape.dimension == 3 ? "JOIN($0, $1, $2)" : "JOIN($0, $1, 0 * $0)";
+    if (shape.dimension == 3) components += item(prefix + "_z");
     return "<DataItem ItemType=\"Function\" Function=\"" + std::string(function) +
            "\" Dimensions=\"" + n + " 3\">" + components + "</DataItem>";
   };
@@ -448,11 +631,11 @@ void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::S
   x << "<?xml version=\"1.0\" ?>\n"
     << "<Xdmf Version=\"2.0\">\n  <Domain>\n"
     << "    <Grid Name=\"" << file << "\" GridType=\"Uniform\">\n"
-    << "      <Time Value=\"" << state.time << "\"/>\n"
+    << "      <Time Value=\"" << shape.time << "\"/>\n"
     << "      <Topology TopologyType=\"Polyvertex\" NumberOfElements=\"" << n
     << "\" NodesPerElement=\"1\">" << item("id", "UInt") << "</Topology>\n"
-    << "      <Geometry GeometryType=\"" << (p.dimension == 3 ? "X_Y_Z" : "X_Y") << "\">"
-    << item("position_x") << item("position_y") << (p.dimension == 3 ? item("position_z") : "")
+    << "      <Geometry GeometryType=\"" << (shape.dimension == 3 ? "X_Y_Z" : "X_Y") << "\">"
+    << item("position_x") << item("position_y") << (shape.dimension == 3 ? item("position_z") : "")
     << "</Geometry>\n";
   for (const char* v : {"velocity", "acceleration"})
     x << "      <Attribute Name=\"" << v << "\" AttributeType=\"Vector\" Center=\"Node\">"
@@ -460,7 +643,7 @@ void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::S
   x << "      <Attribute Name=\"id\" AttributeType=\"Scalar\" Center=\"Node\">"
     << item("id", "UInt") << "</Attribute>\n";
   std::vector<std::string> scalars{"mass", "volume", "density", "pressure"};
-  if (!p.eddy_viscosity.empty()) scalars.push_back("eddy_viscosity");
+  if (shape.eddy_viscosity) scalars.push_back("eddy_viscosity");
   for (const std::string& s : scalars)
     x << "      <Attribute Name=\"" << s << "\" AttributeType=\"Scalar\" Center=\"Node\">"
       << item(s) << "</Attribute>\n";

@@ -51,10 +51,34 @@ void write_checkpoint(const std::filesystem::path& path, const sim::SolverState&
 /// extension by which ParaView picks its XDMF 2 reader; docs/checkpoints.md).
 std::filesystem::path checkpoint_xdmf_path(const std::filesystem::path& checkpoint);
 
+/// What the XDMF side file says of a checkpoint's particles.
+struct CheckpointShape {
+  int dimension = 3;
+  std::uint64_t particles = 0;
+  double time = 0.0;
+  bool eddy_viscosity = false;
+  static CheckpointShape of(const sim::SolverState& state);
+};
+
 /// Writes (atomically) checkpoint_xdmf_path(checkpoint): an XDMF 2 polyvertex grid over the
 /// checkpoint's particle datasets (vectors joined from their components), so ParaView opens a
 /// checkpoint as particles. Throws CheckpointError.
 void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const sim::SolverState& state);
+void write_checkpoint_xdmf(const std::filesystem::path& checkpoint, const CheckpointShape& shape);
+
+/// A solver whose particles live on several processes (par::Driver's) writes its checkpoints
+/// from there, each process its own particles, instead of gathering them into one process'
+/// state() (io/checkpoint_collective.hpp). The file is the one write_checkpoint writes for the
+/// gathered state; the XDMF side file is written with it.
+class DistributedCheckpoints {
+ public:
+  virtual ~DistributedCheckpoints();  // out of line: one vtable and typeinfo for dynamic_cast
+  /// Collective over the solver's processes; throws CheckpointError as write_checkpoint does,
+  /// on every process alike.
+  virtual void write_checkpoint(const std::filesystem::path& path,
+                                const CheckpointMetadata& metadata,
+                                const CheckpointWriteOptions& options) const = 0;
+};
 
 /// Reads and validates. Structure: existence, HDF5 readability, schema name and version,
 /// dimension, particle count and array lengths, checksums. Content: the `scene` attribute is a

@@ -1,6 +1,8 @@
 #include "io/hdf5_file.hpp"
 
 #include <fcntl.h>
+#include <sys/resource.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -112,10 +114,73 @@ FileImage MemoryFile::finish() {
   return image;
 }
 
+std::string temporary_name(const std::filesystem::path& path) {
+  return path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+}
+
+void check_file_size_limit(std::uint64_t bytes, const std::string& label) {
+  rlimit limit{};
+  if (::getrlimit(RLIMIT_FSIZE, &limit) == 0 && limit.rlim_cur != RLIM_INFINITY &&
+      limit.rlim_cur < bytes)
+    throw CheckpointError(label + ": the file needs up to " + std::to_string(bytes) +
+                          " bytes, above the file-size limit of " + std::to_string(limit.rlim_cur) +
+                          " bytes (RLIMIT_FSIZE, ulimit -f)");
+}
+
+void check_free_space(const std::filesystem::path& file, std::uint64_t bytes,
+                      const std::string& label) {
+  const std::filesystem::path directory =
+      file.parent_path().empty() ? std::filesystem::path(".") : file.parent_path();
+  struct statvfs fs {};
+  if (::statvfs(directory.c_str(), &fs) < 0) {
+    const int error = errno;
+    throw CheckpointError(label + ": cannot query the free space of '" + directory.string() +
+                          "': " + reason(error));
+  }
+  const std::uint64_t free_bytes = static_cast<std::uint64_t>(fs.f_bavail) * fs.f_frsize;
+  if (free_bytes < bytes)
+    throw CheckpointError(label + ": the file needs up to " + std::to_string(bytes) +
+                          " bytes, and the file system of '" + directory.string() + "' has " +
+                          std::to_string(free_bytes) + " free: " + reason(ENOSPC));
+}
+
+void reserve_space(const std::string& file, std::uint64_t bytes, const std::string& label) {
+  const int fd = ::open(file.c_str(), O_WRONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int error = errno;
+    throw CheckpointError(label + ": cannot open '" + file + "': " + reason(error));
+  }
+  const int result = ::fallocate(fd, FALLOC_FL_KEEP_SIZE, 0, static_cast<off_t>(bytes));
+  const int error = result < 0 ? errno : 0;
+  ::close(fd);
+  if (result < 0 && error != EOPNOTSUPP)
+    throw CheckpointError(label + ": cannot reserve " + std::to_string(bytes) + " bytes for '" +
+                          file + "': " + reason(error));
+}
+
+void commit_temporary(const std::string& temporary, const std::filesystem::path& path,
+                      const std::string& label) {
+  const int fd = ::open(temporary.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) {
+    const int error = errno;
+    fail(temporary, label, "cannot open '" + temporary + "'", error);
+  }
+  if (::fsync(fd) < 0) {
+    const int error = errno;
+    ::close(fd);
+    fail(temporary, label, "cannot fsync '" + temporary + "'", error);
+  }
+  ::close(fd);
+  if (::rename(temporary.c_str(), path.c_str()) < 0) {
+    const int error = errno;
+    fail(temporary, label, "cannot rename '" + temporary + "' to '" + path.string() + "'", error);
+  }
+  fsync_directory(path);
+}
+
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes,
                            const std::string& label) {
-  const std::string temporary =
-      path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+  const std::string temporary = temporary_name(path);
   const int fd = ::open(temporary.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, kNewFileMode);
   if (fd < 0) {
     const int error = errno;

@@ -14,6 +14,7 @@
 #include <hdf5.h>
 
 #include <cstddef>
+#include <cstdint>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -90,6 +91,30 @@ class MemoryFile {
 /// reason (strerror). Needs no HDF5 lock.
 void write_file_atomically(const std::filesystem::path& path, std::string_view bytes,
                            const std::string& label);
+
+/// NAME.tmp.PID beside `path`, with this process' PID: where write_file_atomically and the
+/// collective checkpoint writer put a file before it is complete.
+std::string temporary_name(const std::filesystem::path& path);
+
+/// Throws CheckpointError when this process' file-size limit (RLIMIT_FSIZE, `ulimit -f`) is
+/// below `bytes`: a write past it fails with EFBIG (or kills the process with SIGXFSZ).
+void check_file_size_limit(std::uint64_t bytes, const std::string& label);
+
+/// Throws CheckpointError when the file system that holds `file` has less than `bytes` free for
+/// this user (statvfs).
+void check_free_space(const std::filesystem::path& file, std::uint64_t bytes,
+                      const std::string& label);
+
+/// Reserves the disk blocks of the first `bytes` of the existing file `file` without changing its
+/// size (fallocate, FALLOC_FL_KEEP_SIZE), so that writes there cannot fail for want of space.
+/// Where the file system cannot reserve (EOPNOTSUPP), does nothing: check_free_space has been
+/// called before. Throws CheckpointError naming the file and the reason.
+void reserve_space(const std::string& file, std::uint64_t bytes, const std::string& label);
+
+/// The end of an atomic write: fsyncs `temporary`, renames it over `path`, fsyncs the directory.
+/// On failure removes the temporary, leaves `path` as it was and throws CheckpointError.
+void commit_temporary(const std::string& temporary, const std::filesystem::path& path,
+                      const std::string& label);
 
 inline void write_file_atomically(const std::filesystem::path& path, const FileImage& image,
                                   const std::string& label) {

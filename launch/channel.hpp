@@ -36,6 +36,7 @@ enum class MessageKind : std::uint32_t {
   Values = 11,
   Spectrum = 12,  // points per side → Values (Δk, then wavenumbers, energies, k² energies)
   ParticleProducts = 13,  // analysis::RanksRequest → Values (analysis::RanksProducts)
+  WriteCheckpoint = 14,   // file, scene JSON, code version, packing, gzip level → Status
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "analysis/snapshot.hpp"
+#include "io/checkpoint.hpp"
 #include "launch/channel.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/state_view.hpp"
@@ -284,7 +285,9 @@ class Job {
 };
 
 /// The job's solver as the run sees it.
-class RemoteSimulation final : public sim::Simulation, public analysis::DistributedProducts {
+class RemoteSimulation final : public sim::Simulation,
+                               public analysis::DistributedProducts,
+                               public io::DistributedCheckpoints {
  public:
   RemoteSimulation(std::shared_ptr<Job> job, std::uint64_t generation, sim::SolverConfig config,
                    SolverStatus status)
@@ -347,6 +350,21 @@ class RemoteSimulation final : public sim::Simulation, public analysis::Distribu
     d.finish();
     if (!(result.request == request)) throw ProtocolError("the job answered another request");
     return result;
+  }
+
+  /// Written by the job's ranks (par's solver), each its own particles, into `path` on the file
+  /// system the job shares with the service; no state crosses the channel.
+  void write_checkpoint(const std::filesystem::path& path, const io::CheckpointMetadata& metadata,
+                        const io::CheckpointWriteOptions& options) const override {
+    job_->require_current(generation_);
+    Encoder e;
+    e.string(path.string());
+    e.string(metadata.scene_json);
+    e.string(metadata.code_version);
+    e.string(metadata.packing);
+    e.u64(static_cast<std::uint64_t>(options.gzip_level));
+    // A failure on the job comes back with the job's message (io::CheckpointError's there).
+    job_->status(MessageKind::WriteCheckpoint, e, "writing a checkpoint failed");
   }
 
   const sim::ParticleArrays& particles() const override { return whole().particles; }
@@ -530,6 +548,25 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
             throw std::invalid_argument("the job's solver does not compute particle products");
           kind = MessageKind::Values;
           encode(reply, ranks->particle_products(r));
+          break;
+        }
+        case MessageKind::WriteCheckpoint: {
+          const std::filesystem::path path = d.string();
+          io::CheckpointMetadata metadata;
+          metadata.scene_json = d.string();
+          metadata.code_version = d.string();
+          metadata.packing = d.string();
+          const std::uint64_t gzip = d.u64();
+          d.finish();
+          if (!simulation) throw std::logic_error("a checkpoint before the solver was made");
+          const auto* ranks = dynamic_cast<const io::DistributedCheckpoints*>(simulation.get());
+          if (!ranks || gzip > 9)
+            throw std::invalid_argument(
+                "the job's solver does not write checkpoints with gzip "
+                "level " +
+                std::to_string(gzip));
+          ranks->write_checkpoint(path, metadata, {.gzip_level = static_cast<int>(gzip)});
+          reply = status();
           break;
         }
         case MessageKind::State:

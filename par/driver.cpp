@@ -8,6 +8,7 @@
 #include <thread>
 
 #include "analysis/snapshot.hpp"
+#include "io/checkpoint_collective.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/particle_products.hpp"
@@ -29,7 +30,8 @@ enum class Command : int {
   Gather = 4,
   CaseDiagnostics = 5,
   Spectrum = 6,
-  ParticleProducts = 7
+  ParticleProducts = 7,
+  WriteCheckpoint = 8
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -101,6 +103,15 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
   return r;
 }
 
+/// A checkpoint's file and metadata, from rank 0 to every rank (the gzip level travels in the
+/// command header).
+void broadcast_checkpoint(MPI_Comm comm, std::string& path, io::CheckpointMetadata& metadata) {
+  broadcast_string(comm, path);
+  broadcast_string(comm, metadata.scene_json);
+  broadcast_string(comm, metadata.code_version);
+  broadcast_string(comm, metadata.packing);
+}
+
 /// One rank's part of a distributed solver.
 struct Member {
   sim::SolverConfig config;
@@ -129,6 +140,17 @@ struct Member {
     owned.truncate(local->owned_count());
     return distributed_particle_products(*decomposition, owned, config.kernel,
                                          config.support_radius, request);
+  }
+
+  /// Collective: the checkpoint `path` written by every rank, each its block of the particles in
+  /// id order (par::id_block), into one file.
+  io::CheckpointShape write_checkpoint(const std::string& path,
+                                       const io::CheckpointMetadata& metadata,
+                                       int gzip_level) const {
+    std::uint64_t first = 0, total = 0;
+    const sim::SolverState block = id_block(*decomposition, local->state(), first, total);
+    return io::write_checkpoint_collective(decomposition->comm(), path, block, first, total,
+                                           metadata, {.gzip_level = gzip_level});
   }
 };
 
@@ -166,7 +188,9 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
 }
 
 /// The distributed solver as rank 0's Run sees it.
-class DistributedSimulation final : public sim::Simulation, public analysis::DistributedProducts {
+class DistributedSimulation final : public sim::Simulation,
+                                    public analysis::DistributedProducts,
+                                    public io::DistributedCheckpoints {
  public:
   DistributedSimulation(MPI_Comm comm, std::unique_ptr<Member> member)
       : comm_(comm), m_(std::move(member)) {}
@@ -200,6 +224,17 @@ class DistributedSimulation final : public sim::Simulation, public analysis::Dis
   analysis::RanksProducts particle_products(const analysis::RanksRequest& request) const override {
     send_command(comm_, Command::ParticleProducts);
     return m_->particle_products(broadcast_request(comm_, request));
+  }
+
+  /// Every rank writes its block of the particles in id order into the one file; rank 0 then
+  /// writes the XDMF side file.
+  void write_checkpoint(const std::filesystem::path& path, const io::CheckpointMetadata& metadata,
+                        const io::CheckpointWriteOptions& options) const override {
+    send_command(comm_, Command::WriteCheckpoint, options.gzip_level);
+    std::string file = path.string();
+    io::CheckpointMetadata sent = metadata;
+    broadcast_checkpoint(comm_, file, sent);
+    io::write_checkpoint_xdmf(path, m_->write_checkpoint(file, sent, options.gzip_level));
   }
 
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
@@ -300,6 +335,13 @@ void serve_commands(MPI_Comm comm) {
         case Command::ParticleProducts: {
           const analysis::RanksRequest request = broadcast_request(comm, {});
           if (member) member->particle_products(request);
+          break;
+        }
+        case Command::WriteCheckpoint: {
+          std::string path;
+          io::CheckpointMetadata metadata;
+          broadcast_checkpoint(comm, path, metadata);
+          if (member) member->write_checkpoint(path, metadata, static_cast<int>(header[1]));
           break;
         }
         case Command::CaseDiagnostics: {

@@ -1,5 +1,6 @@
 #include "par/state.hpp"
 
+#include <algorithm>
 #include <cstring>
 #include <limits>
 #include <stdexcept>
@@ -199,6 +200,103 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
 
   unpack_records(in, stride, eddy_viscosity, share);
   return share;
+}
+
+sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
+                          std::uint64_t& first, std::uint64_t& total) {
+  const int ranks = d.size();
+  const sim::ParticleArrays& p = local.particles;
+  const unsigned long long n = p.size();
+  unsigned long long all = 0;
+  MPI_Allreduce(&n, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, d.comm());
+  int flag = p.eddy_viscosity.empty() ? 0 : 1, eddy_viscosity = 0;
+  MPI_Allreduce(&flag, &eddy_viscosity, 1, MPI_INT, MPI_MAX, d.comm());
+  total = all;
+  // Block r: ids [start(r), start(r + 1)).
+  const std::uint64_t base = total / static_cast<std::uint64_t>(ranks);
+  const std::uint64_t longer = total % static_cast<std::uint64_t>(ranks);
+  const auto start = [&](std::uint64_t r) { return r * base + std::min(r, longer); };
+  const auto block_of = [&](std::uint64_t id) {
+    const std::uint64_t split = longer * (base + 1);  // ids below it lie in the longer blocks
+    return id < split ? id / (base + 1) : longer + (id - split) / base;
+  };
+  first = start(static_cast<std::uint64_t>(d.rank()));
+  const std::uint64_t count = start(static_cast<std::uint64_t>(d.rank()) + 1) - first;
+
+  // Records to their blocks' ranks (fields, then the id's bits, as gather_state packs them).
+  const int dimension = p.dimension;
+  const std::size_t stride =
+      static_cast<std::size_t>(3 * dimension + 4 + eddy_viscosity + dimension + 1);
+  int bad = 0;
+  std::vector<int> owner(p.size());
+  std::vector<std::size_t> per_rank(static_cast<std::size_t>(ranks), 0);
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    if (p.id[i] >= total) {
+      bad = 1;
+      continue;
+    }
+    owner[i] = static_cast<int>(block_of(p.id[i]));
+    ++per_rank[static_cast<std::size_t>(owner[i])];
+  }
+  const auto fields = fields_of(local);
+  if (p.size() > 0 && fields.size() + 1 != stride) bad = 1;
+  int any_bad = 0;
+  MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());
+  if (any_bad)
+    throw std::invalid_argument("id block: particle ids are not below the particle count " +
+                                std::to_string(total) + ", or a rank's fields differ");
+  std::vector<int> send_counts(static_cast<std::size_t>(ranks)), send_offsets(send_counts.size()),
+      receive_counts(send_counts.size()), receive_offsets(send_counts.size());
+  std::vector<std::size_t> next(per_rank.size(), 0);
+  for (std::size_t r = 1; r < per_rank.size(); ++r) next[r] = next[r - 1] + per_rank[r - 1];
+  for (std::size_t r = 0; r < per_rank.size(); ++r) {
+    send_counts[r] = checked_int(per_rank[r] * stride);
+    send_offsets[r] = checked_int(next[r] * stride);
+  }
+  std::vector<double> out(p.size() * stride);
+  for (std::size_t i = 0; i < p.size(); ++i)
+    if (p.id[i] < total)
+      pack_record(fields, p, i, out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride);
+  MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, d.comm());
+  std::size_t received = 0;
+  for (std::size_t r = 0; r < receive_counts.size(); ++r) {
+    receive_offsets[r] = checked_int(received);
+    received += static_cast<std::size_t>(receive_counts[r]);
+  }
+  std::vector<double> in(received);
+  MPI_Alltoallv(out.data(), send_counts.data(), send_offsets.data(), MPI_DOUBLE, in.data(),
+                receive_counts.data(), receive_offsets.data(), MPI_DOUBLE, d.comm());
+  out = std::vector<double>{};
+
+  sim::SolverState block;
+  block.time = local.time;
+  block.step = local.step;
+  block.neighbour_builds = local.neighbour_builds;
+  block.particles.dimension = dimension;
+  unpack_records(in, stride, eddy_viscosity != 0, block);
+  // In id order: block position id - first; each id exactly once.
+  std::vector<std::uint32_t> order(block.particles.size(),
+                                   std::numeric_limits<std::uint32_t>::max());
+  bad = block.particles.size() == count ? 0 : 1;
+  for (std::size_t k = 0; k < block.particles.size() && !bad; ++k) {
+    const std::uint64_t at = block.particles.id[k] - first;
+    if (at >= count || order[at] != std::numeric_limits<std::uint32_t>::max())
+      bad = 1;
+    else
+      order[at] = static_cast<std::uint32_t>(k);
+  }
+  MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());
+  if (any_bad)
+    throw std::invalid_argument("id block: particle ids are not a permutation of 0.." +
+                                std::to_string(total == 0 ? 0 : total - 1));
+  block.particles.reorder(order);
+  std::vector<double> scratch(block.particles.size());
+  for (int a = 0; a < dimension; ++a) {
+    std::vector<double>& x = block.list_reference_positions[static_cast<std::size_t>(a)];
+    for (std::size_t k = 0; k < scratch.size(); ++k) scratch[k] = x[order[k]];
+    x.swap(scratch);
+  }
+  return block;
 }
 
 }  // namespace sphles::par

@@ -26,4 +26,13 @@ sim::SolverState share_of(const Decomposition& d, const sim::SolverState& whole)
 /// rank then holds its share only, never the whole state. Collective over d.comm().
 sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& whole, int root = 0);
 
+/// The particles of ids [first, first + count) of every rank's `local` state (owned particles,
+/// ids a permutation of 0..N-1), in id order on this rank: the N particles split into one block
+/// per rank in rank order, the first N mod P blocks one particle longer. What a checkpoint
+/// written by every rank holds on each (io::write_checkpoint_collective). Sets `first` and
+/// `total` (N). Throws std::invalid_argument on every rank when the ids are not such a
+/// permutation. Collective over d.comm().
+sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
+                          std::uint64_t& first, std::uint64_t& total);
+
 }  // namespace sphles::par

@@ -15,6 +15,7 @@
 
 #include <unistd.h>
 #include "analysis/products.hpp"
+#include "io/checkpoint.hpp"
 #include "launch/channel.hpp"
 #include "launch/job.hpp"
 #include "scratch_directory.hpp"
@@ -375,6 +376,34 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   EXPECT_EQ(got.statistics->alignment->counts, frame.subfilter->alignment->counts);
   request.fit_radius *= 3.0;  // further than the halo: refused, typed
   EXPECT_THROW(ranks->particle_products(request), std::invalid_argument);
+
+  // A checkpoint written by the job's ranks into the one file: read back, it is the state the
+  // service would have fetched (in id order), every array bit for bit; a failure on the job
+  // comes back with the job's message.
+  const auto* writer = dynamic_cast<const io::DistributedCheckpoints*>(remote.get());
+  ASSERT_NE(writer, nullptr);
+  const io::CheckpointMetadata metadata{sim::scene_to_json(scene).dump(), "test", "none"};
+  writer->write_checkpoint(dir / "ckpt.h5", metadata, {.gzip_level = 1});
+  const io::Checkpoint read = io::read_checkpoint(dir / "ckpt.h5");
+  const sim::SolverState fetched = remote->state();
+  EXPECT_EQ(read.state.time, fetched.time);
+  EXPECT_EQ(read.state.step, fetched.step);
+  EXPECT_EQ(read.state.particles.id, fetched.particles.id);
+  EXPECT_EQ(read.state.particles.velocity, fetched.particles.velocity);
+  EXPECT_EQ(read.state.particles.pressure, fetched.particles.pressure);
+  EXPECT_EQ(read.state.list_reference_positions, fetched.list_reference_positions);
+  EXPECT_EQ(read.metadata.scene_json, metadata.scene_json);
+  EXPECT_TRUE(std::filesystem::exists(io::checkpoint_xdmf_path(dir / "ckpt.h5")));
+  try {
+    writer->write_checkpoint(dir / "missing" / "ckpt.h5", metadata, {});
+    ADD_FAILURE() << "a checkpoint into a missing directory was written";
+  } catch (const std::exception& e) {
+    EXPECT_NE(std::string(e.what()).find("cannot query the free space"), std::string::npos)
+        << e.what();
+  }
+  local->step();
+  remote->step();  // the job goes on after a failed checkpoint
+  expect_same_by_id(local->particles(), remote->particles());
 
   // A live change: the job's solver replaced from a state, the old one stale, the job the same.
   std::unique_ptr<sim::Simulation> changed = solvers.restore(scene, remote->state());

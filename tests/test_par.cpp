@@ -4,11 +4,16 @@
 #include <gtest/gtest.h>
 #include <mpi.h>
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <csignal>
 #include <cstdint>
 #include <cstdio>
+#include <filesystem>
 #include <random>
 #include <string>
 #include <tuple>
@@ -18,6 +23,8 @@
 #include "analysis/products.hpp"
 #include "analysis/spectrum.hpp"
 #include "analysis/vorticity.hpp"
+#include "io/checkpoint.hpp"
+#include "io/checkpoint_collective.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/halo.hpp"
@@ -41,6 +48,12 @@ int world_size() {
   int size = 1;
   MPI_Comm_size(MPI_COMM_WORLD, &size);
   return size;
+}
+
+int world_rank() {
+  int rank = 0;
+  MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+  return rank;
 }
 
 sim::PeriodicBox box_of(int dim) {
@@ -899,6 +912,208 @@ TEST(DistributedSpectrum, VoidWiderThanTheHaloIsRefusedOnEveryRank) {
     refused = std::string(e.what()).find("halo width") != std::string::npos;
   }
   EXPECT_TRUE(all_ranks(refused));
+}
+
+// --- Checkpoints written by every rank (io::write_checkpoint_collective) -----------------------
+
+/// A directory made by rank 0 and named on every rank (removed by ~SharedDirectory on rank 0).
+struct SharedDirectory {
+  std::filesystem::path path;
+  SharedDirectory() {
+    std::string name;
+    if (world_rank() == 0) {
+      char pattern[] = "/tmp/sphles-par-ckpt-XXXXXX";
+      name = ::mkdtemp(pattern);
+    }
+    int length = static_cast<int>(name.size());
+    MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    name.resize(static_cast<std::size_t>(length));
+    MPI_Bcast(name.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
+    path = name;
+  }
+  ~SharedDirectory() {
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (world_rank() == 0) std::filesystem::remove_all(path);
+  }
+  /// The files in it (rank 0's view), sorted.
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(path))
+      names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+};
+
+/// A state of `n` particles in id order with every field set (ν_t too), time and counters.
+sim::SolverState checkpoint_state(std::size_t n) {
+  sim::SolverState whole;
+  whole.particles = global_set(3, n, 53);
+  sim::ParticleArrays& p = whole.particles;
+  p.eddy_viscosity.assign(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double x = static_cast<double>(i);
+    p.volume[i] = 1e-3 * (1.0 + 1e-4 * x);
+    p.density[i] = p.mass[i] / p.volume[i];
+    p.pressure[i] = std::sin(x);
+    p.eddy_viscosity[i] = 1e-4 * std::cos(x) * std::cos(x);
+    for (std::size_t a = 0; a < 3; ++a) {
+      p.velocity[a][i] = std::cos(x + static_cast<double>(a));
+      p.acceleration[a][i] = std::sin(2.0 * x + static_cast<double>(a));
+    }
+  }
+  for (std::size_t a = 0; a < 3; ++a) {
+    whole.list_reference_positions[a] = p.position[a];
+    for (double& x : whole.list_reference_positions[a]) x = sim::wrap_periodic(x + 0.01, kLength);
+  }
+  whole.time = 0.75;
+  whole.step = 120;
+  whole.neighbour_builds = 17;
+  return whole;
+}
+
+/// This rank's share of `whole` (by list reference position), in reverse order: a solver's
+/// owned particles are in cell order, not id order.
+sim::SolverState shuffled_share(const Decomposition& d, const sim::SolverState& whole) {
+  sim::SolverState share = share_of(d, whole);
+  std::vector<std::uint32_t> reverse(share.particles.size());
+  for (std::size_t k = 0; k < reverse.size(); ++k)
+    reverse[k] = static_cast<std::uint32_t>(reverse.size() - 1 - k);
+  share.particles.reorder(reverse);
+  for (std::size_t a = 0; a < 3; ++a)
+    std::reverse(share.list_reference_positions[a].begin(),
+                 share.list_reference_positions[a].end());
+  return share;
+}
+
+void expect_same_checkpoint(const io::Checkpoint& a, const io::Checkpoint& b) {
+  EXPECT_EQ(a.state.time, b.state.time);
+  EXPECT_EQ(a.state.step, b.state.step);
+  EXPECT_EQ(a.state.neighbour_builds, b.state.neighbour_builds);
+  EXPECT_EQ(a.metadata.scene_json, b.metadata.scene_json);
+  EXPECT_EQ(a.metadata.code_version, b.metadata.code_version);
+  EXPECT_EQ(a.metadata.packing, b.metadata.packing);
+  EXPECT_EQ(a.state.particles.id, b.state.particles.id);
+  const auto fa = a.state.particles.double_fields();
+  const auto fb = b.state.particles.double_fields();
+  ASSERT_EQ(fa.size(), fb.size());
+  for (std::size_t f = 0; f < fa.size(); ++f) EXPECT_EQ(*fa[f], *fb[f]) << "field " << f;
+  EXPECT_EQ(a.state.list_reference_positions, b.state.list_reference_positions);
+}
+
+const io::CheckpointMetadata kCheckpointMetadata{"{\"name\": \"ranks\"}", "test", "none"};
+
+// Each rank's block of the particles in id order, written by every rank into one file, is the
+// checkpoint one process writes of the gathered state: every dataset bit for bit, with and
+// without gzip, and no temporary left behind.
+TEST(CheckpointByTheRanks, EqualsTheCheckpointOfTheWholeState) {
+  const sim::SolverState whole = checkpoint_state(150001);  // more than two 65536-entry chunks
+  const Decomposition d(MPI_COMM_WORLD, box_of(3), 0.3, 0.1);
+  const sim::SolverState local = shuffled_share(d, whole);
+  std::uint64_t first = 0, total = 0;
+  const sim::SolverState block = id_block(d, local, first, total);
+  EXPECT_EQ(total, whole.particles.size());
+  // Blocks in rank order, equal lengths but for one particle.
+  const std::uint64_t expected_first =
+      static_cast<std::uint64_t>(d.rank()) * (total / static_cast<std::uint64_t>(d.size())) +
+      std::min<std::uint64_t>(static_cast<std::uint64_t>(d.rank()),
+                              total % static_cast<std::uint64_t>(d.size()));
+  EXPECT_EQ(first, expected_first);
+  for (std::size_t k = 0; k < block.particles.size(); ++k) {
+    ASSERT_EQ(block.particles.id[k], first + k);
+    ASSERT_EQ(block.particles.pressure[k], whole.particles.pressure[first + k]);
+    ASSERT_EQ(block.list_reference_positions[2][k], whole.list_reference_positions[2][first + k]);
+  }
+
+  const SharedDirectory directory;
+  for (const int gzip : {0, 1}) {
+    const std::string suffix = std::to_string(gzip) + ".h5";
+    const io::CheckpointShape shape =
+        io::write_checkpoint_collective(MPI_COMM_WORLD, directory.path / ("ranks" + suffix), block,
+                                        first, total, kCheckpointMetadata, {.gzip_level = gzip});
+    EXPECT_EQ(shape.particles, total);
+    EXPECT_TRUE(shape.eddy_viscosity);
+    if (d.rank() == 0) {
+      io::write_checkpoint(directory.path / ("one" + suffix), whole, kCheckpointMetadata,
+                           {.gzip_level = gzip});
+      expect_same_checkpoint(io::read_checkpoint(directory.path / ("ranks" + suffix)),
+                             io::read_checkpoint(directory.path / ("one" + suffix)));
+    }
+  }
+  if (d.rank() == 0) {
+    EXPECT_EQ(directory.files(),
+              (std::vector<std::string>{"one0.h5", "one1.h5", "ranks0.h5", "ranks1.h5"}));
+  }
+}
+
+// A rank whose file-size limit is below the checkpoint fails the write on every rank with one
+// message before anything is written: the previous checkpoint at the path stays as it was, no
+// temporary is left, and no process crashes (HDF5 cannot survive a failed write, so the limit
+// must be caught before). A missing directory fails on every rank as well.
+TEST(CheckpointByTheRanks, FailuresOnOneRankFailEveryRankAndKeepThePreviousFile) {
+  const sim::SolverState whole = checkpoint_state(20000);
+  const Decomposition d(MPI_COMM_WORLD, box_of(3), 0.3, 0.1);
+  std::uint64_t first = 0, total = 0;
+  sim::SolverState block = id_block(d, shuffled_share(d, whole), first, total);
+  const SharedDirectory directory;
+  const std::filesystem::path file = directory.path / "ckpt.h5";
+  io::write_checkpoint_collective(MPI_COMM_WORLD, file, block, first, total, kCheckpointMetadata);
+  block.time = 2.5;
+
+  const auto message_on_every_rank = [&](const std::filesystem::path& path,
+                                         const std::string& expected) {
+    std::string message;
+    try {
+      io::write_checkpoint_collective(MPI_COMM_WORLD, path, block, first, total,
+                                      kCheckpointMetadata);
+    } catch (const io::CheckpointError& e) {
+      message = e.what();
+    }
+    EXPECT_NE(message.find(expected), std::string::npos) << message;
+    // The same message on every rank.
+    std::string first_message = message;
+    int length = static_cast<int>(first_message.size());
+    MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    first_message.resize(static_cast<std::size_t>(length));
+    MPI_Bcast(first_message.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
+    EXPECT_EQ(message, first_message);
+  };
+
+  // The last rank's file-size limit below the checkpoint (SIGXFSZ ignored meanwhile, as a
+  // process that sets such a limit would).
+  {
+    rlimit saved{};
+    const bool last = d.rank() == d.size() - 1;
+    const auto old_handler = std::signal(SIGXFSZ, SIG_IGN);
+    if (last) {
+      ASSERT_EQ(::getrlimit(RLIMIT_FSIZE, &saved), 0);
+      rlimit low = saved;
+      low.rlim_cur = 4096;
+      ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &low), 0);
+    }
+    message_on_every_rank(file, "RLIMIT_FSIZE");
+    if (last) {
+      ASSERT_EQ(::setrlimit(RLIMIT_FSIZE, &saved), 0);
+    }
+    std::signal(SIGXFSZ, old_handler);
+  }
+  message_on_every_rank(directory.path / "missing" / "ckpt.h5", "missing");
+  // Parts that do not tile the particles.
+  {
+    std::string message;
+    try {
+      io::write_checkpoint_collective(MPI_COMM_WORLD, file, block, first, total + 1,
+                                      kCheckpointMetadata);
+    } catch (const io::CheckpointError& e) {
+      message = e.what();
+    }
+    EXPECT_NE(message.find("for a checkpoint of " + std::to_string(total + 1)), std::string::npos)
+        << message;
+  }
+  if (d.rank() == 0) {
+    EXPECT_EQ(directory.files(), std::vector<std::string>{"ckpt.h5"});
+    EXPECT_EQ(io::read_checkpoint(file).state.time, whole.time);  // the first write's
+  }
 }
 
 }  // namespace

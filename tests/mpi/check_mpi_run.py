@@ -9,6 +9,7 @@ run writes id order) and the time series:
      one process's to 1e-12, and the particle products (the fitted vorticity's ⟨ω²⟩, the ω² and
      |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
      for bit (no particle gathered for the analysis);
+     Its checkpoints are written by both ranks into one file each (parallel HDF5), none gathered;
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`).
 Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
@@ -127,6 +128,12 @@ def main():
     if where != 5:
         sys.exit(f"expected 5 analysis snapshots computed on the ranks, the log says {where}:\n"
                  + log[-2000:])
+    # Every checkpoint written by the ranks into one file, none gathered (read back below with
+    # h5py and by the 3-rank restart).
+    written = log.count("written by the ranks, no particles gathered")
+    if written != len(checkpoints(two)):
+        sys.exit(f"expected {len(checkpoints(two))} checkpoints written by the ranks, the log "
+                 f"says {written}:\n" + log[-2000:])
     spectra, worst = compare_spectra(one, two, "2 ranks")
     print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
     same_particle_products(one, two, "2 ranks")

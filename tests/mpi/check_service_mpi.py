@@ -5,8 +5,9 @@ Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and
   1. a run created with "ranks": 2 finishes with the final checkpoint and the time series of the
      same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra
      (computed on the job's ranks) equal the 1-rank run's to 1e-12 and its slices and
-     histograms (computed on the ranks too) bit for bit, its spectra and slices are served, and
-     its job ended (no worker process left);
+     histograms (computed on the ranks too) bit for bit, its checkpoints written by the job's
+     ranks (none fetched), its spectra and slices are served, and its job ended (no worker
+     process left);
   2. requests the server cannot honour are refused with 400 naming 'ranks';
   3. a rank killed during a 2-rank run fails the run cleanly: state "failed", a reason naming the
      launcher's report of the killed rank and the last valid checkpoint, the server still
@@ -146,7 +147,7 @@ def main():
     launcher = f"{mpiexec} --oversubscribe --bind-to none -n {{ranks}}"
     server = subprocess.Popen(
         [sphles, "serve", "--port", "0", "--data", data, "--threads", "1", "--max-running", "2",
-         "--max-ranks", "3", "--launcher", launcher],
+         "--max-ranks", "3", "--launcher", launcher, "--log-level", "debug"],
         env=env, stdout=subprocess.PIPE, stderr=open(os.path.join(work, "serve.log"), "w"),
         text=True)
     try:
@@ -169,6 +170,13 @@ def main():
             if run["state"] != "finished":
                 sys.exit(f"the {ranks}-rank run {run_id} did not finish: {run['reason']}")
         dirs = {r: os.path.join(data, "runs", i) for r, i in ids.items()}
+        # The 2-rank run's checkpoints are written by the job's ranks, none fetched (run.log
+        # holds the run's lines at the server's log level).
+        with open(os.path.join(dirs[2], "run.log")) as f:
+            written = f.read().count("written by the ranks, no particles gathered")
+        files = [n for n in os.listdir(os.path.join(dirs[2], "checkpoints")) if n.endswith(".h5")]
+        if written != len(files):
+            sys.exit(f"{written} checkpoints written by the job's ranks, expected {len(files)}")
         a, b = particles(newest_checkpoint(dirs[1])), particles(newest_checkpoint(dirs[2]))
         differing = [n for n in a if not np.array_equal(a[n], b[n])]
         if sorted(a) != sorted(b) or differing:

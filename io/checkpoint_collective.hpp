@@ -1,0 +1,39 @@
+// A checkpoint written by every process of a distributed run into one file (issue 19), through
+// MPI-IO (HDF5 built for MPI). No process holds more than its own particles.
+#pragma once
+
+#include <mpi.h>
+
+#include <cstdint>
+#include <filesystem>
+
+#include "io/checkpoint.hpp"
+
+namespace sphles::io {
+
+/// Writes the checkpoint `path` from every process of `comm`: this process' `part` holds the
+/// particles [first, first + part.particles.size()) of the `total` particles in id order (its
+/// list reference positions beside them), the parts of all processes covering [0, total) once;
+/// time, step, build counter, metadata and options the same on every process. The file is the
+/// one write_checkpoint writes for the whole state in id order (same datasets, chunks,
+/// checksums and attributes), so read_checkpoint and every reader take it alike.
+///
+/// Atomic like write_checkpoint: the processes write NAME.tmp.PID (rank 0's PID) in the target
+/// directory, rank 0 fsyncs it and renames it over `path`. Before any HDF5 call touches the disk,
+/// the room for the file is checked: every process' file-size limit (RLIMIT_FSIZE) and the file
+/// system's free space, and the temporary's blocks are reserved (fallocate), since HDF5 1.10
+/// cannot survive a failed write to disk (io/hdf5_file.hpp). Every failure throws
+/// CheckpointError on every process with the same message (the lowest failing rank's), removes
+/// the temporary and leaves `path` as it was. Collective over `comm`.
+/// Returns the shape of the whole checkpoint (for its XDMF side file).
+CheckpointShape write_checkpoint_collective(MPI_Comm comm, const std::filesystem::path& path,
+                                            const sim::SolverState& part, std::uint64_t first,
+                                            std::uint64_t total, const CheckpointMetadata& metadata,
+                                            const CheckpointWriteOptions& options = {});
+
+/// The bytes write_checkpoint_collective reserves for a checkpoint of `particles` particles: the
+/// datasets uncompressed, their checksums and chunk index, the attributes, and a margin.
+std::uint64_t checkpoint_size_bound(int dimension, std::uint64_t particles, bool eddy_viscosity,
+                                    std::size_t metadata_bytes);
+
+}  // namespace sphles::io
