@@ -97,16 +97,25 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   json document;
   std::string source;  // where the stored document came from, for error messages
   if (checkpoint) {
-    const io::Checkpoint c = io::read_checkpoint(*checkpoint);
+    // A solver that reads its checkpoint on its ranks needs only the attributes here (no
+    // process reads the whole file); one process validates all of it before it starts.
+    io::CheckpointHeader header;
+    if (options.solvers.restore_file) {
+      header = io::read_checkpoint_header(*checkpoint);
+    } else {
+      const io::Checkpoint c = io::read_checkpoint(*checkpoint);
+      header = {c.metadata, io::CheckpointShape::of(c.state), c.state.step,
+                c.state.neighbour_builds};
+    }
     source = "checkpoint '" + checkpoint->string() + "'";
     try {
-      document = json::parse(c.metadata.scene_json);
+      document = json::parse(header.metadata.scene_json);
     } catch (const json::exception& e) {
       throw std::runtime_error(source + ": attribute 'scene' is not a JSON document: " + e.what());
     }
     impl->start_checkpoint = checkpoint;
-    impl->time = c.state.time;
-    impl->step = c.state.step;
+    impl->time = header.shape.time;
+    impl->step = header.step;
   } else {
     const std::filesystem::path scene = directory / "scene.json";
     if (!std::filesystem::exists(scene))

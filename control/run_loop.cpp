@@ -97,6 +97,39 @@ io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>
   return checkpoint;
 }
 
+/// A solver that reads its checkpoint where its particles live (a distributed solver's ranks,
+/// sim::SolverFactories::restore_file) continued from the explicit file, else from the newest
+/// checkpoint its ranks read and validate (the invalid ones skipped with a warning); no process
+/// reads the whole file. Sets `packing` from the file.
+std::unique_ptr<sim::Simulation> restore_from_file(
+    const RunOptions& options, const sim::Scene& scene,
+    const std::optional<std::filesystem::path>& explicit_file,
+    const std::filesystem::path& checkpoint_dir, logging::RunLog& log, std::string& packing) {
+  const std::vector<std::filesystem::path> files =
+      explicit_file                             ? std::vector<std::filesystem::path>{*explicit_file}
+      : std::filesystem::exists(checkpoint_dir) ? io::list_checkpoints(checkpoint_dir)
+                                                : std::vector<std::filesystem::path>{};
+  if (files.empty())
+    throw std::runtime_error(
+        "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
+        "again from t = 0)");
+  for (const std::filesystem::path& file : files) {
+    try {
+      const io::CheckpointHeader header = io::read_checkpoint_header(file);
+      log.progress("restart: {} at t = {:.17g}, step {} (read by the ranks)", file.string(),
+                   header.shape.time, header.step);
+      auto simulation = options.solvers.restore_file(scene, file);
+      packing = header.metadata.packing;
+      return simulation;
+    } catch (const io::CheckpointError& e) {
+      if (explicit_file) throw;
+      log.warn("skipped: {}", e.what());
+    }
+  }
+  throw io::CheckpointError("checkpoint: no valid checkpoint in '" + checkpoint_dir.string() +
+                            "' (" + std::to_string(files.size()) + " candidates)");
+}
+
 /// The run's loop and everything it feeds while it steps: time-series rows and metrics
 /// batches, analysis snapshots (pipeline and writer), rendered frames, checkpoints, progress,
 /// the run directory's identity, and live changes between steps. solve() sets the solver up,
@@ -458,8 +491,11 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   remove_interrupted_writes(checkpoint_dir);
   const sim::Scene& scene0 = current.run.scene;
   set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
+  // Read here, or by the ranks of a distributed solver (restore_from_file below).
+  const bool ranks_read = resumed && static_cast<bool>(options.solvers.restore_file);
   std::optional<io::Checkpoint> checkpoint;
-  if (resumed) checkpoint = read_resume_checkpoint(start_checkpoint, checkpoint_dir, *log);
+  if (resumed && !ranks_read)
+    checkpoint = read_resume_checkpoint(start_checkpoint, checkpoint_dir, *log);
   log->progress("sphles run: {} ({}), {} particles, kernel {}, D_K/dl = {:g}, {} threads -> {}",
                 scene0.name, sim::case_name(scene0.case_type), scene0.num_particles(),
                 sim::kernel_name(scene0.kernel), scene0.kernel_diameter_over_spacing,
@@ -469,12 +505,17 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
     simulation = restore_solver(options, scene0, std::move(checkpoint->state));
     truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
     RenderSink::truncate_index_after(directory / "frames", simulation->time());
+  } else if (ranks_read) {
+    simulation =
+        restore_from_file(options, scene0, start_checkpoint, checkpoint_dir, *log, packing);
+    truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
+    RenderSink::truncate_index_after(directory / "frames", simulation->time());
   } else {
     simulation = set_up(scene0, packing);
   }
   set_phase("stepping");
 
-  Loop loop(*this, current, simulation, packing, checkpoint.has_value());
+  Loop loop(*this, current, simulation, packing, resumed);
   const bool stopped = loop.run();
   loop.finish();
   json written = outputs_json(directory);

@@ -32,7 +32,7 @@ const char* kAxis[] = {"x", "y", "z"};
 
 /// Where this process' particles go in the file's datasets: entries [first, first + count) of
 /// `total`, written with the data transfer properties `transfer` (collective for MPI-IO).
-struct Block {
+struct Placement {
   hsize_t first = 0;
   hsize_t total = 0;
   hid_t transfer = H5P_DEFAULT;
@@ -42,7 +42,7 @@ struct Block {
 template <class T>
 void write_dataset(hid_t group, const std::string& name, hid_t type, const std::vector<T>& data,
                    const std::string& units, const CheckpointWriteOptions& options,
-                   const std::string& label, const Block& block) {
+                   const std::string& label, const Placement& block) {
   const auto failed = [&] {
     return CheckpointError(label + ": cannot write dataset 'particles/" + name + "'");
   };
@@ -84,7 +84,7 @@ void write_dataset(hid_t group, const std::string& name, hid_t type, const std::
 /// calls with the same attribute values.
 void write_contents(hid_t root, const sim::SolverState& state, const CheckpointMetadata& metadata,
                     const CheckpointWriteOptions& options, const std::string& label,
-                    const Block& block) {
+                    const Placement& block) {
   const sim::ParticleArrays& p = state.particles;
   const int dim = p.dimension;
   write_string_attribute(root, "schema", kCheckpointSchema, label);
@@ -194,9 +194,17 @@ T read_scalar_attribute(hid_t object, const char* name, hid_t type, const std::s
   return value;
 }
 
+/// Entries [first, first + count) of a dataset that must hold `expected` entries, read with the
+/// data transfer properties `transfer` (collective for MPI-IO).
+struct Range {
+  hsize_t first = 0;
+  hsize_t count = 0;
+  hid_t transfer = H5P_DEFAULT;
+};
+
 template <class T>
 std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, std::size_t expected,
-                            const std::string& file) {
+                            const Range& range, const std::string& file) {
   if (H5Lexists(group, name.c_str(), H5P_DEFAULT) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing dataset 'particles/" + name + "'");
   const Handle dataset(H5Dopen2(group, name.c_str(), H5P_DEFAULT), H5Dclose);
@@ -210,8 +218,18 @@ std::vector<T> read_dataset(hid_t group, const std::string& name, hid_t type, st
     throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name + "' has " +
                           std::to_string(size) + " entries, expected " + std::to_string(expected) +
                           " (particle count mismatch)");
-  std::vector<T> data(expected);
-  if (expected > 0 && H5Dread(dataset.get(), type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data.data()) < 0)
+  std::vector<T> data(range.count);
+  if (expected == 0) return data;
+  // A process with no entries still takes part in a collective read.
+  const hsize_t one = 1;
+  const Handle memory(H5Screate_simple(1, range.count > 0 ? &range.count : &one, nullptr),
+                      H5Sclose);
+  const herr_t selected = range.count > 0
+                              ? H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, &range.first,
+                                                    nullptr, &range.count, nullptr)
+                              : std::min(H5Sselect_none(space.get()), H5Sselect_none(memory.get()));
+  if (!memory.valid() || selected < 0 ||
+      H5Dread(dataset.get(), type, memory.get(), space.get(), range.transfer, data.data()) < 0)
     throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
                           "' cannot be read (checksum mismatch or truncated file)");
   return data;
@@ -226,31 +244,44 @@ std::string number(double value) {
   return std::string(text, result.ptr);
 }
 
-void require_finite(const std::vector<double>& values, const std::string& name,
+// `first`: the file index of values[0] (a range of the dataset), for the messages.
+void require_finite(const std::vector<double>& values, const std::string& name, std::uint64_t first,
                     const std::string& file) {
   for (std::size_t i = 0; i < values.size(); ++i)
     if (!std::isfinite(values[i]))
       throw CheckpointError("checkpoint '" + file + "': non-finite value in 'particles/" + name +
-                            "' at index " + std::to_string(i));
+                            "' at index " + std::to_string(first + i));
 }
 
 void require_positive(const std::vector<double>& values, const std::string& name,
-                      const std::string& file) {
+                      std::uint64_t first, const std::string& file) {
   for (std::size_t i = 0; i < values.size(); ++i)
     if (!(values[i] > 0.0))
       throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name +
                             "' has a non-positive value " + number(values[i]) + " at index " +
-                            std::to_string(i));
+                            std::to_string(first + i));
 }
 
 /// Positions are wrapped into [0, L) after every drift (sim::wrap_periodic).
 void require_inside_box(const std::vector<double>& values, const std::string& name, double length,
-                        const std::string& file) {
+                        std::uint64_t first, const std::string& file) {
   for (std::size_t i = 0; i < values.size(); ++i)
     if (!(values[i] >= 0.0 && values[i] < length))
       throw CheckpointError("checkpoint '" + file + "': dataset 'particles/" + name + "' has " +
-                            number(values[i]) + " at index " + std::to_string(i) +
+                            number(values[i]) + " at index " + std::to_string(first + i) +
                             ", outside the periodic box [0, " + number(length) + ") m");
+}
+
+/// Ids below the particle count, for a range of the dataset (the permutation is checked over
+/// all ranges together: par::id_block).
+void require_ids_below(const std::vector<std::uint64_t>& ids, std::uint64_t count,
+                       std::uint64_t first, const std::string& file) {
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    if (ids[i] >= count)
+      throw CheckpointError("checkpoint '" + file + "': dataset 'particles/id' has " +
+                            std::to_string(ids[i]) + " at index " + std::to_string(first + i) +
+                            ", outside 0.." + std::to_string(count - 1) +
+                            " (ids are a permutation of 0..N-1)");
 }
 
 /// Particle ids are a permutation of 0..N-1 (sim::make_lattice numbers them; the solver only
@@ -349,20 +380,18 @@ SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& fil
   return g;
 }
 
-Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* geometry_out) {
-  const std::string file = path.string();
-  if (!std::filesystem::exists(path))
-    throw CheckpointError("checkpoint '" + file + "': file does not exist");
-  const std::lock_guard lock(hdf5_library_mutex());
-  detail::silence_hdf5();
-  if (H5Fis_hdf5(file.c_str()) <= 0)
-    throw CheckpointError("checkpoint '" + file +
-                          "': not a readable HDF5 file (truncated or corrupted)");
-  const Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
-  if (!h5.valid())
-    throw CheckpointError("checkpoint '" + file +
-                          "': not a readable HDF5 file (truncated or corrupted)");
-  const hid_t root = h5.get();
+/// The attributes of an open checkpoint, validated (structure and the time counters; the
+/// scene's box and particle count against dimension and num_particles).
+struct Header {
+  Checkpoint checkpoint;  // metadata, time, step, builds; no particles
+  int dimension = 3;
+  std::uint64_t count = 0;
+  SceneGeometry geometry;
+};
+
+Header read_header(hid_t root, const std::string& file) {
+  Header h;
+  Checkpoint& c = h.checkpoint;
   const std::string schema = read_string_attribute(root, "schema", file);
   if (schema != kCheckpointSchema)
     throw CheckpointError("checkpoint '" + file + "': wrong schema '" + schema + "' (expected '" +
@@ -376,9 +405,11 @@ Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* g
   if (dim != 2 && dim != 3)
     throw CheckpointError("checkpoint '" + file + "': dimension " + std::to_string(dim) +
                           " (expected 2 or 3)");
+  h.dimension = dim;
   const auto count =
       read_scalar_attribute<std::uint64_t>(root, "num_particles", H5T_NATIVE_UINT64, file);
-  Checkpoint c;
+  h.count = count;
+  c.state.particles.dimension = dim;
   c.state.time = read_scalar_attribute<double>(root, "time", H5T_NATIVE_DOUBLE, file);
   c.state.step = read_scalar_attribute<std::uint64_t>(root, "step", H5T_NATIVE_UINT64, file);
   c.state.neighbour_builds =
@@ -401,10 +432,9 @@ Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* g
   c.metadata.scene_json = read_string_attribute(root, "scene", file);
   c.metadata.code_version = read_string_attribute(root, "code_version", file);
   c.metadata.packing = read_string_attribute(root, "packing", file);
-  const SceneGeometry geometry =
-      scene_geometry(parse_scene_attribute(c.metadata.scene_json, file), file);
-  if (geometry.scene) {
-    const sim::Scene& s = *geometry.scene;
+  h.geometry = scene_geometry(parse_scene_attribute(c.metadata.scene_json, file), file);
+  if (h.geometry.scene) {
+    const sim::Scene& s = *h.geometry.scene;
     if (s.dimension() != dim)
       throw CheckpointError("checkpoint '" + file + "': attribute 'dimension' is " +
                             std::to_string(dim) + " but the scene's case '" +
@@ -418,40 +448,86 @@ Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* g
   }
   if (H5Lexists(root, "particles", H5P_DEFAULT) <= 0)
     throw CheckpointError("checkpoint '" + file + "': missing group 'particles'");
+  return h;
+}
+
+/// Particles [range.first, range.first + range.count) of the file into h.checkpoint's state,
+/// every value checked (finite; mass, volume, density positive; positions in the scene's box;
+/// ids below the count). The ids' permutation is the caller's to check.
+void read_particles(hid_t root, Header& h, const Range& range, const std::string& file) {
   const Handle group(H5Gopen2(root, "particles", H5P_DEFAULT), H5Gclose);
-  sim::ParticleArrays& p = c.state.particles;
-  p.dimension = dim;
-  const auto n = static_cast<std::size_t>(count);
-  const auto read = [&](const std::string& name) {
-    auto values = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, file);
-    require_finite(values, name, file);
-    return values;
+  sim::SolverState& state = h.checkpoint.state;
+  sim::ParticleArrays& p = state.particles;
+  const auto n = static_cast<std::size_t>(h.count);
+  const std::uint64_t first = range.first;
+  // Every dataset is read even after a failure, the first failure thrown at the end: in a
+  // collective read, a process that left early would leave the others waiting in the next one.
+  std::optional<std::string> failure;
+  const auto check = [&](auto&& step) {
+    if (auto what = attempt(step); what && !failure) failure = std::move(what);
   };
-  for (int d = 0; d < dim; ++d) {
+  const auto read = [&](const std::string& name, std::vector<double>& into) {
+    check([&] {
+      into = read_dataset<double>(group.get(), name, H5T_NATIVE_DOUBLE, n, range, file);
+      require_finite(into, name, first, file);
+    });
+  };
+  for (int d = 0; d < h.dimension; ++d) {
     const std::string axis = kAxis[d];
-    p.position[d] = read("position_" + axis);
-    p.velocity[d] = read("velocity_" + axis);
-    p.acceleration[d] = read("acceleration_" + axis);
-    c.state.list_reference_positions[d] = read("list_reference_" + axis);
-    if (geometry.scene) {
-      const double length = geometry.scene->box_length();
-      require_inside_box(p.position[d], "position_" + axis, length, file);
-      require_inside_box(c.state.list_reference_positions[d], "list_reference_" + axis, length,
-                         file);
+    read("position_" + axis, p.position[d]);
+    read("velocity_" + axis, p.velocity[d]);
+    read("acceleration_" + axis, p.acceleration[d]);
+    read("list_reference_" + axis, state.list_reference_positions[d]);
+    if (h.geometry.scene) {
+      const double length = h.geometry.scene->box_length();
+      check([&] {
+        require_inside_box(p.position[d], "position_" + axis, length, first, file);
+        require_inside_box(state.list_reference_positions[d], "list_reference_" + axis, length,
+                           first, file);
+      });
     }
   }
   for (auto [name, target, positive] :
        {std::tuple{"mass", &p.mass, true}, std::tuple{"volume", &p.volume, true},
         std::tuple{"density", &p.density, true}, std::tuple{"pressure", &p.pressure, false}}) {
-    *target = read(name);
-    if (positive) require_positive(*target, name, file);
+    read(name, *target);
+    if (positive) check([&] { require_positive(*target, name, first, file); });
   }
-  p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, file);
-  require_permutation(p.id, file);
+  check([&] {
+    p.id = read_dataset<std::uint64_t>(group.get(), "id", H5T_NATIVE_UINT64, n, range, file);
+    require_ids_below(p.id, h.count, first, file);
+  });
   if (H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0)
-    p.eddy_viscosity = read("eddy_viscosity");
-  if (geometry_out) *geometry_out = geometry;
-  return c;
+    read("eddy_viscosity", p.eddy_viscosity);
+  if (failure) throw CheckpointError(*failure);
+}
+
+/// Opens `path` for reading with `access` (H5P_DEFAULT: one process), after checking that it
+/// exists and is HDF5. Call with hdf5_library_mutex() held.
+hid_t open_for_reading(const std::filesystem::path& path, hid_t access) {
+  const std::string file = path.string();
+  if (!std::filesystem::exists(path))
+    throw CheckpointError("checkpoint '" + file + "': file does not exist");
+  detail::silence_hdf5();
+  if (H5Fis_hdf5(file.c_str()) <= 0)
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  const hid_t h5 = H5Fopen(file.c_str(), H5F_ACC_RDONLY, access);
+  if (h5 < 0)
+    throw CheckpointError("checkpoint '" + file +
+                          "': not a readable HDF5 file (truncated or corrupted)");
+  return h5;
+}
+
+Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* geometry_out) {
+  const std::string file = path.string();
+  const std::lock_guard lock(hdf5_library_mutex());
+  const Handle h5(open_for_reading(path, H5P_DEFAULT), H5Fclose);
+  Header h = read_header(h5.get(), file);
+  read_particles(h5.get(), h, {0, static_cast<hsize_t>(h.count), H5P_DEFAULT}, file);
+  require_permutation(h.checkpoint.state.particles.id, file);
+  if (geometry_out) *geometry_out = h.geometry;
+  return std::move(h.checkpoint);
 }
 
 }  // namespace
@@ -656,6 +732,74 @@ Checkpoint read_checkpoint(const std::filesystem::path& path) {
   return read_and_validate(path, nullptr);
 }
 
+CheckpointHeader read_checkpoint_header(const std::filesystem::path& path) {
+  const std::string file = path.string();
+  const std::lock_guard lock(hdf5_library_mutex());
+  const Handle h5(open_for_reading(path, H5P_DEFAULT), H5Fclose);
+  Header h = read_header(h5.get(), file);
+  const Handle group(H5Gopen2(h5.get(), "particles", H5P_DEFAULT), H5Gclose);
+  if (!group.valid()) throw CheckpointError("checkpoint '" + file + "': cannot open 'particles'");
+  const sim::SolverState& s = h.checkpoint.state;
+  return {h.checkpoint.metadata,
+          {h.dimension, h.count, s.time, H5Lexists(group.get(), "eddy_viscosity", H5P_DEFAULT) > 0},
+          s.step,
+          s.neighbour_builds};
+}
+
+Block equal_block(std::uint64_t total, int rank, int ranks) {
+  const auto r = static_cast<std::uint64_t>(rank);
+  const auto p = static_cast<std::uint64_t>(ranks);
+  const std::uint64_t base = total / p, longer = total % p;
+  const std::uint64_t first = r * base + std::min(r, longer);
+  return {first, base + (r < longer ? 1 : 0)};
+}
+
+Checkpoint read_checkpoint_collective(MPI_Comm comm, const std::filesystem::path& path,
+                                      std::uint64_t& first) {
+  const std::string file = path.string();
+  int rank = 0, size = 1;
+  MPI_Comm_rank(comm, &rank);
+  MPI_Comm_size(comm, &size);
+  const auto fail = [](const std::optional<std::string>& failure) {
+    if (failure) throw CheckpointError(*failure);
+  };
+  const std::lock_guard lock(hdf5_library_mutex());
+  detail::silence_hdf5();
+  // Every process sees the file before any opens it (the open is collective).
+  fail(agree(comm, attempt([&] {
+               if (!std::filesystem::exists(path))
+                 throw CheckpointError("checkpoint '" + file + "': file does not exist");
+               if (H5Fis_hdf5(file.c_str()) <= 0)
+                 throw CheckpointError("checkpoint '" + file +
+                                       "': not a readable HDF5 file (truncated or corrupted)");
+             })));
+  const Handle access(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  const Handle transfer(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
+  const bool properties = access.valid() && transfer.valid() &&
+                          H5Pset_fapl_mpio(access.get(), comm, MPI_INFO_NULL) >= 0 &&
+                          H5Pset_dxpl_mpio(transfer.get(), H5FD_MPIO_COLLECTIVE) >= 0;
+  fail(agree(comm, properties ? std::nullopt
+                              : std::optional<std::string>(
+                                    "checkpoint '" + file +
+                                    "': cannot set up the MPI-IO file access properties")));
+  const Handle h5(H5Fopen(file.c_str(), H5F_ACC_RDONLY, access.get()), H5Fclose);
+  fail(agree(comm, h5.valid() ? std::nullopt
+                              : std::optional<std::string>(
+                                    "checkpoint '" + file +
+                                    "': not a readable HDF5 file (truncated or corrupted)")));
+  Header h;
+  fail(agree(comm, attempt([&] { h = read_header(h5.get(), file); })));
+  const Block block = equal_block(h.count, rank, size);
+  first = block.first;
+  fail(agree(comm, attempt([&] {
+               read_particles(h5.get(), h,
+                              {static_cast<hsize_t>(block.first), static_cast<hsize_t>(block.count),
+                               transfer.get()},
+                              file);
+             })));
+  return std::move(h.checkpoint);
+}
+
 std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory) {
   std::vector<std::filesystem::path> files;
   std::error_code ec;
@@ -670,11 +814,15 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
 }
 
 std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
-                                              std::vector<std::string>* rejected) {
+                                              std::vector<std::string>* rejected,
+                                              CheckpointCheck check) {
   const auto files = list_checkpoints(directory);
   for (const auto& file : files) {
     try {
-      read_checkpoint(file);
+      if (check == CheckpointCheck::Header)
+        read_checkpoint_header(file);
+      else
+        read_checkpoint(file);
       return file;
     } catch (const CheckpointError& e) {
       if (rejected) rejected->push_back(e.what());

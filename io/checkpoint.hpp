@@ -89,13 +89,31 @@ class DistributedCheckpoints {
 /// or dataset and the reason.
 Checkpoint read_checkpoint(const std::filesystem::path& path);
 
+/// What a checkpoint says of itself without its particles: the attributes read_checkpoint
+/// validates (schema and version, dimension, particle count, time, step and build counter, the
+/// scene against them), the particle group's presence and whether ν_t is stored. Reads no
+/// particle data, so it costs the same at any size. Throws CheckpointError.
+struct CheckpointHeader {
+  CheckpointMetadata metadata;
+  CheckpointShape shape;
+  std::uint64_t step = 0;
+  std::uint64_t neighbour_builds = 0;
+};
+CheckpointHeader read_checkpoint_header(const std::filesystem::path& path);
+
 /// Checkpoint files of a run directory (checkpoints/ckpt_*.h5), newest step first.
 std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory);
+
+/// How much of a checkpoint newest_valid_checkpoint reads: all of it (read_checkpoint), or its
+/// header only (read_checkpoint_header: a distributed run whose ranks read and validate the
+/// particles themselves, io/checkpoint_collective.hpp).
+enum class CheckpointCheck { Whole, Header };
 
 /// The newest checkpoint in `directory` that reads and validates; `rejected` receives one line
 /// per newer file that did not. Throws CheckpointError when none is valid.
 std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
-                                              std::vector<std::string>* rejected = nullptr);
+                                              std::vector<std::string>* rejected = nullptr,
+                                              CheckpointCheck check = CheckpointCheck::Whole);
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);

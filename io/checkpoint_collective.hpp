@@ -31,6 +31,23 @@ CheckpointShape write_checkpoint_collective(MPI_Comm comm, const std::filesystem
                                             std::uint64_t total, const CheckpointMetadata& metadata,
                                             const CheckpointWriteOptions& options = {});
 
+/// Particles [first, first + count) of `total`: process `rank`'s block of `ranks` equal blocks in
+/// rank order, the first total mod ranks blocks one particle longer.
+struct Block {
+  std::uint64_t first = 0;
+  std::uint64_t count = 0;
+};
+Block equal_block(std::uint64_t total, int rank, int ranks);
+
+/// Reads the checkpoint `path` on every process of `comm`, each its equal_block of the stored
+/// particles (collective MPI-IO reads), validated as read_checkpoint validates (attributes,
+/// checksums, every value, ids below the count) but for the ids' permutation, which needs all
+/// blocks (par::id_block checks it). Every process gets the metadata, time and counters. Any
+/// process' failure throws CheckpointError on every process with the lowest failing rank's
+/// message. Sets `first` to this process' block start. Collective over `comm`.
+Checkpoint read_checkpoint_collective(MPI_Comm comm, const std::filesystem::path& path,
+                                      std::uint64_t& first);
+
 /// The bytes write_checkpoint_collective reserves for a checkpoint of `particles` particles: the
 /// datasets uncompressed, their checksums and chunk index, the attributes, and a margin.
 std::uint64_t checkpoint_size_bound(int dimension, std::uint64_t particles, bool eddy_viscosity,

@@ -12,6 +12,8 @@
 #include <limits>
 #include <optional>
 
+#include "io/checkpoint.hpp"
+
 namespace sphles::launch {
 
 static_assert(std::endian::native == std::endian::little,
@@ -290,7 +292,7 @@ SolverStatus decode_status(Decoder& d) {
 }
 
 namespace {
-enum class ErrorType : std::uint64_t { Other = 0, BlowUp = 1, InvalidArgument = 2 };
+enum class ErrorType : std::uint64_t { Other = 0, BlowUp = 1, InvalidArgument = 2, Checkpoint = 3 };
 }
 
 void encode_error(Encoder& e, const std::exception& error) {
@@ -305,7 +307,10 @@ void encode_error(Encoder& e, const std::exception& error) {
     return;
   }
   const bool invalid = dynamic_cast<const std::invalid_argument*>(&error) != nullptr;
-  e.u64(static_cast<std::uint64_t>(invalid ? ErrorType::InvalidArgument : ErrorType::Other));
+  const bool checkpoint = dynamic_cast<const io::CheckpointError*>(&error) != nullptr;
+  e.u64(static_cast<std::uint64_t>(invalid      ? ErrorType::InvalidArgument
+                                   : checkpoint ? ErrorType::Checkpoint
+                                                : ErrorType::Other));
   e.string(error.what());
 }
 
@@ -322,6 +327,7 @@ void throw_error(Decoder& d) {
   }
   if (type == static_cast<std::uint64_t>(ErrorType::InvalidArgument))
     throw std::invalid_argument(what);
+  if (type == static_cast<std::uint64_t>(ErrorType::Checkpoint)) throw io::CheckpointError(what);
   throw sim::SimulationError(what);
 }
 

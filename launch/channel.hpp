@@ -37,6 +37,7 @@ enum class MessageKind : std::uint32_t {
   Spectrum = 12,  // points per side → Values (Δk, then wavenumbers, energies, k² energies)
   ParticleProducts = 13,  // analysis::RanksRequest → Values (analysis::RanksProducts)
   WriteCheckpoint = 14,   // file, scene JSON, code version, packing, gzip level → Status
+  RestoreFile = 15,       // scene JSON + checkpoint file, read by the job's ranks → Status
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

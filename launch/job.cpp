@@ -394,6 +394,11 @@ class RemoteSimulation final : public sim::Simulation,
   sim::StateView view_{config_};
 };
 
+/// A checkpoint file in a request: its path.
+void encode(Encoder& e, const std::filesystem::path& file) {
+  e.string(file.string());
+}
+
 /// The job of a run while some solver of it exists; launched by the first solver made.
 class JobHolder {
  public:
@@ -458,6 +463,12 @@ sim::SolverFactories job_solvers(LaunchOptions options) {
   solvers.restore = [holder](const sim::Scene& scene, sim::SolverState state) {
     return holder->make(MessageKind::Restore, scene, state, "restoring the solver failed");
   };
+  // The job's ranks read the checkpoint, each its part (par::Driver::restore_file): the file
+  // must be at the same path for the job (the service's node or a shared file system).
+  solvers.restore_file = [holder](const sim::Scene& scene, const std::filesystem::path& file) {
+    return holder->make(MessageKind::RestoreFile, scene, file,
+                        "restoring the solver from its checkpoint failed");
+  };
   return solvers;
 }
 
@@ -490,13 +501,20 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
       Decoder d(request.body);
       switch (request.kind) {
         case MessageKind::Make:
-        case MessageKind::Restore: {
+        case MessageKind::Restore:
+        case MessageKind::RestoreFile: {
           const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
           std::unique_ptr<sim::Simulation> fresh;
           if (request.kind == MessageKind::Make) {
             sim::ParticleArrays particles = decode_particles(d);
             d.finish();
             fresh = solvers.make(scene, std::move(particles));
+          } else if (request.kind == MessageKind::RestoreFile) {
+            const std::filesystem::path file = d.string();
+            d.finish();
+            if (!solvers.restore_file)
+              throw std::invalid_argument("the job's solvers do not read checkpoint files");
+            fresh = solvers.restore_file(scene, file);
           } else {
             sim::SolverState state = decode_state(d);
             d.finish();

@@ -31,7 +31,8 @@ enum class Command : int {
   CaseDiagnostics = 5,
   Spectrum = 6,
   ParticleProducts = 7,
-  WriteCheckpoint = 8
+  WriteCheckpoint = 8,
+  RestoreFile = 9
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -154,11 +155,16 @@ struct Member {
   }
 };
 
+/// How a member starts: from particles (by position), from a state of all particles read on
+/// rank 0, or from a checkpoint file its ranks read (both by list reference position).
+enum class Start { Fresh, Restore, RestoreFile };
+
 /// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
-/// `whole` (read on rank 0 only): by position for a fresh start, by list reference position for
-/// a restart.
+/// `whole` (read on rank 0 only), or of the checkpoint `file`.
 std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
-                                    sim::SolverState whole, bool restore) {
+                                    sim::SolverState whole, Start start,
+                                    const std::string& file = {}) {
+  const bool restore = start != Start::Fresh;
   auto m = std::make_unique<Member>();
   const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(scene_json));
   m->config = sim::make_solver_config(scene);
@@ -177,7 +183,8 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
       whole.list_reference_positions[axis] = x;
     }
   }
-  sim::SolverState share = scatter_state(*m->decomposition, whole, 0);
+  sim::SolverState share = start == Start::RestoreFile ? read_share(*m->decomposition, file)
+                                                       : scatter_state(*m->decomposition, whole, 0);
   whole = sim::SolverState{};  // rank 0 keeps its share only
   if (restore)
     m->local = sim::restore_simulation(c, std::move(share), m->exchange);
@@ -277,6 +284,9 @@ sim::SolverFactories Driver::factories() {
           },
           [this](const sim::Scene& scene, sim::SolverState whole) {
             return restore(scene, std::move(whole));
+          },
+          [this](const sim::Scene& scene, const std::filesystem::path& path) {
+            return restore_file(scene, path);
           }};
 }
 
@@ -292,16 +302,27 @@ std::unique_ptr<sim::Simulation> Driver::make(const sim::Scene& scene, sim::Part
   broadcast_string(comm_, json);
   sim::SolverState whole;
   whole.particles = std::move(all);
-  return std::make_unique<DistributedSimulation>(comm_,
-                                                 make_member(comm_, json, std::move(whole), false));
+  return std::make_unique<DistributedSimulation>(
+      comm_, make_member(comm_, json, std::move(whole), Start::Fresh));
 }
 
 std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::SolverState whole) {
   send_command(comm_, Command::Restore);
   std::string json = sim::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
-  return std::make_unique<DistributedSimulation>(comm_,
-                                                 make_member(comm_, json, std::move(whole), true));
+  return std::make_unique<DistributedSimulation>(
+      comm_, make_member(comm_, json, std::move(whole), Start::Restore));
+}
+
+std::unique_ptr<sim::Simulation> Driver::restore_file(const sim::Scene& scene,
+                                                      const std::filesystem::path& path) {
+  send_command(comm_, Command::RestoreFile);
+  std::string json = sim::scene_to_json(scene).dump();
+  broadcast_string(comm_, json);
+  std::string file = path.string();
+  broadcast_string(comm_, file);
+  return std::make_unique<DistributedSimulation>(
+      comm_, make_member(comm_, json, sim::SolverState{}, Start::RestoreFile, file));
 }
 
 void serve_commands(MPI_Comm comm) {
@@ -315,11 +336,16 @@ void serve_commands(MPI_Comm comm) {
         case Command::Finish:
           return;
         case Command::Make:
-        case Command::Restore: {
-          std::string json;
+        case Command::Restore:
+        case Command::RestoreFile: {
+          std::string json, file;
           broadcast_string(comm, json);
+          if (command == Command::RestoreFile) broadcast_string(comm, file);
+          const Start start = command == Command::Make      ? Start::Fresh
+                              : command == Command::Restore ? Start::Restore
+                                                            : Start::RestoreFile;
           // The new solver first, then the old one goes: the order rank 0's Run follows.
-          auto fresh = make_member(comm, json, sim::SolverState{}, command == Command::Restore);
+          auto fresh = make_member(comm, json, sim::SolverState{}, start, file);
           member = std::move(fresh);
           break;
         }

@@ -11,6 +11,7 @@
 
 #include <mpi.h>
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 
@@ -38,6 +39,12 @@ class Driver {
   /// continues bitwise on this rank count whatever count wrote it (par::scatter_state sends each
   /// rank its share).
   std::unique_ptr<sim::Simulation> restore(const sim::Scene& scene, sim::SolverState whole);
+
+  /// The same from the checkpoint file `path`, read by every rank, each a block of it, then sent
+  /// to the ranks that own them (par::read_share): no rank holds the whole state. Throws
+  /// io::CheckpointError (on every rank) for a file read_checkpoint would reject.
+  std::unique_ptr<sim::Simulation> restore_file(const sim::Scene& scene,
+                                                const std::filesystem::path& path);
 
   int ranks() const;
   /// make() and restore() as the factories a run takes (control::RunOptions::solvers); they

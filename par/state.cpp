@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "io/checkpoint_collective.hpp"
+
 namespace sphles::par {
 
 namespace {
@@ -50,6 +52,82 @@ void unpack_records(const std::vector<double>& in, std::size_t stride, bool eddy
     for (std::size_t f = 0; f < to.size(); ++f) (*to[f])[k] = record[f];
     std::memcpy(&s.particles.id[k], &record[to.size()], sizeof(double));
   }
+}
+
+/// The doubles of a record: the particle fields, the list reference positions, the id's bits.
+std::size_t record_stride(int dimension, bool eddy_viscosity) {
+  return static_cast<std::size_t>(3 * dimension + 4 + (eddy_viscosity ? 1 : 0) + dimension + 1);
+}
+
+/// The rank whose sub-box holds each particle's list reference position.
+std::vector<int> reference_owners(const Decomposition& d, const sim::SolverState& s) {
+  std::vector<int> owner(s.particles.size());
+  for (std::size_t i = 0; i < owner.size(); ++i) {
+    int coords[3] = {0, 0, 0};
+    for (int a = 0; a < s.particles.dimension; ++a)
+      coords[a] = d.coordinate_of(a, s.list_reference_positions[static_cast<std::size_t>(a)][i]);
+    MPI_Cart_rank(d.comm(), coords, &owner[i]);
+  }
+  return owner;
+}
+
+/// A state's particles as records grouped by destination rank, in their order within each
+/// group; counts and offsets in doubles, as MPI's v-collectives take them.
+struct Packed {
+  std::vector<double> records;
+  std::vector<int> counts, offsets;
+};
+
+Packed pack_by_rank(const sim::SolverState& s, std::size_t stride, const std::vector<int>& owner,
+                    int ranks) {
+  const auto fields = fields_of(s);
+  std::vector<std::size_t> per_rank(static_cast<std::size_t>(ranks), 0);
+  for (const int r : owner) ++per_rank[static_cast<std::size_t>(r)];
+  std::vector<std::size_t> next(per_rank.size(), 0);
+  for (std::size_t r = 1; r < per_rank.size(); ++r) next[r] = next[r - 1] + per_rank[r - 1];
+  Packed packed;
+  packed.counts.resize(per_rank.size());
+  packed.offsets.resize(per_rank.size());
+  for (std::size_t r = 0; r < per_rank.size(); ++r) {
+    packed.counts[r] = checked_int(per_rank[r] * stride);
+    packed.offsets[r] = checked_int(next[r] * stride);
+  }
+  packed.records.resize(owner.size() * stride);
+  for (std::size_t i = 0; i < owner.size(); ++i)
+    pack_record(fields, s.particles, i,
+                packed.records.data() + next[static_cast<std::size_t>(owner[i])]++ * stride);
+  return packed;
+}
+
+/// Sends every rank its records of `packed` (all to all) and returns what this rank received, in
+/// rank order, as a state with the time and counters of `like`.
+sim::SolverState exchange_records(const Decomposition& d, Packed packed, std::size_t stride,
+                                  bool eddy_viscosity, const sim::SolverState& like) {
+  std::vector<int> receive_counts(packed.counts.size()), receive_offsets(packed.counts.size());
+  MPI_Alltoall(packed.counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, d.comm());
+  std::size_t received = 0;
+  for (std::size_t r = 0; r < receive_counts.size(); ++r) {
+    receive_offsets[r] = checked_int(received);
+    received += static_cast<std::size_t>(receive_counts[r]);
+  }
+  std::vector<double> in(received);
+  MPI_Alltoallv(packed.records.data(), packed.counts.data(), packed.offsets.data(), MPI_DOUBLE,
+                in.data(), receive_counts.data(), receive_offsets.data(), MPI_DOUBLE, d.comm());
+  packed = Packed{};
+  sim::SolverState out;
+  out.time = like.time;
+  out.step = like.step;
+  out.neighbour_builds = like.neighbour_builds;
+  out.particles.dimension = like.particles.dimension;
+  unpack_records(in, stride, eddy_viscosity, out);
+  return out;
+}
+
+/// Whether any rank's state holds ν_t (a rank may hold no particles).
+bool any_eddy_viscosity(const Decomposition& d, const sim::SolverState& s) {
+  int mine = s.particles.eddy_viscosity.empty() ? 0 : 1, any = 0;
+  MPI_Allreduce(&mine, &any, 1, MPI_INT, MPI_MAX, d.comm());
+  return any != 0;
 }
 
 }  // namespace
@@ -151,8 +229,7 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
   const bool eddy_viscosity = head[1] != 0.0;
 
   // The root packs each rank's particles as records (fields, then the id's bits).
-  const std::size_t stride = static_cast<std::size_t>(
-      3 * share.particles.dimension + 4 + (eddy_viscosity ? 1 : 0) + share.particles.dimension + 1);
+  const std::size_t stride = record_stride(share.particles.dimension, eddy_viscosity);
   const int ranks = d.size();
   std::vector<int> counts(static_cast<std::size_t>(ranks), 0), displacements(counts.size(), 0);
   std::vector<double> out;
@@ -169,28 +246,10 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
     throw std::invalid_argument(
         "state scatter: the state's arrays are of unequal length or do not match its shape");
   if (d.rank() == root) {
-    const sim::ParticleArrays& p = whole.particles;
-    const std::size_t n = p.size();
-    const auto fields = fields_of(whole);
-    std::vector<int> owner(n);
-    std::vector<std::size_t> per_rank(static_cast<std::size_t>(ranks), 0);
-    for (std::size_t i = 0; i < n; ++i) {
-      int coords[3] = {0, 0, 0};
-      for (int a = 0; a < p.dimension; ++a)
-        coords[a] =
-            d.coordinate_of(a, whole.list_reference_positions[static_cast<std::size_t>(a)][i]);
-      MPI_Cart_rank(d.comm(), coords, &owner[i]);
-      ++per_rank[static_cast<std::size_t>(owner[i])];
-    }
-    std::vector<std::size_t> next(per_rank.size(), 0);
-    for (std::size_t r = 1; r < per_rank.size(); ++r) next[r] = next[r - 1] + per_rank[r - 1];
-    for (std::size_t r = 0; r < per_rank.size(); ++r) {
-      counts[r] = checked_int(per_rank[r] * stride);
-      displacements[r] = checked_int(next[r] * stride);
-    }
-    out.resize(n * stride);
-    for (std::size_t i = 0; i < n; ++i)
-      pack_record(fields, p, i, out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride);
+    Packed packed = pack_by_rank(whole, stride, reference_owners(d, whole), ranks);
+    out = std::move(packed.records);
+    counts = std::move(packed.counts);
+    displacements = std::move(packed.offsets);
   }
   int count = 0;
   MPI_Scatter(counts.data(), 1, MPI_INT, &count, 1, MPI_INT, root, d.comm());
@@ -204,83 +263,44 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
 
 sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
                           std::uint64_t& first, std::uint64_t& total) {
-  const int ranks = d.size();
   const sim::ParticleArrays& p = local.particles;
   const unsigned long long n = p.size();
   unsigned long long all = 0;
   MPI_Allreduce(&n, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, d.comm());
-  int flag = p.eddy_viscosity.empty() ? 0 : 1, eddy_viscosity = 0;
-  MPI_Allreduce(&flag, &eddy_viscosity, 1, MPI_INT, MPI_MAX, d.comm());
+  const bool eddy_viscosity = any_eddy_viscosity(d, local);
   total = all;
-  // Block r: ids [start(r), start(r + 1)).
-  const std::uint64_t base = total / static_cast<std::uint64_t>(ranks);
-  const std::uint64_t longer = total % static_cast<std::uint64_t>(ranks);
-  const auto start = [&](std::uint64_t r) { return r * base + std::min(r, longer); };
+  const io::Block mine = io::equal_block(total, d.rank(), d.size());
+  first = mine.first;
+  // The inverse of io::equal_block: the block (rank) of an id.
+  const std::uint64_t base = total / static_cast<std::uint64_t>(d.size());
+  const std::uint64_t longer = total % static_cast<std::uint64_t>(d.size());
   const auto block_of = [&](std::uint64_t id) {
     const std::uint64_t split = longer * (base + 1);  // ids below it lie in the longer blocks
-    return id < split ? id / (base + 1) : longer + (id - split) / base;
+    return static_cast<int>(id < split ? id / (base + 1) : longer + (id - split) / base);
   };
-  first = start(static_cast<std::uint64_t>(d.rank()));
-  const std::uint64_t count = start(static_cast<std::uint64_t>(d.rank()) + 1) - first;
-
-  // Records to their blocks' ranks (fields, then the id's bits, as gather_state packs them).
-  const int dimension = p.dimension;
-  const std::size_t stride =
-      static_cast<std::size_t>(3 * dimension + 4 + eddy_viscosity + dimension + 1);
-  int bad = 0;
+  const std::size_t stride = record_stride(p.dimension, eddy_viscosity);
+  int bad = p.size() > 0 && fields_of(local).size() + 1 != stride ? 1 : 0;
   std::vector<int> owner(p.size());
-  std::vector<std::size_t> per_rank(static_cast<std::size_t>(ranks), 0);
-  for (std::size_t i = 0; i < p.size(); ++i) {
-    if (p.id[i] >= total) {
+  for (std::size_t i = 0; i < p.size() && !bad; ++i) {
+    if (p.id[i] >= total)
       bad = 1;
-      continue;
-    }
-    owner[i] = static_cast<int>(block_of(p.id[i]));
-    ++per_rank[static_cast<std::size_t>(owner[i])];
+    else
+      owner[i] = block_of(p.id[i]);
   }
-  const auto fields = fields_of(local);
-  if (p.size() > 0 && fields.size() + 1 != stride) bad = 1;
   int any_bad = 0;
   MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());
   if (any_bad)
     throw std::invalid_argument("id block: particle ids are not below the particle count " +
                                 std::to_string(total) + ", or a rank's fields differ");
-  std::vector<int> send_counts(static_cast<std::size_t>(ranks)), send_offsets(send_counts.size()),
-      receive_counts(send_counts.size()), receive_offsets(send_counts.size());
-  std::vector<std::size_t> next(per_rank.size(), 0);
-  for (std::size_t r = 1; r < per_rank.size(); ++r) next[r] = next[r - 1] + per_rank[r - 1];
-  for (std::size_t r = 0; r < per_rank.size(); ++r) {
-    send_counts[r] = checked_int(per_rank[r] * stride);
-    send_offsets[r] = checked_int(next[r] * stride);
-  }
-  std::vector<double> out(p.size() * stride);
-  for (std::size_t i = 0; i < p.size(); ++i)
-    if (p.id[i] < total)
-      pack_record(fields, p, i, out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride);
-  MPI_Alltoall(send_counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, d.comm());
-  std::size_t received = 0;
-  for (std::size_t r = 0; r < receive_counts.size(); ++r) {
-    receive_offsets[r] = checked_int(received);
-    received += static_cast<std::size_t>(receive_counts[r]);
-  }
-  std::vector<double> in(received);
-  MPI_Alltoallv(out.data(), send_counts.data(), send_offsets.data(), MPI_DOUBLE, in.data(),
-                receive_counts.data(), receive_offsets.data(), MPI_DOUBLE, d.comm());
-  out = std::vector<double>{};
-
-  sim::SolverState block;
-  block.time = local.time;
-  block.step = local.step;
-  block.neighbour_builds = local.neighbour_builds;
-  block.particles.dimension = dimension;
-  unpack_records(in, stride, eddy_viscosity != 0, block);
+  sim::SolverState block = exchange_records(d, pack_by_rank(local, stride, owner, d.size()), stride,
+                                            eddy_viscosity, local);
   // In id order: block position id - first; each id exactly once.
   std::vector<std::uint32_t> order(block.particles.size(),
                                    std::numeric_limits<std::uint32_t>::max());
-  bad = block.particles.size() == count ? 0 : 1;
+  bad = block.particles.size() == mine.count ? 0 : 1;
   for (std::size_t k = 0; k < block.particles.size() && !bad; ++k) {
     const std::uint64_t at = block.particles.id[k] - first;
-    if (at >= count || order[at] != std::numeric_limits<std::uint32_t>::max())
+    if (at >= mine.count || order[at] != std::numeric_limits<std::uint32_t>::max())
       bad = 1;
     else
       order[at] = static_cast<std::uint32_t>(k);
@@ -291,12 +311,35 @@ sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
                                 std::to_string(total == 0 ? 0 : total - 1));
   block.particles.reorder(order);
   std::vector<double> scratch(block.particles.size());
-  for (int a = 0; a < dimension; ++a) {
+  for (int a = 0; a < p.dimension; ++a) {
     std::vector<double>& x = block.list_reference_positions[static_cast<std::size_t>(a)];
     for (std::size_t k = 0; k < scratch.size(); ++k) scratch[k] = x[order[k]];
     x.swap(scratch);
   }
   return block;
+}
+
+sim::SolverState to_owners(const Decomposition& d, const sim::SolverState& state) {
+  const bool eddy_viscosity = any_eddy_viscosity(d, state);
+  const std::size_t stride = record_stride(state.particles.dimension, eddy_viscosity);
+  return exchange_records(d, pack_by_rank(state, stride, reference_owners(d, state), d.size()),
+                          stride, eddy_viscosity, state);
+}
+
+sim::SolverState read_share(const Decomposition& d, const std::filesystem::path& path,
+                            io::CheckpointMetadata* metadata) {
+  std::uint64_t first = 0, total = 0;
+  io::Checkpoint c = io::read_checkpoint_collective(d.comm(), path, first);
+  if (metadata) *metadata = c.metadata;
+  sim::SolverState block;
+  try {
+    block = id_block(d, c.state, first, total);  // checks the ids' permutation
+  } catch (const std::invalid_argument& e) {
+    throw io::CheckpointError("checkpoint '" + path.string() +
+                              "': dataset 'particles/id': " + e.what());
+  }
+  c = io::Checkpoint{};
+  return to_owners(d, block);
 }
 
 }  // namespace sphles::par

@@ -2,6 +2,9 @@
 // such a state (issue 19): what a checkpoint of N ranks holds and how M ranks restart from it.
 #pragma once
 
+#include <filesystem>
+
+#include "io/checkpoint.hpp"
 #include "par/decomposition.hpp"
 #include "sim/solver.hpp"
 
@@ -34,5 +37,18 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
 /// permutation. Collective over d.comm().
 sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
                           std::uint64_t& first, std::uint64_t& total);
+
+/// Every particle of `state` (this rank's, any order) sent to the rank whose sub-box holds its
+/// list reference position: this rank receives its share, in rank order of the senders. What
+/// share_of picks from a whole state, from parts spread over the ranks. Collective.
+sim::SolverState to_owners(const Decomposition& d, const sim::SolverState& state);
+
+/// This rank's share of the checkpoint `path` (as share_of of the whole state), read by every
+/// rank, each one block of the file (io::read_checkpoint_collective), then the ids checked to be
+/// a permutation (id_block) and the particles moved to their owners (to_owners): no rank holds
+/// more than about its share. `metadata` receives the checkpoint's. Throws io::CheckpointError on
+/// every rank for a file read_checkpoint would reject. Collective.
+sim::SolverState read_share(const Decomposition& d, const std::filesystem::path& path,
+                            io::CheckpointMetadata* metadata = nullptr);
 
 }  // namespace sphles::par

@@ -3,6 +3,7 @@
 // (launch::job_solvers) are built and continued the same way (control::RunOptions).
 #pragma once
 
+#include <filesystem>
 #include <functional>
 #include <memory>
 
@@ -17,6 +18,12 @@ struct SolverFactories {
   std::function<std::unique_ptr<Simulation>(const Scene&, ParticleArrays)> make;
   /// A solver continuing a saved state of all particles (bitwise the next step).
   std::function<std::unique_ptr<Simulation>(const Scene&, SolverState)> restore;
+  /// Optional: a solver continuing the checkpoint file at the path, read where its particles
+  /// will live (a distributed solver's ranks, each its part) instead of by the caller. Throws
+  /// the file's io::CheckpointError when it is not a valid checkpoint (sim does not know io's
+  /// types: the run that calls it does). Empty: the caller reads the file and calls restore.
+  std::function<std::unique_ptr<Simulation>(const Scene&, const std::filesystem::path&)>
+      restore_file;
 };
 
 }  // namespace sphles::sim

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <random>
 #include <string>
 #include <tuple>
@@ -535,6 +536,53 @@ TEST(DistributedCaseDiagnostics, KolmogorovEqualOneProcessBitForBit) {
 
 /// The 2D TGV of DistributedRunTest with the transport-velocity scheme (whose restart recomputes
 /// its background acceleration) and a drift across the ranks.
+/// Rank 0's `text`, on every rank.
+std::string rank0_text(std::string text) {
+  int length = static_cast<int>(text.size());
+  MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
+  text.resize(static_cast<std::size_t>(length));
+  MPI_Bcast(text.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
+  return text;
+}
+
+/// `action` throws io::CheckpointError on every rank, with one message that contains `expected`.
+template <class Action>
+void expect_one_checkpoint_error(Action&& action, const std::string& expected) {
+  std::string message;
+  try {
+    action();
+  } catch (const io::CheckpointError& e) {
+    message = e.what();
+  }
+  EXPECT_NE(message.find(expected), std::string::npos) << message;
+  EXPECT_EQ(message, rank0_text(message));
+}
+
+/// A directory made by rank 0 and named on every rank (removed by ~SharedDirectory on rank 0).
+struct SharedDirectory {
+  std::filesystem::path path;
+  SharedDirectory() {
+    std::string name;
+    if (world_rank() == 0) {
+      char pattern[] = "/tmp/sphles-par-ckpt-XXXXXX";
+      name = ::mkdtemp(pattern);
+    }
+    path = rank0_text(name);
+  }
+  ~SharedDirectory() {
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (world_rank() == 0) std::filesystem::remove_all(path);
+  }
+  /// The files in it (rank 0's view), sorted.
+  std::vector<std::string> files() const {
+    std::vector<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(path))
+      names.push_back(entry.path().filename().string());
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+};
+
 sim::SolverConfig restart_config(double spacing) {
   sim::SolverConfig config;
   config.box = box_of(2);
@@ -568,11 +616,18 @@ TEST(DistributedRestart, StateOfNRanksRestartsBitwiseOnMRanksAndOnOne) {
                                           config.neighbour_skin * config.support_radius);
   const Decomposition d(MPI_COMM_WORLD, config.box, search.list_radius(), spacing);
   sim::SolverState whole;
+  // Also through a checkpoint file written by these ranks and read by the M below, each its
+  // part (io::write_checkpoint_collective, par::read_share).
+  const SharedDirectory directory;
+  const std::filesystem::path file = directory.path / "ckpt.h5";
   {
     const auto mine =
         sim::make_simulation(config, owned_part(d, all), 0.0, 0, std::make_shared<MpiExchange>(d));
     for (int s = 0; s < 32; ++s) mine->step();
     whole = gather_state(d, mine->state(), kEveryRank);
+    std::uint64_t first = 0, total = 0;
+    const sim::SolverState block = id_block(d, mine->state(), first, total);
+    io::write_checkpoint_collective(d.comm(), file, block, first, total, {"{}", "test", "none"});
   }
   // The gathered state is the one-process state in id order (which is the order of `all`).
   ASSERT_EQ(whole.particles.size(), all.size());
@@ -620,6 +675,15 @@ TEST(DistributedRestart, StateOfNRanksRestartsBitwiseOnMRanksAndOnOne) {
                            << " of " << restarted->owned_count() << " differ";
       EXPECT_EQ(restarted->diagnostics().kinetic_energy, one->diagnostics().kinetic_energy);
       EXPECT_EQ(exchange->sum(std::uint64_t{restarted->owned_count()}), all.size());
+    }
+    {
+      const Decomposition dm(half, config.box, search.list_radius(), spacing);
+      const auto exchange = std::make_shared<MpiExchange>(dm);
+      const auto restarted = sim::restore_simulation(config, read_share(dm, file), exchange);
+      for (int s = 0; s < 20; ++s) restarted->step();
+      const std::size_t wrong = differing_particles(*restarted, *one);
+      EXPECT_EQ(wrong, 0u) << "restart from the file on " << m << " rank(s), rank " << dm.rank()
+                           << ": " << wrong << " of " << restarted->owned_count() << " differ";
     }
     MPI_Comm_free(&half);
   }
@@ -916,35 +980,6 @@ TEST(DistributedSpectrum, VoidWiderThanTheHaloIsRefusedOnEveryRank) {
 
 // --- Checkpoints written by every rank (io::write_checkpoint_collective) -----------------------
 
-/// A directory made by rank 0 and named on every rank (removed by ~SharedDirectory on rank 0).
-struct SharedDirectory {
-  std::filesystem::path path;
-  SharedDirectory() {
-    std::string name;
-    if (world_rank() == 0) {
-      char pattern[] = "/tmp/sphles-par-ckpt-XXXXXX";
-      name = ::mkdtemp(pattern);
-    }
-    int length = static_cast<int>(name.size());
-    MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    name.resize(static_cast<std::size_t>(length));
-    MPI_Bcast(name.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
-    path = name;
-  }
-  ~SharedDirectory() {
-    MPI_Barrier(MPI_COMM_WORLD);
-    if (world_rank() == 0) std::filesystem::remove_all(path);
-  }
-  /// The files in it (rank 0's view), sorted.
-  std::vector<std::string> files() const {
-    std::vector<std::string> names;
-    for (const auto& entry : std::filesystem::directory_iterator(path))
-      names.push_back(entry.path().filename().string());
-    std::sort(names.begin(), names.end());
-    return names;
-  }
-};
-
 /// A state of `n` particles in id order with every field set (ν_t too), time and counters.
 sim::SolverState checkpoint_state(std::size_t n) {
   sim::SolverState whole;
@@ -970,6 +1005,16 @@ sim::SolverState checkpoint_state(std::size_t n) {
   whole.step = 120;
   whole.neighbour_builds = 17;
   return whole;
+}
+
+/// A 3D state's particles and list reference positions put in `order` (new[k] = old[order[k]]).
+void reorder_state(sim::SolverState& s, const std::vector<std::uint32_t>& order) {
+  s.particles.reorder(order);
+  for (std::size_t a = 0; a < 3; ++a) {
+    std::vector<double> x(order.size());
+    for (std::size_t k = 0; k < order.size(); ++k) x[k] = s.list_reference_positions[a][order[k]];
+    s.list_reference_positions[a] = x;
+  }
 }
 
 /// This rank's share of `whole` (by list reference position), in reverse order: a solver's
@@ -1062,21 +1107,12 @@ TEST(CheckpointByTheRanks, FailuresOnOneRankFailEveryRankAndKeepThePreviousFile)
 
   const auto message_on_every_rank = [&](const std::filesystem::path& path,
                                          const std::string& expected) {
-    std::string message;
-    try {
-      io::write_checkpoint_collective(MPI_COMM_WORLD, path, block, first, total,
-                                      kCheckpointMetadata);
-    } catch (const io::CheckpointError& e) {
-      message = e.what();
-    }
-    EXPECT_NE(message.find(expected), std::string::npos) << message;
-    // The same message on every rank.
-    std::string first_message = message;
-    int length = static_cast<int>(first_message.size());
-    MPI_Bcast(&length, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    first_message.resize(static_cast<std::size_t>(length));
-    MPI_Bcast(first_message.data(), length, MPI_CHAR, 0, MPI_COMM_WORLD);
-    EXPECT_EQ(message, first_message);
+    expect_one_checkpoint_error(
+        [&] {
+          io::write_checkpoint_collective(MPI_COMM_WORLD, path, block, first, total,
+                                          kCheckpointMetadata);
+        },
+        expected);
   };
 
   // The last rank's file-size limit below the checkpoint (SIGXFSZ ignored meanwhile, as a
@@ -1114,6 +1150,67 @@ TEST(CheckpointByTheRanks, FailuresOnOneRankFailEveryRankAndKeepThePreviousFile)
     EXPECT_EQ(directory.files(), std::vector<std::string>{"ckpt.h5"});
     EXPECT_EQ(io::read_checkpoint(file).state.time, whole.time);  // the first write's
   }
+}
+
+// Read by the ranks, each a block of the file, a checkpoint gives every rank exactly its share
+// (share_of of the whole state), from a file written by one process in any particle order and
+// from one written by the ranks; a file read_checkpoint rejects is rejected on every rank with
+// one message.
+TEST(CheckpointByTheRanks, ReadByTheRanksGivesEachRankItsShare) {
+  sim::SolverState whole = checkpoint_state(30011);
+  const Decomposition d(MPI_COMM_WORLD, box_of(3), 0.3, 0.1);
+  const sim::SolverState expected = share_of(d, whole);
+  const SharedDirectory directory;
+  // One process' file in another order than the ids (a solver's own order).
+  sim::SolverState shuffled = whole;
+  {
+    std::vector<std::uint32_t> order(shuffled.particles.size());
+    for (std::size_t k = 0; k < order.size(); ++k)
+      order[k] = static_cast<std::uint32_t>((k * 7919) % order.size());
+    reorder_state(shuffled, order);
+  }
+  if (d.rank() == 0) io::write_checkpoint(directory.path / "one.h5", shuffled, kCheckpointMetadata);
+  std::uint64_t first = 0, total = 0;
+  const sim::SolverState block = id_block(d, shuffled_share(d, whole), first, total);
+  io::write_checkpoint_collective(MPI_COMM_WORLD, directory.path / "ranks.h5", block, first, total,
+                                  kCheckpointMetadata);
+  MPI_Barrier(MPI_COMM_WORLD);
+  for (const char* name : {"one.h5", "ranks.h5"}) {
+    io::CheckpointMetadata metadata;
+    sim::SolverState share = read_share(d, directory.path / name, &metadata);
+    EXPECT_EQ(metadata.scene_json, kCheckpointMetadata.scene_json);
+    EXPECT_EQ(share.time, whole.time);
+    EXPECT_EQ(share.step, whole.step);
+    EXPECT_EQ(share.neighbour_builds, whole.neighbour_builds);
+    // The same particles as share_of's (which keeps the whole state's id order).
+    reorder_state(share, sim::order_by_key(share.particles.id));
+    ASSERT_EQ(share.particles.id, expected.particles.id) << name;
+    const auto got = share.particles.double_fields();
+    const auto want = expected.particles.double_fields();
+    ASSERT_EQ(got.size(), want.size());
+    for (std::size_t f = 0; f < got.size(); ++f) EXPECT_EQ(*got[f], *want[f]) << name;
+    EXPECT_EQ(share.list_reference_positions, expected.list_reference_positions) << name;
+  }
+
+  // Rejected on every rank with one message: a missing file, a repeated id, a non-finite value
+  // (in the last block, so that one rank finds it).
+  const auto rejected = [&](const std::filesystem::path& path, const std::string& expected) {
+    expect_one_checkpoint_error([&] { read_share(d, path); }, expected);
+  };
+  rejected(directory.path / "absent.h5", "file does not exist");
+  sim::SolverState repeated = whole;
+  repeated.particles.id[5] = repeated.particles.id[whole.particles.size() - 1];
+  sim::SolverState infinite = whole;
+  infinite.particles.velocity[1][whole.particles.size() - 2] =
+      std::numeric_limits<double>::infinity();
+  if (d.rank() == 0) {
+    io::write_checkpoint(directory.path / "repeated.h5", repeated, kCheckpointMetadata);
+    io::write_checkpoint(directory.path / "infinite.h5", infinite, kCheckpointMetadata);
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
+  rejected(directory.path / "repeated.h5", "not a permutation");
+  rejected(directory.path / "infinite.h5", "non-finite value in 'particles/velocity_y' at index " +
+                                               std::to_string(whole.particles.size() - 2));
 }
 
 }  // namespace

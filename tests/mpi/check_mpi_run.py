@@ -10,7 +10,8 @@ run writes id order) and the time series:
      |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
      for bit (no particle gathered for the analysis);
      Its checkpoints are written by both ranks into one file each (parallel HDF5), none gathered;
-  3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`).
+  3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`), read by the 3
+     ranks, each a part of the file.
 Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
 Usage: check_mpi_run.py SPHLES MPIEXEC WORKDIR
@@ -151,7 +152,10 @@ def main():
         sys.exit(f"expected a middle checkpoint, found {files}")
     for f in files[1:]:
         os.remove(f)
-    run(mpi + ["3", sphles, "run", "--restart", three], env)
+    log = run(mpi + ["3", sphles, "run", "--restart", three], env)
+    # The 3 ranks read the checkpoint, each its part; rank 0 reads the attributes only.
+    if "(read by the ranks)" not in log:
+        sys.exit("the 3-rank restart did not read its checkpoint on the ranks:\n" + log[-2000:])
     same_final_state(one, three, "restart of 2 ranks on 3")
 
     stop_by_signal(sphles, mpi, scene, env, os.path.join(work, "stopped"))

@@ -12,7 +12,8 @@ Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and
   3. a rank killed during a 2-rank run fails the run cleanly: state "failed", a reason naming the
      launcher's report of the killed rank and the last valid checkpoint, the server still
      answering, no rank left behind; resuming the failed run launches a new job that continues
-     from that checkpoint, a live change reaches it, and stop ends it with a checkpoint.
+     from that checkpoint (read by the job's ranks), a live change reaches it, and stop ends it
+     with a checkpoint.
 Usage: check_service_mpi.py SPHLES MPIEXEC WORKDIR
 """
 import json
@@ -249,6 +250,10 @@ def main():
             times = [float(row.split(",")[0]) for row in f.read().splitlines()[1:]]
         if any(t1 <= t0 for t0, t1 in zip(times, times[1:])):
             sys.exit("the time series is not increasing after the resume")
+        # The new job's ranks read the checkpoint, each its part; nothing crossed the channel.
+        with open(os.path.join(run_dir, "run.log")) as f:
+            if f"{named} at t = " not in f.read().split("(read by the ranks)")[0][-400:]:
+                sys.exit("the resumed job's ranks did not read the named checkpoint")
         status, changed = request(base, "PATCH", f"/api/runs/{run_id}/parameters",
                                   {"fluid": {"dynamic_viscosity": 0.02}})
         if status != 200:
