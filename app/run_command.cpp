@@ -67,6 +67,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
   run_options.log_progress = true;
   if (driver) {
     run_options.solvers = driver->factories();
+    run_options.ranks = driver->ranks();  // recorded in run.json
     std::fprintf(stderr, "sphles run: the solver spans %d MPI ranks\n", driver->ranks());
   }
   try {

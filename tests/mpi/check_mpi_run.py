@@ -17,6 +17,7 @@ every rank helps write a checkpoint, the exit code is 1, and one process continu
 Usage: check_mpi_run.py SPHLES MPIEXEC WORKDIR
 """
 import csv
+import json
 import os
 import shutil
 import signal
@@ -123,6 +124,10 @@ def main():
               env)
     if "spans 2 MPI ranks" not in log:
         sys.exit("the 2-rank run did not say it spans 2 ranks:\n" + log)
+    with open(os.path.join(two, "run.json")) as f:
+        recorded = json.load(f).get("ranks")
+    if recorded != 2:
+        sys.exit(f"run.json of the 2-rank run records ranks {recorded}")
     # Computed on the ranks, no particle gathered for the analysis.
     where = log.count("spectrum and particle products computed on the ranks, "
                       "no particles gathered")
