@@ -268,7 +268,10 @@ class Run::Impl::Loop {
   /// (when a solver key changed), the consumers reconfigured, the cadences restarted.
   void apply_changes(const ChangeScope& scope) {
     if (scope.solver)
-      simulation_ = restore_solver(run_.options, current_.run.scene, simulation_->state());
+      // A distributed solver continues where its particles live; one process from its state.
+      simulation_ = run_.options.solvers.change
+                        ? run_.options.solvers.change(*simulation_, current_.run.scene)
+                        : restore_solver(run_.options, current_.run.scene, simulation_->state());
     if (scope.analysis && pipeline_) pipeline_->set_config(current_.run.analysis);
     if (scope.render && renderer_) renderer_->set_config(current_.render);
     ensure_consumers();

@@ -38,6 +38,7 @@ enum class MessageKind : std::uint32_t {
   ParticleProducts = 13,  // analysis::RanksRequest → Values (analysis::RanksProducts)
   WriteCheckpoint = 14,   // file, scene JSON, code version, packing, gzip level → Status
   RestoreFile = 15,       // scene JSON + checkpoint file, read by the job's ranks → Status
+  Change = 16,            // scene JSON: the job's solver continued on its ranks → Status
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

@@ -399,6 +399,10 @@ void encode(Encoder& e, const std::filesystem::path& file) {
   e.string(file.string());
 }
 
+/// A request whose body is the scene alone (a live change).
+struct SceneOnly {};
+void encode(Encoder&, SceneOnly) {}
+
 /// The job of a run while some solver of it exists; launched by the first solver made.
 class JobHolder {
  public:
@@ -469,6 +473,13 @@ sim::SolverFactories job_solvers(LaunchOptions options) {
     return holder->make(MessageKind::RestoreFile, scene, file,
                         "restoring the solver from its checkpoint failed");
   };
+  // A live change: the job's ranks continue their own particles (par::Driver::change), so no
+  // state crosses the channel.
+  solvers.change = [holder](const sim::Simulation& current, const sim::Scene& scene) {
+    if (!dynamic_cast<const RemoteSimulation*>(&current))
+      throw std::invalid_argument("a live change of a solver that is not the job's");
+    return holder->make(MessageKind::Change, scene, SceneOnly{}, "changing the solver failed");
+  };
   return solvers;
 }
 
@@ -502,13 +513,20 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
       switch (request.kind) {
         case MessageKind::Make:
         case MessageKind::Restore:
-        case MessageKind::RestoreFile: {
+        case MessageKind::RestoreFile:
+        case MessageKind::Change: {
           const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
           std::unique_ptr<sim::Simulation> fresh;
           if (request.kind == MessageKind::Make) {
             sim::ParticleArrays particles = decode_particles(d);
             d.finish();
             fresh = solvers.make(scene, std::move(particles));
+          } else if (request.kind == MessageKind::Change) {
+            d.finish();
+            if (!simulation) throw std::logic_error("a change before the solver was made");
+            if (!solvers.change)
+              throw std::invalid_argument("the job's solvers do not change in place");
+            fresh = solvers.change(*simulation, scene);
           } else if (request.kind == MessageKind::RestoreFile) {
             const std::filesystem::path file = d.string();
             d.finish();

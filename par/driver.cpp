@@ -32,7 +32,8 @@ enum class Command : int {
   Spectrum = 6,
   ParticleProducts = 7,
   WriteCheckpoint = 8,
-  RestoreFile = 9
+  RestoreFile = 9,
+  Change = 10
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -156,11 +157,13 @@ struct Member {
 };
 
 /// How a member starts: from particles (by position), from a state of all particles read on
-/// rank 0, or from a checkpoint file its ranks read (both by list reference position).
-enum class Start { Fresh, Restore, RestoreFile };
+/// rank 0, from a checkpoint file its ranks read, or from each rank's own state (a live
+/// change; the last three by list reference position).
+enum class Start { Fresh, Restore, RestoreFile, Continue };
 
 /// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
-/// `whole` (read on rank 0 only), or of the checkpoint `file`.
+/// `whole` (read on rank 0 only), or of the checkpoint `file`; to continue, `whole` is this
+/// rank's own state.
 std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
                                     sim::SolverState whole, Start start,
                                     const std::string& file = {}) {
@@ -183,7 +186,9 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
       whole.list_reference_positions[axis] = x;
     }
   }
+  // A change keeps each particle on its rank (to_owners moves none unless the box changed).
   sim::SolverState share = start == Start::RestoreFile ? read_share(*m->decomposition, file)
+                           : start == Start::Continue  ? to_owners(*m->decomposition, whole)
                                                        : scatter_state(*m->decomposition, whole, 0);
   whole = sim::SolverState{};  // rank 0 keeps its share only
   if (restore)
@@ -247,6 +252,8 @@ class DistributedSimulation final : public sim::Simulation,
   const sim::ParticleArrays& particles() const override { return gathered().particles; }
   std::size_t owned_count() const override { return particles().size(); }
   sim::SolverState state() const override { return gathered(); }
+  /// Rank 0's own part of the state (its owned particles), for a change on the ranks.
+  sim::SolverState local_state() const { return m_->local->state(); }
 
   /// A list over the gathered particles (for the analysis), built once per step asked for.
   std::shared_ptr<const sim::NeighbourList> neighbour_list() const override {
@@ -287,6 +294,9 @@ sim::SolverFactories Driver::factories() {
           },
           [this](const sim::Scene& scene, const std::filesystem::path& path) {
             return restore_file(scene, path);
+          },
+          [this](const sim::Simulation& current, const sim::Scene& scene) {
+            return change(current, scene);
           }};
 }
 
@@ -314,6 +324,17 @@ std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::S
       comm_, make_member(comm_, json, std::move(whole), Start::Restore));
 }
 
+std::unique_ptr<sim::Simulation> Driver::change(const sim::Simulation& current,
+                                                const sim::Scene& scene) {
+  const auto* mine = dynamic_cast<const DistributedSimulation*>(&current);
+  if (!mine) throw std::invalid_argument("par::Driver::change: not a solver of this driver");
+  send_command(comm_, Command::Change);
+  std::string json = sim::scene_to_json(scene).dump();
+  broadcast_string(comm_, json);
+  return std::make_unique<DistributedSimulation>(
+      comm_, make_member(comm_, json, mine->local_state(), Start::Continue));
+}
+
 std::unique_ptr<sim::Simulation> Driver::restore_file(const sim::Scene& scene,
                                                       const std::filesystem::path& path) {
   send_command(comm_, Command::RestoreFile);
@@ -337,15 +358,21 @@ void serve_commands(MPI_Comm comm) {
           return;
         case Command::Make:
         case Command::Restore:
-        case Command::RestoreFile: {
+        case Command::RestoreFile:
+        case Command::Change: {
           std::string json, file;
           broadcast_string(comm, json);
           if (command == Command::RestoreFile) broadcast_string(comm, file);
           const Start start = command == Command::Make      ? Start::Fresh
                               : command == Command::Restore ? Start::Restore
+                              : command == Command::Change  ? Start::Continue
                                                             : Start::RestoreFile;
+          if (start == Start::Continue && !member)
+            throw std::logic_error("a change before the solver was made");
           // The new solver first, then the old one goes: the order rank 0's Run follows.
-          auto fresh = make_member(comm, json, sim::SolverState{}, start, file);
+          auto fresh = make_member(
+              comm, json, start == Start::Continue ? member->local->state() : sim::SolverState{},
+              start, file);
           member = std::move(fresh);
           break;
         }

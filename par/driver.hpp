@@ -46,6 +46,11 @@ class Driver {
   std::unique_ptr<sim::Simulation> restore_file(const sim::Scene& scene,
                                                 const std::filesystem::path& path);
 
+  /// A solver for `scene` (a live change) continuing `current`, a solver made here, on the ranks
+  /// where its particles are: each rank restores from its own state (no gather), bitwise what
+  /// restore(scene, current.state()) gives. Throws std::invalid_argument for another solver.
+  std::unique_ptr<sim::Simulation> change(const sim::Simulation& current, const sim::Scene& scene);
+
   int ranks() const;
   /// make() and restore() as the factories a run takes (control::RunOptions::solvers); they
   /// refer to this Driver, which must outlive them.

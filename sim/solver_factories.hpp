@@ -24,6 +24,11 @@ struct SolverFactories {
   /// types: the run that calls it does). Empty: the caller reads the file and calls restore.
   std::function<std::unique_ptr<Simulation>(const Scene&, const std::filesystem::path&)>
       restore_file;
+  /// Optional: a solver for `scene` (a live change) continuing the state of `current`, a solver
+  /// these factories made, where its particles live (a distributed solver's ranks keep theirs)
+  /// instead of through current.state(). Bitwise what restore(scene, current.state()) gives.
+  /// Empty: the caller does that.
+  std::function<std::unique_ptr<Simulation>(const Simulation& current, const Scene&)> change;
 };
 
 }  // namespace sphles::sim

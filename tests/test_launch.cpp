@@ -405,11 +405,16 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   remote->step();  // the job goes on after a failed checkpoint
   expect_same_by_id(local->particles(), remote->particles());
 
-  // A live change: the job's solver replaced from a state, the old one stale, the job the same.
-  std::unique_ptr<sim::Simulation> changed = solvers.restore(scene, remote->state());
+  // A live change: the job's solver continued on its ranks (no state crosses the channel), the
+  // old one stale, the job the same; bitwise what a restore from the state gives.
+  ASSERT_TRUE(solvers.change);
+  EXPECT_THROW(solvers.change(*local, scene), std::invalid_argument);
+  sim::Scene thicker = scene;  // the change: twice the viscosity
+  thicker.fluid.dynamic_viscosity *= 2.0;
+  std::unique_ptr<sim::Simulation> changed = solvers.change(*remote, thicker);
   EXPECT_THROW(remote->step(), std::logic_error);
   remote.reset();
-  auto local_again = sim::restore_simulation(setup.solver, local->state());
+  auto local_again = sim::restore_simulation(sim::make_solver_config(thicker), local->state());
   for (int s = 0; s < 10; ++s) {
     local_again->step();
     changed->step();
