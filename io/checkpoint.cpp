@@ -28,6 +28,12 @@ using detail::write_string_attribute;
 
 const char* kAxis[] = {"x", "y", "z"};
 
+/// Entries per chunk of a particle dataset (fewer for a smaller dataset: one chunk).
+constexpr hsize_t kChunkEntries = hsize_t{1} << 16;
+
+/// The longest failure message the ranks exchange (agree()).
+constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 16;
+
 // --- writing ---------------------------------------------------------------------------
 
 /// Where this process' particles go in the file's datasets: entries [first, first + count) of
@@ -52,7 +58,7 @@ void write_dataset(hid_t group, const std::string& name, hid_t type, const std::
   const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space.valid() || !properties.valid()) throw failed();
   if (size > 0) {
-    const hsize_t chunk = std::min<hsize_t>(size, hsize_t{1} << 16);
+    const hsize_t chunk = std::min(size, kChunkEntries);
     if (H5Pset_chunk(properties.get(), 1, &chunk) < 0 || H5Pset_fletcher32(properties.get()) < 0)
       throw failed();
     if (options.gzip_level > 0 &&
@@ -146,8 +152,7 @@ std::optional<std::string> agree(MPI_Comm comm, const std::optional<std::string>
   int lowest = size;
   MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, comm);
   if (lowest == size) return std::nullopt;
-  int length =
-      rank == lowest ? static_cast<int>(std::min<std::size_t>(failure->size(), 1 << 16)) : 0;
+  int length = rank == lowest ? static_cast<int>(std::min(failure->size(), kMaxMessageBytes)) : 0;
   MPI_Bcast(&length, 1, MPI_INT, lowest, comm);
   std::string text = rank == lowest ? failure->substr(0, static_cast<std::size_t>(length))
                                     : std::string(static_cast<std::size_t>(length), '\0');
@@ -568,10 +573,14 @@ std::uint64_t checkpoint_size_bound(int dimension, std::uint64_t particles, bool
   // density, pressure, id (8 bytes each), ν_t when the run has it.
   const std::uint64_t datasets =
       4 * static_cast<std::uint64_t>(dimension) + 5 + (eddy_viscosity ? 1 : 0);
-  const std::uint64_t chunks = (particles + (std::uint64_t{1} << 16) - 1) >> 16;
+  // Chunks are allocated whole, the last one too (a dataset of 70 000 doubles takes two chunks
+  // of 65 536); compressed chunks are no larger than that.
+  const std::uint64_t chunk = std::min<std::uint64_t>(particles, kChunkEntries);
+  const std::uint64_t chunks = chunk == 0 ? 0 : (particles + chunk - 1) / chunk;
   // A chunk's checksum (4 B) and index entry (< 64 B), a dataset's header and attributes (< 4 kB);
   // gzip can grow incompressible data by < 0.1 %: 1 % and 1 MiB of margin.
-  const std::uint64_t raw = datasets * (8 * particles + 64 * chunks + 4096) + 2 * metadata_bytes;
+  const std::uint64_t raw =
+      datasets * (8 * chunk * chunks + 64 * chunks + 4096) + 2 * metadata_bytes;
   return raw + raw / 100 + (std::uint64_t{1} << 20);
 }
 

@@ -21,6 +21,7 @@
 #include <thread>
 
 #include "io/checkpoint.hpp"
+#include "io/checkpoint_collective.hpp"
 #include "io/particle_snapshot.hpp"
 #include "server_test_support.hpp"
 #include "sim/initial_conditions.hpp"
@@ -94,6 +95,62 @@ TEST_F(CheckpointTest, RoundTripIsBitForBit) {
       // Nothing but the file itself is left in the directory.
       for (const auto& entry : std::filesystem::directory_iterator(dir_))
         EXPECT_EQ(entry.path().extension(), ".h5") << entry.path();
+    }
+}
+
+// The room a checkpoint written by the ranks reserves before HDF5 writes to disk
+// (checkpoint_size_bound, io/checkpoint_collective.hpp) holds the file: HDF5 1.10 does not survive
+// a failed write, so a bound below the real size would let a full disk crash the run. Checked on
+// the files one process writes, which the ranks' file equals: 2D and 3D, with and without ν_t,
+// gzip 0 and 9 on random (incompressible) values, from a few particles to several chunks, with a
+// long scene attribute; and the reader's header (no particles) agrees with the file.
+TEST_F(CheckpointTest, TheRoomReservedForACheckpointHoldsIt) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(0.01, 1.0);
+  for (const int dim : {2, 3})
+    for (const bool eddy : {false, true})
+      for (const std::size_t n : {std::size_t{3}, std::size_t{70000}, std::size_t{140001}})
+        for (const int gzip : {0, 9}) {
+          sim::SolverState state;
+          state.particles.dimension = dim;
+          state.particles.resize(n);
+          sim::ParticleArrays& p = state.particles;
+          for (std::vector<double>* f : p.double_fields())
+            for (double& v : *f) v = u(rng);
+          if (eddy) p.eddy_viscosity.assign(n, 0.0);
+          for (double& v : p.eddy_viscosity) v = u(rng);
+          for (int d = 0; d < dim; ++d) state.list_reference_positions[d] = p.position[d];
+          state.time = 1.0;
+          state.step = 3;
+          state.neighbour_builds = 2;
+          const CheckpointMetadata meta{"{\"text\": \"" + std::string(20000, 'x') + "\"}", "9.9.9",
+                                        "lattice"};
+          const auto file = dir_ / "bound.h5";
+          write_checkpoint(file, state, meta, {.gzip_level = gzip});
+          const std::uint64_t bound = checkpoint_size_bound(
+              dim, n, eddy,
+              meta.scene_json.size() + meta.code_version.size() + meta.packing.size());
+          EXPECT_LE(std::filesystem::file_size(file), bound)
+              << dim << "D, " << n << " particles, ν_t " << eddy << ", gzip " << gzip;
+          const CheckpointHeader header = read_checkpoint_header(file);
+          EXPECT_EQ(header.shape.particles, n);
+          EXPECT_EQ(header.shape.dimension, dim);
+          EXPECT_EQ(header.shape.eddy_viscosity, eddy);
+          EXPECT_EQ(header.step, 3u);
+          EXPECT_EQ(header.metadata.scene_json, meta.scene_json);
+        }
+  // Equal blocks: in rank order, covering [0, N) once, lengths differing by at most one.
+  for (const std::uint64_t total : {0ull, 1ull, 7ull, 1000003ull})
+    for (const int ranks : {1, 2, 3, 8}) {
+      std::uint64_t next = 0;
+      for (int r = 0; r < ranks; ++r) {
+        const Block b = equal_block(total, r, ranks);
+        EXPECT_EQ(b.first, next);
+        EXPECT_LE(b.count, total / static_cast<std::uint64_t>(ranks) + 1);
+        EXPECT_GE(b.count, total / static_cast<std::uint64_t>(ranks));
+        next += b.count;
+      }
+      EXPECT_EQ(next, total);
     }
 }
 
