@@ -251,9 +251,16 @@ def main():
         if any(t1 <= t0 for t0, t1 in zip(times, times[1:])):
             sys.exit("the time series is not increasing after the resume")
         # The new job's ranks read the checkpoint, each its part; nothing crossed the channel.
-        with open(os.path.join(run_dir, "run.log")) as f:
-            if f"{named} at t = " not in f.read().split("(read by the ranks)")[0][-400:]:
-                sys.exit("the resumed job's ranks did not read the named checkpoint")
+        # (The run's time can pass the mark above before the new job restored: wait for the line.)
+        deadline = time.time() + 60
+        while True:
+            with open(os.path.join(run_dir, "run.log")) as f:
+                log = f.read()
+            if "(read by the ranks)" in log or time.time() > deadline:
+                break
+            time.sleep(0.2)
+        if f"{named} at t = " not in log.split("(read by the ranks)")[0][-400:]:
+            sys.exit("the resumed job's ranks did not read the named checkpoint:\n" + log[-3000:])
         status, changed = request(base, "PATCH", f"/api/runs/{run_id}/parameters",
                                   {"fluid": {"dynamic_viscosity": 0.02}})
         if status != 200:
