@@ -28,8 +28,17 @@ using detail::write_string_attribute;
 
 const char* kAxis[] = {"x", "y", "z"};
 
-/// Entries per chunk of a particle dataset (fewer for a smaller dataset: one chunk).
+/// At most this many entries per chunk of a particle dataset.
 constexpr hsize_t kChunkEntries = hsize_t{1} << 16;
+
+/// Entries per chunk for a dataset of `size` entries: the fewest chunks of at most kChunkEntries,
+/// of equal length (HDF5 allocates the last chunk whole, so 70 000 entries in chunks of 65 536
+/// would take 131 072 entries of space; in two chunks of 35 000 they take 70 000).
+hsize_t chunk_entries(hsize_t size) {
+  if (size == 0) return 0;
+  const hsize_t chunks = (size + kChunkEntries - 1) / kChunkEntries;
+  return (size + chunks - 1) / chunks;
+}
 
 /// The longest failure message the ranks exchange (agree()).
 constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 16;
@@ -58,7 +67,7 @@ void write_dataset(hid_t group, const std::string& name, hid_t type, const std::
   const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   if (!space.valid() || !properties.valid()) throw failed();
   if (size > 0) {
-    const hsize_t chunk = std::min(size, kChunkEntries);
+    const hsize_t chunk = chunk_entries(size);
     if (H5Pset_chunk(properties.get(), 1, &chunk) < 0 || H5Pset_fletcher32(properties.get()) < 0)
       throw failed();
     if (options.gzip_level > 0 &&
@@ -573,9 +582,9 @@ std::uint64_t checkpoint_size_bound(int dimension, std::uint64_t particles, bool
   // density, pressure, id (8 bytes each), ν_t when the run has it.
   const std::uint64_t datasets =
       4 * static_cast<std::uint64_t>(dimension) + 5 + (eddy_viscosity ? 1 : 0);
-  // Chunks are allocated whole, the last one too (a dataset of 70 000 doubles takes two chunks
-  // of 65 536); compressed chunks are no larger than that.
-  const std::uint64_t chunk = std::min<std::uint64_t>(particles, kChunkEntries);
+  // Chunks are allocated whole, the last one too (chunk_entries keeps that waste below one entry
+  // per chunk); compressed chunks are no larger than that.
+  const std::uint64_t chunk = chunk_entries(particles);
   const std::uint64_t chunks = chunk == 0 ? 0 : (particles + chunk - 1) / chunk;
   // A chunk's checksum (4 B) and index entry (< 64 B), a dataset's header and attributes (< 4 kB);
   // gzip can grow incompressible data by < 0.1 %: 1 % and 1 MiB of margin.
