@@ -168,9 +168,11 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
       want_field_velocity || (!particle_estimate && (need_grid_vorticity || need_particle_omega2));
   const bool shepard_velocity_grid = config.gridding.velocity == VelocityGridding::Shepard;
   const bool has_eddy_viscosity = snapshot.particles.eddy_viscosity.size() == snapshot.size();
-  const bool want_eddy_slice = config.wants(Product::Slices) &&
-                               config.slice.fields.contains(SliceField::EddyViscosity) &&
-                               has_eddy_viscosity;
+  const bool asks_eddy_slice =
+      config.wants(Product::Slices) && config.slice.fields.contains(SliceField::EddyViscosity);
+  // The ranks answer the ν_t slice when the run has ν_t (an empty slice otherwise).
+  const bool eddy_slice_from_ranks = asks_eddy_slice && ranks && !ranks->slice_eddy.empty();
+  const bool want_eddy_slice = asks_eddy_slice && has_eddy_viscosity && !ranks;
   const bool want_eddy_grid =
       want_eddy_slice || (grid_field(SliceField::EddyViscosity) && has_eddy_viscosity);
   // The node → particle map serves the nearest-particle velocity and the τ_SFS and ν_t grids.
@@ -215,6 +217,8 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   if (statistics_from_ranks) frame.subfilter = *ranks->statistics;
   if (stress_slice_from_ranks)
     frame.slices.push_back(ranks_slice(SliceField::SubfilterStressNorm, ranks->slice_tau));
+  if (eddy_slice_from_ranks)
+    frame.slices.push_back(ranks_slice(SliceField::EddyViscosity, ranks->slice_eddy));
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {
     // Nothing from the particles; the ranks' spectrum may have made energy and spectrum.

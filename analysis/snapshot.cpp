@@ -51,9 +51,10 @@ bool served_by_ranks(const AnalysisConfig& config, Product p) {
     case Product::SubfilterStatistics:
       return mls;
     case Product::Slices:
-      return mls && std::ranges::all_of(config.slice.fields, [](SliceField f) {
-               return f == SliceField::VorticitySquared || f == SliceField::SubfilterStressNorm;
-             });
+      // ω² is the mls estimate's; |τ_SFS| and ν_t are the nearest particle's under any.
+      return std::ranges::all_of(config.slice.fields, [&](SliceField f) {
+        return f != SliceField::VorticitySquared || mls;
+      });
     default:
       return false;
   }
@@ -67,7 +68,8 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
   const bool slices = config.wants(Product::Slices);
   r.slice_omega2 = slices && config.slice.fields.contains(SliceField::VorticitySquared);
   r.slice_tau = slices && config.slice.fields.contains(SliceField::SubfilterStressNorm);
-  if (r.slice_omega2 || r.slice_tau) {
+  r.slice_eddy = slices && config.slice.fields.contains(SliceField::EddyViscosity);
+  if (r.slice_omega2 || r.slice_tau || r.slice_eddy) {
     r.slice_axis = config.slice.axis;
     r.slice_position = config.slice.position;
   }

@@ -24,15 +24,16 @@ namespace sphles::analysis {
 
 /// The particle products a distributed solver's ranks compute where the particles live
 /// (DistributedProducts::particle_products), as a run's configuration asks for them: the
-/// "mls" vorticity (the default estimate, config.hpp), the ω² and |τ_SFS| slices and the
+/// "mls" vorticity (the default estimate, config.hpp), the ω², |τ_SFS| and ν_t slices and the
 /// chapter-4 statistics.
 struct RanksRequest {
   int points_per_side = 0;    // M of the analysis grid
   double fit_radius = 0.0;    // R [m] of the local fits (gridding.fit_radius · H)
   bool vorticity = false;     // product "vorticity": ⟨ω²⟩
-  bool slice_omega2 = false;  // product "slices": ω² (fitted) and |τ_SFS| (nearest particle)
+  bool slice_omega2 = false;  // product "slices": ω² (fitted), |τ_SFS| and ν_t (nearest particle)
   bool slice_tau = false;
-  int slice_axis = 0;  // SliceConfig::axis and position (3D), when a slice is asked
+  bool slice_eddy = false;  // ν_t: answered only when the run has an explicit model
+  int slice_axis = 0;       // SliceConfig::axis and position (3D), when a slice is asked
   double slice_position = 0.0;
   bool statistics = false;  // product "sfs_stats", with its bins and threshold
   int histogram_bins = 0;
@@ -46,10 +47,11 @@ struct RanksRequest {
 struct RanksProducts {
   RanksRequest request;
   double mean_vorticity_squared = 0.0;  // Σ_i V_i ω_i² / Σ_i V_i over every particle [1/s²]
-  /// ω² and |τ_SFS| at the slice's nodes (slice_nodes, products.hpp), in that order; each empty
-  /// unless asked.
+  /// ω², |τ_SFS| and ν_t at the slice's nodes (slice_nodes, products.hpp), in that order; each
+  /// empty unless asked (ν_t also when the particles carry none: an implicit run).
   std::vector<double> slice_omega2;
   std::vector<double> slice_tau;
+  std::vector<double> slice_eddy;
   std::optional<SubfilterStatisticsProduct> statistics;
 };
 

@@ -186,7 +186,8 @@ int small_int(Decoder& d, const char* what) {
 }
 
 // The request's flags, one bit each.
-constexpr std::uint64_t kVorticity = 1, kSliceOmega2 = 2, kSliceTau = 4, kStatistics = 8;
+constexpr std::uint64_t kVorticity = 1, kSliceOmega2 = 2, kSliceTau = 4, kStatistics = 8,
+                        kSliceEddy = 16;
 
 void encode(Encoder& e, const analysis::Histogram2D& h) {
   e.u64(static_cast<std::uint64_t>(h.bins_x));
@@ -210,7 +211,8 @@ void encode(Encoder& e, const analysis::RanksRequest& r) {
   e.u64(static_cast<std::uint64_t>(r.points_per_side));
   e.f64(r.fit_radius);
   e.u64((r.vorticity ? kVorticity : 0) | (r.slice_omega2 ? kSliceOmega2 : 0) |
-        (r.slice_tau ? kSliceTau : 0) | (r.statistics ? kStatistics : 0));
+        (r.slice_tau ? kSliceTau : 0) | (r.statistics ? kStatistics : 0) |
+        (r.slice_eddy ? kSliceEddy : 0));
   e.u64(static_cast<std::uint64_t>(r.slice_axis));
   e.f64(r.slice_position);
   e.u64(static_cast<std::uint64_t>(r.histogram_bins));
@@ -226,6 +228,7 @@ analysis::RanksRequest decode_ranks_request(Decoder& d) {
   r.vorticity = (flags & kVorticity) != 0;
   r.slice_omega2 = (flags & kSliceOmega2) != 0;
   r.slice_tau = (flags & kSliceTau) != 0;
+  r.slice_eddy = (flags & kSliceEddy) != 0;
   r.statistics = (flags & kStatistics) != 0;
   r.slice_axis = small_int(d, "slice axis");
   if (r.slice_axis > 2) throw ProtocolError("particle products: slice axis out of range");
@@ -241,6 +244,7 @@ void encode(Encoder& e, const analysis::RanksProducts& p) {
   e.f64(p.mean_vorticity_squared);
   e.doubles(p.slice_omega2);
   e.doubles(p.slice_tau);
+  e.doubles(p.slice_eddy);
   e.u64(p.statistics ? 1 : 0);
   if (!p.statistics) return;
   const analysis::SubfilterStatisticsProduct& s = *p.statistics;
@@ -261,6 +265,7 @@ analysis::RanksProducts decode_ranks_products(Decoder& d) {
   p.mean_vorticity_squared = d.f64();
   p.slice_omega2 = d.doubles();
   p.slice_tau = d.doubles();
+  p.slice_eddy = d.doubles();
   if (d.u64() == 0) return p;
   analysis::SubfilterStatisticsProduct& s = p.statistics.emplace();
   s.max_norm = d.f64();

@@ -79,7 +79,7 @@ void broadcast_string(MPI_Comm comm, std::string& text) {
 /// Sends a particle-products request from rank 0 to every rank (as doubles: every field is a
 /// flag, a small integer or a length).
 analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r) {
-  double fields[11] = {static_cast<double>(r.points_per_side),
+  double fields[12] = {static_cast<double>(r.points_per_side),
                        r.fit_radius,
                        r.vorticity ? 1.0 : 0.0,
                        r.slice_omega2 ? 1.0 : 0.0,
@@ -89,8 +89,9 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
                        r.statistics ? 1.0 : 0.0,
                        static_cast<double>(r.histogram_bins),
                        static_cast<double>(r.angle_bins),
-                       r.angle_threshold};
-  MPI_Bcast(fields, 11, MPI_DOUBLE, 0, comm);
+                       r.angle_threshold,
+                       r.slice_eddy ? 1.0 : 0.0};
+  MPI_Bcast(fields, 12, MPI_DOUBLE, 0, comm);
   r.points_per_side = static_cast<int>(fields[0]);
   r.fit_radius = fields[1];
   r.vorticity = fields[2] != 0.0;
@@ -102,6 +103,7 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
   r.histogram_bins = static_cast<int>(fields[8]);
   r.angle_bins = static_cast<int>(fields[9]);
   r.angle_threshold = fields[10];
+  r.slice_eddy = fields[11] != 0.0;
   return r;
 }
 

@@ -111,7 +111,7 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
       throw std::invalid_argument("distributed particle products: the box must be a cube");
   const bool fits = request.vorticity || request.slice_omega2 || request.statistics;
   const bool stress_needed = request.slice_tau || request.statistics;
-  const bool slice = request.slice_omega2 || request.slice_tau;
+  const bool slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
   if (request.points_per_side < 1 ||
       (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
     throw std::invalid_argument(
@@ -197,12 +197,20 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
       values = analysis::fitted_vorticity_squared(grid, local, fit, omega, share.nodes);
     result.slice_omega2 = gather_slice(d, share, values);
   }
-  if (request.slice_tau) {
-    // |τ_SFS| of the halo from its owners, then that of each slice node's nearest particle.
+  // ν_t travels with the particles (the halo holds the owners' values): only when the run has
+  // an explicit model, on every rank alike.
+  const bool eddy =
+      request.slice_eddy &&
+      !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
+  if (request.slice_tau || eddy) {
+    // |τ_SFS| of the halo from its owners, then that (and ν_t) of each slice node's nearest
+    // particle.
     std::vector<double> norm = stress.norm;
-    norm.resize(local.size());
-    std::vector<double>* fields[] = {&norm};
-    halo.update(d, fields);
+    if (request.slice_tau) {
+      norm.resize(local.size());
+      std::vector<double>* fields[] = {&norm};
+      halo.update(d, fields);
+    }
     analysis::NearestInBlock nearest;
     if (!share.nodes.empty()) {
       const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
@@ -217,9 +225,13 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
           "distributed particle products: a slice node's nearest particle lies further than the "
           "halo width (" +
           std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
-    std::vector<double> values(share.nodes.size());
-    for (std::size_t k = 0; k < values.size(); ++k) values[k] = norm[nearest.particle[k]];
-    result.slice_tau = gather_slice(d, share, values);
+    const auto at_nearest = [&](const std::vector<double>& field) {
+      std::vector<double> values(share.nodes.size());
+      for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
+      return gather_slice(d, share, values);
+    };
+    if (request.slice_tau) result.slice_tau = at_nearest(norm);
+    if (eddy) result.slice_eddy = at_nearest(local.eddy_viscosity);
   }
   return result;
 }

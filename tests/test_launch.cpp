@@ -361,6 +361,8 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   config.every = 1.0;
   config.products = {analysis::Product::Vorticity, analysis::Product::Slices,
                      analysis::Product::SubfilterStatistics};
+  // A ν_t slice asked of an implicit run: no slice here, an empty one from the ranks.
+  config.slice.fields.insert(analysis::SliceField::EddyViscosity);
   const analysis::AnalysisFrame frame = analysis::analyse(here, config);
   ASSERT_TRUE(frame.vorticity && frame.subfilter && frame.subfilter->alignment);
   ASSERT_EQ(frame.slices.size(), 2u);
@@ -370,6 +372,7 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   EXPECT_EQ(got.mean_vorticity_squared, frame.vorticity->mean_vorticity_squared);
   EXPECT_EQ(got.slice_omega2, frame.slices[0].values);
   EXPECT_EQ(got.slice_tau, frame.slices[1].values);
+  EXPECT_TRUE(request.slice_eddy && got.slice_eddy.empty());
   ASSERT_TRUE(got.statistics && got.statistics->alignment);
   EXPECT_EQ(got.statistics->mean_norm, frame.subfilter->mean_norm);
   EXPECT_EQ(got.statistics->joint.counts, frame.subfilter->joint.counts);

@@ -85,6 +85,7 @@ sim::ParticleArrays subset(const sim::ParticleArrays& all, const std::vector<std
   sim::ParticleArrays p;
   p.dimension = all.dimension;
   p.resize(mine.size());
+  if (!all.eddy_viscosity.empty()) p.eddy_viscosity.resize(mine.size());
   auto to = p.double_fields();
   const auto from = all.double_fields();
   for (std::size_t f = 0; f < to.size(); ++f)
@@ -840,6 +841,10 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
   const double spacing = kLength / per_side;
   for (std::size_t i = 0; i < all.size(); ++i)
     all.volume[i] = std::pow(spacing, Dim) * (1.0 + 0.1 * std::sin(3.0 * static_cast<double>(i)));
+  // ν_t of an explicit model, one value per particle (travels with it to the ranks' halos).
+  all.eddy_viscosity.resize(all.size());
+  for (std::size_t i = 0; i < all.size(); ++i)
+    all.eddy_viscosity[i] = 1e-3 * (1.5 + std::cos(7.0 * static_cast<double>(i)));
   const double support = 2.5 * spacing;  // H, as far as the halo reaches
   const Decomposition d(MPI_COMM_WORLD, box_of(Dim), support, spacing);
   const sim::ParticleArrays mine = owned_before_drift(d, all, drift * spacing);
@@ -859,13 +864,16 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
                      analysis::Product::SubfilterStatistics};
   config.slice.axis = Dim == 3 ? 1 : 0;
   config.slice.position = 0.4 * kLength;
+  config.slice.fields.insert(analysis::SliceField::EddyViscosity);
   config.histogram_bins = 20;
   const analysis::AnalysisFrame frame = analysis::analyse(one, config);
   ASSERT_TRUE(frame.vorticity && frame.subfilter);
-  ASSERT_EQ(frame.slices.size(), 2u);
+  ASSERT_EQ(frame.slices.size(), 3u);
+  ASSERT_EQ(frame.slices[2].field, analysis::SliceField::EddyViscosity);
 
   const analysis::RanksRequest request = analysis::ranks_request(one, config);
-  EXPECT_TRUE(request.vorticity && request.slice_omega2 && request.slice_tau && request.statistics);
+  EXPECT_TRUE(request.vorticity && request.slice_omega2 && request.slice_tau &&
+              request.slice_eddy && request.statistics);
   const analysis::RanksProducts got =
       distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, request);
   EXPECT_EQ(got.request, request);
@@ -888,9 +896,16 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
   if (d.rank() == 0) {
     EXPECT_EQ(got.slice_omega2, frame.slices[0].values);
     EXPECT_EQ(got.slice_tau, frame.slices[1].values);
+    EXPECT_EQ(got.slice_eddy, frame.slices[2].values);
   } else {
-    EXPECT_TRUE(got.slice_omega2.empty() && got.slice_tau.empty());
+    EXPECT_TRUE(got.slice_omega2.empty() && got.slice_tau.empty() && got.slice_eddy.empty());
   }
+  // Without ν_t (the implicit model) the ν_t slice is empty on every rank, as analyse has none.
+  sim::ParticleArrays implicit = mine;
+  implicit.eddy_viscosity.clear();
+  EXPECT_TRUE(
+      distributed_particle_products(d, implicit, sim::KernelType::WendlandC4, support, request)
+          .slice_eddy.empty());
   EXPECT_TRUE(all_ranks(!::testing::Test::HasFailure()));
 
   // Fits reaching further than the halo are refused on every rank (one rank has no halo).

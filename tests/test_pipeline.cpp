@@ -357,14 +357,18 @@ TEST(Products, ParticleProductsComputedOnTheRanksServeTheirProducts) {
   EXPECT_EQ(mixed.vorticity->mean_vorticity_squared, whole.vorticity->mean_vorticity_squared);
   EXPECT_EQ(mixed.slices[0].values, whole.slices[0].values);
 
-  // Other estimates, and slices of other fields, are not served by the ranks.
+  // Other estimates are not served by the ranks, but for the nearest-particle slices (|τ_SFS|,
+  // ν_t), which every estimate shares.
   AnalysisConfig particle = config;
   particle.gridding.vorticity = VorticityEstimate::Particle;
   EXPECT_FALSE(served_by_ranks(particle, Product::Vorticity));
   EXPECT_FALSE(served_by_ranks(particle, Product::SubfilterStatistics));
+  EXPECT_FALSE(served_by_ranks(particle, Product::Slices));  // ω² among the fields
+  particle.slice.fields = {SliceField::SubfilterStressNorm, SliceField::EddyViscosity};
+  EXPECT_TRUE(served_by_ranks(particle, Product::Slices));
   AnalysisConfig eddy = config;
   eddy.slice.fields.insert(SliceField::EddyViscosity);
-  EXPECT_FALSE(served_by_ranks(eddy, Product::Slices));
+  EXPECT_TRUE(served_by_ranks(eddy, Product::Slices));
   EXPECT_FALSE(served_by_ranks(config, Product::Particles));
   EXPECT_FALSE(served_by_ranks(config, Product::Fields));
 }
