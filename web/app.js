@@ -791,6 +791,9 @@ function onStreamMessage(id, m) {
   switch (m.type) {
     case 'hello':
       applyDetail(m.run);
+      // Lines written between the log's fetch at selection and this stream's start (a run that
+      // failed meanwhile sends no 'state' message to it) are read now.
+      refreshLog();
       break;
     case 'state':
       mergeSummary({ id, state: m.state, reason: m.reason ?? '' });
