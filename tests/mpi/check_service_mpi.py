@@ -246,12 +246,9 @@ def main():
         # The new job continues from the named checkpoint: its time series restarts there.
         wait_for(base, run_id, lambda r: r["state"] == "running" and
                  r["time"] > checkpoint_time + 0.2, "running past the checkpoint")
-        with open(os.path.join(run_dir, "timeseries.csv")) as f:
-            times = [float(row.split(",")[0]) for row in f.read().splitlines()[1:]]
-        if any(t1 <= t0 for t0, t1 in zip(times, times[1:])):
-            sys.exit("the time series is not increasing after the resume")
         # The new job's ranks read the checkpoint, each its part; nothing crossed the channel.
-        # (The run's time can pass the mark above before the new job restored: wait for the line.)
+        # (The run's time can pass the mark above before the new job restored: wait for the line,
+        # then for rows beyond the failed run's time, which only the new job writes.)
         deadline = time.time() + 60
         while True:
             with open(os.path.join(run_dir, "run.log")) as f:
@@ -261,6 +258,18 @@ def main():
             time.sleep(0.2)
         if f"{named} at t = " not in log.split("(read by the ranks)")[0][-400:]:
             sys.exit("the resumed job's ranks did not read the named checkpoint:\n" + log[-3000:])
+        deadline = time.time() + 60
+        while True:
+            with open(os.path.join(run_dir, "timeseries.csv")) as f:
+                times = [float(row.split(",")[0]) for row in f.read().splitlines()[1:]]
+            # Past where the failed run had got to: rows the new job wrote.
+            if (times and times[-1] > failed["time"] + 0.05) or time.time() > deadline:
+                break
+            time.sleep(0.2)
+        if any(t1 <= t0 for t0, t1 in zip(times, times[1:])):
+            sys.exit("the time series is not increasing after the resume")
+        if not times or times[-1] <= failed["time"] + 0.05:
+            sys.exit(f"the resumed job wrote no rows past t = {failed['time']}")
         status, changed = request(base, "PATCH", f"/api/runs/{run_id}/parameters",
                                   {"fluid": {"dynamic_viscosity": 0.02}})
         if status != 200:
