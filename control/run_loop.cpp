@@ -74,6 +74,13 @@ void remove_interrupted_writes(const std::filesystem::path& checkpoint_dir) {
       std::filesystem::remove(entry.path());
 }
 
+/// A resumed run found no checkpoint to continue from.
+[[noreturn]] void no_checkpoint_to_continue() {
+  throw std::runtime_error(
+      "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts again "
+      "from t = 0)");
+}
+
 /// The state a resumed run continues from: the explicit file, else the newest valid checkpoint
 /// (the invalid ones skipped with a warning).
 io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>& explicit_file,
@@ -87,10 +94,7 @@ io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>
     file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
     for (const std::string& why : rejected) log.warn("skipped: {}", why);
   }
-  if (file.empty())
-    throw std::runtime_error(
-        "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
-        "again from t = 0)");
+  if (file.empty()) no_checkpoint_to_continue();
   io::Checkpoint checkpoint = io::read_checkpoint(file);
   log.progress("restart: {} at t = {:.17g}, step {}", file.string(), checkpoint.state.time,
                checkpoint.state.step);
@@ -109,10 +113,7 @@ std::unique_ptr<sim::Simulation> restore_from_file(
       explicit_file                             ? std::vector<std::filesystem::path>{*explicit_file}
       : std::filesystem::exists(checkpoint_dir) ? io::list_checkpoints(checkpoint_dir)
                                                 : std::vector<std::filesystem::path>{};
-  if (files.empty())
-    throw std::runtime_error(
-        "cannot continue: no checkpoint in checkpoints/ (a run that has stepped never starts "
-        "again from t = 0)");
+  if (files.empty()) no_checkpoint_to_continue();
   for (const std::filesystem::path& file : files) {
     try {
       const io::CheckpointHeader header = io::read_checkpoint_header(file);
@@ -503,14 +504,14 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
                 scene0.name, sim::case_name(scene0.case_type), scene0.num_particles(),
                 sim::kernel_name(scene0.kernel), scene0.kernel_diameter_over_spacing,
                 omp_get_max_threads(), directory.string());
-  if (checkpoint) {
-    packing = checkpoint->metadata.packing;
-    simulation = restore_solver(options, scene0, std::move(checkpoint->state));
-    truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
-    RenderSink::truncate_index_after(directory / "frames", simulation->time());
-  } else if (ranks_read) {
-    simulation =
-        restore_from_file(options, scene0, start_checkpoint, checkpoint_dir, *log, packing);
+  if (resumed) {
+    if (checkpoint) {
+      packing = checkpoint->metadata.packing;
+      simulation = restore_solver(options, scene0, std::move(checkpoint->state));
+    } else {
+      simulation =
+          restore_from_file(options, scene0, start_checkpoint, checkpoint_dir, *log, packing);
+    }
     truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
     RenderSink::truncate_index_after(directory / "frames", simulation->time());
   } else {

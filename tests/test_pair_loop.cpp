@@ -227,6 +227,16 @@ void expect_cut_to(const InteractionList& pairs, const NeighbourList& verlet,
   EXPECT_EQ(pairs.num_pairs(), kept);
 }
 
+/// The density pass with the run's kernel cut at `radius`, compacting into `pairs`.
+void compacting_density_pass(const SolverConfig& c, int dim, double radius,
+                             const VerletNeighbourSearch& search, ParticleArrays& p,
+                             InteractionList& pairs) {
+  with_kernel(c.kernel, dim, radius, [&](const auto& kernel) {
+    constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
+    density_pass<kDim>(kernel, c.box, search.list(), c.fluid, p, &pairs);
+  });
+}
+
 /// The list is sized by its use: after a pass at half the support (an eighth of the pairs in
 /// 3D, a quarter in 2D) a pass at the full support needs more than the array holds, grows it
 /// once, and holds the right pairs; the array is then about InteractionList::kMargin times the
@@ -239,17 +249,11 @@ TEST(PairLoop, InteractionListIsSizedByItsUseAndGrowsWhenAPassNeedsMore) {
     VerletNeighbourSearch search(c.box, c.support_radius, 0.15 * c.support_radius);
     search.build(view_positions(p));
     InteractionList pairs;
-    with_kernel(c.kernel, dim, 0.5 * c.support_radius, [&](const auto& half) {
-      constexpr int kDim = std::remove_cvref_t<decltype(half)>::dimension;
-      density_pass<kDim>(half, c.box, search.list(), c.fluid, p, &pairs);
-    });
+    compacting_density_pass(c, dim, 0.5 * c.support_radius, search, p, pairs);
     expect_cut_to(pairs, search.list(), p, c.box, 0.5 * c.support_radius);
     const std::size_t few = pairs.num_pairs();
     EXPECT_LT(pairs.capacity(), search.list().num_entries());
-    with_kernel(c.kernel, dim, c.support_radius, [&](const auto& kernel) {
-      constexpr int kDim = std::remove_cvref_t<decltype(kernel)>::dimension;
-      density_pass<kDim>(kernel, c.box, search.list(), c.fluid, p, &pairs);
-    });
+    compacting_density_pass(c, dim, c.support_radius, search, p, pairs);
     expect_cut_to(pairs, search.list(), p, c.box, c.support_radius);
     // Sized from the first pass (kMargin times its pairs), the array had to grow.
     EXPECT_GT(static_cast<double>(pairs.num_pairs()),
