@@ -113,27 +113,54 @@ std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& p
   return case_diagnostics_from_sums(scene, case_diagnostic_sums(scene, p, p.size()));
 }
 
-std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles) {
+std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles,
+                                   Exchange& exchange) {
   ParticleArrays p = particles;
-  p.volume.resize(p.size());
-  p.density.resize(p.size());
-  p.pressure.resize(p.size());
+  const std::size_t owned = p.size();
+  p.volume.resize(owned);
+  p.density.resize(owned);
+  p.pressure.resize(owned);
+  exchange.build_halo(p);  // every particle lies in this process' part: none migrates
   VerletNeighbourSearch search(config.box, config.support_radius, 0.0);
-  search.build(view_positions(p));
+  search.build(view_positions(p), order_by_key(p.id), owned);
   with_kernel(config.kernel, config.box.dimension, config.support_radius, [&](const auto& kernel) {
     using KernelT = std::decay_t<decltype(kernel)>;
     density_pass<KernelT::dimension>(kernel, config.box, search.list(), config.fluid, p);
   });
+  p.volume.resize(owned);
   return std::move(p.volume);
 }
 
+std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles) {
+  LocalExchange one_process;
+  return summed_volumes(config, particles, one_process);
+}
+
 void set_summation_masses(const SolverConfig& config, double lattice_cell_volume,
-                          ParticleArrays& particles) {
-  const std::vector<double> volume = summed_volumes(config, particles);
+                          ParticleArrays& particles, Exchange& exchange) {
+  const std::vector<double> volume = summed_volumes(config, particles, exchange);
   for (std::size_t i = 0; i < particles.size(); ++i) {
     const double rho0 = particles.mass[i] / lattice_cell_volume;  // the case's ρ0_i
     particles.mass[i] = rho0 * volume[i];                         // M_i = ρ0_i V_i, (A.1)-(A.2)
   }
+}
+
+void set_case_fields(const Scene& scene, const SolverConfig& config, ParticleArrays& particles,
+                     Exchange& exchange) {
+  switch (scene.case_type) {
+    case CaseType::TaylorGreen3D:
+      set_taylor_green_3d(scene, particles);
+      break;
+    case CaseType::TaylorGreen2D:
+      set_taylor_green_2d(scene, particles);
+      break;
+    case CaseType::Kolmogorov2D:
+      set_kolmogorov_2d(scene, particles);
+      break;
+  }
+  if (scene.initial.mass == InitialMass::Summation)
+    set_summation_masses(config, std::pow(scene.particle_spacing(), scene.dimension()), particles,
+                         exchange);
 }
 
 SolverConfig make_solver_config(const Scene& scene) {
@@ -158,20 +185,8 @@ RunSetup setup_run(const Scene& scene, const SetupOptions& options) {
   RunSetup setup;
   setup.solver = make_solver_config(scene);
   setup.particles = packed_positions(scene, &setup.packing, options);
-  switch (scene.case_type) {
-    case CaseType::TaylorGreen3D:
-      set_taylor_green_3d(scene, setup.particles);
-      break;
-    case CaseType::TaylorGreen2D:
-      set_taylor_green_2d(scene, setup.particles);
-      break;
-    case CaseType::Kolmogorov2D:
-      set_kolmogorov_2d(scene, setup.particles);
-      break;
-  }
-  if (scene.initial.mass == InitialMass::Summation)
-    set_summation_masses(setup.solver, std::pow(scene.particle_spacing(), scene.dimension()),
-                         setup.particles);
+  LocalExchange one_process;
+  set_case_fields(scene, setup.solver, setup.particles, one_process);
   return setup;
 }
 

@@ -55,13 +55,23 @@ std::vector<ExactSum> case_diagnostic_sums(const Scene& scene, const ParticleArr
 std::vector<double> case_diagnostics_from_sums(const Scene& scene, std::span<const ExactSum> sums);
 
 /// V_i = 1/Σ_j W_ij (A.1) of every particle of an arrangement, with the kernel, support and box
-/// of `config`: the volumes the solver's first density pass computes.
+/// of `config`: the volumes the solver's first density pass computes. With a distributed
+/// `exchange`, `particles` are the ones this process owns (each in its part of the box) and the
+/// neighbours on other processes count too (collective); bitwise the one-process values.
+std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles,
+                                   Exchange& exchange);
 std::vector<double> summed_volumes(const SolverConfig& config, const ParticleArrays& particles);
 
 /// Replaces the lattice masses M0 = ρ0 Δl^n of a case by M_i = ρ0_i V_i (initial.mass =
 /// "summation"), so that ρ_i = M_i / V_i (A.2) is the prescribed ρ0_i exactly.
 void set_summation_masses(const SolverConfig& config, double lattice_cell_volume,
-                          ParticleArrays& particles);
+                          ParticleArrays& particles, Exchange& exchange);
+
+/// The fields of the scene's case at the particles' positions (velocity, density, mass; SPEC
+/// §6) and the masses initial.mass asks for: what setup_run gives packed or lattice positions.
+/// With a distributed `exchange`, as summed_volumes. Collective.
+void set_case_fields(const Scene& scene, const SolverConfig& config, ParticleArrays& particles,
+                     Exchange& exchange);
 
 struct RunSetup {
   SolverConfig solver;

@@ -5,12 +5,15 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
-#include <random>
 #include <sstream>
+
+#include <Random123/philox.h>
+#include <Random123/uniform.hpp>
 
 #include "sim/neighbour_search.hpp"
 #include "sim/physics.hpp"
 #include "sim/reduction.hpp"
+#include "sim/scheme.hpp"
 
 namespace sphles::sim {
 
@@ -29,22 +32,26 @@ FluidParameters background_fluid() {
           .dynamic_viscosity = 0.0};
 }
 
-/// Evaluates a = -(2 p_b/ρ) Σ_j ∇W_ij V_j into p.acceleration and returns the residual
-/// max_i |Σ_j ∇W_ij V_j| Δl.
+/// Evaluates a = -(2 p_b/ρ) Σ_j ∇W_ij V_j into p.acceleration of the first `owned` particles
+/// (the rest: halo copies of other processes' particles, whose V and ρ it refreshes) and returns
+/// the residual max_i |Σ_j ∇W_ij V_j| Δl over every process. `still`: zero velocities for every
+/// particle (the background fluid has no viscosity; the force pass reads them all the same).
 template <class KernelT>
-double background_force(const KernelT& kernel, const PeriodicBox& box,
-                        const VerletNeighbourSearch& search, double spacing, ParticleArrays& p) {
+double background_force(const KernelT& kernel, const PeriodicBox& box, const NeighbourList& list,
+                        double spacing, const VelocityView& still, std::size_t owned,
+                        const Exchange& exchange, InteractionList& pairs, ParticleArrays& p) {
   constexpr int Dim = KernelT::dimension;
   const FluidParameters fluid = background_fluid();
-  InteractionList pairs;
-  density_pass<Dim>(kernel, box, search.list(), fluid, p, &pairs);
-  force_pass<Dim>(kernel, box, pairs, fluid, view_velocity(p), p);
+  density_pass<Dim>(kernel, box, list, fluid, p, &pairs);
+  std::vector<double>* written[] = {&p.volume, &p.density, &p.pressure};
+  exchange.refresh(written);
+  force_pass<Dim>(kernel, box, pairs, fluid, still, p);
   // a_i = -2 p_b Σ_j ∇W_ij V_j / ρ_i with 2 p_b = 1, hence |Σ ∇W V| = |a_i| ρ_i.
-  return spacing * std::sqrt(parallel_max(p.size(), [&](std::size_t i) {
+  return spacing * std::sqrt(exchange.max(parallel_max(owned, [&](std::size_t i) {
            double a2 = 0.0;
            for (int d = 0; d < Dim; ++d) a2 += p.acceleration[d][i] * p.acceleration[d][i];
            return a2 * p.density[i] * p.density[i];
-         }));
+         })));
 }
 
 void fill_packing_arrays(ParticleArrays& p, double spacing) {
@@ -66,7 +73,16 @@ std::uint64_t fnv1a(const void* data, std::size_t size,
   return hash;
 }
 
-constexpr char kCacheMagic[8] = {'S', 'P', 'H', 'P', 'A', 'C', 'K', '1'};
+// Version 2: positions relaxed with id-ordered sums from a counter-based perturbation, and an
+// order-independent checksum (PackingCacheFile).
+constexpr char kCacheMagic[8] = {'S', 'P', 'H', 'P', 'A', 'C', 'K', '2'};
+
+/// SplitMix64's finaliser (Steele, Lea & Flood 2014): a bijective mix of 64 bits.
+std::uint64_t mix64(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
 
 std::string cache_key(const Scene& s) {
   std::ostringstream key;
@@ -82,85 +98,97 @@ std::string cache_key(const Scene& s) {
   return key.str();
 }
 
-std::optional<ParticleArrays> read_cache(const std::filesystem::path& file, const std::string& key,
-                                         int dim, std::size_t count) {
-  std::ifstream in(file, std::ios::binary);
+std::optional<ParticleArrays> read_cache(const PackingCacheFile& f) {
+  std::ifstream in(f.path, std::ios::binary);
   if (!in) return std::nullopt;
-  char magic[8];
-  std::uint64_t key_size = 0, stored_count = 0;
-  if (!in.read(magic, 8) || std::memcmp(magic, kCacheMagic, 8) != 0) return std::nullopt;
-  if (!in.read(reinterpret_cast<char*>(&key_size), sizeof key_size) || key_size > 4096)
-    return std::nullopt;
-  std::string stored_key(key_size, '\0');
-  if (!in.read(stored_key.data(), static_cast<std::streamsize>(key_size)) || stored_key != key)
-    return std::nullopt;
-  if (!in.read(reinterpret_cast<char*>(&stored_count), sizeof stored_count) ||
-      stored_count != count)
+  std::string header(f.header.size(), '\0');
+  if (!in.read(header.data(), static_cast<std::streamsize>(header.size())) || header != f.header)
     return std::nullopt;
   ParticleArrays p;
-  p.dimension = dim;
-  p.resize(count);
-  std::uint64_t hash = fnv1a(stored_key.data(), stored_key.size());
-  for (int d = 0; d < dim; ++d) {
-    const auto bytes = static_cast<std::streamsize>(count * sizeof(double));
+  p.dimension = f.dimension;
+  p.resize(f.count);
+  std::uint64_t sum = f.key_hash;
+  for (int d = 0; d < f.dimension; ++d) {
+    const auto bytes = static_cast<std::streamsize>(f.count * sizeof(double));
     if (!in.read(reinterpret_cast<char*>(p.position[d].data()), bytes)) return std::nullopt;
-    hash = fnv1a(p.position[d].data(), count * sizeof(double), hash);
+    sum += f.checksum(d, 0, p.position[d]);
   }
-  std::uint64_t stored_hash = 0;
-  if (!in.read(reinterpret_cast<char*>(&stored_hash), sizeof stored_hash) || stored_hash != hash)
+  std::uint64_t stored = 0;
+  if (!in.read(reinterpret_cast<char*>(&stored), sizeof stored) || stored != sum ||
+      in.peek() != std::char_traits<char>::eof())
     return std::nullopt;
   return p;
 }
 
-void write_cache(const std::filesystem::path& file, const std::string& key,
-                 const ParticleArrays& p) {
+void write_cache(const PackingCacheFile& f, const ParticleArrays& p) {
   std::error_code ec;
-  std::filesystem::create_directories(file.parent_path(), ec);
+  std::filesystem::create_directories(f.path.parent_path(), ec);
   const std::filesystem::path temporary =
-      file.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+      f.path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
   {
     std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
     if (!out) return;  // the cache is an optimisation: an unwritable directory is not an error
-    const std::uint64_t key_size = key.size(), count = p.size();
-    out.write(kCacheMagic, 8);
-    out.write(reinterpret_cast<const char*>(&key_size), sizeof key_size);
-    out.write(key.data(), static_cast<std::streamsize>(key.size()));
-    out.write(reinterpret_cast<const char*>(&count), sizeof count);
-    std::uint64_t hash = fnv1a(key.data(), key.size());
+    out.write(f.header.data(), static_cast<std::streamsize>(f.header.size()));
+    std::uint64_t sum = f.key_hash;
     for (int d = 0; d < p.dimension; ++d) {
       out.write(reinterpret_cast<const char*>(p.position[d].data()),
-                static_cast<std::streamsize>(count * sizeof(double)));
-      hash = fnv1a(p.position[d].data(), count * sizeof(double), hash);
+                static_cast<std::streamsize>(p.size() * sizeof(double)));
+      sum += f.checksum(d, 0, p.position[d]);
     }
-    out.write(reinterpret_cast<const char*>(&hash), sizeof hash);
+    out.write(reinterpret_cast<const char*>(&sum), sizeof sum);
     out.flush();
     if (!out) {
       std::filesystem::remove(temporary, ec);
       return;
     }
   }
-  std::filesystem::rename(temporary, file, ec);
+  std::filesystem::rename(temporary, f.path, ec);
   if (ec) std::filesystem::remove(temporary, ec);
 }
 
 }  // namespace
 
-ParticleArrays make_lattice(const PeriodicBox& box, int per_side) {
+ParticleArrays make_lattice(const PeriodicBox& box, int per_side, const LatticeFilter& keep) {
+  const auto n = static_cast<std::size_t>(per_side);
+  // The lattice lines each axis keeps, ascending.
+  std::array<std::vector<std::size_t>, 3> lines;
+  std::size_t count = 1;
+  for (int d = 0; d < box.dimension; ++d) {
+    const double spacing = box.length[d] / per_side;
+    for (std::size_t i = 0; i < n; ++i)
+      if (!keep || keep(d, (static_cast<double>(i) + 0.5) * spacing)) lines[d].push_back(i);
+    count *= lines[d].size();
+  }
   ParticleArrays p;
   p.dimension = box.dimension;
-  std::size_t n = 1;
-  for (int d = 0; d < box.dimension; ++d) n *= static_cast<std::size_t>(per_side);
-  p.resize(n);
-  for (std::size_t k = 0; k < n; ++k) {
-    std::size_t rest = k;
+  p.resize(count);
+  for (std::size_t k = 0; k < count; ++k) {
+    std::size_t rest = k, id = 0, stride = 1;
     for (int d = 0; d < box.dimension; ++d) {
-      const std::size_t index = rest % static_cast<std::size_t>(per_side);
-      rest /= static_cast<std::size_t>(per_side);
-      const double spacing = box.length[d] / per_side;
-      p.position[d][k] = (static_cast<double>(index) + 0.5) * spacing;
+      const std::size_t index = lines[d][rest % lines[d].size()];
+      rest /= lines[d].size();
+      p.position[d][k] = (static_cast<double>(index) + 0.5) * (box.length[d] / per_side);
+      id += index * stride;
+      stride *= n;
     }
+    p.id[k] = id;
   }
   return p;
+}
+
+void perturb_positions(const PackingConfig& config, const PeriodicBox& box, double spacing,
+                       ParticleArrays& p) {
+  using Philox = r123::Philox4x64;
+  const Philox generator;
+  const Philox::key_type key = {{config.seed, 0}};
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    const Philox::ctr_type draw = generator({{p.id[i], 0, 0, 0}}, key);
+    for (int d = 0; d < p.dimension; ++d) {
+      const double u = r123::uneg11<double>(draw[static_cast<std::size_t>(d)]);  // [-1, 1]
+      p.position[d][i] =
+          wrap_periodic(p.position[d][i] + config.perturbation * spacing * u, box.length[d]);
+    }
+  }
 }
 
 double packing_residual(const PeriodicBox& box, KernelType kernel, double support_radius,
@@ -169,39 +197,58 @@ double packing_residual(const PeriodicBox& box, KernelType kernel, double suppor
   fill_packing_arrays(p, spacing);
   return with_kernel(kernel, box.dimension, support_radius, [&](const auto& k) {
     VerletNeighbourSearch search(box, support_radius, 0.0);
-    search.build(view_positions(p));
-    return background_force(k, box, search, spacing, p);
+    search.build(view_positions(p), order_by_key(p.id));
+    const std::array<std::vector<double>, 3> zero = p.velocity;
+    InteractionList pairs;
+    return background_force(k, box, search.list(), spacing, view_of(zero, p.dimension), p.size(),
+                            LocalExchange{}, pairs, p);
   });
 }
 
 PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
                               KernelType kernel, double support_radius, double spacing,
                               ParticleArrays& particles, const std::function<bool()>& cancelled) {
+  LocalExchange one_process;
+  return relax_particles(config, box, kernel, support_radius, spacing, particles, one_process,
+                         cancelled);
+}
+
+PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
+                              KernelType kernel, double support_radius, double spacing,
+                              ParticleArrays& particles, Exchange& exchange,
+                              const std::function<bool()>& cancelled) {
   PackingReport report;
   ParticleArrays& p = particles;
   fill_packing_arrays(p, spacing);
-  if (config.perturbation > 0.0) {
-    std::mt19937_64 rng(config.seed);
-    std::uniform_real_distribution<double> uniform(-1.0, 1.0);
-    for (std::size_t i = 0; i < p.size(); ++i)
-      for (int d = 0; d < p.dimension; ++d)
-        p.position[d][i] = wrap_periodic(
-            p.position[d][i] + config.perturbation * spacing * uniform(rng), box.length[d]);
-  }
+  if (config.perturbation > 0.0) perturb_positions(config, box, spacing, p);
+  std::size_t owned = p.size();
   with_kernel(kernel, box.dimension, support_radius, [&](const auto& k) {
     constexpr int Dim = std::decay_t<decltype(k)>::dimension;
     VerletNeighbourSearch search(box, support_radius, kPackingSkin * support_radius);
+    std::array<std::vector<double>, 3> still;  // zero velocities of owned and halo particles
+    InteractionList pairs;
+    // As the solver's rebuild: migrate (distributed), locality order, halo, lists in id order.
     const auto rebuild = [&] {
+      if (exchange.distributed()) {
+        p.truncate(owned);
+        exchange.migrate(p, {});
+      }
       p.reorder(search.locality_order(view_positions(p)));
-      search.build(view_positions(p));
+      owned = p.size();
+      exchange.build_halo(p);
+      search.build(view_positions(p), order_by_key(p.id), owned);
+      for (int d = 0; d < Dim; ++d) still[d].assign(p.size(), 0.0);
+    };
+    const auto residual_now = [&] {
+      return background_force(k, box, search.list(), spacing, view_of(still, Dim), owned, exchange,
+                              pairs, p);
     };
     rebuild();
-    double residual = background_force(k, box, search, spacing, p);
+    double residual = residual_now();
     report.initial_residual = residual;
     const double dt = kStepOverSpacing * spacing;
-    const std::size_t n = p.size();
     while (residual > config.tolerance && report.iterations < config.max_iterations) {
-      if (cancelled && cancelled())
+      if (exchange.any(cancelled && cancelled()))
         throw SetupCancelled("packing cancelled after " + std::to_string(report.iterations) +
                              " iterations");
       for (int d = 0; d < Dim; ++d) {
@@ -209,28 +256,38 @@ PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& bo
         double* x = p.position[d].data();
         const double* a = p.acceleration[d].data();
         const double length = box.length[d];
+        const auto n = static_cast<std::ptrdiff_t>(owned);
 #pragma omp parallel for schedule(static)
-        for (std::size_t i = 0; i < n; ++i) {
+        for (std::ptrdiff_t si = 0; si < n; ++si) {
+          const auto i = static_cast<std::size_t>(si);
           v[i] = (v[i] + dt * a[i]) * (1.0 - kDampingPerStep);
           x[i] = wrap_periodic(x[i] + dt * v[i], length);
         }
       }
-      if (search.needs_rebuild(view_positions(p))) rebuild();
-      residual = background_force(k, box, search, spacing, p);
+      if (exchange.any(search.needs_rebuild(view_positions(p), owned))) {
+        rebuild();
+      } else if (exchange.distributed()) {
+        std::vector<std::vector<double>*> positions;
+        for (int d = 0; d < Dim; ++d) positions.push_back(&p.position[d]);
+        exchange.refresh(positions);
+      }
+      residual = residual_now();
       ++report.iterations;
     }
     report.final_residual = residual;
     report.converged = residual <= config.tolerance;
   });
-  // Restore the lattice order of identities so that a packed state does not depend on how often
+  // This process' particles in id order, so that a packed state does not depend on how often
   // the search reordered it.
-  std::vector<std::uint32_t> order(p.size());
-  for (std::size_t k = 0; k < p.size(); ++k) order[p.id[k]] = static_cast<std::uint32_t>(k);
-  p.reorder(order);
+  p.truncate(owned);
+  p.reorder(order_by_key(p.id));
+  // Only the positions are kept: the packing's fictitious fields do not leak into a run.
   for (int d = 0; d < p.dimension; ++d) {
     p.velocity[d].assign(p.size(), 0.0);
     p.acceleration[d].assign(p.size(), 0.0);
   }
+  for (std::vector<double>* field : {&p.mass, &p.volume, &p.density, &p.pressure})
+    field->assign(p.size(), 0.0);
   return report;
 }
 
@@ -242,38 +299,64 @@ std::filesystem::path default_packing_cache_dir() {
   return std::filesystem::temp_directory_path() / "sphles-packing";
 }
 
+std::uint64_t PackingCacheFile::checksum(int axis, std::uint64_t first,
+                                         std::span<const double> values) const {
+  std::uint64_t sum = 0;
+  for (std::size_t k = 0; k < values.size(); ++k) {
+    std::uint64_t bits = 0;
+    std::memcpy(&bits, &values[k], sizeof bits);
+    const std::uint64_t place = static_cast<std::uint64_t>(axis) * count + first + k;
+    sum += mix64(bits ^ mix64(place));
+  }
+  return sum;
+}
+
+PackingCacheFile packing_cache_file(const Scene& scene, const SetupOptions& options) {
+  PackingCacheFile f;
+  f.dimension = scene.dimension();
+  f.count = scene.num_particles();
+  if (!scene.packing.enabled || !scene.packing.cache) return f;
+  const std::string key = cache_key(scene);
+  f.key_hash = fnv1a(key.data(), key.size());
+  const std::filesystem::path dir =
+      options.packing_cache_dir.empty() ? default_packing_cache_dir() : options.packing_cache_dir;
+  std::ostringstream name;
+  name << "pack_" << scene.dimension() << "d_n" << scene.particles_per_side << "_"
+       << kernel_name(scene.kernel) << "_dk" << scene.kernel_diameter_over_spacing << "_"
+       << std::hex << f.key_hash << ".bin";
+  f.path = dir / name.str();
+  const std::uint64_t key_size = key.size();
+  f.header.assign(kCacheMagic, sizeof kCacheMagic);
+  f.header.append(reinterpret_cast<const char*>(&key_size), sizeof key_size);
+  f.header += key;
+  f.header.append(reinterpret_cast<const char*>(&f.count), sizeof f.count);
+  return f;
+}
+
 ParticleArrays packed_positions(const Scene& scene, PackingReport* report,
                                 const SetupOptions& options) {
   PeriodicBox box;
   box.dimension = scene.dimension();
   for (int d = 0; d < box.dimension; ++d) box.length[d] = scene.box_length();
-  ParticleArrays p = make_lattice(box, scene.particles_per_side);
   PackingReport local;
   PackingReport& r = report ? *report : local;
   r = PackingReport{};
-  if (!scene.packing.enabled) return p;
+  if (!scene.packing.enabled) return make_lattice(box, scene.particles_per_side);
 
-  const std::string key = cache_key(scene);
-  std::filesystem::path file;
-  if (scene.packing.cache) {
-    const std::filesystem::path dir =
-        options.packing_cache_dir.empty() ? default_packing_cache_dir() : options.packing_cache_dir;
-    std::ostringstream name;
-    name << "pack_" << scene.dimension() << "d_n" << scene.particles_per_side << "_"
-         << kernel_name(scene.kernel) << "_dk" << scene.kernel_diameter_over_spacing << "_"
-         << std::hex << fnv1a(key.data(), key.size()) << ".bin";
-    file = dir / name.str();
-    r.cache_file = file.string();
-    if (auto cached = read_cache(file, key, box.dimension, p.size())) {
+  const PackingCacheFile file = packing_cache_file(scene, options);
+  r.cache_file = file.path.string();
+  if (!file.path.empty()) {
+    if (auto cached = read_cache(file)) {
       r.from_cache = true;
       r.converged = true;
       return std::move(*cached);
     }
   }
+  ParticleArrays p = make_lattice(box, scene.particles_per_side);
   r = relax_particles(scene.packing, box, scene.kernel, 0.5 * scene.kernel_diameter(),
                       scene.particle_spacing(), p, options.cancelled);
-  r.cache_file = file.string();
-  if (!file.empty()) write_cache(file, key, p);
+  r.cache_file = file.path.string();
+  if (!file.path.empty()) write_cache(file, p);
   return p;
 }
 

@@ -7,6 +7,7 @@
 #include <functional>
 #include <memory>
 
+#include "sim/packing.hpp"
 #include "sim/particles.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -29,6 +30,12 @@ struct SolverFactories {
   /// instead of through current.state(). Bitwise what restore(scene, current.state()) gives.
   /// Empty: the caller does that.
   std::function<std::unique_ptr<Simulation>(const Simulation& current, const Scene&)> change;
+  /// Optional: a new run's solver whose particles are made where they will live (a distributed
+  /// solver's ranks make, pack and set up each its part) instead of by the caller: bitwise
+  /// make(scene, setup_run(scene, options).particles). `report` receives the packing's; throws
+  /// SetupCancelled as setup_run does. Empty: the caller calls setup_run and make.
+  std::function<std::unique_ptr<Simulation>(const Scene&, const SetupOptions&, PackingReport&)>
+      set_up;
 };
 
 }  // namespace sphles::sim
