@@ -547,7 +547,13 @@ std::unique_ptr<sim::Simulation> Run::Impl::set_up(const sim::Scene& scene, std:
     std::lock_guard lock(mutex);
     return stop_requested;
   };
-  sim::RunSetup setup = sim::setup_run(scene, setup_options);
+  // Made where the particles will live (a distributed solver's ranks), or here.
+  std::unique_ptr<sim::Simulation> made;
+  sim::RunSetup setup;
+  if (options.solvers.set_up)
+    made = options.solvers.set_up(scene, setup_options, setup.packing);
+  else
+    setup = sim::setup_run(scene, setup_options);
   const double setup_seconds = std::chrono::duration<double>(Clock::now() - setup_start).count();
   char text[512];
   std::snprintf(text, sizeof text,
@@ -565,6 +571,10 @@ std::unique_ptr<sim::Simulation> Run::Impl::set_up(const sim::Scene& scene, std:
                   setup.packing.iterations, setup.packing.initial_residual,
                   setup.packing.final_residual, setup_seconds,
                   setup.packing.cache_file.empty() ? "" : ", cache ", setup.packing.cache_file);
+  if (made) {
+    log->debug("set-up: particles made, packed and set up by the ranks, none gathered");
+    return made;
+  }
   set_phase("setting up");  // the solver (and any MPI job) from the packed particles
   return options.solvers.make ? options.solvers.make(scene, std::move(setup.particles))
                               : sim::make_simulation(setup.solver, std::move(setup.particles));

@@ -39,6 +39,8 @@ enum class MessageKind : std::uint32_t {
   WriteCheckpoint = 14,   // file, scene JSON, code version, packing, gzip level → Status
   RestoreFile = 15,       // scene JSON + checkpoint file, read by the job's ranks → Status
   Change = 16,            // scene JSON: the job's solver continued on its ranks → Status
+  SetUp = 17,  // scene JSON + packing cache directory: a new run made by the job's ranks →
+               // Status followed by the packing's report
 };
 
 /// A message that is truncated, malformed or of an unexpected kind.

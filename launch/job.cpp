@@ -161,14 +161,26 @@ class Job {
   }
 
   /// Sends a request and returns its reply; the job's errors are rethrown as their own type,
-  /// a job that ended as a SimulationError saying how.
-  Message request(MessageKind kind, const Encoder& body, const char* what) {
+  /// a job that ended as a SimulationError saying how. `cancelled` (may be empty) is polled
+  /// while the reply is awaited: when it says so, the job is ended (a set-up cannot be told
+  /// to stop half-way) and sim::SetupCancelled thrown.
+  Message request(MessageKind kind, const Encoder& body, const char* what,
+                  const std::function<bool()>& cancelled = {}) {
     if (broken_) throw sim::SimulationError(diagnosis(what, "the job ended earlier"));
     Message reply;
     try {
       channel_.send(kind, body);
-      reply =
-          channel_.receive([&] { check_alive("while the service waited for it"); }, kPollSeconds);
+      reply = channel_.receive(
+          [&] {
+            check_alive("while the service waited for it");
+            if (cancelled && cancelled())
+              throw sim::SetupCancelled(std::string(what) + ": cancelled, the MPI job ended");
+          },
+          kPollSeconds);
+    } catch (const sim::SetupCancelled&) {
+      broken_ = true;
+      end_process();
+      throw;
     } catch (const std::exception& e) {
       broken_ = true;
       wait_for_exit(kExitStatusWaitSeconds);
@@ -399,6 +411,29 @@ void encode(Encoder& e, const std::filesystem::path& file) {
   e.string(file.string());
 }
 
+void encode(Encoder& e, const sim::PackingReport& r) {
+  e.u64(static_cast<std::uint64_t>(r.iterations));
+  e.f64(r.initial_residual);
+  e.f64(r.final_residual);
+  e.u64(r.converged ? 1 : 0);
+  e.u64(r.from_cache ? 1 : 0);
+  e.string(r.cache_file);
+}
+
+sim::PackingReport decode_packing_report(Decoder& d) {
+  sim::PackingReport r;
+  const std::uint64_t iterations = d.u64();
+  if (iterations > static_cast<std::uint64_t>(std::numeric_limits<int>::max()))
+    throw ProtocolError("a packing report of " + std::to_string(iterations) + " iterations");
+  r.iterations = static_cast<int>(iterations);
+  r.initial_residual = d.f64();
+  r.final_residual = d.f64();
+  r.converged = d.u64() != 0;
+  r.from_cache = d.u64() != 0;
+  r.cache_file = d.string();
+  return r;
+}
+
 /// A request whose body is the scene alone (a live change).
 struct SceneOnly {};
 void encode(Encoder&, SceneOnly) {}
@@ -411,15 +446,7 @@ class JobHolder {
   template <class Body>
   std::unique_ptr<sim::Simulation> make(MessageKind kind, const sim::Scene& scene, Body&& body,
                                         const char* what) {
-    std::shared_ptr<Job> job;
-    {
-      std::lock_guard lock(mutex_);
-      job = job_.lock();
-      if (!job) {
-        job = std::make_shared<Job>(options_);
-        job_ = job;
-      }
-    }
+    std::shared_ptr<Job> job = current_job();
     Encoder e;
     e.string(sim::scene_to_json(scene).dump());
     encode(e, body);
@@ -429,7 +456,37 @@ class JobHolder {
                                               sim::make_solver_config(scene), std::move(status));
   }
 
+  /// A new run whose particles the job's ranks make and pack (par::Driver::set_up).
+  std::unique_ptr<sim::Simulation> set_up(const sim::Scene& scene, const sim::SetupOptions& options,
+                                          sim::PackingReport& report) {
+    std::shared_ptr<Job> job = current_job();
+    Encoder e;
+    e.string(sim::scene_to_json(scene).dump());
+    e.string(options.packing_cache_dir.string());
+    const std::uint64_t generation = job->next_generation();
+    const Message reply = job->request(MessageKind::SetUp, e,
+                                       "setting up the run on the ranks failed", options.cancelled);
+    if (reply.kind != MessageKind::Status) throw ProtocolError("expected a status reply");
+    Decoder d(reply.body);
+    SolverStatus status = decode_status(d);
+    report = decode_packing_report(d);
+    d.finish();
+    return std::make_unique<RemoteSimulation>(std::move(job), generation,
+                                              sim::make_solver_config(scene), std::move(status));
+  }
+
  private:
+  /// The run's job, launched if it has none.
+  std::shared_ptr<Job> current_job() {
+    std::lock_guard lock(mutex_);
+    std::shared_ptr<Job> job = job_.lock();
+    if (!job) {
+      job = std::make_shared<Job>(options_);
+      job_ = job;
+    }
+    return job;
+  }
+
   LaunchOptions options_;
   std::mutex mutex_;
   std::weak_ptr<Job> job_;
@@ -479,6 +536,12 @@ sim::SolverFactories job_solvers(LaunchOptions options) {
     if (!dynamic_cast<const RemoteSimulation*>(&current))
       throw std::invalid_argument("a live change of a solver that is not the job's");
     return holder->make(MessageKind::Change, scene, SceneOnly{}, "changing the solver failed");
+  };
+  // A new run: the job's ranks make, pack and set up its particles, each its part; the
+  // packing cache directory must be the same path for the job (as restore_file's file).
+  solvers.set_up = [holder](const sim::Scene& scene, const sim::SetupOptions& options,
+                            sim::PackingReport& report) {
+    return holder->set_up(scene, options, report);
   };
   return solvers;
 }
@@ -540,6 +603,19 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           }
           simulation = std::move(fresh);  // the new solver first, then the old one goes
           reply = status();
+          break;
+        }
+        case MessageKind::SetUp: {
+          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          sim::SetupOptions options;
+          options.packing_cache_dir = d.string();
+          d.finish();
+          if (!solvers.set_up) throw std::invalid_argument("the job's solvers do not set up runs");
+          sim::PackingReport report;
+          std::unique_ptr<sim::Simulation> fresh = solvers.set_up(scene, options, report);
+          simulation = std::move(fresh);
+          reply = status();
+          encode(reply, report);
           break;
         }
         case MessageKind::Step: {

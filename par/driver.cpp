@@ -12,6 +12,7 @@
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/particle_products.hpp"
+#include "par/setup.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
@@ -33,7 +34,8 @@ enum class Command : int {
   ParticleProducts = 7,
   WriteCheckpoint = 8,
   RestoreFile = 9,
-  Change = 10
+  Change = 10,
+  SetUp = 11
 };
 
 /// A rank waiting for rank 0's next command tests for it without pause this long [s], then
@@ -158,27 +160,46 @@ struct Member {
   }
 };
 
-/// How a member starts: from particles (by position), from a state of all particles read on
-/// rank 0, from a checkpoint file its ranks read, or from each rank's own state (a live
-/// change; the last three by list reference position).
-enum class Start { Fresh, Restore, RestoreFile, Continue };
+/// How a member starts: from particles (by position), made by the ranks (par::set_up_share),
+/// from a state of all particles read on rank 0, from a checkpoint file its ranks read, or
+/// from each rank's own state (a live change; the last three by list reference position).
+enum class Start { Fresh, SetUp, Restore, RestoreFile, Continue };
+
+/// A new run's set-up on the ranks: the options (rank 0's, with its cancellation) and where the
+/// packing's report goes.
+struct SetUp {
+  sim::SetupOptions options;
+  sim::PackingReport* report = nullptr;
+};
 
 /// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
-/// `whole` (read on rank 0 only), or of the checkpoint `file`; to continue, `whole` is this
-/// rank's own state.
+/// `whole` (read on rank 0 only), or of the checkpoint `file`, or making it (`setup`); to
+/// continue, `whole` is this rank's own state.
 std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
                                     sim::SolverState whole, Start start,
-                                    const std::string& file = {}) {
-  const bool restore = start != Start::Fresh;
+                                    const std::string& file = {}, const SetUp* setup = nullptr) {
+  const bool restore = start != Start::Fresh && start != Start::SetUp;
   auto m = std::make_unique<Member>();
   const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(scene_json));
   m->config = sim::make_solver_config(scene);
   const sim::SolverConfig& c = m->config;
   const sim::VerletNeighbourSearch search(c.box, c.support_radius,
                                           c.neighbour_skin * c.support_radius);
-  m->decomposition =
-      std::make_unique<Decomposition>(comm, c.box, search.list_radius(), c.particle_spacing);
+  double halo_width = search.list_radius();
+  if (start == Start::SetUp && scene.packing.enabled)  // the packing's lists are the ranks' too
+    halo_width = std::max(
+        halo_width,
+        sim::VerletNeighbourSearch(c.box, c.support_radius, sim::kPackingSkin * c.support_radius)
+            .list_radius());
+  m->decomposition = std::make_unique<Decomposition>(comm, c.box, halo_width, c.particle_spacing);
   m->exchange = std::make_shared<MpiExchange>(*m->decomposition);
+  if (start == Start::SetUp) {
+    sim::PackingReport ignored;
+    sim::ParticleArrays share = set_up_share(*m->decomposition, scene, c, setup->options,
+                                             setup->report ? *setup->report : ignored);
+    m->local = sim::make_simulation(c, std::move(share), 0.0, 0, m->exchange);
+    return m;
+  }
   if (!restore) {
     // A fresh start: owned by position (wrapped into the box, as the solver does).
     for (int a = 0; a < whole.particles.dimension; ++a) {
@@ -299,7 +320,9 @@ sim::SolverFactories Driver::factories() {
           },
           [this](const sim::Simulation& current, const sim::Scene& scene) {
             return change(current, scene);
-          }};
+          },
+          [this](const sim::Scene& scene, const sim::SetupOptions& options,
+                 sim::PackingReport& report) { return set_up(scene, options, report); }};
 }
 
 int Driver::ranks() const {
@@ -316,6 +339,19 @@ std::unique_ptr<sim::Simulation> Driver::make(const sim::Scene& scene, sim::Part
   whole.particles = std::move(all);
   return std::make_unique<DistributedSimulation>(
       comm_, make_member(comm_, json, std::move(whole), Start::Fresh));
+}
+
+std::unique_ptr<sim::Simulation> Driver::set_up(const sim::Scene& scene,
+                                                const sim::SetupOptions& options,
+                                                sim::PackingReport& report) {
+  send_command(comm_, Command::SetUp);
+  std::string json = sim::scene_to_json(scene).dump();
+  broadcast_string(comm_, json);
+  std::string cache = options.packing_cache_dir.string();
+  broadcast_string(comm_, cache);
+  const SetUp setup{options, &report};
+  return std::make_unique<DistributedSimulation>(
+      comm_, make_member(comm_, json, sim::SolverState{}, Start::SetUp, {}, &setup));
 }
 
 std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::SolverState whole) {
@@ -375,6 +411,16 @@ void serve_commands(MPI_Comm comm) {
           auto fresh = make_member(
               comm, json, start == Start::Continue ? member->local->state() : sim::SolverState{},
               start, file);
+          member = std::move(fresh);
+          break;
+        }
+        case Command::SetUp: {
+          std::string json, cache;
+          broadcast_string(comm, json);
+          broadcast_string(comm, cache);
+          SetUp setup;
+          setup.options.packing_cache_dir = cache;
+          auto fresh = make_member(comm, json, sim::SolverState{}, Start::SetUp, {}, &setup);
           member = std::move(fresh);
           break;
         }

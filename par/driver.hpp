@@ -35,6 +35,13 @@ class Driver {
   /// particle of the run (each rank receives those of its sub-box). Replaces the solver the other
   /// ranks held; the Simulation returned must not outlive this Driver.
   std::unique_ptr<sim::Simulation> make(const sim::Scene& scene, sim::ParticleArrays all);
+  /// A new run's solver whose particles the ranks make, each its share: the lattice of its
+  /// sub-box, relaxed with the other ranks' or read from the packing cache, with the case's
+  /// fields (par::set_up_share): bitwise make(scene, sim::setup_run(scene, options).particles),
+  /// without any rank holding every particle. `options.cancelled` is polled here (rank 0);
+  /// throws sim::SetupCancelled on every rank when it says so. `report` gets the packing's.
+  std::unique_ptr<sim::Simulation> set_up(const sim::Scene& scene, const sim::SetupOptions& options,
+                                          sim::PackingReport& report);
   /// The same from a state of every particle (a checkpoint, or state() of a solver made here):
   /// continues bitwise on this rank count whatever count wrote it (par::scatter_state sends each
   /// rank its share).
@@ -52,8 +59,8 @@ class Driver {
   std::unique_ptr<sim::Simulation> change(const sim::Simulation& current, const sim::Scene& scene);
 
   int ranks() const;
-  /// make() and restore() as the factories a run takes (control::RunOptions::solvers); they
-  /// refer to this Driver, which must outlive them.
+  /// make(), set_up(), restore() and the others as the factories a run takes
+  /// (control::RunOptions::solvers); they refer to this Driver, which must outlive them.
   sim::SolverFactories factories();
 
  private:

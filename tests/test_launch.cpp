@@ -332,6 +332,43 @@ void expect_same_by_id(const sim::ParticleArrays& a, const sim::ParticleArrays& 
   EXPECT_EQ(differing, 0u);
 }
 
+// A new run whose particles the job's ranks make and pack (each those of its sub-box; none
+// cross the channel) is the run set up here, bit for bit, with the same packing report. A
+// cancellation while the job packs ends the job and throws SetupCancelled.
+TEST(JobSolverFactories, ARunSetUpByTheJobsRanksIsTheRunSetUpHere) {
+  const auto dir = fresh_directory("launch_setup");
+  sim::Scene scene = small_tgv2d();
+  scene.packing.enabled = true;
+  const sim::RunSetup setup = sim::setup_run(scene, {.packing_cache_dir = dir / "here"});
+  auto local = sim::make_simulation(setup.solver, setup.particles);
+  sim::SolverFactories solvers = job_solvers(
+      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  ASSERT_TRUE(solvers.set_up);
+  sim::PackingReport report;
+  std::unique_ptr<sim::Simulation> remote =
+      solvers.set_up(scene, {.packing_cache_dir = dir / "job"}, report);
+  EXPECT_FALSE(report.from_cache);
+  EXPECT_EQ(report.iterations, setup.packing.iterations);
+  EXPECT_EQ(report.final_residual, setup.packing.final_residual);
+  EXPECT_EQ(report.cache_file,
+            (dir / "job" / std::filesystem::path(setup.packing.cache_file).filename()).string());
+  for (int s = 0; s < 10; ++s) {
+    local->step();
+    remote->step();
+  }
+  EXPECT_EQ(remote->diagnostics().kinetic_energy, local->diagnostics().kinetic_energy);
+  expect_same_by_id(local->particles(), remote->particles());
+  remote.reset();  // the job ends with its last solver
+
+  scene.packing.tolerance = 1e-300;  // never converges: only the cancellation ends it
+  scene.packing.max_iterations = 1000000;
+  int polls = 0;
+  sim::SetupOptions cancelled{.packing_cache_dir = dir / "job",
+                              .cancelled = [&] { return ++polls > 3; }};
+  EXPECT_THROW(solvers.set_up(scene, cancelled, report), sim::SetupCancelled);
+  EXPECT_GT(polls, 3);
+}
+
 TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   const auto dir = fresh_directory("launch_job");
   const sim::Scene scene = small_tgv2d();

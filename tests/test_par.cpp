@@ -14,6 +14,8 @@
 #include <cstdint>
 #include <cstdio>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <limits>
 #include <random>
 #include <string>
@@ -31,6 +33,7 @@
 #include "par/halo.hpp"
 #include "par/particle_products.hpp"
 #include "par/reduce.hpp"
+#include "par/setup.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
@@ -1226,6 +1229,78 @@ TEST(CheckpointByTheRanks, ReadByTheRanksGivesEachRankItsShare) {
   rejected(directory.path / "repeated.h5", "not a permutation");
   rejected(directory.path / "infinite.h5", "non-finite value in 'particles/velocity_y' at index " +
                                                std::to_string(whole.particles.size() - 2));
+}
+
+/// The bytes of a file.
+std::string file_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+// A new run's particles made by the ranks, each the lattice of its sub-box relaxed together
+// with the other ranks' (par::set_up_share), are the particles sim::setup_run makes in one
+// process, bit for bit: packed positions, case fields and summation masses, each particle on
+// the rank whose sub-box holds it. The packing cache the ranks write, each its block, is the
+// file one process writes, byte for byte; the ranks read it back, and so does one process.
+TEST(DistributedSetUp, EqualsTheOneProcessSetUpBitForBitAndSharesItsCache) {
+  const SharedDirectory directory;
+  for (const int dim : {2, 3}) {
+    const sim::Scene scene = sim::parse_scene({{"case", dim == 3 ? "tgv3d" : "tgv2d"},
+                                               {"particles_per_side", dim == 3 ? 16 : 40},
+                                               {"kernel", {{"diameter_over_spacing", 6}}},
+                                               {"initial", {{"mass", "summation"}}}});
+    const sim::SetupOptions ranks{.packing_cache_dir = directory.path / "ranks"};
+    const sim::SetupOptions alone{.packing_cache_dir =
+                                      directory.path / ("one" + std::to_string(world_rank()))};
+    const sim::RunSetup one = sim::setup_run(scene, alone);
+    ASSERT_FALSE(one.packing.from_cache);
+    ASSERT_GT(one.packing.iterations, 0);
+    std::vector<std::size_t> at(one.particles.size());
+    for (std::size_t k = 0; k < at.size(); ++k) at[one.particles.id[k]] = k;
+
+    const sim::SolverConfig& config = one.solver;
+    const Decomposition d(MPI_COMM_WORLD, config.box,
+                          sim::packing_list_radius(config.support_radius), config.particle_spacing);
+    for (const bool cached : {false, true}) {
+      sim::PackingReport report;
+      const sim::ParticleArrays share = set_up_share(d, scene, config, ranks, report);
+      EXPECT_EQ(report.from_cache, cached) << dim << "D";
+      if (!cached) {
+        EXPECT_EQ(report.iterations, one.packing.iterations);
+        EXPECT_EQ(report.initial_residual, one.packing.initial_residual);
+        EXPECT_EQ(report.final_residual, one.packing.final_residual);
+        EXPECT_TRUE(report.converged);
+      }
+      std::size_t differ = 0, outside = 0;
+      for (std::size_t i = 0; i < share.size(); ++i) {
+        const std::size_t k = at[share.id[i]];
+        bool same =
+            share.mass[i] == one.particles.mass[k] && share.density[i] == one.particles.density[k];
+        for (int a = 0; a < dim; ++a) {
+          const auto x = static_cast<std::size_t>(a);
+          same = same && share.position[x][i] == one.particles.position[x][k] &&
+                 share.velocity[x][i] == one.particles.velocity[x][k];
+          outside += d.coordinate_of(a, share.position[x][i]) != d.coords()[x] ? 1 : 0;
+        }
+        differ += same ? 0 : 1;
+      }
+      EXPECT_EQ(differ, 0u) << dim << "D, rank " << d.rank() << (cached ? ", cached" : "");
+      EXPECT_EQ(outside, 0u) << dim << "D, rank " << d.rank();
+      unsigned long long mine = share.size(), all = 0;
+      MPI_Allreduce(&mine, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+      EXPECT_EQ(all, one.particles.size());
+    }
+    const std::filesystem::path ranks_file = sim::packing_cache_file(scene, ranks).path;
+    EXPECT_EQ(file_bytes(ranks_file), file_bytes(sim::packing_cache_file(scene, alone).path))
+        << dim << "D";
+    sim::PackingReport read;
+    const sim::ParticleArrays again = sim::packed_positions(scene, &read, ranks);
+    EXPECT_TRUE(read.from_cache);
+    for (int a = 0; a < dim; ++a)
+      EXPECT_EQ(again.position[static_cast<std::size_t>(a)],
+                one.particles.position[static_cast<std::size_t>(a)]);
+    MPI_Barrier(MPI_COMM_WORLD);
+  }
 }
 
 }  // namespace

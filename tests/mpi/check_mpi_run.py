@@ -5,7 +5,9 @@ Runs a small 2D Taylor-Green scene three ways and compares, with h5py, every par
 the final checkpoints (sorted by particle id: one process writes its own order, a distributed
 run writes id order) and the time series:
   1. one process;
-  2. 2 MPI ranks from the start, with the energy and spectrum computed on the ranks and equal to
+  2. 2 MPI ranks from the start, its particles made and packed by the ranks, each those of its
+     half of the box (no rank holds them all; the packing cache they write, each its part, is
+     one process's file byte for byte), with the energy and spectrum computed on the ranks and equal to
      one process's to 1e-12, and the particle products (the fitted vorticity's ⟨ω²⟩, the ω² and
      |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
      for bit (no particle gathered for the analysis);
@@ -30,7 +32,7 @@ import numpy as np
 from compare_spectra import compare_spectra
 
 SCENE_SETTINGS = [
-    "particles_per_side=40", "time.end=0.2", "packing.enabled=false",
+    "particles_per_side=40", "time.end=0.2", "initial.mass=summation",
     "checkpoint.every=0.1", "checkpoint.keep=10",
     "analysis.every=0.05",
     'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats"]',
@@ -119,11 +121,23 @@ def main():
     one, two, three = (os.path.join(work, n) for n in ("one", "two", "three"))
     mpi = [mpiexec, "--oversubscribe", "--bind-to", "none", "-n"]
 
-    run([sphles, "run", scene, *settings, "--out", one], env)
-    log = run(mpi + ["2", sphles, "run", scene, *settings, "--out", two, "--log-level", "debug"],
-              env)
+    # Each run packs its own particles (a cache of its own).
+    caches = {n: os.path.join(work, "cache-" + n) for n in ("one", "two")}
+    run([sphles, "run", scene, *settings, "--out", one, "--packing-cache", caches["one"]], env)
+    log = run(mpi + ["2", sphles, "run", scene, *settings, "--out", two, "--log-level", "debug",
+                     "--packing-cache", caches["two"]], env)
     if "spans 2 MPI ranks" not in log:
         sys.exit("the 2-rank run did not say it spans 2 ranks:\n" + log)
+    if "particles made, packed and set up by the ranks" not in log or "converged" not in log:
+        sys.exit("the 2-rank run did not pack its particles on the ranks:\n" + log[-2000:])
+    packed = {n: sorted(os.listdir(c)) for n, c in caches.items()}
+    if len(packed["one"]) != 1 or packed["one"] != packed["two"]:
+        sys.exit(f"expected one packing cache file of the same name per run: {packed}")
+    with open(os.path.join(caches["one"], packed["one"][0]), "rb") as f1, \
+            open(os.path.join(caches["two"], packed["two"][0]), "rb") as f2:
+        if f1.read() != f2.read():
+            sys.exit("the packing cache written by 2 ranks differs from one process's")
+    print("2 ranks: packed on the ranks, cache file equal to one process's")
     with open(os.path.join(two, "run.json")) as f:
         recorded = json.load(f).get("ranks")
     if recorded != 2:

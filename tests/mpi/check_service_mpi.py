@@ -2,8 +2,8 @@
 """The service runs a run's solver as an MPI job (issue 19, docs/scaling.md "From the service").
 
 Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and real ranks:
-  1. a run created with "ranks": 2 finishes with the final checkpoint and the time series of the
-     same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra
+  1. a run created with "ranks": 2, its particles made and packed by the job's ranks, finishes
+     with the final checkpoint and the time series of the same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra
      (computed on the job's ranks) equal the 1-rank run's to 1e-12 and its slices and
      histograms (computed on the ranks too) bit for bit, its checkpoints written by the job's
      ranks (none fetched), its spectra and slices are served, and its job ended (no worker
@@ -32,7 +32,7 @@ import numpy as np
 from compare_spectra import compare_spectra
 
 SCENE = {"preset": "tgv2d",
-         "patch": {"particles_per_side": 40, "packing": {"enabled": False},
+         "patch": {"particles_per_side": 40,
                    "time": {"end": 0.2}, "checkpoint": {"every": 0.1, "keep": 10}}}
 
 
@@ -174,7 +174,12 @@ def main():
         # The 2-rank run's checkpoints are written by the job's ranks, none fetched (run.log
         # holds the run's lines at the server's log level).
         with open(os.path.join(dirs[2], "run.log")) as f:
-            written = f.read().count("written by the ranks, no particles gathered")
+            log = f.read()
+        # Packed by the job's ranks (or read from the packing cache by them), none sent.
+        if "particles made, packed and set up by the ranks" not in log:
+            sys.exit("the 2-rank run's particles were not set up by the job's ranks:\n"
+                     + log[-2000:])
+        written = log.count("written by the ranks, no particles gathered")
         files = [n for n in os.listdir(os.path.join(dirs[2], "checkpoints")) if n.endswith(".h5")]
         if written != len(files):
             sys.exit(f"{written} checkpoints written by the job's ranks, expected {len(files)}")

@@ -1,0 +1,184 @@
+#include "par/setup.hpp"
+
+#include <mpi.h>
+#include <unistd.h>
+
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+#include "io/checkpoint_collective.hpp"
+#include "par/exchange.hpp"
+#include "par/state.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/neighbour_search.hpp"
+
+namespace sphles::par {
+
+namespace {
+
+bool on_every_rank(const Decomposition& d, bool mine) {
+  int local = mine ? 1 : 0, all = 0;
+  MPI_Allreduce(&local, &all, 1, MPI_INT, MPI_MIN, d.comm());
+  return all != 0;
+}
+
+/// The sum modulo 2^64 of every rank's `mine`.
+std::uint64_t summed(const Decomposition& d, std::uint64_t mine) {
+  std::uint64_t all = 0;
+  MPI_Allreduce(&mine, &all, 1, MPI_UINT64_T, MPI_SUM, d.comm());
+  return all;
+}
+
+int checked_int(std::size_t n) {
+  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::length_error("packing cache: " + std::to_string(n) + " values exceed MPI's int");
+  return static_cast<int>(n);
+}
+
+/// The lattice points of this rank's sub-box.
+sim::ParticleArrays lattice_share(const Decomposition& d, const sim::Scene& scene) {
+  return sim::make_lattice(d.box(), scene.particles_per_side, [&d](int axis, double x) {
+    return d.coordinate_of(axis, x) == d.coords()[static_cast<std::size_t>(axis)];
+  });
+}
+
+/// This rank's block of the cached packing `f` (io::equal_block of the ids) when every rank read
+/// its block and the blocks' checksums add up to the file's; else nothing, on every rank.
+std::optional<sim::ParticleArrays> read_cached_block(const Decomposition& d,
+                                                     const sim::PackingCacheFile& f) {
+  const io::Block block = io::equal_block(f.count, d.rank(), d.size());
+  sim::ParticleArrays p;
+  p.dimension = f.dimension;
+  p.resize(block.count);
+  for (std::size_t k = 0; k < p.size(); ++k) p.id[k] = block.first + k;
+  std::uint64_t part = 0, stored = 0;
+  bool read = false;
+  {
+    std::error_code ec;
+    const auto size = std::filesystem::file_size(f.path, ec);
+    std::ifstream in(f.path, std::ios::binary);
+    std::string header(f.header.size(), '\0');
+    read = !ec && size == f.file_size() && in &&
+           in.read(header.data(), static_cast<std::streamsize>(header.size())) &&
+           header == f.header;
+    for (int a = 0; read && a < f.dimension; ++a) {
+      in.seekg(static_cast<std::streamoff>(f.offset(a, block.first)));
+      read = static_cast<bool>(in.read(reinterpret_cast<char*>(p.position[a].data()),
+                                       static_cast<std::streamsize>(block.count * sizeof(double))));
+      part += f.checksum(a, block.first, p.position[a]);
+    }
+    if (read) {
+      in.seekg(static_cast<std::streamoff>(f.checksum_offset()));
+      read = static_cast<bool>(in.read(reinterpret_cast<char*>(&stored), sizeof stored));
+    }
+  }
+  if (!on_every_rank(d, read)) return std::nullopt;
+  if (!on_every_rank(d, f.key_hash + summed(d, part) == stored)) return std::nullopt;
+  return p;
+}
+
+void broadcast_string(const Decomposition& d, std::string& text) {
+  unsigned long long size = text.size();
+  MPI_Bcast(&size, 1, MPI_UNSIGNED_LONG_LONG, 0, d.comm());
+  text.resize(static_cast<std::size_t>(size));
+  MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, d.comm());
+}
+
+/// The packing cache `f` written by every rank, each its block of ids [first, first + size) in
+/// id order, into a temporary file that rank 0 renames when every write succeeded (else removes:
+/// the cache is an optimisation, so a failure is not an error).
+void write_cached_blocks(const Decomposition& d, const sim::PackingCacheFile& f,
+                         const sim::ParticleArrays& block, std::uint64_t first) {
+  std::string temporary;
+  if (d.rank() == 0) {
+    std::error_code ec;
+    std::filesystem::create_directories(f.path.parent_path(), ec);
+    temporary = f.path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
+  }
+  broadcast_string(d, temporary);
+  MPI_File file;
+  const int opened = MPI_File_open(d.comm(), temporary.c_str(), MPI_MODE_CREATE | MPI_MODE_WRONLY,
+                                   MPI_INFO_NULL, &file);
+  if (!on_every_rank(d, opened == MPI_SUCCESS)) {
+    if (opened == MPI_SUCCESS) MPI_File_close(&file);
+    if (d.rank() == 0) std::filesystem::remove(temporary);
+    return;
+  }
+  bool written = true;
+  std::uint64_t part = 0;
+  for (int a = 0; a < f.dimension; ++a) {
+    part += f.checksum(a, first, block.position[a]);
+    written = MPI_File_write_at_all(file, static_cast<MPI_Offset>(f.offset(a, first)),
+                                    block.position[a].data(), checked_int(block.size()), MPI_DOUBLE,
+                                    MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+              written;
+  }
+  const std::uint64_t checksum = f.key_hash + summed(d, part);
+  if (d.rank() == 0) {
+    written = MPI_File_write_at(file, 0, f.header.data(), checked_int(f.header.size()), MPI_CHAR,
+                                MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+              MPI_File_write_at(file, static_cast<MPI_Offset>(f.checksum_offset()), &checksum, 1,
+                                MPI_UINT64_T, MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+              written;
+  }
+  written = MPI_File_close(&file) == MPI_SUCCESS && written;
+  written = on_every_rank(d, written);
+  if (d.rank() == 0) {
+    std::error_code ec;
+    if (written) std::filesystem::rename(temporary, f.path, ec);
+    if (!written || ec) std::filesystem::remove(temporary, ec);
+  }
+}
+
+}  // namespace
+
+sim::ParticleArrays set_up_share(const Decomposition& d, const sim::Scene& scene,
+                                 const sim::SolverConfig& config, const sim::SetupOptions& options,
+                                 sim::PackingReport& report) {
+  report = sim::PackingReport{};
+  sim::SolverState state;
+  if (!scene.packing.enabled) {
+    state.particles = lattice_share(d, scene);
+  } else {
+    const sim::VerletNeighbourSearch packing_search(config.box, config.support_radius,
+                                                    sim::kPackingSkin * config.support_radius);
+    if (d.halo_width() < packing_search.list_radius())
+      throw std::invalid_argument("set-up: the ranks' halo (" + std::to_string(d.halo_width()) +
+                                  " m) is narrower than the packing's list radius (" +
+                                  std::to_string(packing_search.list_radius()) + " m)");
+    const sim::PackingCacheFile f = sim::packing_cache_file(scene, options);
+    std::optional<sim::ParticleArrays> cached;
+    if (!f.path.empty()) cached = read_cached_block(d, f);
+    if (cached) {
+      report.from_cache = true;
+      report.converged = true;
+      state.particles = std::move(*cached);
+    } else {
+      state.particles = lattice_share(d, scene);
+      MpiExchange exchange(d);
+      report = sim::relax_particles(scene.packing, config.box, scene.kernel, config.support_radius,
+                                    config.particle_spacing, state.particles, exchange,
+                                    options.cancelled);
+      if (!f.path.empty()) {
+        state.list_reference_positions = state.particles.position;
+        std::uint64_t first = 0, total = 0;
+        const sim::SolverState block = id_block(d, state, first, total);
+        write_cached_blocks(d, f, block.particles, first);
+      }
+    }
+    report.cache_file = f.path.string();
+  }
+  // Each particle to the rank whose sub-box holds it, as the solver's first rebuild expects.
+  state.list_reference_positions = state.particles.position;
+  state = to_owners(d, state);
+  MpiExchange exchange(d);
+  sim::set_case_fields(scene, config, state.particles, exchange);
+  return std::move(state.particles);
+}
+
+}  // namespace sphles::par
