@@ -11,6 +11,7 @@
 #include "io/checkpoint_collective.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
+#include "par/messages.hpp"
 #include "par/particle_products.hpp"
 #include "par/setup.hpp"
 #include "par/spectrum.hpp"
@@ -63,19 +64,6 @@ void broadcast_header(MPI_Comm comm, double (&header)[2]) {
 void send_command(MPI_Comm comm, Command command, double value = 0.0) {
   double header[2] = {static_cast<double>(command), value};
   broadcast_header(comm, header);
-}
-
-int checked_int(std::size_t n) {
-  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-    throw std::length_error("driver: " + std::to_string(n) + " values exceed MPI's int count");
-  return static_cast<int>(n);
-}
-
-void broadcast_string(MPI_Comm comm, std::string& text) {
-  unsigned long long size = text.size();
-  MPI_Bcast(&size, 1, MPI_UNSIGNED_LONG_LONG, 0, comm);
-  text.resize(static_cast<std::size_t>(size));
-  MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, comm);
 }
 
 /// Sends a particle-products request from rank 0 to every rank (as doubles: every field is a

@@ -6,13 +6,14 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <limits>
 #include <optional>
 #include <stdexcept>
 #include <string>
 
 #include "io/checkpoint_collective.hpp"
 #include "par/exchange.hpp"
+#include "par/messages.hpp"
+#include "par/reduce.hpp"
 #include "par/state.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
@@ -21,23 +22,10 @@ namespace sphles::par {
 
 namespace {
 
-bool on_every_rank(const Decomposition& d, bool mine) {
-  int local = mine ? 1 : 0, all = 0;
-  MPI_Allreduce(&local, &all, 1, MPI_INT, MPI_MIN, d.comm());
-  return all != 0;
-}
-
-/// The sum modulo 2^64 of every rank's `mine`.
+/// The sum modulo 2^64 of every rank's `mine` (a checksum's parts).
 std::uint64_t summed(const Decomposition& d, std::uint64_t mine) {
-  std::uint64_t all = 0;
-  MPI_Allreduce(&mine, &all, 1, MPI_UINT64_T, MPI_SUM, d.comm());
-  return all;
-}
-
-int checked_int(std::size_t n) {
-  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-    throw std::length_error("packing cache: " + std::to_string(n) + " values exceed MPI's int");
-  return static_cast<int>(n);
+  allreduce_counts(d, std::span<std::uint64_t>(&mine, 1));
+  return mine;
 }
 
 /// The lattice points of this rank's sub-box.
@@ -82,13 +70,6 @@ std::optional<sim::ParticleArrays> read_cached_block(const Decomposition& d,
   return p;
 }
 
-void broadcast_string(const Decomposition& d, std::string& text) {
-  unsigned long long size = text.size();
-  MPI_Bcast(&size, 1, MPI_UNSIGNED_LONG_LONG, 0, d.comm());
-  text.resize(static_cast<std::size_t>(size));
-  MPI_Bcast(text.data(), checked_int(text.size()), MPI_CHAR, 0, d.comm());
-}
-
 /// The packing cache `f` written by every rank, each its block of ids [first, first + size) in
 /// id order, into a temporary file that rank 0 renames when every write succeeded (else removes:
 /// the cache is an optimisation, so a failure is not an error).
@@ -100,7 +81,7 @@ void write_cached_blocks(const Decomposition& d, const sim::PackingCacheFile& f,
     std::filesystem::create_directories(f.path.parent_path(), ec);
     temporary = f.path.string() + ".tmp." + std::to_string(static_cast<long>(::getpid()));
   }
-  broadcast_string(d, temporary);
+  broadcast_string(d.comm(), temporary);
   MPI_File file;
   const int opened = MPI_File_open(d.comm(), temporary.c_str(), MPI_MODE_CREATE | MPI_MODE_WRONLY,
                                    MPI_INFO_NULL, &file);
@@ -113,18 +94,20 @@ void write_cached_blocks(const Decomposition& d, const sim::PackingCacheFile& f,
   std::uint64_t part = 0;
   for (int a = 0; a < f.dimension; ++a) {
     part += f.checksum(a, first, block.position[a]);
-    written = MPI_File_write_at_all(file, static_cast<MPI_Offset>(f.offset(a, first)),
-                                    block.position[a].data(), checked_int(block.size()), MPI_DOUBLE,
-                                    MPI_STATUS_IGNORE) == MPI_SUCCESS &&
-              written;
+    written =
+        MPI_File_write_at_all(file, static_cast<MPI_Offset>(f.offset(a, first)),
+                              block.position[a].data(), mpi_count(block.size(), "packing cache"),
+                              MPI_DOUBLE, MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+        written;
   }
   const std::uint64_t checksum = f.key_hash + summed(d, part);
   if (d.rank() == 0) {
-    written = MPI_File_write_at(file, 0, f.header.data(), checked_int(f.header.size()), MPI_CHAR,
-                                MPI_STATUS_IGNORE) == MPI_SUCCESS &&
-              MPI_File_write_at(file, static_cast<MPI_Offset>(f.checksum_offset()), &checksum, 1,
-                                MPI_UINT64_T, MPI_STATUS_IGNORE) == MPI_SUCCESS &&
-              written;
+    written =
+        MPI_File_write_at(file, 0, f.header.data(), mpi_count(f.header.size(), "packing cache"),
+                          MPI_CHAR, MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+        MPI_File_write_at(file, static_cast<MPI_Offset>(f.checksum_offset()), &checksum, 1,
+                          MPI_UINT64_T, MPI_STATUS_IGNORE) == MPI_SUCCESS &&
+        written;
   }
   written = MPI_File_close(&file) == MPI_SUCCESS && written;
   written = on_every_rank(d, written);

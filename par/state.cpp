@@ -7,16 +7,14 @@
 #include <string>
 
 #include "io/checkpoint_collective.hpp"
+#include "par/messages.hpp"
 
 namespace sphles::par {
 
 namespace {
 
 int checked_int(std::size_t n) {
-  if (n > static_cast<std::size_t>(std::numeric_limits<int>::max()))
-    throw std::length_error("state gather: " + std::to_string(n) +
-                            " values exceed MPI's int count; gather fewer particles per rank");
-  return static_cast<int>(n);
+  return mpi_count(n, "state exchange (gather fewer particles per rank)");
 }
 
 /// The per-particle arrays of a state, in a fixed order: the particle fields, then the list
