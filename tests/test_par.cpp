@@ -1241,7 +1241,8 @@ std::string file_bytes(const std::filesystem::path& path) {
 // with the other ranks' (par::set_up_share), are the particles sim::setup_run makes in one
 // process, bit for bit: packed positions, case fields and summation masses, each particle on
 // the rank whose sub-box holds it. The packing cache the ranks write, each its block, is the
-// file one process writes, byte for byte; the ranks read it back, and so does one process.
+// file one process writes, byte for byte; the ranks read it back, and so does one process; a
+// damaged byte makes them pack again.
 TEST(DistributedSetUp, EqualsTheOneProcessSetUpBitForBitAndSharesItsCache) {
   const SharedDirectory directory;
   for (const int dim : {2, 3}) {
@@ -1299,6 +1300,21 @@ TEST(DistributedSetUp, EqualsTheOneProcessSetUpBitForBitAndSharesItsCache) {
     for (int a = 0; a < dim; ++a)
       EXPECT_EQ(again.position[static_cast<std::size_t>(a)],
                 one.particles.position[static_cast<std::size_t>(a)]);
+    // One byte of one rank's block damaged: the blocks' checksums no longer add up, so every
+    // rank packs again, with the same bits, and the ranks write the file anew.
+    MPI_Barrier(MPI_COMM_WORLD);
+    if (world_rank() == 0) {
+      std::fstream f(ranks_file, std::ios::in | std::ios::out | std::ios::binary);
+      f.seekp(static_cast<std::streamoff>(std::filesystem::file_size(ranks_file) * 3 / 4));
+      f.put('\x5a');
+    }
+    MPI_Barrier(MPI_COMM_WORLD);
+    sim::PackingReport repacked;
+    const sim::ParticleArrays share = set_up_share(d, scene, config, ranks, repacked);
+    EXPECT_FALSE(repacked.from_cache) << dim << "D: a damaged cache was read";
+    for (std::size_t i = 0; i < share.size(); ++i)
+      ASSERT_EQ(share.position[0][i], one.particles.position[0][at[share.id[i]]]);
+    EXPECT_EQ(file_bytes(ranks_file), file_bytes(sim::packing_cache_file(scene, alone).path));
     MPI_Barrier(MPI_COMM_WORLD);
   }
 }
