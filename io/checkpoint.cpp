@@ -772,6 +772,13 @@ Block equal_block(std::uint64_t total, int rank, int ranks) {
   return {first, base + (r < longer ? 1 : 0)};
 }
 
+int equal_block_rank(std::uint64_t id, std::uint64_t total, int ranks) {
+  const auto p = static_cast<std::uint64_t>(ranks);
+  const std::uint64_t base = total / p, longer = total % p;
+  const std::uint64_t split = longer * (base + 1);  // ids below it lie in the longer blocks
+  return static_cast<int>(id < split ? id / (base + 1) : longer + (id - split) / base);
+}
+
 Checkpoint read_checkpoint_collective(MPI_Comm comm, const std::filesystem::path& path,
                                       std::uint64_t& first) {
   const std::string file = path.string();

@@ -38,6 +38,8 @@ struct Block {
   std::uint64_t count = 0;
 };
 Block equal_block(std::uint64_t total, int rank, int ranks);
+/// The rank whose equal_block of `total` holds particle `id` (id < total).
+int equal_block_rank(std::uint64_t id, std::uint64_t total, int ranks);
 
 /// Reads the checkpoint `path` on every process of `comm`, each its equal_block of the stored
 /// particles (collective MPI-IO reads), validated as read_checkpoint validates (attributes,

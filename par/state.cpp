@@ -269,13 +269,6 @@ sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
   total = all;
   const io::Block mine = io::equal_block(total, d.rank(), d.size());
   first = mine.first;
-  // The inverse of io::equal_block: the block (rank) of an id.
-  const std::uint64_t base = total / static_cast<std::uint64_t>(d.size());
-  const std::uint64_t longer = total % static_cast<std::uint64_t>(d.size());
-  const auto block_of = [&](std::uint64_t id) {
-    const std::uint64_t split = longer * (base + 1);  // ids below it lie in the longer blocks
-    return static_cast<int>(id < split ? id / (base + 1) : longer + (id - split) / base);
-  };
   const std::size_t stride = record_stride(p.dimension, eddy_viscosity);
   int bad = p.size() > 0 && fields_of(local).size() + 1 != stride ? 1 : 0;
   std::vector<int> owner(p.size());
@@ -283,7 +276,7 @@ sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
     if (p.id[i] >= total)
       bad = 1;
     else
-      owner[i] = block_of(p.id[i]);
+      owner[i] = io::equal_block_rank(p.id[i], total, d.size());
   }
   int any_bad = 0;
   MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());

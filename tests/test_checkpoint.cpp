@@ -139,7 +139,8 @@ TEST_F(CheckpointTest, TheRoomReservedForACheckpointHoldsIt) {
           EXPECT_EQ(header.step, 3u);
           EXPECT_EQ(header.metadata.scene_json, meta.scene_json);
         }
-  // Equal blocks: in rank order, covering [0, N) once, lengths differing by at most one.
+  // Equal blocks: in rank order, covering [0, N) once, lengths differing by at most one; the
+  // rank of an id is the one whose block holds it.
   for (const std::uint64_t total : {0ull, 1ull, 7ull, 1000003ull})
     for (const int ranks : {1, 2, 3, 8}) {
       std::uint64_t next = 0;
@@ -148,6 +149,10 @@ TEST_F(CheckpointTest, TheRoomReservedForACheckpointHoldsIt) {
         EXPECT_EQ(b.first, next);
         EXPECT_LE(b.count, total / static_cast<std::uint64_t>(ranks) + 1);
         EXPECT_GE(b.count, total / static_cast<std::uint64_t>(ranks));
+        for (const std::uint64_t id : {b.first, b.first + b.count / 2, b.first + b.count - 1})
+          if (b.count > 0) {
+            EXPECT_EQ(equal_block_rank(id, total, ranks), r) << id << " of " << total;
+          }
         next += b.count;
       }
       EXPECT_EQ(next, total);
