@@ -43,10 +43,10 @@ void add_calibrate_command(CLI::App& app, int& exit_code);
 void add_estimate_command(CLI::App& app, int& exit_code);
 
 /// What estimate prints for a spec (JSON with `as_json`); with `with_time` also the measured time
-/// per step and to the end (control/step_time.hpp), unless the run cannot fit in memory.
-/// Returns check_machine_memory's refusal, if any.
+/// per step and to the end (control/step_time.hpp), unless the run cannot fit in memory; with
+/// `ranks` > 1 also what each rank holds. Returns check_machine_memory's refusal, if any.
 std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_json,
-                                          bool with_time);
+                                          bool with_time, int ranks = 1);
 
 /// The reason a run's estimated peak memory exceeds this machine's, or nothing.
 std::optional<std::string> check_machine_memory(const control::ResourceEstimate& estimate);

@@ -20,6 +20,7 @@ struct EstimateOptions {
   bool as_json = false;
   bool time = false;
   int threads = 0;
+  int ranks = 1;
 };
 
 /// "2.5 ms", "1.2 s", "3 min 20 s", "4.1 h", "2.3 days".
@@ -44,7 +45,7 @@ int estimate_command(const EstimateOptions& o) {
     if (o.threads > 0) omp_set_num_threads(o.threads);
     const control::RunSpec spec =
         control::parse_run_spec(load_scene_document(o.scene, o.overrides));
-    print_estimate(spec, o.as_json, o.time);
+    print_estimate(spec, o.as_json, o.time, o.ranks);
     return kExitOk;
   } catch (const sim::SceneError& e) {
     std::fprintf(stderr, "sphles estimate: %s\n", e.what());
@@ -61,8 +62,8 @@ std::optional<std::string> check_machine_memory(const control::ResourceEstimate&
 }
 
 std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_json,
-                                          bool with_time) {
-  const control::ResourceEstimate e = control::estimate_resources(spec);
+                                          bool with_time, int ranks) {
+  const control::ResourceEstimate e = control::estimate_resources(spec, ranks);
   const std::optional<std::string> too_big = check_machine_memory(e);
   std::optional<control::StepTimeEstimate> time;
   if (with_time && !too_big) time = control::estimate_step_time(spec, e);
@@ -86,6 +87,22 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
       control::format_bytes(static_cast<double>(control::machine_memory_bytes())).c_str(),
       control::format_bytes(static_cast<double>(control::default_memory_limit_bytes())).c_str(),
       too_big ? ": the run does NOT fit" : "");
+  if (e.per_rank) {
+    const control::RankEstimate& r = *e.per_rank;
+    std::string grid = std::to_string(r.grid[0]);
+    for (int a = 1; a < r.dimension; ++a) grid += " x " + std::to_string(r.grid[a]);
+    std::printf(
+        "per rank             %s at the peak on each of %d ranks (%s): %.6g owned particles, "
+        "%.3g halo copies each (halo %.3g m)\n",
+        control::format_bytes(r.memory_bytes).c_str(), r.ranks, grid.c_str(), r.owned,
+        r.halo_per_owned, r.halo_width);
+    for (const control::MemoryPart& p : r.memory)
+      std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
+                  p.detail.c_str());
+    std::printf("  (analysis, rendering and snapshots: rank 0 under mpirun, or the service)\n");
+    if (!r.refusal.empty())
+      std::printf("  the run would refuse this split: %s\n", r.refusal.c_str());
+  }
   std::printf("checkpoint file      %s (%s on disk at once)\n",
               control::format_bytes(e.checkpoint_file_bytes).c_str(),
               control::format_bytes(e.checkpoint_disk_bytes).c_str());
@@ -126,6 +143,11 @@ void add_estimate_command(CLI::App& app, int& exit_code) {
                      "also time a few steps at a small size and estimate the time per step and "
                      "to the end time on this machine");
   add_threads_option(*estimate, o->threads, "OpenMP threads of the --time calibration");
+  estimate
+      ->add_option("--ranks", o->ranks,
+                   "also estimate what each of N MPI ranks holds (the split mpirun -n N uses)")
+      ->type_name("N")
+      ->check(CLI::Range(1, 1 << 24));
   estimate->callback([o, &exit_code] { exit_code = estimate_command(*o); });
 }
 

@@ -22,6 +22,7 @@
 #include "sim/neighbour_search.hpp"
 #include "sim/packing.hpp"
 #include "sim/pair_loop.hpp"
+#include "sim/process_grid.hpp"
 #include "sim/subfilter.hpp"
 
 namespace sphles::control {
@@ -352,9 +353,44 @@ double render_pixels(const render::RenderConfig& r) {
   return pixels;
 }
 
+/// The split of a run over `ranks` (sim::process_grid, as par::Decomposition makes it), its
+/// largest sub-box and halo, and the refusal the run would give.
+RankEstimate rank_split(const sim::Scene& s, int ranks) {
+  RankEstimate r;
+  r.ranks = ranks;
+  const int dim = s.dimension();
+  r.dimension = dim;
+  r.grid = sim::process_grid(ranks, dim);
+  const double support = 0.5 * s.kernel_diameter();
+  const double skin = std::max(s.neighbour_skin, s.packing.enabled ? sim::kPackingSkin : 0.0);
+  r.halo_width = (1.0 + skin) * support;
+  const double spacing = s.particle_spacing();
+  const double halo = r.halo_width / spacing;  // in particles
+  double with_halo = 1.0;
+  r.owned = 1.0;
+  for (int a = 0; a < dim; ++a) {
+    const int across = r.grid[static_cast<std::size_t>(a)];
+    const double side = std::ceil(static_cast<double>(s.particles_per_side) / across);
+    r.owned *= side;
+    // An axis split among ranks has a halo on both faces; an axis one rank spans, none.
+    with_halo *= across > 1 ? side + 2.0 * halo : side;
+    if (across > 1 && s.box_length() / across < r.halo_width && r.refusal.empty()) {
+      char text[256];
+      std::snprintf(text, sizeof text,
+                    "%d ranks split the box %d times along axis %d: a sub-box is %.3g particles "
+                    "wide, narrower than the halo (%.3g particles); use fewer ranks or more "
+                    "particles",
+                    ranks, across, a, static_cast<double>(s.particles_per_side) / across, halo);
+      r.refusal = text;
+    }
+  }
+  r.halo_per_owned = with_halo / r.owned - 1.0;
+  return r;
+}
+
 }  // namespace
 
-ResourceEstimate estimate_resources(const RunSpec& spec) {
+ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   const sim::Scene& s = spec.run.scene;
   const analysis::AnalysisConfig& a = spec.run.analysis;
   const int dim = s.dimension();
@@ -451,6 +487,29 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   };
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
+  if (ranks > 1) {
+    // One rank: the solver's parts scaled to its sub-box, arrays over its owned particles and
+    // halo copies, lists over its owned particles (par/, docs/scaling.md).
+    RankEstimate r = rank_split(s, ranks);
+    const double held = (r.owned * (1.0 + r.halo_per_owned)) / n, listed = r.owned / n;
+    const auto scaled = [&](const std::vector<MemoryPart>& parts) {
+      std::vector<MemoryPart> out;
+      for (const MemoryPart& p : parts) {
+        if (p.name == "snapshots" || p.name == "analysis" || p.name == "rendering") continue;
+        // Lists and the checkpoint's copy cover the owned particles; arrays and the list
+        // build's cell sort also the halo copies.
+        const bool list = p.name == "neighbour_list" || p.name == "interaction_list" ||
+                          p.name == "packing_list" || p.name == "checkpoint_copy";
+        out.push_back({p.name, p.bytes * (list ? listed : held),
+                       list ? "of the owned particles" : "of the owned particles and halo copies"});
+      }
+      return out;
+    };
+    const std::vector<MemoryPart> run_rank = scaled(run_parts), setup_rank = scaled(setup_parts);
+    r.memory = total(setup_rank) > total(run_rank) ? setup_rank : run_rank;
+    r.memory_bytes = total(r.memory);
+    e.per_rank = std::move(r);
+  }
 
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
@@ -460,11 +519,33 @@ ResourceEstimate estimate_resources(const RunSpec& spec) {
   return e;
 }
 
+namespace {
+
+nlohmann::json parts_to_json(const std::vector<MemoryPart>& memory) {
+  nlohmann::json parts = nlohmann::json::array();
+  for (const MemoryPart& p : memory)
+    parts.push_back({{"name", p.name}, {"bytes", p.bytes}, {"detail", p.detail}});
+  return parts;
+}
+
+nlohmann::json rank_estimate_to_json(const RankEstimate& r) {
+  nlohmann::json grid = nlohmann::json::array();
+  for (int a = 0; a < r.dimension; ++a) grid.push_back(r.grid[static_cast<std::size_t>(a)]);
+  return {{"ranks", r.ranks},
+          {"grid", grid},
+          {"owned", r.owned},
+          {"halo_per_owned", r.halo_per_owned},
+          {"halo_width", r.halo_width},
+          {"memory_bytes", r.memory_bytes},
+          {"memory", parts_to_json(r.memory)},
+          {"refusal", r.refusal.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.refusal)}};
+}
+
+}  // namespace
+
 nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
   const auto finite = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nullptr; };
-  nlohmann::json parts = nlohmann::json::array();
-  for (const MemoryPart& p : e.memory)
-    parts.push_back({{"name", p.name}, {"bytes", p.bytes}, {"detail", p.detail}});
+  const nlohmann::json parts = parts_to_json(e.memory);
   const sim::TimeStepLimits& l = e.time_step.limits;
   return {{"particles", e.particles},
           {"neighbours_per_particle", e.neighbours_per_particle},
@@ -485,7 +566,8 @@ nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
             {"fixed", l.fixed > 0.0 ? nlohmann::json(l.fixed) : nullptr},
             {"max_speed", e.time_step.max_speed},
             {"max_acceleration", e.time_step.max_acceleration}}},
-          {"steps", e.steps}};
+          {"steps", e.steps},
+          {"per_rank", e.per_rank ? rank_estimate_to_json(*e.per_rank) : nlohmann::json(nullptr)}};
 }
 
 std::string format_bytes(double bytes) {

@@ -5,6 +5,7 @@
 // allocates nor overflows for 4096³ particles or a tiny kernel.
 #pragma once
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <nlohmann/json.hpp>
@@ -22,6 +23,23 @@ struct MemoryPart {
   std::string name;    // e.g. "neighbour_list"
   double bytes = 0.0;  // [B]
   std::string detail;  // how it was counted
+};
+
+/// What each process of a distributed run holds (docs/scaling.md): the solver's parts for the
+/// largest sub-box of the split the run will use (sim::process_grid), its owned particles and
+/// the halo copies around them. The analysis, rendering and snapshots are not in it: they are
+/// rank 0's (`mpirun sphles run`) or the service's.
+struct RankEstimate {
+  int ranks = 1;
+  int dimension = 3;
+  std::array<int, 3> grid{1, 1, 1};  // processes per axis (the first `dimension`)
+  double owned = 0.0;                // particles of the largest sub-box
+  double halo_per_owned = 0.0;       // halo copies per owned particle
+  double halo_width = 0.0;           // [m]: the neighbour-list radius (the packing's if larger)
+  double memory_bytes = 0.0;         // the sum of `memory`
+  std::vector<MemoryPart> memory;    // the set-up's peak or the run's, whichever is larger
+  /// Non-empty when the run would refuse the split: a sub-box narrower than the halo.
+  std::string refusal;
 };
 
 struct ResourceEstimate {
@@ -46,14 +64,19 @@ struct ResourceEstimate {
 
   sim::TimeStepEstimate time_step;  // at t = 0 (sim::estimate_initial_time_step)
   double steps = 0.0;               // time.end / initial step
+
+  /// With more than one rank: what each holds.
+  std::optional<RankEstimate> per_rank;
 };
 
-/// The estimate for a parsed spec. Cheap (no allocation proportional to the run).
-ResourceEstimate estimate_resources(const RunSpec& spec);
+/// The estimate for a parsed spec, on `ranks` MPI ranks. Cheap (no allocation proportional to
+/// the run).
+ResourceEstimate estimate_resources(const RunSpec& spec, int ranks = 1);
 
 /// {"memory_bytes", "memory": [{"name", "bytes", "detail"}], "checkpoint_file_bytes", ...,
-///  "time_step": {"initial", "limit", "acoustic", "viscous", "force", "fixed"}, "steps"};
-/// limits that do not apply are null.
+///  "time_step": {"initial", "limit", "acoustic", "viscous", "force", "fixed"}, "steps"}, and
+/// with ranks "per_rank": {"ranks", "grid", "owned", "halo_per_owned", "halo_width",
+/// "memory_bytes", "memory", "refusal"}; limits that do not apply are null.
 nlohmann::json resource_estimate_to_json(const ResourceEstimate& estimate);
 
 /// "1.5 GiB", "12 MiB", "512 B" (binary units, 3 significant digits).

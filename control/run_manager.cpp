@@ -251,9 +251,19 @@ double RunManager::admit(const ResourceEstimate& estimate) const {
 
 nlohmann::json RunManager::estimate(const CreateRequest& request) const {
   const RunSpec spec = spec_of(request);
-  const ResourceEstimate resources = estimate_resources(spec);
+  const ResourceEstimate resources = estimate_resources(spec, request.ranks);
   json answer = resource_estimate_to_json(resources);
   answer["memory_limit_bytes"] = options_.max_memory_bytes;
+  // Ranks this server cannot launch, or a split the run would refuse: not admitted.
+  std::optional<std::string> ranks = ranks_refusal(request);
+  if (!ranks && resources.per_rank && !resources.per_rank->refusal.empty())
+    ranks =
+        "request: 'ranks' = " + std::to_string(request.ranks) + ": " + resources.per_rank->refusal;
+  if (ranks) {
+    answer["admitted"] = false;
+    answer["refusal"] = {{"field", "ranks"}, {"message", *ranks}};
+    return answer;
+  }
   try {
     admit(resources);
     answer["admitted"] = true;
@@ -328,14 +338,18 @@ RunOptions RunManager::run_options_for(int ranks, const std::filesystem::path& d
   return options;
 }
 
-std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
+std::optional<std::string> RunManager::ranks_refusal(const CreateRequest& request) const {
   if (request.ranks > 1 && !options_.distribute)
-    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
-                     ": this server launches no MPI jobs (start it with --launcher); use 1");
+    return "request: 'ranks' = " + std::to_string(request.ranks) +
+           ": this server launches no MPI jobs (start it with --launcher); use 1";
   if (request.ranks > options_.max_ranks)
-    throw SceneError("request: 'ranks' = " + std::to_string(request.ranks) +
-                     " exceeds this server's limit (--max-ranks " +
-                     std::to_string(options_.max_ranks) + ")");
+    return "request: 'ranks' = " + std::to_string(request.ranks) +
+           " exceeds this server's limit (--max-ranks " + std::to_string(options_.max_ranks) + ")";
+  return std::nullopt;
+}
+
+std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
+  if (const std::optional<std::string> refusal = ranks_refusal(request)) throw SceneError(*refusal);
   RunSpec spec = spec_of(request);    // throws naming the field; nothing created yet
   const double memory = admit(spec);  // throws AdmissionError with the estimate
 

@@ -151,6 +151,8 @@ class RunManager {
   void start_queued();  // starts the oldest queued runs that fit; holds schedule_mutex_
   /// The options of a run in `directory` whose solver spans `ranks` MPI ranks.
   RunOptions run_options_for(int ranks, const std::filesystem::path& directory) const;
+  /// Why this server cannot run `request.ranks` ranks (no launcher, above --max-ranks), if so.
+  std::optional<std::string> ranks_refusal(const CreateRequest& request) const;
   void schedule_loop();  // the scheduler thread
 
   ManagerOptions options_;

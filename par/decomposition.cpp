@@ -5,6 +5,8 @@
 #include <sstream>
 #include <string>
 
+#include "sim/process_grid.hpp"
+
 namespace sphles::par {
 
 namespace {
@@ -25,9 +27,9 @@ Decomposition::Decomposition(MPI_Comm comm, const sim::PeriodicBox& box, double 
     throw DecompositionError("decomposition: halo width and particle spacing must be > 0");
   int size = 1;
   MPI_Comm_size(comm, &size);
-  int dims[3] = {0, 0, 0};
-  MPI_Dims_create(size, dim, dims);
-  for (int a = 0; a < dim; ++a) dims_[static_cast<std::size_t>(a)] = dims[a];
+  // The split estimates see too (sim::process_grid; MPI_Dims_create's, test_par.cpp).
+  dims_ = sim::process_grid(size, dim);
+  int dims[3] = {dims_[0], dims_[1], dims_[2]};
 
   // Every rank checks the same numbers, so every rank throws the same error (no rank is left
   // waiting in a collective call).

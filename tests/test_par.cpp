@@ -41,6 +41,7 @@
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/physics.hpp"
+#include "sim/process_grid.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::par {
@@ -165,6 +166,20 @@ TEST(Decomposition, SubBoxesTileTheBoxAndNeighboursAgree) {
     MPI_Allreduce(&volume, &total, 1, MPI_DOUBLE, MPI_SUM, MPI_COMM_WORLD);
     EXPECT_NEAR(total, box_of(dim).volume(), 1e-9 * box_of(dim).volume());
   }
+}
+
+// The split a distributed run uses (sim::process_grid, which resource estimates use before MPI
+// exists) is MPI_Dims_create's for every rank count up to 1024 in 2D and 3D.
+TEST(Decomposition, ProcessGridIsMpiDimsCreates) {
+  for (const int dim : {2, 3})
+    for (int ranks = 1; ranks <= 1024; ++ranks) {
+      int dims[3] = {0, 0, 0};
+      MPI_Dims_create(ranks, dim, dims);
+      const std::array<int, 3> grid = sim::process_grid(ranks, dim);
+      for (int a = 0; a < dim; ++a)
+        ASSERT_EQ(grid[static_cast<std::size_t>(a)], dims[a])
+            << ranks << " ranks, " << dim << "D, axis " << a;
+    }
 }
 
 TEST(Decomposition, SubBoxNarrowerThanTheHaloIsRefusedNamingRanksAndParticles) {

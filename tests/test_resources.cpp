@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -177,6 +178,50 @@ TEST(ResourceEstimate, PartsSumToTheTotalAndGrowWithTheRun) {
   EXPECT_GT(analysed.memory_bytes, small.memory_bytes);
   EXPECT_DOUBLE_EQ(analysed.analysis_grid_points, std::pow(64.0, 3));  // 2 points per spacing
   EXPECT_DOUBLE_EQ(analysed.analysis_frames, 31.0);                    // t = 0, 0.5, ..., 15
+}
+
+// What each rank of a distributed run holds (issue 19): the split par::Decomposition uses, the
+// largest sub-box and its halo, the solver's parts scaled to them; a split the run would refuse
+// is named. The 48³ halo is the one bench_distributed measures (0.38-0.39 copies per owned
+// particle on 2 ranks, docs/scaling.md).
+TEST(ResourceEstimate, PerRankIsTheRanksShareOfTheSolver) {
+  const json scene = {{"preset", "tgv3d"}, {"particles_per_side", 48}};
+  const ResourceEstimate one = estimate_resources(spec_of(scene));
+  EXPECT_FALSE(one.per_rank);
+  EXPECT_TRUE(resource_estimate_to_json(one)["per_rank"].is_null());
+  const ResourceEstimate two = estimate_resources(spec_of(scene), 2);
+  ASSERT_TRUE(two.per_rank);
+  const RankEstimate& r = *two.per_rank;
+  EXPECT_EQ(r.grid, (std::array<int, 3>{2, 1, 1}));
+  EXPECT_DOUBLE_EQ(r.owned, 24.0 * 48 * 48);
+  EXPECT_NEAR(r.halo_per_owned, 0.385, 0.01);
+  EXPECT_TRUE(r.refusal.empty()) << r.refusal;
+  double sum = 0.0;
+  for (const MemoryPart& p : r.memory) sum += p.bytes;
+  EXPECT_DOUBLE_EQ(sum, r.memory_bytes);
+  // Half the particles and their halo: more than half the solver's memory, less than all of it.
+  EXPECT_GT(r.memory_bytes, 0.5 * one.memory_bytes);
+  EXPECT_LT(r.memory_bytes, 0.7 * one.memory_bytes);
+  // The same whole-run figures as one process.
+  EXPECT_DOUBLE_EQ(two.memory_bytes, one.memory_bytes);
+
+  // The thesis' 512³ on 512 ranks: 64³ per rank (docs/scaling.md's plan).
+  const ResourceEstimate big =
+      estimate_resources(spec_of({{"preset", "tgv3d"}, {"particles_per_side", 512}}), 512);
+  ASSERT_TRUE(big.per_rank);
+  EXPECT_EQ(big.per_rank->grid, (std::array<int, 3>{8, 8, 8}));
+  EXPECT_DOUBLE_EQ(big.per_rank->owned, 64.0 * 64 * 64);
+  EXPECT_NEAR(big.per_rank->memory_bytes * 512, big.memory_bytes * 1.5, big.memory_bytes * 0.5);
+  const json j = resource_estimate_to_json(big)["per_rank"];
+  EXPECT_EQ(j["grid"], json::array({8, 8, 8}));
+  EXPECT_TRUE(j["refusal"].is_null());
+
+  // 16³ on 64 ranks: sub-boxes of 4 particles, narrower than the halo (4.6 at D_K = 8Δl).
+  const ResourceEstimate refused =
+      estimate_resources(spec_of({{"preset", "tgv3d"}, {"particles_per_side", 16}}), 64);
+  ASSERT_TRUE(refused.per_rank);
+  EXPECT_NE(refused.per_rank->refusal.find("narrower than the halo"), std::string::npos)
+      << refused.per_rank->refusal;
 }
 
 // Finding 7: 4096³ used to be accepted and failed later with std::bad_alloc. The estimate is

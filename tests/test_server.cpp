@@ -208,6 +208,16 @@ TEST(Server, EstimateMeasuresARunWithoutCreatingIt) {
             std::string::npos)
       << e;
   EXPECT_FALSE(e.contains("time"));
+  // With ranks: what each would hold, and not admitted by a server that launches no MPI jobs.
+  r = api.post("/api/estimate", {{"scene", tiny_scene(2.0)}, {"ranks", 2}});
+  ASSERT_EQ(r.status, 200) << r.body;
+  e = r.body_json();
+  ASSERT_TRUE(e["per_rank"].is_object()) << e;
+  EXPECT_EQ(e["per_rank"]["ranks"], 2);
+  EXPECT_LT(e["per_rank"]["memory_bytes"].get<double>(), e["memory_bytes"].get<double>());
+  EXPECT_EQ(e["admitted"], false);
+  EXPECT_EQ(e["refusal"]["field"], "ranks") << e;
+  EXPECT_FALSE(e.contains("time"));
   expect_error(api.post("/api/estimate", {{"scene", tiny_scene()}, {"colour", "red"}}), 400,
                "colour");
   expect_error(api.post("/api/estimate", {{"preset", "no-such-preset"}}), 400, "preset");
