@@ -414,6 +414,13 @@ async function onEstimate() {
       ['checkpoints', `${fmtBytes(e.checkpoint_disk_bytes)} on disk`],
       ['steps', `${formatNumber(e.steps)} at the initial step`],
     ];
+    // A run on MPI ranks: what each rank holds (its sub-box's particles and halo copies).
+    const r = e.per_rank;
+    if (r) {
+      rows.splice(2, 0, ['per rank', `${fmtBytes(r.memory_bytes)} on each of ${r.ranks} ranks (${r.grid.join(' × ')}): ` +
+        `${Math.round(r.owned).toLocaleString('en-US')} particles and ${r.halo_per_owned.toPrecision(2)} halo copies each` +
+        (r.refusal ? `; refused: ${r.refusal}` : '')]);
+    }
     if (e.time) {
       const c = e.time.calibration;
       rows.push(['per step', `${fmtDuration(e.time.seconds_per_step)} on ${c.threads} threads`]);

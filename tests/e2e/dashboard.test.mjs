@@ -232,7 +232,10 @@ async function run() {
   const estimateStatus = await text(page, '#create-status');
   if (!/would accept/.test(estimateStatus)) fail(`the estimate says: ${estimateStatus}`);
   if ((await (await fetch(`${base}/api/runs`)).json()).length !== runsBefore) fail('the estimate created a run');
-  pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}`);
+  // The run's 2 ranks: what each would hold (the API's per_rank).
+  const perRank = await text(page, '#create-estimate-result dd[data-field="per rank"]');
+  if (!/on each of 2 ranks \(2 × 1\)/.test(perRank)) fail(`the estimate shows no per-rank memory for 2 ranks: "${perRank}"`);
+  pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}, per rank ${perRank}`);
   // The reference's refetches (?until=) fail at first: the page must back off (1, 2, 4 … s
   // between tries), not ask again at every redraw.
   const isRefetch = (url) => url.pathname.endsWith('/reference') && url.searchParams.has('until');
