@@ -153,11 +153,11 @@ struct Member {
 /// from each rank's own state (a live change; the last three by list reference position).
 enum class Start { Fresh, SetUp, Restore, RestoreFile, Continue };
 
-/// A new run's set-up on the ranks: the options (rank 0's, with its cancellation) and where the
-/// packing's report goes.
+/// A new run's set-up on the ranks: the options (rank 0's, with its cancellation) and the
+/// packing's report.
 struct SetUp {
   sim::SetupOptions options;
-  sim::PackingReport* report = nullptr;
+  sim::PackingReport report;
 };
 
 /// Every rank: the solver of `scene_json` over the ranks of `comm`, each receiving its share of
@@ -165,7 +165,7 @@ struct SetUp {
 /// continue, `whole` is this rank's own state.
 std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json,
                                     sim::SolverState whole, Start start,
-                                    const std::string& file = {}, const SetUp* setup = nullptr) {
+                                    const std::string& file = {}, SetUp* setup = nullptr) {
   const bool restore = start != Start::Fresh && start != Start::SetUp;
   auto m = std::make_unique<Member>();
   const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(scene_json));
@@ -175,16 +175,12 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
                                           c.neighbour_skin * c.support_radius);
   double halo_width = search.list_radius();
   if (start == Start::SetUp && scene.packing.enabled)  // the packing's lists are the ranks' too
-    halo_width = std::max(
-        halo_width,
-        sim::VerletNeighbourSearch(c.box, c.support_radius, sim::kPackingSkin * c.support_radius)
-            .list_radius());
+    halo_width = std::max(halo_width, sim::packing_list_radius(c.box, c.support_radius));
   m->decomposition = std::make_unique<Decomposition>(comm, c.box, halo_width, c.particle_spacing);
   m->exchange = std::make_shared<MpiExchange>(*m->decomposition);
   if (start == Start::SetUp) {
-    sim::PackingReport ignored;
-    sim::ParticleArrays share = set_up_share(*m->decomposition, scene, c, setup->options,
-                                             setup->report ? *setup->report : ignored);
+    sim::ParticleArrays share =
+        set_up_share(*m->decomposition, scene, c, setup->options, setup->report);
     m->local = sim::make_simulation(c, std::move(share), 0.0, 0, m->exchange);
     return m;
   }
@@ -337,9 +333,10 @@ std::unique_ptr<sim::Simulation> Driver::set_up(const sim::Scene& scene,
   broadcast_string(comm_, json);
   std::string cache = options.packing_cache_dir.string();
   broadcast_string(comm_, cache);
-  const SetUp setup{options, &report};
-  return std::make_unique<DistributedSimulation>(
-      comm_, make_member(comm_, json, sim::SolverState{}, Start::SetUp, {}, &setup));
+  SetUp setup{options, {}};
+  auto member = make_member(comm_, json, sim::SolverState{}, Start::SetUp, {}, &setup);
+  report = setup.report;
+  return std::make_unique<DistributedSimulation>(comm_, std::move(member));
 }
 
 std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::SolverState whole) {

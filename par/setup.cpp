@@ -3,9 +3,7 @@
 #include <mpi.h>
 #include <unistd.h>
 
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <optional>
 #include <stdexcept>
 #include <string>
@@ -39,35 +37,13 @@ sim::ParticleArrays lattice_share(const Decomposition& d, const sim::Scene& scen
 /// its block and the blocks' checksums add up to the file's; else nothing, on every rank.
 std::optional<sim::ParticleArrays> read_cached_block(const Decomposition& d,
                                                      const sim::PackingCacheFile& f) {
-  const io::Block block = io::equal_block(f.count, d.rank(), d.size());
-  sim::ParticleArrays p;
-  p.dimension = f.dimension;
-  p.resize(block.count);
-  for (std::size_t k = 0; k < p.size(); ++k) p.id[k] = block.first + k;
-  std::uint64_t part = 0, stored = 0;
-  bool read = false;
-  {
-    std::error_code ec;
-    const auto size = std::filesystem::file_size(f.path, ec);
-    std::ifstream in(f.path, std::ios::binary);
-    std::string header(f.header.size(), '\0');
-    read = !ec && size == f.file_size() && in &&
-           in.read(header.data(), static_cast<std::streamsize>(header.size())) &&
-           header == f.header;
-    for (int a = 0; read && a < f.dimension; ++a) {
-      in.seekg(static_cast<std::streamoff>(f.offset(a, block.first)));
-      read = static_cast<bool>(in.read(reinterpret_cast<char*>(p.position[a].data()),
-                                       static_cast<std::streamsize>(block.count * sizeof(double))));
-      part += f.checksum(a, block.first, p.position[a]);
-    }
-    if (read) {
-      in.seekg(static_cast<std::streamoff>(f.checksum_offset()));
-      read = static_cast<bool>(in.read(reinterpret_cast<char*>(&stored), sizeof stored));
-    }
-  }
-  if (!on_every_rank(d, read)) return std::nullopt;
-  if (!on_every_rank(d, f.key_hash + summed(d, part) == stored)) return std::nullopt;
-  return p;
+  const io::Block mine = io::equal_block(f.count, d.rank(), d.size());
+  std::optional<sim::PackingCacheBlock> block =
+      sim::read_packing_cache_block(f, mine.first, mine.count);
+  if (!on_every_rank(d, block.has_value())) return std::nullopt;
+  if (!on_every_rank(d, f.key_hash + summed(d, block->checksum_part) == block->stored))
+    return std::nullopt;
+  return std::move(block->particles);
 }
 
 /// The packing cache `f` written by every rank, each its block of ids [first, first + size) in
@@ -128,12 +104,11 @@ sim::ParticleArrays set_up_share(const Decomposition& d, const sim::Scene& scene
   if (!scene.packing.enabled) {
     state.particles = lattice_share(d, scene);
   } else {
-    const sim::VerletNeighbourSearch packing_search(config.box, config.support_radius,
-                                                    sim::kPackingSkin * config.support_radius);
-    if (d.halo_width() < packing_search.list_radius())
+    const double packing_radius = sim::packing_list_radius(config.box, config.support_radius);
+    if (d.halo_width() < packing_radius)
       throw std::invalid_argument("set-up: the ranks' halo (" + std::to_string(d.halo_width()) +
                                   " m) is narrower than the packing's list radius (" +
-                                  std::to_string(packing_search.list_radius()) + " m)");
+                                  std::to_string(packing_radius) + " m)");
     const sim::PackingCacheFile f = sim::packing_cache_file(scene, options);
     std::optional<sim::ParticleArrays> cached;
     if (!f.path.empty()) cached = read_cached_block(d, f);
@@ -148,7 +123,7 @@ sim::ParticleArrays set_up_share(const Decomposition& d, const sim::Scene& scene
                                     config.particle_spacing, state.particles, exchange,
                                     options.cancelled);
       if (!f.path.empty()) {
-        state.list_reference_positions = state.particles.position;
+        state.list_reference_positions = state.particles.position;  // id_block carries them
         std::uint64_t first = 0, total = 0;
         const sim::SolverState block = id_block(d, state, first, total);
         write_cached_blocks(d, f, block.particles, first);

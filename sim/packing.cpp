@@ -99,25 +99,9 @@ std::string cache_key(const Scene& s) {
 }
 
 std::optional<ParticleArrays> read_cache(const PackingCacheFile& f) {
-  std::ifstream in(f.path, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::string header(f.header.size(), '\0');
-  if (!in.read(header.data(), static_cast<std::streamsize>(header.size())) || header != f.header)
-    return std::nullopt;
-  ParticleArrays p;
-  p.dimension = f.dimension;
-  p.resize(f.count);
-  std::uint64_t sum = f.key_hash;
-  for (int d = 0; d < f.dimension; ++d) {
-    const auto bytes = static_cast<std::streamsize>(f.count * sizeof(double));
-    if (!in.read(reinterpret_cast<char*>(p.position[d].data()), bytes)) return std::nullopt;
-    sum += f.checksum(d, 0, p.position[d]);
-  }
-  std::uint64_t stored = 0;
-  if (!in.read(reinterpret_cast<char*>(&stored), sizeof stored) || stored != sum ||
-      in.peek() != std::char_traits<char>::eof())
-    return std::nullopt;
-  return p;
+  std::optional<PackingCacheBlock> all = read_packing_cache_block(f, 0, f.count);
+  if (!all || f.key_hash + all->checksum_part != all->stored) return std::nullopt;
+  return std::move(all->particles);
 }
 
 void write_cache(const PackingCacheFile& f, const ParticleArrays& p) {
@@ -309,6 +293,37 @@ std::uint64_t PackingCacheFile::checksum(int axis, std::uint64_t first,
     sum += mix64(bits ^ mix64(place));
   }
   return sum;
+}
+
+std::optional<PackingCacheBlock> read_packing_cache_block(const PackingCacheFile& f,
+                                                          std::uint64_t first,
+                                                          std::uint64_t count) {
+  std::error_code ec;
+  const auto size = std::filesystem::file_size(f.path, ec);
+  if (ec || size != f.file_size() || first + count > f.count) return std::nullopt;
+  std::ifstream in(f.path, std::ios::binary);
+  std::string header(f.header.size(), '\0');
+  if (!in.read(header.data(), static_cast<std::streamsize>(header.size())) || header != f.header)
+    return std::nullopt;
+  PackingCacheBlock block;
+  ParticleArrays& p = block.particles;
+  p.dimension = f.dimension;
+  p.resize(count);
+  for (std::size_t k = 0; k < p.size(); ++k) p.id[k] = first + k;
+  for (int d = 0; d < f.dimension; ++d) {
+    in.seekg(static_cast<std::streamoff>(f.offset(d, first)));
+    if (!in.read(reinterpret_cast<char*>(p.position[d].data()),
+                 static_cast<std::streamsize>(count * sizeof(double))))
+      return std::nullopt;
+    block.checksum_part += f.checksum(d, first, p.position[d]);
+  }
+  in.seekg(static_cast<std::streamoff>(f.checksum_offset()));
+  if (!in.read(reinterpret_cast<char*>(&block.stored), sizeof block.stored)) return std::nullopt;
+  return block;
+}
+
+double packing_list_radius(const PeriodicBox& box, double support_radius) {
+  return VerletNeighbourSearch(box, support_radius, kPackingSkin * support_radius).list_radius();
 }
 
 PackingCacheFile packing_cache_file(const Scene& scene, const SetupOptions& options) {

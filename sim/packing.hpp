@@ -82,16 +82,15 @@ PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& bo
 /// the other processes, ending as the particles this process owns at the last list rebuild, in
 /// id order. Every process ends with the same report; the positions are bitwise those of the
 /// one-process relaxation. Collective; `cancelled` may differ between processes (any one
-/// cancels all). Its list radius is packing_list_radius(support_radius).
+/// cancels all). Its list radius is packing_list_radius(box, support_radius).
 PackingReport relax_particles(const PackingConfig& config, const PeriodicBox& box,
                               KernelType kernel, double support_radius, double spacing,
                               ParticleArrays& particles, Exchange& exchange,
                               const std::function<bool()>& cancelled = {});
 
-/// The neighbour-list radius of the relaxation (a distributed one needs halos this wide).
-inline double packing_list_radius(double support_radius) {
-  return (1.0 + kPackingSkin) * support_radius;
-}
+/// The neighbour-list radius of the relaxation in `box` (a distributed one needs halos this
+/// wide): H (1 + kPackingSkin), less in a box too small for that skin (VerletNeighbourSearch).
+double packing_list_radius(const PeriodicBox& box, double support_radius);
 
 /// Residual max_i |Σ_j ∇W_ij V_j| Δl of an arrangement (0 for a perfect lattice).
 double packing_residual(const PeriodicBox& box, KernelType kernel, double support_radius,
@@ -123,6 +122,18 @@ struct PackingCacheFile {
 
 /// The cache file of a scene's packing (path empty when packing or its cache is off).
 PackingCacheFile packing_cache_file(const Scene& scene, const SetupOptions& options);
+
+/// Positions of ids [first, first + count) read from the cache file `f` (particles with those
+/// ids), their part of the checksum and the checksum the file stores; nothing when the file is
+/// missing, of another size or header, or short. The file is valid when f.key_hash plus the
+/// parts of all blocks equals `stored`.
+struct PackingCacheBlock {
+  ParticleArrays particles;
+  std::uint64_t checksum_part = 0;
+  std::uint64_t stored = 0;
+};
+std::optional<PackingCacheBlock> read_packing_cache_block(const PackingCacheFile& f,
+                                                          std::uint64_t first, std::uint64_t count);
 
 /// Lattice + relaxation for a scene, reusing a cached result keyed by dimension, N, kernel,
 /// D_K/Δl and the packing parameters, in options.packing_cache_dir. Cache files are written

@@ -1276,7 +1276,8 @@ TEST(DistributedSetUp, EqualsTheOneProcessSetUpBitForBitAndSharesItsCache) {
 
     const sim::SolverConfig& config = one.solver;
     const Decomposition d(MPI_COMM_WORLD, config.box,
-                          sim::packing_list_radius(config.support_radius), config.particle_spacing);
+                          sim::packing_list_radius(config.box, config.support_radius),
+                          config.particle_spacing);
     for (const bool cached : {false, true}) {
       sim::PackingReport report;
       const sim::ParticleArrays share = set_up_share(d, scene, config, ranks, report);
