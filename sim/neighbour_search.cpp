@@ -16,8 +16,168 @@ namespace sphles::sim {
 
 namespace {
 
-/// Entries a scan may write past the last one it keeps (whole-vector stores of 8 indices).
-constexpr std::size_t kStoreSlack = 8;
+/// Entries a scan may write past the last one it keeps (whole-vector stores of 16 indices).
+constexpr std::size_t kStoreSlack = 16;
+
+/// Relative half-width of the band around the squared list radius inside which the
+/// single-precision distance test defers to the double-precision one. The single-precision
+/// distances are of coordinates within a few list radii of their home cell's corner, so their
+/// squares are off by less than 10^-6 r^2: outside the band the two tests agree.
+constexpr double kSinglePrecisionBand = 1e-4;
+
+/// The box and list radius as the candidate tests need them.
+struct ListGeometry {
+  std::array<double, 3> length{}, half_length{};
+  double radius2 = 0.0;
+  float inner2 = 0.0f, outer2 = 0.0f;  // the band: surely inside below, surely outside above
+};
+
+/// The reference test: |x_i - x_j| under the minimum image below the list radius, in double
+/// precision, summed over the axes in order (as the brute force of the tests does).
+template <int Dim>
+bool within_list_radius(const PositionsView& p, const ListGeometry& g, std::size_t i,
+                        std::size_t j) {
+  double r2 = 0.0;
+  for (int d = 0; d < Dim; ++d) {
+    const double dx = minimum_image(p.x[d][i] - p.x[d][j], g.length[d], g.half_length[d]);
+    r2 += dx * dx;
+  }
+  return r2 < g.radius2;
+}
+
+/// The candidates of one home cell: the members of the cells around it in visiting order, with
+/// their positions shifted to the periodic image nearest the home cell and taken relative to its
+/// corner, in single precision (contiguous, so that the distance test is one long vector loop).
+struct Candidates {
+  static constexpr std::uint32_t kNone = 0xFFFFFFFFu;
+  std::uint32_t cell = kNone;
+  std::array<std::vector<float>, 3> x;
+  std::vector<std::uint32_t> member;
+  std::size_t count = 0;
+  std::size_t home = 0;            // where the home cell's members begin
+  std::vector<std::uint8_t> keep;  // the portable test's marks
+
+  void reserve(std::size_t n, int dim) {
+    if (member.size() >= n) return;
+    for (int d = 0; d < dim; ++d) x[d].resize(n);
+    member.resize(n);
+    keep.resize(n);
+  }
+};
+
+/// select_candidates' result without intrinsics: the single-precision test marks each
+/// candidate inside, outside or in the band, the reference test decides the band's.
+template <int Dim>
+std::size_t select_candidates_portable(const Candidates& c, const std::array<float, 3>& xi,
+                                       std::size_t self, const PositionsView& p,
+                                       const ListGeometry& g, std::size_t i, std::uint32_t* out,
+                                       std::uint8_t* keep) {
+  const std::size_t count = c.count;
+  const std::size_t me = c.home + self;
+  const float* sx = c.x[0].data();
+  const float* sy = c.x[1].data();
+  const float* sz = c.x[Dim == 3 ? 2 : 0].data();
+  const float inner2 = g.inner2, outer2 = g.outer2;
+  // 0xFF: surely inside; 0x01: in the band; 0x00: surely outside.
+#pragma omp simd
+  for (std::size_t k = 0; k < count; ++k) {
+    const float dx = xi[0] - sx[k];
+    const float dy = xi[1] - sy[k];
+    float r2 = dx * dx + dy * dy;
+    if constexpr (Dim == 3) {
+      const float dz = xi[2] - sz[k];
+      r2 += dz * dz;
+    }
+    keep[k] = r2 < inner2 ? 0xFF : (r2 < outer2 ? 0x01 : 0x00);
+  }
+  for (std::size_t k = 0; k < count; ++k)
+    if (keep[k] == 0x01) keep[k] = within_list_radius<Dim>(p, g, i, c.member[k]) ? 0xFF : 0x00;
+  if (me < count) keep[me] = 0x00;  // j != i
+  return append_selected(c.member.data(), keep, count, out);
+}
+
+/// Appends to `out` the candidates c.member[k] within the list radius of particle i (x_i at
+/// `xi` in c's frame; at c.home + `self` in c, excluded), in order; returns how many. The
+/// single-precision test decides outside the band, the reference test inside it, so the result
+/// is the reference's. May write up to kStoreSlack entries past the last one kept.
+template <int Dim>
+[[gnu::noinline]] std::size_t select_candidates(const Candidates& c, const std::array<float, 3>& xi,
+                                                std::size_t self, const PositionsView& p,
+                                                const ListGeometry& g, std::size_t i,
+                                                std::uint32_t* out, std::uint8_t* keep) {
+  const std::size_t count = c.count;
+  const std::size_t me = c.home + self;
+#if defined(__AVX512F__)
+  (void)keep;
+  // 16 candidates per vector, the last block masked. Loop invariants in locals: the index store
+  // may alias anything, so values behind references would be reloaded at every block.
+  const float* const x0 = c.x[0].data();
+  const float* const x1 = c.x[1].data();
+  const float* const x2 = c.x[Dim == 3 ? 2 : 0].data();
+  const std::uint32_t* const member = c.member.data();
+  std::uint32_t* const dest = out;
+  const __m512 xi0 = _mm512_set1_ps(xi[0]), xi1 = _mm512_set1_ps(xi[1]),
+               xi2 = _mm512_set1_ps(xi[Dim == 3 ? 2 : 0]);
+  const __m512 inner2 = _mm512_set1_ps(g.inner2), outer2 = _mm512_set1_ps(g.outer2);
+  // Lanes in the band are kept provisionally and decided after the loop (a call inside it would
+  // make the compiler keep the loop's state in memory): the block's first output position, its
+  // kept lanes and its band lanes, for at most kMaxBands blocks (more: the whole scan again with
+  // every band decided in place, which the band's width makes vanishingly rare).
+  constexpr int kMaxBands = 16;
+  struct Band {
+    std::size_t at;
+    unsigned kept, band;
+  } bands[kMaxBands];
+  int num_bands = 0;
+  std::size_t kept = 0;
+  for (std::size_t k = 0; k < count; k += 16) {
+    const std::size_t left = count - k;
+    auto live = left >= 16 ? 0xFFFFu : (1u << left) - 1u;
+    if (me >= k && me < k + 16) live &= ~(1u << (me - k));  // j != i
+    const auto lanes = static_cast<__mmask16>(live);
+    const __m512 dx = _mm512_sub_ps(xi0, _mm512_maskz_loadu_ps(lanes, x0 + k));
+    const __m512 dy = _mm512_sub_ps(xi1, _mm512_maskz_loadu_ps(lanes, x1 + k));
+    __m512 r2 = _mm512_add_ps(_mm512_mul_ps(dx, dx), _mm512_mul_ps(dy, dy));
+    if constexpr (Dim == 3) {
+      const __m512 dz = _mm512_sub_ps(xi2, _mm512_maskz_loadu_ps(lanes, x2 + k));
+      r2 = _mm512_add_ps(r2, _mm512_mul_ps(dz, dz));
+    }
+    const auto maybe =
+        static_cast<unsigned>(_mm512_mask_cmp_ps_mask(lanes, r2, outer2, _CMP_LT_OQ));
+    const auto band =
+        maybe & ~static_cast<unsigned>(_mm512_mask_cmp_ps_mask(lanes, r2, inner2, _CMP_LT_OQ));
+    if (band != 0) [[unlikely]] {
+      if (num_bands < kMaxBands) bands[num_bands] = {kept, maybe, band};
+      ++num_bands;
+    }
+    // Compress in a register and store all 16 lanes (a masked compress-store is slow on some
+    // cores); the lanes past the kept ones are overwritten by the next block or ignored.
+    _mm512_storeu_si512(dest + kept,
+                        _mm512_maskz_compress_epi32(static_cast<__mmask16>(maybe),
+                                                    _mm512_maskz_loadu_epi32(lanes, member + k)));
+    kept += static_cast<std::size_t>(__builtin_popcount(maybe));
+  }
+  if (num_bands > kMaxBands)
+    return select_candidates_portable<Dim>(c, xi, self, p, g, i, out, keep);
+  // Decide the band's lanes, the last first, so that a removal moves no pending entry.
+  for (int b = num_bands - 1; b >= 0; --b) {
+    for (unsigned band = bands[b].band; band != 0;) {
+      const int lane = 31 - __builtin_clz(band);
+      band &= ~(1u << lane);
+      const std::size_t at =
+          bands[b].at +
+          static_cast<std::size_t>(__builtin_popcount(bands[b].kept & ((1u << lane) - 1u)));
+      if (!within_list_radius<Dim>(p, g, i, dest[at])) {
+        std::copy(dest + at + 1, dest + kept, dest + at);
+        --kept;
+      }
+    }
+  }
+  return kept;
+#else
+  return select_candidates_portable<Dim>(c, xi, self, p, g, i, out, keep);
+#endif
+}
 
 /// When a region overflows, the estimate grows at least by this factor for the next round.
 constexpr double kRegrowth = 1.25;
@@ -159,142 +319,129 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     rank[cell_members[k]] = static_cast<std::uint32_t>(k);
   }
 
-  // Pruning: a cell whose nearest point is farther than the list radius from x_i holds no
-  // neighbour, so rows of cells (fixed y, z offsets) beyond the radius are skipped and the x cells
-  // of a row are cut to the chord the sphere leaves in it. Only with centred offsets (at least
-  // 2 reach + 1 cells per direction, where each offset is the nearest periodic image); the margin
-  // covers the rounding of cell bounds against the cell assignment, so the list is unchanged.
-  bool prune = true;
-  for (int d = 0; d < Dim; ++d) prune = prune && cells_[d] >= 2 * kCellsPerRadius + 1;
+  ListGeometry geometry;
+  for (int d = 0; d < Dim; ++d) {
+    geometry.length[d] = length[d];
+    geometry.half_length[d] = half_length[d];
+  }
+  geometry.radius2 = radius2;
+  geometry.inner2 = static_cast<float>(radius2 * (1.0 - kSinglePrecisionBand));
+  geometry.outer2 = static_cast<float>(radius2 * (1.0 + kSinglePrecisionBand));
   std::array<double, 3> cell_size{};
   for (int d = 0; d < Dim; ++d) cell_size[d] = box_.length[d] / cells_[d];
-  const double radius = list_radius();
-  const double margin = 1e-9 * radius;
+  // Cell k of axis d, k in [-cells, 2 cells) (a cell index plus an offset of at most one box),
+  // and the shift to the periodic image of its members nearest the unwrapped cell k.
+  const auto wrap_cell = [&](int d, int k) {
+    const int n = cells_[d];
+    return k < 0 ? k + n : (k >= n ? k - n : k);
+  };
+  const auto image_shift = [&](int d, int k) {
+    return k < 0 ? -length[d] : (k >= cells_[d] ? length[d] : 0.0);
+  };
+  const auto cell_coordinates = [&](std::uint32_t c) {
+    std::array<int, 3> cc{0, 0, 0};
+    for (int d = 0; d < Dim; ++d) {
+      cc[d] = static_cast<int>(c % static_cast<std::uint32_t>(cells_[d]));
+      c /= static_cast<std::uint32_t>(cells_[d]);
+    }
+    return cc;
+  };
 
-  // Visits every candidate j of particle i in a fixed order (z, y, x cell offsets ascending, the
-  // members of a cell in ascending index) and appends those within the list radius to `out`,
-  // returning their number. The cells of one (z, y) offset are scanned as at most two contiguous
-  // runs (two when the x offsets wrap around the box); `keep` is scratch space.
-  const auto visit = [&](std::size_t i, std::uint32_t* out, std::vector<std::uint8_t>& keep) {
-    std::array<int, 3> ci{0, 0, 0};
-    {
-      std::uint32_t c = cell[i];
+  // With at least 2 reach + 1 cells along every axis, each cell of the stencil is one periodic
+  // image of the home cell's surroundings, so the candidates of all particles of a home cell are
+  // gathered once (Candidates) and tested in one long single-precision vector loop. Otherwise
+  // (boxes of a few cells), each particle's candidates are tested in place in double precision.
+  bool gathered = true;
+  for (int d = 0; d < Dim; ++d) gathered = gathered && cells_[d] >= 2 * kCellsPerRadius + 1;
+
+  // Gathers the members of the cells around `home` in visiting order (z, y, x offsets ascending;
+  // a cell's members in the order of cell_members) into c.
+  const auto gather = [&](std::uint32_t home, Candidates& c, std::array<double, 3>& origin) {
+    const std::array<int, 3> hc = cell_coordinates(home);
+    for (int d = 0; d < Dim; ++d) origin[d] = hc[d] * cell_size[d];
+    c.cell = home;
+    c.count = 0;
+    const std::size_t home_begin = cell_start[home];
+    std::array<double, 3> shift{0.0, 0.0, 0.0};
+    // Members begin..end of sorted, with the shift of their image along x.
+    const auto append = [&](std::size_t begin, std::size_t end, double shift_x) {
+      shift[0] = shift_x;
       for (int d = 0; d < Dim; ++d) {
-        ci[d] = static_cast<int>(c % static_cast<std::uint32_t>(cells_[d]));
-        c /= static_cast<std::uint32_t>(cells_[d]);
+        float* const to = c.x[d].data() + c.count;
+        const double* const from = sorted[d].data();
+        const double offset = shift[d] - origin[d];
+        for (std::size_t k = begin; k < end; ++k)
+          to[k - begin] = static_cast<float>(from[k] + offset);
+      }
+      std::copy(cell_members.data() + begin, cell_members.data() + end, c.member.data() + c.count);
+      if (home_begin >= begin && home_begin < end) c.home = c.count + (home_begin - begin);
+      c.count += end - begin;
+    };
+    // The x cells of one row: one run, or two where the offsets wrap around the box.
+    const auto row = [&](std::size_t row_start) {
+      const std::size_t* const at = cell_start.data() + row_start;
+      const int first = hc[0] - kCellsPerRadius, last = hc[0] + kCellsPerRadius;
+      const int n = cells_[0];
+      if (first < 0) {
+        append(at[first + n], at[n], -length[0]);
+        append(at[0], at[last + 1], 0.0);
+      } else if (last >= n) {
+        append(at[first], at[n], 0.0);
+        append(at[0], at[last + 1 - n], length[0]);
+      } else {
+        append(at[first], at[last + 1], 0.0);
+      }
+    };
+    if constexpr (Dim == 2) {
+      for (int oy = -kCellsPerRadius; oy <= kCellsPerRadius; ++oy) {
+        shift[1] = image_shift(1, hc[1] + oy);
+        row(static_cast<std::size_t>(wrap_cell(1, hc[1] + oy)) * cells_[0]);
+      }
+    } else {
+      for (int oz = -kCellsPerRadius; oz <= kCellsPerRadius; ++oz) {
+        const std::size_t plane = static_cast<std::size_t>(wrap_cell(2, hc[2] + oz)) * cells_[1];
+        for (int oy = -kCellsPerRadius; oy <= kCellsPerRadius; ++oy) {
+          shift[2] = image_shift(2, hc[2] + oz);
+          shift[1] = image_shift(1, hc[1] + oy);
+          row((plane + static_cast<std::size_t>(wrap_cell(1, hc[1] + oy))) * cells_[0]);
+        }
       }
     }
-    double xi[3] = {0.0, 0.0, 0.0};
-    for (int d = 0; d < Dim; ++d) xi[d] = positions.x[d][i];
-    // Distance from x_i to the slab of the cell at offset o along axis d (0 inside it).
-    const auto slab_distance = [&](int d, int o) {
-      const double lo = (ci[d] + o) * cell_size[d];
-      return std::max({0.0, lo - xi[d], xi[d] - (lo + cell_size[d])});
-    };
+  };
+
+  // Per chunk of particles: the candidates of the last home cell and its origin.
+  struct Scratch {
+    Candidates candidates;
+    std::array<double, 3> origin{};
+  };
+
+  // Appends the neighbours of particle i to `out` and returns their number: z, y, x cell offsets
+  // ascending, the members of a cell in the order of cell_members.
+  const auto visit = [&](std::size_t i, std::uint32_t* out, Scratch& scratch) -> std::size_t {
+    const std::uint32_t home = cell[i];
+    if (gathered) {
+      const std::size_t self = rank[i] - cell_start[home];
+      Candidates& c = scratch.candidates;
+      if (c.cell != home) gather(home, c, scratch.origin);
+      std::array<float, 3> xi{0.0f, 0.0f, 0.0f};
+      for (int d = 0; d < Dim; ++d)
+        xi[d] = static_cast<float>(positions.x[d][i] - scratch.origin[d]);
+      return select_candidates<Dim>(c, xi, self, positions, geometry, i, out, c.keep.data());
+    }
+    const std::array<int, 3> ci = cell_coordinates(home);
+    std::vector<std::uint8_t>& keep = scratch.candidates.keep;
     std::size_t used = 0;
-    const std::uint32_t self = rank[i];
     const auto scan = [&](std::size_t begin, std::size_t end) {
       const std::size_t count = end - begin;
-#if defined(__AVX512F__) && defined(__AVX512VL__)
-      // 8 candidates per vector, the last block masked (the runs are short: a few cells of a
-      // row, so a scalar remainder would cost as much as the vector part). The same operations
-      // in the same order as the portable loop (#else), so the list is the same.
-      (void)keep;
-      // Every loop invariant in a local: the index store below is of a type that may alias
-      // anything, so values reached through the captures (the arrays' pointers, xi, the box)
-      // would otherwise be reloaded and re-broadcast at every block.
-      const double* const x0 = sorted[0].data();
-      const double* const x1 = sorted[1].data();
-      const double* const x2 = sorted[Dim == 3 ? 2 : 0].data();
-      const std::uint32_t* const member = cell_members.data();
-      std::uint32_t* const dest = out;
-      const std::size_t me = self;
-      std::size_t kept = used;
-      const __m512d xi0 = _mm512_set1_pd(xi[0]), xi1 = _mm512_set1_pd(xi[1]),
-                    xi2 = _mm512_set1_pd(xi[Dim == 3 ? 2 : 0]);
-      const __m512d len0 = _mm512_set1_pd(length[0]), len1 = _mm512_set1_pd(length[1]),
-                    len2 = _mm512_set1_pd(length[Dim == 3 ? 2 : 0]);
-      const __m512d half0 = _mm512_set1_pd(half_length[0]), half1 = _mm512_set1_pd(half_length[1]),
-                    half2 = _mm512_set1_pd(half_length[Dim == 3 ? 2 : 0]);
-      const __m512d low0 = _mm512_set1_pd(-half_length[0]), low1 = _mm512_set1_pd(-half_length[1]),
-                    low2 = _mm512_set1_pd(-half_length[Dim == 3 ? 2 : 0]);
-      const __m512d r2_limit = _mm512_set1_pd(radius2);
-      const auto image = [](__m512d dx, __m512d l, __m512d half, __m512d low) {
-        dx = _mm512_mask_sub_pd(dx, _mm512_cmp_pd_mask(dx, half, _CMP_GT_OQ), dx, l);
-        return _mm512_mask_add_pd(dx, _mm512_cmp_pd_mask(dx, low, _CMP_LT_OQ), dx, l);
-      };
-      for (std::size_t k = 0; k < count; k += 8) {
-        const std::size_t left = count - k;
-        const auto live = static_cast<__mmask8>(left >= 8 ? 0xFF : (1u << left) - 1u);
-        const std::size_t at = begin + k;
-        const __m512d dx =
-            image(_mm512_sub_pd(xi0, _mm512_maskz_loadu_pd(live, x0 + at)), len0, half0, low0);
-        const __m512d dy =
-            image(_mm512_sub_pd(xi1, _mm512_maskz_loadu_pd(live, x1 + at)), len1, half1, low1);
-        __m512d r2 = _mm512_add_pd(_mm512_mul_pd(dx, dx), _mm512_mul_pd(dy, dy));
-        if constexpr (Dim == 3) {
-          const __m512d dz =
-              image(_mm512_sub_pd(xi2, _mm512_maskz_loadu_pd(live, x2 + at)), len2, half2, low2);
-          r2 = _mm512_add_pd(r2, _mm512_mul_pd(dz, dz));
-        }
-        auto inside =
-            static_cast<unsigned>(_mm512_mask_cmp_pd_mask(live, r2, r2_limit, _CMP_LT_OQ));
-        if (me >= at && me < at + 8) inside &= ~(1u << (me - at));  // j != i
-        const __m256i members = _mm256_maskz_loadu_epi32(live, member + at);
-        // Compress in a register and store all 8 lanes (a masked compress-store is slow on some
-        // cores); the lanes past the kept ones are overwritten by the next block or ignored.
-        _mm256_storeu_si256(reinterpret_cast<__m256i*>(dest + kept),
-                            _mm256_maskz_compress_epi32(static_cast<__mmask8>(inside), members));
-        kept += static_cast<std::size_t>(__builtin_popcount(inside));
-      }
-      used = kept;
-#else
-      if (keep.size() < count) keep.resize(count);
-      std::uint8_t* inside = keep.data();
-      const double* sx = sorted[0].data() + begin;
-      const double* sy = sorted[1].data() + begin;
-      const double* sz = sorted[Dim == 3 ? 2 : 0].data() + begin;
+      const std::uint32_t* const js = cell_members.data() + begin;
 #pragma omp simd
-      for (std::size_t k = 0; k < count; ++k) {
-        const double dx = minimum_image(xi[0] - sx[k], length[0], half_length[0]);
-        const double dy = minimum_image(xi[1] - sy[k], length[1], half_length[1]);
-        double r2 = dx * dx + dy * dy;
-        if constexpr (Dim == 3) {
-          const double dz = minimum_image(xi[2] - sz[k], length[2], half_length[2]);
-          r2 += dz * dz;
-        }
-        inside[k] = r2 < radius2 ? 0xFF : 0x00;
-      }
-      if (self >= begin && self < end) inside[self - begin] = 0x00;  // j != i
-      used += append_selected(cell_members.data() + begin, inside, count, out + used);
-#endif
+      for (std::size_t k = 0; k < count; ++k)
+        keep[k] = within_list_radius<Dim>(positions, geometry, i, js[k]) ? 0xFF : 0x00;
+      if (rank[i] >= begin && rank[i] < end) keep[rank[i] - begin] = 0x00;  // j != i
+      used += append_selected(js, keep.data(), count, out + used);
     };
-    // Cell k of axis d, k in [-cells, 2 cells) (a cell index plus an offset of at most one box):
-    // a compare instead of an integer division, which the scan of every row would wait for.
-    const auto wrap_cell = [&](int d, int k) {
-      const int n = cells_[d];
-      return k < 0 ? k + n : (k >= n ? k - n : k);
-    };
-    // The x cells of one row in visiting order, as runs of consecutive cells; with pruning only
-    // those within `reach` (the chord's half-length) of x_i.
-    const auto scan_row = [&](std::size_t row_start, double reach) {
-      if (prune) {
-        // The wanted x offsets are one interval around 0 (the slab distance grows with |offset|);
-        // its cells in offset order are one run, or two where the interval wraps around the box.
-        int lo = -kCellsPerRadius, hi = kCellsPerRadius;
-        while (lo < 0 && slab_distance(0, lo) > reach) ++lo;
-        while (hi > 0 && slab_distance(0, hi) > reach) --hi;
-        const int first = wrap_cell(0, ci[0] + lo);
-        const int end = first + (hi - lo) + 1;  // one past the last cell, unwrapped
-        const std::size_t* const row = cell_start.data() + row_start;
-        if (end <= cells_[0]) {
-          scan(row[first], row[end]);
-        } else {
-          scan(row[first], row[cells_[0]]);
-          scan(row[0], row[end - cells_[0]]);
-        }
-        return;
-      }
+    // The x cells of a row in visiting order, as runs of consecutive cells.
+    const auto scan_row = [&](std::size_t row_start) {
       const std::vector<int>& xs = offsets[0];
       std::size_t k = 0;
       while (k < xs.size()) {
@@ -309,31 +456,15 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
              cell_start[row_start + static_cast<std::size_t>(last) + 1]);
       }
     };
-    // The half-chord left for x once y (and z) are at least `transverse` away; < 0: none.
-    const auto chord = [&](double transverse2) {
-      const double left = radius2 - transverse2;
-      return left < 0.0 ? -1.0 : std::sqrt(left) + margin;
-    };
     if constexpr (Dim == 2) {
-      for (int oy : offsets[1]) {
-        const double dy = prune ? std::max(0.0, slab_distance(1, oy) - margin) : 0.0;
-        const double reach = chord(dy * dy);
-        if (reach < 0.0) continue;
-        scan_row(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0], reach);
-      }
+      for (int oy : offsets[1])
+        scan_row(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0]);
     } else {
-      for (int oz : offsets[2]) {
-        const double dz = prune ? std::max(0.0, slab_distance(2, oz) - margin) : 0.0;
-        for (int oy : offsets[1]) {
-          const double dy = prune ? std::max(0.0, slab_distance(1, oy) - margin) : 0.0;
-          const double reach = chord(dy * dy + dz * dz);
-          if (reach < 0.0) continue;
+      for (int oz : offsets[2])
+        for (int oy : offsets[1])
           scan_row((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells_[1] +
                     static_cast<std::size_t>(wrap_cell(1, ci[1] + oy))) *
-                       cells_[0],
-                   reach);
-        }
-      }
+                   cells_[0]);
     }
     return used;
   };
@@ -360,7 +491,7 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     double volume = 1.0;
     for (int d = 0; d < Dim; ++d) volume *= box_.length[d];
     const double pi = std::acos(-1.0);
-    const double ball = Dim == 2 ? pi * radius2 : 4.0 / 3.0 * pi * radius2 * radius;
+    const double ball = Dim == 2 ? pi * radius2 : 4.0 / 3.0 * pi * radius2 * list_radius();
     per_particle = static_cast<double>(n) / volume * ball;
   }
   const std::size_t room = max_candidates + kStoreSlack;  // what one scan may write
@@ -397,9 +528,10 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
 #pragma omp parallel for schedule(static, 1)
     for (std::ptrdiff_t t = 0; t < num_chunks; ++t) {
       Range& r = ranges[static_cast<std::size_t>(t)];
-      std::vector<std::uint8_t> keep;
+      Scratch scratch;
+      scratch.candidates.reserve(max_candidates + kStoreSlack, Dim);
       for (; r.next < r.end && r.at + room <= r.limit; ++r.next) {
-        const std::size_t found = visit(r.next, list.indices.data() + r.at, keep);
+        const std::size_t found = visit(r.next, list.indices.data() + r.at, scratch);
         list.start[r.next] = r.at;
         list.count[r.next] = static_cast<std::uint32_t>(found);
         r.at += found;

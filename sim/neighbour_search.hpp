@@ -6,7 +6,9 @@
 // |x_i - x_j| < cutoff + skin under the minimum-image convention. Lists are rebuilt when some
 // particle has moved more than skin/2 since the last build, so the list stays complete for the
 // cutoff in between. Each particle's list is built independently in a fixed order: the result is
-// identical for any thread count.
+// identical for any thread count. The candidates of the particles of one cell are gathered once
+// and tested in single precision; near the list radius the double-precision minimum-image test
+// decides, so the lists are those of a double-precision test (docs/performance.md).
 #pragma once
 
 #include <cstddef>

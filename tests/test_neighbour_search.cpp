@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <random>
@@ -118,6 +119,46 @@ INSTANTIATE_TEST_SUITE_P(
     [](const ::testing::TestParamInfo<SearchCase>& info) {
       return std::to_string(info.param.dim) + "D_case" + std::to_string(info.index);
     });
+
+// On a lattice whose spacing is a tenth of the box and half the list radius, many pairs lie at
+// the list radius itself, where the rounding of x_i - x_j decides (differently for pairs across
+// the periodic faces). The build tests distances in single precision and defers to the double-
+// precision test near the radius: its lists must be brute force's, pair for pair.
+TEST(NeighbourSearch, EqualsBruteForceOnALatticeWithPairsAtTheListRadius) {
+  for (const int dim : {2, 3}) {
+    const std::size_t per_side = 10;
+    const PeriodicBox box{dim, {1.0, 1.0, dim == 3 ? 1.0 : 0.0}};
+    ParticleArrays p;
+    p.dimension = dim;
+    p.resize(dim == 3 ? per_side * per_side * per_side : per_side * per_side);
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      std::size_t k = i;
+      for (int d = 0; d < dim; ++d) {
+        p.position[d][i] = (static_cast<double>(k % per_side) + 0.5) * 0.1;
+        k /= per_side;
+      }
+    }
+    VerletNeighbourSearch search(box, 0.2, 0.0);
+    search.build(view_positions(p));
+    const auto expected = brute_force(p, box, search.list_radius());
+    std::size_t at_radius = 0;  // pairs whose distance rounds to the radius either way
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      const auto span = search.list().of(i);
+      EXPECT_EQ(std::set<std::uint32_t>(span.begin(), span.end()), expected[i])
+          << "particle " << i << " (" << dim << "D)";
+      EXPECT_EQ(span.size(), expected[i].size());
+      for (std::size_t j = 0; j < p.size(); ++j) {
+        double r2 = 0.0;
+        for (int d = 0; d < dim; ++d) {
+          const double dx = minimum_image(p.position[d][i] - p.position[d][j], 1.0, 0.5);
+          r2 += dx * dx;
+        }
+        at_radius += std::abs(r2 - 0.04) < 1e-12 ? 1 : 0;
+      }
+    }
+    EXPECT_GT(at_radius, p.size()) << "the lattice must put pairs at the list radius";
+  }
+}
 
 // With a cell order by id, a particle's list names the same neighbours in the same order
 // whatever the order of the arrays (what makes a distributed particle's sums those of one
