@@ -36,6 +36,7 @@ struct ServeOptions {
   std::string start_run;                       // preset name or scene file; empty: none
   std::vector<std::string> overrides;          // --set, for --start-run
   std::string max_memory;                      // --max-memory as given; empty: the default
+  std::string rank_memory;                     // --rank-memory as given; empty: ranks run here
   std::string packing_cache;                   // empty: the default
   std::string log_level;                       // --log-level
 };
@@ -96,6 +97,12 @@ void add_serve_options(CLI::App& serve, ServeOptions& o) {
                   "of the machine's)")
       ->type_name("SIZE");
   serve
+      .add_option("--rank-memory", o.rank_memory,
+                  "memory one MPI rank may use where --launcher places it, e.g. 64G: runs with "
+                  "ranks are then admitted by their per-rank estimate (a cluster's launcher); "
+                  "default: the ranks run on this machine and count against --max-memory")
+      ->type_name("SIZE");
+  serve
       .add_option("--threads", o.manager.run_options.threads,
                   "OpenMP threads of each run's solver (per MPI rank); 0: the default")
       ->type_name("N")
@@ -129,6 +136,8 @@ void add_serve_options(CLI::App& serve, ServeOptions& o) {
 /// What CLI11 cannot check, and the MPI job launcher.
 void finish_serve_options(ServeOptions& o) {
   if (!o.max_memory.empty()) o.manager.max_memory_bytes = parse_bytes("--max-memory", o.max_memory);
+  if (!o.rank_memory.empty())
+    o.manager.rank_memory_bytes = parse_bytes("--rank-memory", o.rank_memory);
   if (!o.packing_cache.empty()) o.manager.run_options.packing_cache_dir = o.packing_cache;
   if (!o.overrides.empty() && o.start_run.empty()) throw UsageError("--set needs --start-run");
   if (!o.launcher.empty()) {
@@ -210,9 +219,12 @@ int serve_command(ServeOptions options) {
                e.what());
     return kExitFailure;
   }
-  log->info("sphles {}, data directory {}, {} run(s) found; runs may use {}", SPHLES_VERSION,
+  log->info("sphles {}, data directory {}, {} run(s) found; runs may use {}{}", SPHLES_VERSION,
             options.manager.data_directory.string(), manager->list().size(),
-            control::format_bytes(manager->options().max_memory_bytes));
+            control::format_bytes(manager->options().max_memory_bytes),
+            options.manager.rank_memory_bytes > 0.0
+                ? ", each MPI rank " + control::format_bytes(options.manager.rank_memory_bytes)
+                : std::string());
 
   if (!options.start_run.empty()) {
     try {

@@ -19,6 +19,7 @@
 #include <sstream>
 
 #include "analysis/config.hpp"
+#include "analysis/snapshot.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/packing.hpp"
 #include "sim/pair_loop.hpp"
@@ -508,6 +509,12 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
     const std::vector<MemoryPart> run_rank = scaled(run_parts), setup_rank = scaled(setup_parts);
     r.memory = total(setup_rank) > total(run_rank) ? setup_rank : run_rank;
     r.memory_bytes = total(r.memory);
+    const bool gathers = std::ranges::any_of(
+        a.products, [&](Product p) { return !analysis::served_by_ranks(a, p); });
+    for (const MemoryPart& p : run_parts)
+      if ((p.name == "snapshots" && gathers) || p.name == "analysis" || p.name == "rendering")
+        r.service.push_back(p);
+    r.service_bytes = total(r.service);
     e.per_rank = std::move(r);
   }
 
@@ -538,6 +545,8 @@ nlohmann::json rank_estimate_to_json(const RankEstimate& r) {
           {"halo_width", r.halo_width},
           {"memory_bytes", r.memory_bytes},
           {"memory", parts_to_json(r.memory)},
+          {"service_bytes", r.service_bytes},
+          {"service", parts_to_json(r.service)},
           {"refusal", r.refusal.empty() ? nlohmann::json(nullptr) : nlohmann::json(r.refusal)}};
 }
 

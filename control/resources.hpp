@@ -38,6 +38,11 @@ struct RankEstimate {
   double halo_width = 0.0;           // [m]: the neighbour-list radius (the packing's if larger)
   double memory_bytes = 0.0;         // the sum of `memory`
   std::vector<MemoryPart> memory;    // the set-up's peak or the run's, whichever is larger
+  /// What the service (or rank 0 under mpirun) holds beside the ranks: the analysis, the
+  /// rendering, and snapshots of every particle only when a product asked for is one the ranks
+  /// do not serve (analysis::served_by_ranks: the particles are gathered for it).
+  double service_bytes = 0.0;  // the sum of `service`
+  std::vector<MemoryPart> service;
   /// Non-empty when the run would refuse the split: a sub-box narrower than the halo.
   std::string refusal;
 };

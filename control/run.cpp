@@ -383,7 +383,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
   after.merge_patch(patch);
   CheckedChange change = check_change(before, after);
   if (change.fields.empty()) return {};
-  if (r.options.admit) r.options.admit(change.spec);  // throws AdmissionError
+  if (r.options.admit) r.options.admit(change.spec, r.options.ranks);  // throws AdmissionError
   if (std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end() &&
       change.spec.run.scene.end_time <= r.time)
     throw ChangeError("time.end", "must be after the current time " + sim::format_number(r.time));

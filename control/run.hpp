@@ -141,9 +141,9 @@ struct RunOptions {
   std::filesystem::path packing_cache_dir;  // empty: sim::default_packing_cache_dir()
   /// How often (wall time) the solver thread checks that its run directory still exists.
   double directory_check_seconds = 1.0;
-  /// Called with the document a live change would give, before it is made; throws
-  /// AdmissionError to refuse it (the run manager checks the resource estimate).
-  std::function<void(const RunSpec&)> admit;
+  /// Called with the document a live change would give and the run's ranks, before it is made;
+  /// throws AdmissionError to refuse it (the run manager checks the resource estimate).
+  std::function<void(const RunSpec&, int ranks)> admit;
   /// Builds the solver of a fresh start and of a restart or live change; empty members: one
   /// process (sim::make_simulation, sim::restore_simulation). `sphles run` under mpirun sets
   /// them to the distributed solver (par::Driver::factories), the service for runs with ranks

@@ -52,12 +52,21 @@ std::optional<double> free_disk_bytes(const std::filesystem::path& directory) {
   return static_cast<double>(info.f_bavail) * static_cast<double>(info.f_frsize);
 }
 
-double estimated_memory(const Run& run) {
-  try {
-    return estimate_resources(run.spec()).memory_bytes;
-  } catch (const std::exception&) {
-    return 0.0;  // a document that no longer parses cannot run either
-  }
+/// What a run takes of this machine's memory: the whole estimate in one process. With ranks,
+/// the server's share (RankEstimate::service: analysis, rendering, gathered snapshots) and,
+/// when the ranks run here (no rank memory given), every rank's estimate as one part.
+ResourceEstimate on_this_machine(ResourceEstimate estimate, double rank_memory_bytes) {
+  if (!estimate.per_rank) return estimate;
+  const RankEstimate& rank = *estimate.per_rank;
+  std::vector<MemoryPart> parts = rank.service;
+  if (rank_memory_bytes <= 0.0)
+    parts.push_back({"mpi_ranks", rank.ranks * rank.memory_bytes,
+                     std::to_string(rank.ranks) + " ranks on this machine, " +
+                         format_bytes(rank.memory_bytes) + " each (per_rank)"});
+  estimate.memory = std::move(parts);
+  estimate.memory_bytes = 0.0;
+  for (const MemoryPart& part : estimate.memory) estimate.memory_bytes += part.bytes;
+  return estimate;
 }
 
 }  // namespace
@@ -158,8 +167,10 @@ RunManager::RunManager(ManagerOptions options)
   if (options_.max_memory_bytes < 0.0) throw std::invalid_argument("max_memory_bytes must be >= 0");
   if (options_.max_memory_bytes == 0.0)
     options_.max_memory_bytes = static_cast<double>(default_memory_limit_bytes());
+  if (options_.rank_memory_bytes < 0.0)
+    throw std::invalid_argument("rank_memory_bytes must be >= 0");
   // Live changes are admitted like new runs (a larger render or histogram needs memory too).
-  options_.run_options.admit = [this](const RunSpec& spec) { admit(spec); };
+  options_.run_options.admit = [this](const RunSpec& spec, int ranks) { admit(spec, ranks); };
   const std::filesystem::path runs = options_.data_directory / "runs";
   std::filesystem::create_directories(runs);
   std::error_code ignored;  // deletions a previous process did not finish (remove())
@@ -217,8 +228,25 @@ void RunManager::schedule_loop() {
   }
 }
 
-double RunManager::admit(const RunSpec& spec) const {
-  return admit(estimate_resources(spec));
+double RunManager::admit(const RunSpec& spec, int ranks) const {
+  const ResourceEstimate estimate = estimate_resources(spec, ranks);
+  if (estimate.per_rank && options_.rank_memory_bytes > 0.0 &&
+      estimate.per_rank->memory_bytes > options_.rank_memory_bytes)
+    throw AdmissionError(
+        "ranks", "each of the run's " + std::to_string(ranks) + " MPI ranks needs an estimated " +
+                     format_bytes(estimate.per_rank->memory_bytes) +
+                     " at its peak, more than the " + format_bytes(options_.rank_memory_bytes) +
+                     " a rank may use (--rank-memory): more ranks or fewer particles");
+  return admit(on_this_machine(estimate, options_.rank_memory_bytes));
+}
+
+double RunManager::memory_here(const Run& run) const {
+  try {
+    return on_this_machine(estimate_resources(run.spec(), run.ranks()), options_.rank_memory_bytes)
+        .memory_bytes;
+  } catch (const std::exception&) {
+    return 0.0;  // a document that no longer parses cannot run either
+  }
 }
 
 double RunManager::admit(const ResourceEstimate& estimate) const {
@@ -254,6 +282,8 @@ nlohmann::json RunManager::estimate(const CreateRequest& request) const {
   const ResourceEstimate resources = estimate_resources(spec, request.ranks);
   json answer = resource_estimate_to_json(resources);
   answer["memory_limit_bytes"] = options_.max_memory_bytes;
+  answer["rank_memory_limit_bytes"] =
+      options_.rank_memory_bytes > 0.0 ? json(options_.rank_memory_bytes) : json(nullptr);
   // Ranks this server cannot launch, or a split the run would refuse: not admitted.
   std::optional<std::string> ranks = ranks_refusal(request);
   if (!ranks && resources.per_rank && !resources.per_rank->refusal.empty())
@@ -265,7 +295,7 @@ nlohmann::json RunManager::estimate(const CreateRequest& request) const {
     return answer;
   }
   try {
-    admit(resources);
+    answer["memory_here_bytes"] = admit(spec, request.ranks);
     answer["admitted"] = true;
   } catch (const AdmissionError& e) {
     answer["admitted"] = false;
@@ -287,7 +317,7 @@ bool RunManager::fits_now(const Run* run, double memory) const {
   if (static_cast<int>(active.size()) >= options_.max_running) return false;
   if (active.empty()) return true;  // it fits alone: admit() checked that
   double in_use = memory;
-  for (const auto& r : active) in_use += estimated_memory(*r);
+  for (const auto& r : active) in_use += memory_here(*r);
   return in_use <= options_.max_memory_bytes;
 }
 
@@ -350,8 +380,8 @@ std::optional<std::string> RunManager::ranks_refusal(const CreateRequest& reques
 
 std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
   if (const std::optional<std::string> refusal = ranks_refusal(request)) throw SceneError(*refusal);
-  RunSpec spec = spec_of(request);    // throws naming the field; nothing created yet
-  const double memory = admit(spec);  // throws AdmissionError with the estimate
+  RunSpec spec = spec_of(request);                   // throws naming the field; nothing created yet
+  const double memory = admit(spec, request.ranks);  // throws AdmissionError with the estimate
 
   // A run to start is created only if it can start or queue: a full queue refuses it whole.
   std::unique_lock<std::mutex> schedule;
@@ -406,7 +436,7 @@ void RunManager::start_locked(const std::shared_ptr<Run>& run) {
     std::lock_guard lock(mutex_);
     if (shut_down_) throw StateError("the server is shutting down");
   }
-  if (fits_now(run.get(), estimated_memory(*run))) {
+  if (fits_now(run.get(), memory_here(*run))) {
     run->start();  // throws StateError naming the state
     std::lock_guard lock(mutex_);
     std::erase(queue_, id);
@@ -487,7 +517,7 @@ void RunManager::start_queued() {
     }
     // The oldest first: when it does not fit yet (slots or memory), the others wait behind it.
     if (next && next->status().state == RunState::Queued &&
-        !fits_now(next.get(), estimated_memory(*next)))
+        !fits_now(next.get(), memory_here(*next)))
       return;
     {
       std::lock_guard lock(mutex_);

@@ -36,6 +36,12 @@ struct ManagerOptions {
   /// process (bitwise the same results).
   std::function<void(RunOptions& options, int ranks, const std::filesystem::path& run_directory)>
       distribute;
+  /// Memory one MPI rank of a run may use where the launcher places it [B] (--rank-memory).
+  /// 0: the ranks run on this machine, so a run with ranks takes the sum of its ranks' estimates
+  /// (control::RankEstimate) of max_memory_bytes, beside the server's own share of it (analysis,
+  /// rendering). > 0 (a cluster's launcher): such a run is refused when one rank's estimate
+  /// exceeds this, and takes only the server's share of max_memory_bytes.
+  double rank_memory_bytes = 0.0;
   int max_ranks = 1024;  // ranks one run may ask for
 };
 
@@ -139,10 +145,14 @@ class RunManager {
   /// The scene document of a create request, validated (throws sim::SceneError naming the
   /// field): preset or scene, patch, overrides, name, live defaults.
   static RunSpec spec_of(const CreateRequest& request);
-  /// Throws AdmissionError if the run's estimated memory exceeds the limit, or its checkpoints
-  /// the free disk of the data directory; returns the estimated memory [B].
-  double admit(const RunSpec& spec) const;
+  /// Throws AdmissionError if the run's estimated memory exceeds the limits (one rank's against
+  /// rank_memory_bytes, this machine's share against max_memory_bytes), or its checkpoints the
+  /// free disk of the data directory; returns the memory it takes of this machine [B].
+  double admit(const RunSpec& spec, int ranks) const;
   double admit(const ResourceEstimate& estimate) const;  // the same, for an estimate at hand
+  /// The run's estimated memory on this machine (what admit returns; 0 for a document that no
+  /// longer parses).
+  double memory_here(const Run& run) const;
   /// Whether a run (`run`, or a new one when null) needing `memory` may start now: a free slot,
   /// and memory beside the active runs. Caller holds schedule_mutex_.
   bool fits_now(const Run* run, double memory) const;

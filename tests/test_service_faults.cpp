@@ -6,6 +6,8 @@
 #include <atomic>
 #include <future>
 #include <latch>
+#include <set>
+#include <string>
 
 #include "io/checkpoint.hpp"
 #include "server_test_support.hpp"
@@ -623,6 +625,93 @@ TEST(ServiceFaults, MemoryIsSharedByTheActiveRuns) {
   EXPECT_EQ(added.body_json()["changed"], json::array({"analysis.products"}));
   ASSERT_EQ(api.post("/api/runs/" + first + "/stop").status, 200);
   EXPECT_TRUE(wait_until([&] { return api.run(second)["state"] == "running"; }));
+}
+
+// A run with ranks takes this machine's memory for all its ranks when they run here (the
+// default launcher), and only the server's share (analysis) with --rank-memory (a cluster's
+// launcher), where one rank's estimate must fit that instead. Estimates and refused creates
+// only: no MPI job is launched, so the launcher hook is a no-op.
+TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
+  const json cube = {{"case", "tgv3d"},
+                     {"particles_per_side", 32},
+                     {"packing", {{"enabled", false}}},
+                     {"time", {{"end", 1.0}}},
+                     {"analysis", {{"every", 0.5}, {"products", {"energy", "spectrum"}}}}};
+  const json request = {{"scene", cube}, {"ranks", 2}};
+  const auto serve = [&](const std::string& name, double max_memory, double rank_memory) {
+    return std::make_unique<TestServer>(
+        scratch(name) / "data", "", 1, std::function<void(ServerOptions&)>{},
+        [&](sphles::control::ManagerOptions& m) {
+          if (max_memory > 0.0) m.max_memory_bytes = max_memory;
+          m.rank_memory_bytes = rank_memory;
+          m.distribute = [](sphles::control::RunOptions&, int, const fs::path&) {};
+        });
+  };
+  const auto part_names = [](const json& parts) {
+    std::set<std::string> names;
+    for (const json& p : parts) names.insert(p["name"].get<std::string>());
+    return names;
+  };
+  // The parts of the estimate, from a server with room for everything.
+  json whole, gathering;
+  {
+    const auto server = serve("ranks-room", 0.0, 0.0);
+    const Api api{server->port()};
+    Reply r = api.post("/api/estimate", request);
+    ASSERT_EQ(r.status, 200) << r.body;
+    whole = r.body_json();
+    json fields = request;
+    fields["scene"]["analysis"]["products"] = {"energy", "fields"};
+    r = api.post("/api/estimate", fields);
+    ASSERT_EQ(r.status, 200) << r.body;
+    gathering = r.body_json();
+  }
+  ASSERT_EQ(whole["admitted"], true) << whole;
+  EXPECT_TRUE(whole["rank_memory_limit_bytes"].is_null());
+  const double per_rank = whole["per_rank"]["memory_bytes"].get<double>();
+  const double server_share = whole["per_rank"]["service_bytes"].get<double>();
+  const double here = whole["memory_here_bytes"].get<double>();
+  // Both ranks here, and the server's share beside them: its analysis, no particles (the ranks
+  // serve the energy and the spectrum), so less than one rank's.
+  EXPECT_NEAR(here, 2.0 * per_rank + server_share, 1e-9 * here) << whole;
+  EXPECT_EQ(part_names(whole["per_rank"]["service"]), std::set<std::string>{"analysis"}) << whole;
+  EXPECT_LT(server_share, per_rank) << whole;
+  // Grid fields are gathered: the server then holds snapshots of every particle too.
+  EXPECT_EQ(part_names(gathering["per_rank"]["service"]),
+            (std::set<std::string>{"analysis", "snapshots"}))
+      << gathering;
+
+  // Ranks here, a limit between one rank and both: refused, the whole named.
+  {
+    const auto server = serve("ranks-here", 1.5 * per_rank, 0.0);
+    const Api api{server->port()};
+    const json e = api.post("/api/estimate", request).body_json();
+    EXPECT_EQ(e["admitted"], false) << e;
+    EXPECT_EQ(e["refusal"]["field"], "particles_per_side") << e;
+    EXPECT_NE(e["refusal"]["message"].get<std::string>().find("mpi_ranks"), std::string::npos) << e;
+    expect_error(api.post("/api/runs", request), 422, "particles_per_side");
+  }
+  // The same limit with ranks elsewhere that hold one rank's estimate: admitted, and this
+  // machine gives only the server's share.
+  {
+    const auto server = serve("ranks-elsewhere", 1.5 * per_rank, 1.01 * per_rank);
+    const json e = Api{server->port()}.post("/api/estimate", request).body_json();
+    EXPECT_EQ(e["admitted"], true) << e;
+    EXPECT_DOUBLE_EQ(e["rank_memory_limit_bytes"].get<double>(), 1.01 * per_rank);
+    EXPECT_NEAR(e["memory_here_bytes"].get<double>(), server_share, 1e-6 * here) << e;
+  }
+  // Ranks elsewhere that cannot hold one rank: refused by field "ranks"; nothing is created.
+  {
+    const auto server = serve("ranks-small", 1.5 * per_rank, 0.5 * per_rank);
+    const Api api{server->port()};
+    const json e = api.post("/api/estimate", request).body_json();
+    EXPECT_EQ(e["admitted"], false) << e;
+    EXPECT_EQ(e["refusal"]["field"], "ranks") << e;
+    expect_error(api.post("/api/runs", request), 422, "ranks");
+    EXPECT_NE(e["refusal"]["message"].get<std::string>().find("--rank-memory"), std::string::npos)
+        << e;
+    EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u);
+  }
 }
 
 }  // namespace
