@@ -99,7 +99,11 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
     for (const control::MemoryPart& p : r.memory)
       std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
                   p.detail.c_str());
-    std::printf("  (analysis, rendering and snapshots: rank 0 under mpirun, or the service)\n");
+    std::printf("beside the ranks     %s (rank 0 under mpirun, or the service)\n",
+                control::format_bytes(r.service_bytes).c_str());
+    for (const control::MemoryPart& p : r.service)
+      std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
+                  p.detail.c_str());
     if (!r.refusal.empty())
       std::printf("  the run would refuse this split: %s\n", r.refusal.c_str());
   }

@@ -457,29 +457,35 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
 
   std::vector<MemoryPart> run_parts{
       {"particles", n * solver_per_particle,
-       n_text + " x " + count_text(solver_per_particle) + " B"},
-      {"neighbour_list", list.list_bytes, list_text + " x 4 B"},
+       n_text + " x " + count_text(solver_per_particle) + " B", PartScope::OwnedAndHalo},
+      {"neighbour_list", list.list_bytes, list_text + " x 4 B", PartScope::Owned},
       {"interaction_list", list.interaction_bytes,
-       "pairs inside the support, with a tenth more room"},
+       "pairs inside the support, with a tenth more room", PartScope::Owned},
       build_larger
           ? MemoryPart{"neighbour_build", list.build_bytes,
-                       "the cell sort of a rebuild, " + count_text(list.cells) + " cells"}
+                       "the cell sort of a rebuild, " + count_text(list.cells) + " cells",
+                       PartScope::OwnedAndHalo}
           : MemoryPart{"checkpoint_copy", state_copy,
-                       "solver state copied to write, and the file assembled in memory twice"},
+                       "solver state copied to write, and the file assembled in memory twice",
+                       PartScope::Owned},
   };
-  if (snapshots > 0.0) run_parts.push_back({"snapshots", snapshots, snapshot_text});
-  if (analysis_bytes > 0.0) run_parts.push_back({"analysis", analysis_bytes, analysis_text});
+  if (snapshots > 0.0)
+    run_parts.push_back({"snapshots", snapshots, snapshot_text, PartScope::Gathered});
+  if (analysis_bytes > 0.0)
+    run_parts.push_back({"analysis", analysis_bytes, analysis_text, PartScope::Service});
   if (render_bytes > 0.0)
     run_parts.push_back({"rendering", render_bytes,
-                         count_text(render_pixels(spec.render)) + " px and the renderer set-up"});
+                         count_text(render_pixels(spec.render)) + " px and the renderer set-up",
+                         PartScope::Service});
 
   // Set-up: the lattice and the packing's own Verlet list (before the solver exists).
   std::vector<MemoryPart> setup_parts;
   if (s.packing.enabled) {
     const ListModel packing = list_model(s, sim::kPackingSkin);
-    setup_parts = {{"particles", n * per_particle, n_text + " (packing)"},
-                   {"packing_list", packing.list_bytes, "packing Verlet list"},
-                   {"packing_build", packing.build_bytes, "packing list rebuild"}};
+    setup_parts = {
+        {"particles", n * per_particle, n_text + " (packing)", PartScope::OwnedAndHalo},
+        {"packing_list", packing.list_bytes, "packing Verlet list", PartScope::Owned},
+        {"packing_build", packing.build_bytes, "packing list rebuild", PartScope::OwnedAndHalo}};
   }
   const auto total = [](const std::vector<MemoryPart>& parts) {
     double sum = 0.0;
@@ -496,13 +502,11 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
     const auto scaled = [&](const std::vector<MemoryPart>& parts) {
       std::vector<MemoryPart> out;
       for (const MemoryPart& p : parts) {
-        if (p.name == "snapshots" || p.name == "analysis" || p.name == "rendering") continue;
-        // Lists and the checkpoint's copy cover the owned particles; arrays and the list
-        // build's cell sort also the halo copies.
-        const bool list = p.name == "neighbour_list" || p.name == "interaction_list" ||
-                          p.name == "packing_list" || p.name == "checkpoint_copy";
-        out.push_back({p.name, p.bytes * (list ? listed : held),
-                       list ? "of the owned particles" : "of the owned particles and halo copies"});
+        if (p.scope == PartScope::Owned)
+          out.push_back({p.name, p.bytes * listed, "of the owned particles", p.scope});
+        else if (p.scope == PartScope::OwnedAndHalo)
+          out.push_back(
+              {p.name, p.bytes * held, "of the owned particles and halo copies", p.scope});
       }
       return out;
     };
@@ -512,7 +516,7 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
     const bool gathers = std::ranges::any_of(
         a.products, [&](Product p) { return !analysis::served_by_ranks(a, p); });
     for (const MemoryPart& p : run_parts)
-      if ((p.name == "snapshots" && gathers) || p.name == "analysis" || p.name == "rendering")
+      if (p.scope == PartScope::Service || (p.scope == PartScope::Gathered && gathers))
         r.service.push_back(p);
     r.service_bytes = total(r.service);
     e.per_rank = std::move(r);

@@ -18,11 +18,19 @@
 
 namespace sphles::control {
 
+/// Where a component of the memory estimate lives in a distributed run (RankEstimate): on
+/// every rank, for its owned particles and their halo copies (particle arrays, the list
+/// build's cell sort) or for its owned particles only (neighbour lists, the checkpoint's
+/// copy); or beside the ranks in the service (or rank 0 under mpirun): the analysis and
+/// rendering always, snapshots of the particles only when a product is gathered for.
+enum class PartScope { OwnedAndHalo, Owned, Service, Gathered };
+
 /// One component of the memory estimate.
 struct MemoryPart {
   std::string name;    // e.g. "neighbour_list"
   double bytes = 0.0;  // [B]
   std::string detail;  // how it was counted
+  PartScope scope = PartScope::OwnedAndHalo;
 };
 
 /// What each process of a distributed run holds (docs/scaling.md): the solver's parts for the
