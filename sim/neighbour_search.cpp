@@ -105,10 +105,10 @@ template <int Dim>
                                                 std::size_t self, const PositionsView& p,
                                                 const ListGeometry& g, std::size_t i,
                                                 std::uint32_t* out, std::uint8_t* keep) {
-  const std::size_t count = c.count;
-  const std::size_t me = c.home + self;
 #if defined(__AVX512F__)
   (void)keep;
+  const std::size_t count = c.count;
+  const std::size_t me = c.home + self;
   // 16 candidates per vector, the last block masked. Loop invariants in locals: the index store
   // may alias anything, so values behind references would be reloaded at every block.
   const float* const x0 = c.x[0].data();
