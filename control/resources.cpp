@@ -375,16 +375,9 @@ RankEstimate rank_split(const sim::Scene& s, int ranks) {
     r.owned *= side;
     // An axis split among ranks has a halo on both faces; an axis one rank spans, none.
     with_halo *= across > 1 ? side + 2.0 * halo : side;
-    if (across > 1 && s.box_length() / across < r.halo_width && r.refusal.empty()) {
-      char text[256];
-      std::snprintf(text, sizeof text,
-                    "%d ranks split the box %d times along axis %d: a sub-box is %.3g particles "
-                    "wide, narrower than the halo (%.3g particles); use fewer ranks or more "
-                    "particles",
-                    ranks, across, a, static_cast<double>(s.particles_per_side) / across, halo);
-      r.refusal = text;
-    }
   }
+  const double length = s.box_length();
+  r.refusal = sim::split_refusal(ranks, dim, {length, length, length}, r.halo_width, spacing);
   r.halo_per_owned = with_halo / r.owned - 1.0;
   return r;
 }

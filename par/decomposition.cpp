@@ -2,21 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
-#include <sstream>
 #include <string>
 
 #include "sim/process_grid.hpp"
 
 namespace sphles::par {
-
-namespace {
-
-const char* axis_name(int axis) {
-  static const char* names[] = {"x", "y", "z"};
-  return names[axis];
-}
-
-}  // namespace
 
 Decomposition::Decomposition(MPI_Comm comm, const sim::PeriodicBox& box, double halo_width,
                              double particle_spacing)
@@ -33,26 +23,10 @@ Decomposition::Decomposition(MPI_Comm comm, const sim::PeriodicBox& box, double 
 
   // Every rank checks the same numbers, so every rank throws the same error (no rank is left
   // waiting in a collective call).
-  for (int a = 0; a < dim; ++a) {
-    const double length = box.length[static_cast<std::size_t>(a)];
-    const double width = length / dims[a];
-    if (width >= halo_width) continue;
-    const auto per_side = static_cast<long>(std::lround(length / particle_spacing));
-    const auto needed = static_cast<long>(std::ceil(dims[a] * halo_width / particle_spacing));
-    const auto max_ranks = static_cast<long>(std::floor(length / halo_width));
-    std::ostringstream message;
-    message << "decomposition: " << size << (size == 1 ? " MPI rank" : " MPI ranks")
-            << " split the box " << dims[0] << " x " << dims[1];
-    if (dim == 3) message << " x " << dims[2];
-    message << "; along " << axis_name(a) << " a sub-box is " << width
-            << " wide, narrower than the halo width " << halo_width
-            << " (kernel support radius + Verlet skin). With " << dims[a]
-            << (dims[a] == 1 ? " rank along " : " ranks along ") << axis_name(a)
-            << " that needs at least " << needed << " particles per side (the scene has "
-            << per_side << "); at " << per_side << " per side use at most " << max_ranks
-            << (max_ranks == 1 ? " rank" : " ranks") << " along an axis";
-    throw DecompositionError(message.str());
-  }
+  if (const std::string refusal =
+          sim::split_refusal(size, dim, box.length, halo_width, particle_spacing);
+      !refusal.empty())
+    throw DecompositionError("decomposition: " + refusal);
 
   int periods[3] = {1, 1, 1};
   MPI_Cart_create(comm, dim, dims, periods, /*reorder=*/0, &comm_);

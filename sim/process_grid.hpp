@@ -5,7 +5,10 @@
 
 #include <algorithm>
 #include <array>
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
+#include <string>
 #include <vector>
 
 namespace sphles::sim {
@@ -37,6 +40,38 @@ inline std::array<int, 3> process_grid(int ranks, int dimension) {
   }
   std::sort(grid.begin(), grid.begin() + dimension, [](int a, int b) { return a > b; });
   return grid;
+}
+
+/// Why `ranks` processes cannot split a periodic box of side lengths `length` (the first
+/// `dimension`) by process_grid with every sub-box at least `halo_width` wide, naming the rank
+/// count, the axis and the particles per side it would need; "" when they can. The one check of
+/// par::Decomposition (which refuses such a split) and of the resource estimates (which name it
+/// before a run starts).
+inline std::string split_refusal(int ranks, int dimension, const std::array<double, 3>& length,
+                                 double halo_width, double particle_spacing) {
+  static const char* const axis_names[] = {"x", "y", "z"};
+  const std::array<int, 3> dims = process_grid(ranks, dimension);
+  for (int a = 0; a < dimension; ++a) {
+    const auto k = static_cast<std::size_t>(a);
+    const double width = length[k] / dims[k];
+    if (width >= halo_width) continue;
+    const auto per_side = static_cast<long>(std::lround(length[k] / particle_spacing));
+    const auto needed = static_cast<long>(std::ceil(dims[k] * halo_width / particle_spacing));
+    const auto max_ranks = static_cast<long>(std::floor(length[k] / halo_width));
+    std::ostringstream message;
+    message << ranks << (ranks == 1 ? " MPI rank" : " MPI ranks") << " split the box " << dims[0]
+            << " x " << dims[1];
+    if (dimension == 3) message << " x " << dims[2];
+    message << "; along " << axis_names[a] << " a sub-box is " << width
+            << " wide, narrower than the halo width " << halo_width
+            << " (kernel support radius + Verlet skin). With " << dims[k]
+            << (dims[k] == 1 ? " rank along " : " ranks along ") << axis_names[a]
+            << " that needs at least " << needed << " particles per side (the scene has "
+            << per_side << "); at " << per_side << " per side use at most " << max_ranks
+            << (max_ranks == 1 ? " rank" : " ranks") << " along an axis";
+    return message.str();
+  }
+  return {};
 }
 
 }  // namespace sphles::sim
