@@ -164,9 +164,10 @@ ListModel list_model(const sim::Scene& s, double skin_fraction) {
                         sim::InteractionList::kMargin * particles * in_support * kIndex;
   const double cell_size = radius / sim::VerletNeighbourSearch::kCellsPerRadius;
   m.cells = std::pow(std::max(1.0, std::floor(s.box_length() / cell_size)), dim);
-  // Cell of every particle, counting sort (starts, fill, members); the locality order and the
-  // reorder scratch before it are smaller.
-  m.build_bytes = 2.0 * (m.cells + 1.0) * kSize + 2.0 * particles * kIndex;
+  // Cell starts and their fill; per particle its cell, the cell-sorted members, their ranks and
+  // the visiting order, and the positions in cell order (sim/neighbour_search.cpp's scratch).
+  // The locality order and the reorder scratch before it are smaller.
+  m.build_bytes = 2.0 * (m.cells + 1.0) * kSize + particles * (4.0 * kIndex + dim * kDouble);
   return m;
 }
 

@@ -480,8 +480,17 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
   list.start.resize(listed);
   list.count.resize(listed);
 
+  // The listed particles cell by cell (in the order of cell_members), so that the candidates of
+  // a home cell are gathered once for all its particles whatever order the arrays are in (the
+  // solver's are in cell order already; a set-up's lattice or a gathered snapshot are not).
+  std::vector<std::uint32_t>& visit_order = scratch_.visit_order;
+  visit_order.clear();
+  visit_order.reserve(listed);
+  for (const std::uint32_t i : cell_members)
+    if (i < listed) visit_order.push_back(i);
+
   // One scan per particle, written straight into the list: each of `chunks` contiguous ranges of
-  // particles fills its own region of list.indices, sized from the entries per particle of the
+  // that order fills its own region of list.indices, sized from the entries per particle of the
   // last build (or the number density at the first). A range that outgrows its region goes on in
   // a new region appended to the list. (Per-thread buffers copied into the list afterwards kept a
   // second array as large as the list, a third of the solver's memory.) A particle's entries do
@@ -496,7 +505,7 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
   }
   const std::size_t room = max_candidates + kStoreSlack;  // what one scan may write
   struct Range {
-    std::size_t first, next, end;  // particles: the range, and the next one to scan
+    std::size_t first, next, end;  // places in visit_order: the range, and the next one to scan
     std::size_t at, limit;         // where the next entries go in list.indices, and the region end
     std::size_t written;           // entries of the range's particles so far
   };
@@ -531,9 +540,10 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
       Scratch scratch;
       scratch.candidates.reserve(max_candidates + kStoreSlack, Dim);
       for (; r.next < r.end && r.at + room <= r.limit; ++r.next) {
-        const std::size_t found = visit(r.next, list.indices.data() + r.at, scratch);
-        list.start[r.next] = r.at;
-        list.count[r.next] = static_cast<std::uint32_t>(found);
+        const std::uint32_t i = visit_order[r.next];
+        const std::size_t found = visit(i, list.indices.data() + r.at, scratch);
+        list.start[i] = r.at;
+        list.count[i] = static_cast<std::uint32_t>(found);
         r.at += found;
         r.written += found;
       }

@@ -133,7 +133,7 @@ class VerletNeighbourSearch {
   double entries_per_particle_ = 0.0;
   /// The other per-particle scratch of build(), kept for the same reason.
   struct BuildScratch {
-    std::vector<std::uint32_t> cell, cell_members, rank;
+    std::vector<std::uint32_t> cell, cell_members, rank, visit_order;
     std::vector<std::size_t> cell_start;
     std::array<std::vector<double>, 3> sorted;
   } scratch_;
