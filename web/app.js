@@ -420,6 +420,14 @@ async function onEstimate() {
       rows.splice(2, 0, ['per rank', `${fmtBytes(r.memory_bytes)} on each of ${r.ranks} ranks (${r.grid.join(' × ')}): ` +
         `${Math.round(r.owned).toLocaleString('en-US')} particles and ${r.halo_per_owned.toPrecision(2)} halo copies each` +
         (r.refusal ? `; refused: ${r.refusal}` : '')]);
+      // What admission charges this machine: the server's share (analysis, rendering, gathered
+      // snapshots) and the ranks when they run here; with --rank-memory only the share.
+      if (e.memory_here_bytes !== undefined) {
+        const where = e.rank_memory_limit_bytes === null
+          ? `the ${r.ranks} ranks run here, beside the server's ${fmtBytes(r.service_bytes)}`
+          : `the server's ${fmtBytes(r.service_bytes)}; the ranks run elsewhere, up to ${fmtBytes(e.rank_memory_limit_bytes)} each`;
+        rows.splice(3, 0, ['this machine', `${fmtBytes(e.memory_here_bytes)} of the ${fmtBytes(e.memory_limit_bytes)} allowed (${where})`]);
+      }
     }
     if (e.time) {
       const c = e.time.calibration;

@@ -235,7 +235,10 @@ async function run() {
   // The run's 2 ranks: what each would hold (the API's per_rank).
   const perRank = await text(page, '#create-estimate-result dd[data-field="per rank"]');
   if (!/on each of 2 ranks \(2 × 1\)/.test(perRank)) fail(`the estimate shows no per-rank memory for 2 ranks: "${perRank}"`);
-  pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}, per rank ${perRank}`);
+  // What admission charges this machine for them (the API's memory_here_bytes).
+  const here = await text(page, '#create-estimate-result dd[data-field="this machine"]');
+  if (!/ of the .* allowed \(the 2 ranks run here, beside the server's /.test(here)) fail(`the estimate does not say what this machine gives the 2 ranks: "${here}"`);
+  pass(`estimate before Create: ${perStep} per step, ${await text(page, '#create-estimate-result dd[data-field="memory"]')}, per rank ${perRank}, this machine ${here}`);
   // The reference's refetches (?until=) fail at first: the page must back off (1, 2, 4 … s
   // between tries), not ask again at every redraw.
   const isRefetch = (url) => url.pathname.endsWith('/reference') && url.searchParams.has('until');
