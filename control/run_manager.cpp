@@ -229,15 +229,7 @@ void RunManager::schedule_loop() {
 }
 
 double RunManager::admit(const RunSpec& spec, int ranks) const {
-  const ResourceEstimate estimate = estimate_resources(spec, ranks);
-  if (estimate.per_rank && options_.rank_memory_bytes > 0.0 &&
-      estimate.per_rank->memory_bytes > options_.rank_memory_bytes)
-    throw AdmissionError(
-        "ranks", "each of the run's " + std::to_string(ranks) + " MPI ranks needs an estimated " +
-                     format_bytes(estimate.per_rank->memory_bytes) +
-                     " at its peak, more than the " + format_bytes(options_.rank_memory_bytes) +
-                     " a rank may use (--rank-memory): more ranks or fewer particles");
-  return admit(on_this_machine(estimate, options_.rank_memory_bytes));
+  return admit(estimate_resources(spec, ranks));
 }
 
 double RunManager::memory_here(const Run& run) const {
@@ -249,7 +241,15 @@ double RunManager::memory_here(const Run& run) const {
   }
 }
 
-double RunManager::admit(const ResourceEstimate& estimate) const {
+double RunManager::admit(const ResourceEstimate& whole) const {
+  const std::optional<RankEstimate>& rank = whole.per_rank;
+  if (rank && options_.rank_memory_bytes > 0.0 && rank->memory_bytes > options_.rank_memory_bytes)
+    throw AdmissionError(
+        "ranks", "each of the run's " + std::to_string(rank->ranks) +
+                     " MPI ranks needs an estimated " + format_bytes(rank->memory_bytes) +
+                     " at its peak, more than the " + format_bytes(options_.rank_memory_bytes) +
+                     " a rank may use (--rank-memory): more ranks or fewer particles");
+  const ResourceEstimate estimate = on_this_machine(whole, options_.rank_memory_bytes);
   if (const std::optional<std::string> refusal =
           check_memory(estimate, options_.max_memory_bytes)) {
     // The solver's own parts (particles, lists, checkpoint copy) already beyond the limit: the
@@ -295,7 +295,7 @@ nlohmann::json RunManager::estimate(const CreateRequest& request) const {
     return answer;
   }
   try {
-    answer["memory_here_bytes"] = admit(spec, request.ranks);
+    answer["memory_here_bytes"] = admit(resources);
     answer["admitted"] = true;
   } catch (const AdmissionError& e) {
     answer["admitted"] = false;

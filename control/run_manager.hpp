@@ -149,7 +149,8 @@ class RunManager {
   /// rank_memory_bytes, this machine's share against max_memory_bytes), or its checkpoints the
   /// free disk of the data directory; returns the memory it takes of this machine [B].
   double admit(const RunSpec& spec, int ranks) const;
-  double admit(const ResourceEstimate& estimate) const;  // the same, for an estimate at hand
+  /// The same for an estimate at hand (estimate_resources with the run's ranks).
+  double admit(const ResourceEstimate& estimate) const;
   /// The run's estimated memory on this machine (what admit returns; 0 for a document that no
   /// longer parses).
   double memory_here(const Run& run) const;
