@@ -15,6 +15,7 @@
 #include <tuple>
 
 #include "io/checkpoint_collective.hpp"
+#include "io/collective_file.hpp"
 #include "io/hdf5_file.hpp"
 #include "sim/scene.hpp"
 
@@ -22,6 +23,8 @@ namespace sphles::io {
 
 namespace {
 
+using detail::agree;
+using detail::attempt;
 using detail::Handle;
 using detail::write_scalar_attribute;
 using detail::write_string_attribute;
@@ -39,9 +42,6 @@ hsize_t chunk_entries(hsize_t size) {
   const hsize_t chunks = (size + kChunkEntries - 1) / kChunkEntries;
   return (size + chunks - 1) / chunks;
 }
-
-/// The longest failure message the ranks exchange (agree()).
-constexpr std::size_t kMaxMessageBytes = std::size_t{1} << 16;
 
 // --- writing ---------------------------------------------------------------------------
 
@@ -149,35 +149,6 @@ void write_contents(hid_t root, const sim::SolverState& state, const CheckpointM
 void check_gzip_level(const CheckpointWriteOptions& options) {
   if (options.gzip_level < 0 || options.gzip_level > 9)
     throw CheckpointError("checkpoint: gzip level must be in [0, 9]");
-}
-
-/// The failure of any process, agreed: the lowest failing rank's message on every process, or
-/// none. Collective.
-std::optional<std::string> agree(MPI_Comm comm, const std::optional<std::string>& failure) {
-  int rank = 0, size = 1;
-  MPI_Comm_rank(comm, &rank);
-  MPI_Comm_size(comm, &size);
-  const int mine = failure ? rank : size;
-  int lowest = size;
-  MPI_Allreduce(&mine, &lowest, 1, MPI_INT, MPI_MIN, comm);
-  if (lowest == size) return std::nullopt;
-  int length = rank == lowest ? static_cast<int>(std::min(failure->size(), kMaxMessageBytes)) : 0;
-  MPI_Bcast(&length, 1, MPI_INT, lowest, comm);
-  std::string text = rank == lowest ? failure->substr(0, static_cast<std::size_t>(length))
-                                    : std::string(static_cast<std::size_t>(length), '\0');
-  MPI_Bcast(text.data(), length, MPI_CHAR, lowest, comm);
-  return text;
-}
-
-/// Runs `step`, returning what it threw (or none).
-template <class Step>
-std::optional<std::string> attempt(Step&& step) {
-  try {
-    step();
-    return std::nullopt;
-  } catch (const std::exception& e) {
-    return std::string(e.what());
-  }
 }
 
 // --- reading ---------------------------------------------------------------------------
@@ -602,10 +573,7 @@ CheckpointShape write_checkpoint_collective(MPI_Comm comm, const std::filesystem
   int rank = 0;
   MPI_Comm_rank(comm, &rank);
   const auto fail = [&](const std::optional<std::string>& failure) {
-    if (!failure) return;
-    std::error_code ignored;  // the temporary may not exist yet
-    if (rank == 0) std::filesystem::remove(detail::temporary_name(path), ignored);
-    throw CheckpointError(*failure);
+    detail::fail_agreed(comm, path, failure);
   };
 
   // The parts must tile [0, total).
@@ -629,63 +597,14 @@ CheckpointShape write_checkpoint_collective(MPI_Comm comm, const std::filesystem
                        : std::optional<std::string>(label + ": rank " + std::to_string(rank) +
                                                     " has no eddy viscosity for its particles")));
 
-  // Room for the file before HDF5 touches the disk: every process' file-size limit, the file
-  // system's free space (rank 0, which names the temporary: its PID).
   const std::uint64_t bound = checkpoint_size_bound(
       part.particles.dimension, total, eddy_viscosity != 0,
       metadata.scene_json.size() + metadata.code_version.size() + metadata.packing.size());
-  std::string temporary = detail::temporary_name(path);
-  int length = static_cast<int>(temporary.size());
-  MPI_Bcast(&length, 1, MPI_INT, 0, comm);
-  temporary.resize(static_cast<std::size_t>(length));
-  MPI_Bcast(temporary.data(), length, MPI_CHAR, 0, comm);
-  fail(agree(comm, attempt([&] {
-               detail::check_file_size_limit(bound, label);
-               if (rank == 0) detail::check_free_space(path, bound, label);
-             })));
-
-  const std::lock_guard lock(hdf5_library_mutex());
-  detail::silence_hdf5();
-  const Handle access(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
-  const Handle transfer(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
-  const bool properties = access.valid() && transfer.valid() &&
-                          H5Pset_fapl_mpio(access.get(), comm, MPI_INFO_NULL) >= 0 &&
-                          H5Pset_coll_metadata_write(access.get(), true) >= 0 &&
-                          H5Pset_dxpl_mpio(transfer.get(), H5FD_MPIO_COLLECTIVE) >= 0;
-  fail(agree(comm, properties ? std::nullopt
-                              : std::optional<std::string>(
-                                    label + ": cannot set up the MPI-IO file access properties")));
-  // Opening is collective in MPI-IO: it succeeds or fails on every process alike.
-  hid_t file = H5Fcreate(temporary.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, access.get());
-  fail(agree(comm, file >= 0 ? std::nullopt
-                             : std::optional<std::string>(label + ": cannot create '" + temporary +
-                                                          "' through MPI-IO")));
-  const auto close_file = [&] {
-    const bool closed = H5Fclose(file) >= 0;
-    file = -1;
-    return closed;
-  };
-  // The temporary's blocks reserved, then the contents written; each step agreed, so that no
-  // process enters a collective call the others have left.
-  std::optional<std::string> failure = agree(comm, attempt([&] {
-                                               if (rank == 0)
-                                                 detail::reserve_space(temporary, bound, label);
-                                             }));
-  if (!failure)
-    failure = agree(comm, attempt([&] {
-                      write_contents(file, part, metadata, options, label,
-                                     {static_cast<hsize_t>(first), static_cast<hsize_t>(total),
-                                      transfer.get(), eddy_viscosity != 0});
-                    }));
-  const bool closed = close_file();
-  if (!failure)
-    failure = agree(
-        comm, closed ? std::nullopt
-                     : std::optional<std::string>(label + ": cannot close '" + temporary + "'"));
-  fail(failure);
-  fail(agree(comm, attempt([&] {
-               if (rank == 0) detail::commit_temporary(temporary, path, label);
-             })));
+  detail::write_collectively(comm, path, label, bound, [&](hid_t file, hid_t transfer) {
+    write_contents(
+        file, part, metadata, options, label,
+        {static_cast<hsize_t>(first), static_cast<hsize_t>(total), transfer, eddy_viscosity != 0});
+  });
   return {part.particles.dimension, total, part.time, eddy_viscosity != 0};
 }
 
@@ -798,10 +717,11 @@ Checkpoint read_checkpoint_collective(MPI_Comm comm, const std::filesystem::path
                  throw CheckpointError("checkpoint '" + file +
                                        "': not a readable HDF5 file (truncated or corrupted)");
              })));
+  const detail::PlainCommunicator plain(comm);  // (collective_file.hpp: why)
   const Handle access(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
   const Handle transfer(H5Pcreate(H5P_DATASET_XFER), H5Pclose);
   const bool properties = access.valid() && transfer.valid() &&
-                          H5Pset_fapl_mpio(access.get(), comm, MPI_INFO_NULL) >= 0 &&
+                          H5Pset_fapl_mpio(access.get(), plain.comm, MPI_INFO_NULL) >= 0 &&
                           H5Pset_dxpl_mpio(transfer.get(), H5FD_MPIO_COLLECTIVE) >= 0;
   fail(agree(comm, properties ? std::nullopt
                               : std::optional<std::string>(
