@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstring>
 #include <limits>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 
@@ -259,55 +260,113 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
   return share;
 }
 
-sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
-                          std::uint64_t& first, std::uint64_t& total) {
-  const sim::ParticleArrays& p = local.particles;
-  const unsigned long long n = p.size();
+IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::uint64_t> ids,
+                                   const std::vector<const std::vector<double>*>& columns) {
+  const unsigned long long n = ids.size();
   unsigned long long all = 0;
   MPI_Allreduce(&n, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, d.comm());
-  const bool eddy_viscosity = any_eddy_viscosity(d, local);
-  total = all;
-  const io::Block mine = io::equal_block(total, d.rank(), d.size());
-  first = mine.first;
-  const std::size_t stride = record_stride(p.dimension, eddy_viscosity);
-  int bad = p.size() > 0 && fields_of(local).size() + 1 != stride ? 1 : 0;
-  std::vector<int> owner(p.size());
-  for (std::size_t i = 0; i < p.size() && !bad; ++i) {
-    if (p.id[i] >= total)
+  IdBlockColumns block;
+  block.total = all;
+  const io::Block mine = io::equal_block(block.total, d.rank(), d.size());
+  block.first = mine.first;
+  // The same columns on every rank that holds particles (one that holds none may lack a field,
+  // e.g. ν_t), each a value per particle: the largest and smallest count among those ranks.
+  const int own = static_cast<int>(columns.size());
+  int shape[2] = {n > 0 ? own : 0, n > 0 ? -own : -std::numeric_limits<int>::max()};
+  MPI_Allreduce(MPI_IN_PLACE, shape, 2, MPI_INT, MPI_MAX, d.comm());
+  const std::size_t width = all > 0 ? static_cast<std::size_t>(shape[0]) : columns.size();
+  int bad = all > 0 && shape[0] != -shape[1] ? 1 : 0;
+  for (const std::vector<double>* c : columns)
+    if (c->size() != ids.size()) bad = 1;
+  const std::size_t stride = width + 1;  // + the id's bits
+  std::vector<int> owner(ids.size());
+  for (std::size_t i = 0; i < ids.size() && !bad; ++i) {
+    if (ids[i] >= block.total)
       bad = 1;
     else
-      owner[i] = io::equal_block_rank(p.id[i], total, d.size());
+      owner[i] = io::equal_block_rank(ids[i], block.total, d.size());
   }
   int any_bad = 0;
   MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());
   if (any_bad)
     throw std::invalid_argument("id block: particle ids are not below the particle count " +
-                                std::to_string(total) + ", or a rank's fields differ");
-  sim::SolverState block = exchange_records(d, pack_by_rank(local, stride, owner, d.size()), stride,
-                                            eddy_viscosity, local);
-  // In id order: block position id - first; each id exactly once.
-  std::vector<std::uint32_t> order(block.particles.size(),
-                                   std::numeric_limits<std::uint32_t>::max());
-  bad = block.particles.size() == mine.count ? 0 : 1;
-  for (std::size_t k = 0; k < block.particles.size() && !bad; ++k) {
-    const std::uint64_t at = block.particles.id[k] - first;
-    if (at >= mine.count || order[at] != std::numeric_limits<std::uint32_t>::max())
+                                std::to_string(block.total) + ", or a rank's fields differ");
+  // Records grouped by destination rank, in their order within each group.
+  const auto ranks = static_cast<std::size_t>(d.size());
+  std::vector<std::size_t> next(ranks + 1, 0);
+  for (const int r : owner) ++next[static_cast<std::size_t>(r) + 1];
+  for (std::size_t r = 1; r <= ranks; ++r) next[r] += next[r - 1];
+  std::vector<int> counts(ranks), offsets(ranks);
+  for (std::size_t r = 0; r < ranks; ++r) {
+    counts[r] = checked_int((next[r + 1] - next[r]) * stride);
+    offsets[r] = checked_int(next[r] * stride);
+  }
+  std::vector<double> out(ids.size() * stride);
+  for (std::size_t i = 0; i < ids.size(); ++i) {
+    double* record = out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride;
+    for (std::size_t c = 0; c < width; ++c) record[c] = (*columns[c])[i];
+    std::memcpy(&record[width], &ids[i], sizeof(double));
+  }
+  std::vector<int> receive_counts(ranks), receive_offsets(ranks);
+  MPI_Alltoall(counts.data(), 1, MPI_INT, receive_counts.data(), 1, MPI_INT, d.comm());
+  std::size_t received = 0;
+  for (std::size_t r = 0; r < ranks; ++r) {
+    receive_offsets[r] = checked_int(received);
+    received += static_cast<std::size_t>(receive_counts[r]);
+  }
+  std::vector<double> in(received);
+  MPI_Alltoallv(out.data(), counts.data(), offsets.data(), MPI_DOUBLE, in.data(),
+                receive_counts.data(), receive_offsets.data(), MPI_DOUBLE, d.comm());
+  out = {};
+  // In id order: record k at position id - first; each id exactly once.
+  const std::size_t records = received / stride;
+  block.columns.assign(width, std::vector<double>(mine.count));
+  std::vector<char> seen(mine.count, 0);
+  bad = records == mine.count ? 0 : 1;
+  for (std::size_t k = 0; k < records && !bad; ++k) {
+    const double* record = in.data() + k * stride;
+    std::uint64_t id = 0;
+    std::memcpy(&id, &record[width], sizeof(double));
+    const std::uint64_t at = id - block.first;
+    if (at >= mine.count || seen[at]) {
       bad = 1;
-    else
-      order[at] = static_cast<std::uint32_t>(k);
+      break;
+    }
+    seen[at] = 1;
+    for (std::size_t c = 0; c < width; ++c) block.columns[c][at] = record[c];
   }
   MPI_Allreduce(&bad, &any_bad, 1, MPI_INT, MPI_MAX, d.comm());
   if (any_bad)
     throw std::invalid_argument("id block: particle ids are not a permutation of 0.." +
-                                std::to_string(total == 0 ? 0 : total - 1));
-  block.particles.reorder(order);
-  std::vector<double> scratch(block.particles.size());
-  for (int a = 0; a < p.dimension; ++a) {
-    std::vector<double>& x = block.list_reference_positions[static_cast<std::size_t>(a)];
-    for (std::size_t k = 0; k < scratch.size(); ++k) scratch[k] = x[order[k]];
-    x.swap(scratch);
-  }
+                                std::to_string(block.total == 0 ? 0 : block.total - 1));
   return block;
+}
+
+sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
+                          std::uint64_t& first, std::uint64_t& total) {
+  const auto fields = fields_of(local);
+  IdBlockColumns block = columns_in_id_block(
+      d, local.particles.id, std::vector<const std::vector<double>*>(fields.begin(), fields.end()));
+  first = block.first;
+  total = block.total;
+  // The shape of the state: ν_t when any rank's particles have it (a rank may hold none).
+  const bool eddy_viscosity = any_eddy_viscosity(d, local);
+  sim::SolverState out;
+  out.time = local.time;
+  out.step = local.step;
+  out.neighbour_builds = local.neighbour_builds;
+  out.particles.dimension = local.particles.dimension;
+  const std::size_t count = block.columns.empty() ? 0 : block.columns[0].size();
+  out.particles.resize(count);
+  if (eddy_viscosity) out.particles.eddy_viscosity.resize(count);
+  for (int a = 0; a < out.particles.dimension; ++a)
+    out.list_reference_positions[static_cast<std::size_t>(a)].resize(count);
+  const auto to = fields_of(out);
+  if (to.size() != block.columns.size())
+    throw std::invalid_argument("id block: a rank's fields differ");
+  for (std::size_t f = 0; f < to.size(); ++f) to[f]->swap(block.columns[f]);
+  std::iota(out.particles.id.begin(), out.particles.id.end(), first);
+  return out;
 }
 
 sim::SolverState to_owners(const Decomposition& d, const sim::SolverState& state) {

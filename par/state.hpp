@@ -2,7 +2,10 @@
 // such a state (issue 19): what a checkpoint of N ranks holds and how M ranks restart from it.
 #pragma once
 
+#include <cstdint>
 #include <filesystem>
+#include <span>
+#include <vector>
 
 #include "io/checkpoint.hpp"
 #include "par/decomposition.hpp"
@@ -37,6 +40,20 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
 /// permutation. Collective over d.comm().
 sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
                           std::uint64_t& first, std::uint64_t& total);
+
+/// Per-particle `columns` (a value per id of `ids`, this rank's particles) of every rank moved to
+/// the rank whose equal id block holds each particle (io::equal_block, as id_block), in id
+/// order there: columns[c][k] belongs to the particle with id first + k. The same number of
+/// columns on every rank that holds particles (the others receive that many). Throws
+/// std::invalid_argument on every rank when the ids over all ranks are not a permutation of 0..N-1
+/// or the columns differ. Collective over d.comm().
+struct IdBlockColumns {
+  std::uint64_t first = 0;
+  std::uint64_t total = 0;
+  std::vector<std::vector<double>> columns;
+};
+IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::uint64_t> ids,
+                                   const std::vector<const std::vector<double>*>& columns);
 
 /// Every particle of `state` (this rank's, any order) sent to the rank whose sub-box holds its
 /// list reference position: this rank receives its share, in rank order of the senders. What
