@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -26,6 +27,7 @@ struct ParticleField {
 struct SnapshotMetadata {
   std::string scene_json = "{}";  // the run configuration, JSON text
   std::string code_version = "unknown";
+  bool operator==(const SnapshotMetadata&) const = default;
 };
 
 /// Writes `path` atomically. Rows are in id order (row k holds the particle with id k, so the
@@ -55,6 +57,22 @@ void write_xdmf_series(const std::filesystem::path& path,
 /// A human-readable listing of a particle snapshot (for `sphles inspect`): attributes, datasets
 /// with shape and units, id order check, e_v. Throws CheckpointError naming the file.
 std::string describe_particle_snapshot(const std::filesystem::path& path);
+
+/// Everything a particle snapshot holds, read back (tests, tools): the root attributes as text
+/// (numbers with 17 digits) and each dataset's values in row order (read as doubles: ids are
+/// exact below 2^53; position and velocity row by row, 3 per row) with its units.
+struct ParticleSnapshotContents {
+  std::map<std::string, std::string> attributes;
+  struct Dataset {
+    std::vector<double> values;
+    std::string units;
+    bool operator==(const Dataset&) const = default;
+  };
+  std::map<std::string, Dataset> datasets;
+};
+/// Throws CheckpointError naming the file when it is not a particle snapshot or a dataset
+/// cannot be read.
+ParticleSnapshotContents read_particle_snapshot(const std::filesystem::path& path);
 
 /// The value of the root attribute "schema" of an HDF5 file ("" when it has none). Throws
 /// CheckpointError when the file is not HDF5.
