@@ -78,6 +78,18 @@ std::string_view slice_field_name(SliceField field) {
   return "unknown";
 }
 
+std::string_view slice_field_units(SliceField field) {
+  switch (field) {
+    case SliceField::VorticitySquared:
+      return "1/s^2";
+    case SliceField::SubfilterStressNorm:
+      return "Pa";
+    case SliceField::EddyViscosity:
+      return "m^2/s";
+  }
+  return "";
+}
+
 SliceField slice_field_from_name(const std::string& name, const std::string& field) {
   return parse_name(kSliceFieldNames, name, field);
 }

@@ -18,6 +18,8 @@ std::string_view product_name(Product product);
 enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
 /// "omega2", "tau_sfs", "nu_t" (ν_t of an explicit sub-filter model).
 std::string_view slice_field_name(SliceField field);
+/// The field's SI units: "1/s^2", "Pa", "m^2/s".
+std::string_view slice_field_units(SliceField field);
 /// Inverse of slice_field_name; throws sim::SceneError naming `field` (the dotted scene key).
 SliceField slice_field_from_name(const std::string& name, const std::string& field);
 

@@ -33,14 +33,16 @@ class StageTimer {
   AnalysisFrame& frame_;
 };
 
+std::string units(SliceField field) {
+  return std::string(slice_field_units(field));
+}
+
 /// The slice's geometry and, in `nodes`, the grid node of every slice value (u fastest).
 SliceProduct slice_layout(const Grid& grid, SliceField name, const SliceConfig& config,
                           std::vector<std::size_t>& nodes) {
   SliceProduct s;
   s.field = name;
-  s.units = name == SliceField::VorticitySquared ? "1/s^2"
-            : name == SliceField::EddyViscosity  ? "m^2/s"
-                                                 : "Pa";
+  s.units = units(name);
   s.spacing = grid.spacing();
   const int m = grid.points_per_side;
   s.width = m;
@@ -105,9 +107,13 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   const Snapshot& snapshot = *snapshot_ptr;
   // The particle products the ranks computed, when they are what `asked` wants (a live change
   // may have changed the configuration since the snapshot was taken).
+  // (The particle file, which only make_snapshot names, is not compared.)
+  const auto matches = [&](RanksRequest request) {
+    request.particles = {};
+    return request == ranks_request(snapshot, asked);
+  };
   const RanksProducts* ranks =
-      snapshot.ranks && snapshot.ranks->request == ranks_request(snapshot, asked) ? &*snapshot.ranks
-                                                                                  : nullptr;
+      snapshot.ranks && matches(snapshot.ranks->request) ? &*snapshot.ranks : nullptr;
   // A snapshot without particles (make_snapshot: every product it was taken for came from the
   // ranks) serves only the products that do not need them.
   AnalysisConfig reduced;
@@ -136,7 +142,11 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   const bool slice_from_ranks = want_vorticity_slice && ranks;
   const bool stress_slice_from_ranks = want_stress_slice && ranks;
   const bool statistics_from_ranks = config.wants(Product::SubfilterStatistics) && ranks;
-  const bool want_particles = config.wants(Product::Particles);
+  // The particle file the ranks wrote (make_snapshot) is this snapshot's product "particles",
+  // even if a live change has since stopped asking for it: it is on disk.
+  const WrittenParticles* written_by_ranks =
+      snapshot.ranks && snapshot.ranks->particles ? &*snapshot.ranks->particles : nullptr;
+  const bool want_particles = config.wants(Product::Particles) && !written_by_ranks;
   const bool want_fields = config.wants(Product::Fields);
   const auto grid_field = [&](SliceField f) {
     return want_fields && config.grid_fields.contains(f);
@@ -219,6 +229,14 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     frame.slices.push_back(ranks_slice(SliceField::SubfilterStressNorm, ranks->slice_tau));
   if (eddy_slice_from_ranks)
     frame.slices.push_back(ranks_slice(SliceField::EddyViscosity, ranks->slice_eddy));
+  if (written_by_ranks) {
+    ParticlesProduct p;
+    p.snapshot = snapshot_ptr;
+    p.file = snapshot.ranks->request.particles.path;
+    p.count = written_by_ranks->count;
+    for (const SliceField f : written_by_ranks->fields) p.fields.push_back({f, units(f), {}});
+    frame.particles = std::move(p);
+  }
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {
     // Nothing from the particles; the ranks' spectrum may have made energy and spectrum.
@@ -355,12 +373,15 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     ParticlesProduct p;
     p.snapshot = snapshot_ptr;
     if (particle_field(SliceField::VorticitySquared))
-      p.fields.push_back({SliceField::VorticitySquared, "1/s^2", particle_vorticity_squared});
+      p.fields.push_back({SliceField::VorticitySquared, units(SliceField::VorticitySquared),
+                          particle_vorticity_squared});
     if (particle_field(SliceField::SubfilterStressNorm))
-      p.fields.push_back({SliceField::SubfilterStressNorm, "Pa", stress->norm});
+      p.fields.push_back(
+          {SliceField::SubfilterStressNorm, units(SliceField::SubfilterStressNorm), stress->norm});
     if (particle_field(SliceField::EddyViscosity) &&
         snapshot.particles.eddy_viscosity.size() == snapshot.size())
-      p.fields.push_back({SliceField::EddyViscosity, "m^2/s", snapshot.particles.eddy_viscosity});
+      p.fields.push_back({SliceField::EddyViscosity, units(SliceField::EddyViscosity),
+                          snapshot.particles.eddy_viscosity});
     frame.particles = std::move(p);
   }
 
@@ -375,12 +396,14 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
 
   if (want_fields) {
     if (grid_field(SliceField::VorticitySquared))
-      fields->scalars.push_back(
-          {SliceField::VorticitySquared, "1/s^2", std::move(vorticity_squared)});
+      fields->scalars.push_back({SliceField::VorticitySquared, units(SliceField::VorticitySquared),
+                                 std::move(vorticity_squared)});
     if (grid_field(SliceField::SubfilterStressNorm))
-      fields->scalars.push_back({SliceField::SubfilterStressNorm, "Pa", std::move(stress_grid)});
+      fields->scalars.push_back({SliceField::SubfilterStressNorm,
+                                 units(SliceField::SubfilterStressNorm), std::move(stress_grid)});
     if (grid_field(SliceField::EddyViscosity) && has_eddy_viscosity)
-      fields->scalars.push_back({SliceField::EddyViscosity, "m^2/s", std::move(eddy_grid)});
+      fields->scalars.push_back(
+          {SliceField::EddyViscosity, units(SliceField::EddyViscosity), std::move(eddy_grid)});
     frame.fields = std::move(fields);
   }
 

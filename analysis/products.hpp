@@ -68,6 +68,11 @@ struct ParticleFieldProduct {
 struct ParticlesProduct {
   SnapshotPtr snapshot;
   std::vector<ParticleFieldProduct> fields;
+  /// Set when the ranks of a distributed run wrote the snapshot file themselves
+  /// (RanksProducts::particles): its path and particle count; `fields` then name the fields
+  /// it holds, without values, and the snapshot holds no particles.
+  std::string file;
+  std::uint64_t count = 0;
 };
 
 struct AnalysisFrame {

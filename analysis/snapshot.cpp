@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "analysis/products.hpp"
+#include "analysis/writer.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::analysis {
@@ -41,9 +42,12 @@ bool cubic(const sim::PeriodicBox& box) {
 
 DistributedProducts::~DistributedProducts() = default;
 
-bool served_by_ranks(const AnalysisConfig& config, Product p) {
+bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file) {
   const bool mls = config.gridding.vorticity == VorticityEstimate::Mls;
   switch (p) {
+    case Product::Particles:
+      return particle_file &&
+             (mls || !config.particle_fields.contains(SliceField::VorticitySquared));
     case Product::Energy:
     case Product::Spectrum:
       return config.gridding.velocity == VelocityGridding::Nearest;
@@ -60,7 +64,8 @@ bool served_by_ranks(const AnalysisConfig& config, Product p) {
   }
 }
 
-RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config) {
+RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config,
+                           const ParticleFileTarget* particles) {
   RanksRequest r;
   r.points_per_side = analysis_grid(snapshot, config).points_per_side;
   r.fit_radius = config.gridding.fit_radius * snapshot.support_radius;
@@ -79,6 +84,16 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
     r.angle_bins = config.angle_bins;
     r.angle_threshold = config.angle_threshold;
   }
+  if (particles && config.wants(Product::Particles)) {
+    r.particles.path =
+        (particles->directory / timed_file_name("particles", snapshot.time, ".h5")).string();
+    r.particles.omega2 = config.particle_fields.contains(SliceField::VorticitySquared);
+    r.particles.tau = config.particle_fields.contains(SliceField::SubfilterStressNorm);
+    r.particles.eddy = config.particle_fields.contains(SliceField::EddyViscosity);
+    r.particles.time = snapshot.time;
+    r.particles.step = snapshot.step;
+    r.particles.metadata = particles->metadata;
+  }
   return r;
 }
 
@@ -89,11 +104,13 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissi
 }
 
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
-                          double energy_dissipation) {
+                          double energy_dissipation, const ParticleFileTarget* particles) {
   auto snapshot = describe(simulation, energy_dissipation);
   const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
   const bool on_ranks = ranks && cubic(snapshot->box);
-  const auto served = [&](Product p) { return on_ranks && served_by_ranks(config, p); };
+  const auto served = [&](Product p) {
+    return on_ranks && served_by_ranks(config, p, particles != nullptr);
+  };
   // What the ranks could not compute (they throw std::invalid_argument: a void wider than their
   // halo) is gathered and computed whole.
   if ((config.wants(Product::Energy) && served(Product::Energy)) ||
@@ -107,18 +124,20 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
   // The particle products only when the ranks serve every product, so that nothing is gathered
   // (with particles gathered for another product, analyse computes them from those).
   const bool all_served = !config.products.empty() && std::ranges::all_of(config.products, served);
-  const bool particle_products = config.wants(Product::Vorticity) ||
-                                 config.wants(Product::Slices) ||
-                                 config.wants(Product::SubfilterStatistics);
+  const bool particle_products =
+      config.wants(Product::Vorticity) || config.wants(Product::Slices) ||
+      config.wants(Product::SubfilterStatistics) || config.wants(Product::Particles);
   if (all_served && particle_products) {
     try {
-      snapshot->ranks = ranks->particle_products(ranks_request(*snapshot, config));
+      snapshot->ranks = ranks->particle_products(ranks_request(*snapshot, config, particles));
     } catch (const std::invalid_argument&) {
     }
   }
   const auto from_ranks = [&](Product p) {
-    return p == Product::Energy || p == Product::Spectrum ? snapshot->velocity_spectrum.has_value()
-                                                          : snapshot->ranks.has_value();
+    if (p == Product::Energy || p == Product::Spectrum)
+      return snapshot->velocity_spectrum.has_value();
+    if (p == Product::Particles) return snapshot->ranks && snapshot->ranks->particles;
+    return snapshot->ranks.has_value();
   };
   if (all_served && std::ranges::all_of(config.products, from_ranks))
     snapshot->has_particles = false;

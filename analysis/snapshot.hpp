@@ -3,14 +3,17 @@
 
 #include <array>
 #include <cstdint>
+#include <filesystem>
 #include <limits>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "analysis/config.hpp"
 #include "analysis/histograms.hpp"
 #include "analysis/spectrum.hpp"
+#include "io/particle_snapshot.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
@@ -21,6 +24,20 @@ class Simulation;
 }
 
 namespace sphles::analysis {
+
+/// The particle snapshot io::write_particle_snapshot would write, written by the ranks at `path`
+/// ("" for none), each its block of the particles in id order, with ω² (the "mls" estimate),
+/// |τ_SFS| and ν_t (when the run has it) as asked.
+struct ParticleFileRequest {
+  std::string path;
+  bool omega2 = false;
+  bool tau = false;
+  bool eddy = false;
+  double time = 0.0;  // the file's time and step attributes (the snapshot's)
+  std::uint64_t step = 0;
+  io::SnapshotMetadata metadata;
+  bool operator==(const ParticleFileRequest&) const = default;
+};
 
 /// The particle products a distributed solver's ranks compute where the particles live
 /// (DistributedProducts::particle_products), as a run's configuration asks for them: the
@@ -39,7 +56,17 @@ struct RanksRequest {
   int histogram_bins = 0;
   int angle_bins = 0;
   double angle_threshold = 0.0;
+  /// Product "particles": the file the ranks write (ParticleFileRequest), none by default.
+  ParticleFileRequest particles;
   bool operator==(const RanksRequest&) const = default;
+};
+
+/// The particle snapshot the ranks wrote for a RanksRequest: its particle count and the extra
+/// fields it holds, in the file's order (ν_t only when the run has it).
+struct WrittenParticles {
+  std::uint64_t count = 0;
+  std::vector<SliceField> fields;
+  bool operator==(const WrittenParticles&) const = default;
 };
 
 /// What the ranks return for a RanksRequest: the same bits as analyse computes from all
@@ -53,6 +80,7 @@ struct RanksProducts {
   std::vector<double> slice_tau;
   std::vector<double> slice_eddy;
   std::optional<SubfilterStatisticsProduct> statistics;
+  std::optional<WrittenParticles> particles;  // when request.particles.path was given
 };
 
 struct Snapshot {
@@ -113,11 +141,23 @@ class DistributedProducts {
 
 /// Whether DistributedProducts can serve product p as `config` asks for it: energy and spectrum
 /// gridded by nearest particle; vorticity, the ω² and |τ_SFS| slices and sfs_stats with the
-/// "mls" vorticity estimate. A snapshot for products all served needs no particles.
-bool served_by_ranks(const AnalysisConfig& config, Product p);
+/// "mls" vorticity estimate; particles (the ranks write the file) when `particle_file` (a run
+/// directory to write it to) and ω² is not asked for or is the "mls" estimate's. A snapshot for
+/// products all served needs no particles.
+bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file = false);
 
-/// The RanksRequest of `config` for the snapshot's grid and kernel.
-RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config);
+/// Where the ranks write a snapshot's particle file (product "particles"): a run directory's
+/// snapshots/ and the metadata the file carries (RunDirectoryWriter::particle_target).
+struct ParticleFileTarget {
+  std::filesystem::path directory;
+  io::SnapshotMetadata metadata;
+};
+
+/// The RanksRequest of `config` for the snapshot's grid and kernel; with `particles` and the
+/// product "particles" asked for, the particle file directory/particles_t{time}.h5 with the
+/// fields config.particle_fields names.
+RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& config,
+                           const ParticleFileTarget* particles = nullptr);
 
 /// Copies what analysis needs out of a running simulation; `energy_dissipation` is the run's
 /// current -de_v/dt (the simulation does not keep a history).
@@ -127,8 +167,11 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation,
 /// The same for the products `config` asks for: when the simulation is DistributedProducts and
 /// the velocity is gridded by nearest particle on a cubic box, the energy and spectrum come
 /// from the ranks; when every product asked for is served_by_ranks, the others come from the
-/// ranks too and nothing is gathered; otherwise the particles are gathered for them.
+/// ranks too and nothing is gathered (the ranks write the particle file into
+/// particles->directory, when given, as RunDirectoryWriter would); otherwise the particles are
+/// gathered for them.
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
-                          double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
+                          double energy_dissipation = std::numeric_limits<double>::quiet_NaN(),
+                          const ParticleFileTarget* particles = nullptr);
 
 }  // namespace sphles::analysis

@@ -100,6 +100,10 @@ RunDirectoryWriter::RunDirectoryWriter(std::filesystem::path directory,
   }
 }
 
+ParticleFileTarget RunDirectoryWriter::particle_target() const {
+  return {directory_ / "snapshots", metadata_};
+}
+
 std::string RunDirectoryWriter::last_error() const {
   std::lock_guard lock(mutex_);
   return last_error_;
@@ -216,13 +220,16 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
       fields.push_back({std::string(slice_field_name(f.field)), f.units, f.values});
       names += (names.empty() ? "" : ";") + std::string(slice_field_name(f.field));
     }
-    const std::string file = timed_file_name("particles", frame.time, ".h5");
-    io::write_particle_snapshot(directory_ / "snapshots" / file, p.snapshot->particles, frame.time,
-                                frame.step, fields, metadata_);
+    // The ranks of a distributed run wrote the file themselves (make_snapshot), here.
+    const std::string file = p.file.empty() ? timed_file_name("particles", frame.time, ".h5")
+                                            : std::filesystem::path(p.file).filename().string();
+    if (p.file.empty())
+      io::write_particle_snapshot(directory_ / "snapshots" / file, p.snapshot->particles,
+                                  frame.time, frame.step, fields, metadata_);
     const auto index = directory_ / "snapshots" / "index.csv";
     append_line(index, "t,step,file,particles,fields",
                 number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
-                    std::to_string(p.snapshot->size()) + ',' + names);
+                    std::to_string(p.file.empty() ? p.snapshot->size() : p.count) + ',' + names);
     // The XDMF series lists every snapshot in the index (including those of earlier runs of
     // this directory, e.g. before a restart).
     std::vector<io::SnapshotEntry> entries;

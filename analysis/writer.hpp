@@ -46,6 +46,10 @@ class RunDirectoryWriter {
 
   std::string last_error() const;
 
+  /// Where the ranks of a distributed run write the product "particles" themselves, as this
+  /// writer would (analysis::make_snapshot): snapshots/ with this writer's metadata.
+  ParticleFileTarget particle_target() const;
+
  private:
   void write_or_throw(const AnalysisFrame& frame);
   std::filesystem::path directory_;

@@ -317,8 +317,12 @@ class Run::Impl::Loop {
   /// distributed solver computes the energy, spectrum and, when it serves every product, the
   /// particle products on its ranks (make_snapshot).
   void publish_snapshot() {
-    analysis::SnapshotPtr snapshot =
-        analysis::make_snapshot(*simulation_, pipeline_->config(), latest_dissipation_);
+    // A distributed solver's ranks write the particle file themselves, unless the renderer's
+    // 3D particle view needs the particles here.
+    const bool view3d = current_.render.enabled() && current_.render.view3d.enabled;
+    const analysis::ParticleFileTarget target = writer_->particle_target();
+    analysis::SnapshotPtr snapshot = analysis::make_snapshot(
+        *simulation_, pipeline_->config(), latest_dissipation_, view3d ? nullptr : &target);
     const char* ranks = snapshot->velocity_spectrum && snapshot->ranks
                             ? "spectrum and particle products"
                         : snapshot->velocity_spectrum ? "spectrum"

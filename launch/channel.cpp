@@ -188,6 +188,8 @@ int small_int(Decoder& d, const char* what) {
 // The request's flags, one bit each.
 constexpr std::uint64_t kVorticity = 1, kSliceOmega2 = 2, kSliceTau = 4, kStatistics = 8,
                         kSliceEddy = 16;
+// The particle snapshot's fields, one bit each.
+constexpr std::uint64_t kParticleOmega2 = 1, kParticleTau = 2, kParticleEddy = 4;
 
 void encode(Encoder& e, const analysis::Histogram2D& h) {
   e.u64(static_cast<std::uint64_t>(h.bins_x));
@@ -218,6 +220,13 @@ void encode(Encoder& e, const analysis::RanksRequest& r) {
   e.u64(static_cast<std::uint64_t>(r.histogram_bins));
   e.u64(static_cast<std::uint64_t>(r.angle_bins));
   e.f64(r.angle_threshold);
+  e.string(r.particles.path);
+  e.u64((r.particles.omega2 ? kParticleOmega2 : 0) | (r.particles.tau ? kParticleTau : 0) |
+        (r.particles.eddy ? kParticleEddy : 0));
+  e.f64(r.particles.time);
+  e.u64(r.particles.step);
+  e.string(r.particles.metadata.scene_json);
+  e.string(r.particles.metadata.code_version);
 }
 
 analysis::RanksRequest decode_ranks_request(Decoder& d) {
@@ -236,6 +245,15 @@ analysis::RanksRequest decode_ranks_request(Decoder& d) {
   r.histogram_bins = small_int(d, "histogram bins");
   r.angle_bins = small_int(d, "angle bins");
   r.angle_threshold = d.f64();
+  r.particles.path = d.string();
+  const std::uint64_t fields = d.u64();
+  r.particles.omega2 = (fields & kParticleOmega2) != 0;
+  r.particles.tau = (fields & kParticleTau) != 0;
+  r.particles.eddy = (fields & kParticleEddy) != 0;
+  r.particles.time = d.f64();
+  r.particles.step = d.u64();
+  r.particles.metadata.scene_json = d.string();
+  r.particles.metadata.code_version = d.string();
   return r;
 }
 
@@ -245,6 +263,14 @@ void encode(Encoder& e, const analysis::RanksProducts& p) {
   e.doubles(p.slice_omega2);
   e.doubles(p.slice_tau);
   e.doubles(p.slice_eddy);
+  e.u64(p.particles ? 1 : 0);
+  if (p.particles) {
+    e.u64(p.particles->count);
+    std::vector<std::uint64_t> fields;
+    for (const analysis::SliceField f : p.particles->fields)
+      fields.push_back(static_cast<std::uint64_t>(f));
+    e.u64s(fields);
+  }
   e.u64(p.statistics ? 1 : 0);
   if (!p.statistics) return;
   const analysis::SubfilterStatisticsProduct& s = *p.statistics;
@@ -266,6 +292,15 @@ analysis::RanksProducts decode_ranks_products(Decoder& d) {
   p.slice_omega2 = d.doubles();
   p.slice_tau = d.doubles();
   p.slice_eddy = d.doubles();
+  if (d.u64() != 0) {
+    analysis::WrittenParticles& w = p.particles.emplace();
+    w.count = d.u64();
+    for (const std::uint64_t f : d.u64s()) {
+      if (f > static_cast<std::uint64_t>(analysis::SliceField::EddyViscosity))
+        throw ProtocolError("particle products: unknown particle field " + std::to_string(f));
+      w.fields.push_back(static_cast<analysis::SliceField>(f));
+    }
+  }
   if (d.u64() == 0) return p;
   analysis::SubfilterStatisticsProduct& s = p.statistics.emplace();
   s.max_norm = d.f64();

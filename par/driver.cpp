@@ -66,8 +66,8 @@ void send_command(MPI_Comm comm, Command command, double value = 0.0) {
   broadcast_header(comm, header);
 }
 
-/// Sends a particle-products request from rank 0 to every rank (as doubles: every field is a
-/// flag, a small integer or a length).
+/// Sends a particle-products request from rank 0 to every rank (its numbers as doubles: each is
+/// a flag, a small integer or a length; the particle snapshot's part as it is).
 analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r) {
   double fields[12] = {static_cast<double>(r.points_per_side),
                        r.fit_radius,
@@ -94,6 +94,19 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
   r.angle_bins = static_cast<int>(fields[9]);
   r.angle_threshold = fields[10];
   r.slice_eddy = fields[11] != 0.0;
+  // The particle snapshot's file, fields, time, step and metadata.
+  int particles[3] = {r.particles.omega2, r.particles.tau, r.particles.eddy};
+  MPI_Bcast(particles, 3, MPI_INT, 0, comm);
+  r.particles.omega2 = particles[0] != 0;
+  r.particles.tau = particles[1] != 0;
+  r.particles.eddy = particles[2] != 0;
+  MPI_Bcast(&r.particles.time, 1, MPI_DOUBLE, 0, comm);
+  unsigned long long step = r.particles.step;
+  MPI_Bcast(&step, 1, MPI_UNSIGNED_LONG_LONG, 0, comm);
+  r.particles.step = step;
+  broadcast_string(comm, r.particles.path);
+  broadcast_string(comm, r.particles.metadata.scene_json);
+  broadcast_string(comm, r.particles.metadata.code_version);
   return r;
 }
 

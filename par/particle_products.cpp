@@ -5,7 +5,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstddef>
 #include <cstdint>
+#include <numeric>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -16,8 +18,10 @@
 #include "analysis/statistics.hpp"
 #include "analysis/subfilter_stress.hpp"
 #include "analysis/vorticity.hpp"
+#include "io/particle_snapshot_collective.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
+#include "par/state.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::par {
@@ -98,6 +102,61 @@ void allreduce_max(const Decomposition& d, std::span<double> values) {
                 d.comm());
 }
 
+/// The particle snapshot request.particles.path from the own particles (the first `mine` of
+/// `local`) and their fields, each rank its equal id block (par::columns_in_id_block) written
+/// into the one file. Collective over d.comm().
+analysis::WrittenParticles write_particles(const Decomposition& d, const sim::ParticleArrays& local,
+                                           std::size_t mine, const std::vector<double>& omega2,
+                                           const std::vector<double>& tau, bool eddy,
+                                           const analysis::RanksRequest& request) {
+  const int dim = d.dimension();
+  analysis::WrittenParticles written;
+  std::vector<std::pair<analysis::SliceField, const std::vector<double>*>> asked;
+  if (request.particles.omega2) asked.emplace_back(analysis::SliceField::VorticitySquared, &omega2);
+  if (request.particles.tau) asked.emplace_back(analysis::SliceField::SubfilterStressNorm, &tau);
+  if (eddy) asked.emplace_back(analysis::SliceField::EddyViscosity, &local.eddy_viscosity);
+  // The own particles' columns: position and velocity per axis, mass, density, pressure, the
+  // fields (the fields hold the own particles' values first).
+  std::vector<std::vector<double>> own;
+  const auto column = [&](const std::vector<double>& values) {
+    own.emplace_back(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mine));
+  };
+  for (int a = 0; a < dim; ++a) column(local.position[a]);
+  for (int a = 0; a < dim; ++a) column(local.velocity[a]);
+  column(local.mass);
+  column(local.density);
+  column(local.pressure);
+  for (const auto& [field, values] : asked) column(*values);
+  std::vector<const std::vector<double>*> columns;
+  for (const std::vector<double>& c : own) columns.push_back(&c);
+  IdBlockColumns block =
+      columns_in_id_block(d, std::span<const std::uint64_t>(local.id.data(), mine), columns);
+  own.clear();
+  sim::ParticleArrays rows;
+  rows.dimension = dim;
+  const std::size_t count = block.columns.empty() ? 0 : block.columns[0].size();
+  rows.resize(count);
+  std::size_t c = 0;
+  for (int a = 0; a < dim; ++a) rows.position[a].swap(block.columns[c++]);
+  for (int a = 0; a < dim; ++a) rows.velocity[a].swap(block.columns[c++]);
+  rows.mass.swap(block.columns[c++]);
+  rows.density.swap(block.columns[c++]);
+  rows.pressure.swap(block.columns[c++]);
+  std::iota(rows.id.begin(), rows.id.end(), block.first);
+  std::vector<io::ParticleField> extra;
+  for (const auto& [field, values] : asked) {
+    extra.push_back({std::string(analysis::slice_field_name(field)),
+                     std::string(analysis::slice_field_units(field)),
+                     std::move(block.columns[c++])});
+    written.fields.push_back(field);
+  }
+  io::write_particle_snapshot_collective(d.comm(), request.particles.path, rows, block.first,
+                                         block.total, request.particles.time,
+                                         request.particles.step, extra, request.particles.metadata);
+  written.count = block.total;
+  return written;
+}
+
 }  // namespace
 
 analysis::RanksProducts distributed_particle_products(const Decomposition& d,
@@ -109,8 +168,11 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
   for (int a = 1; a < dim; ++a)
     if (box.length[static_cast<std::size_t>(a)] != box.length[0])
       throw std::invalid_argument("distributed particle products: the box must be a cube");
-  const bool fits = request.vorticity || request.slice_omega2 || request.statistics;
-  const bool stress_needed = request.slice_tau || request.statistics;
+  const bool particles = !request.particles.path.empty();
+  const bool fits = request.vorticity || request.slice_omega2 || request.statistics ||
+                    (particles && request.particles.omega2);
+  const bool stress_needed =
+      request.slice_tau || request.statistics || (particles && request.particles.tau);
   const bool slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
   if (request.points_per_side < 1 ||
       (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
@@ -177,61 +239,69 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
     }
     result.statistics = std::move(p);
   }
-  if (!slice) return result;
-
-  const SliceShare share = slice_share(d, grid, request);
-  // A rank with slice nodes and no particle near them cannot answer for them.
-  if (!on_every_rank(d, share.nodes.empty() || local.size() > 0))
-    throw std::invalid_argument(
-        "distributed particle products: a rank has slice nodes but no particle near them");
-  if (request.slice_omega2) {
-    // ω of the halo from its owners, then ω² fitted at the slice nodes.
-    std::vector<std::vector<double>*> fields;
-    for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
-      omega.component[c].resize(local.size());
-      fields.push_back(&omega.component[c]);
-    }
-    halo.update(d, fields);
-    std::vector<double> values;
-    if (!share.nodes.empty())
-      values = analysis::fitted_vorticity_squared(grid, local, fit, omega, share.nodes);
-    result.slice_omega2 = gather_slice(d, share, values);
-  }
-  // ν_t travels with the particles (the halo holds the owners' values): only when the run has
-  // an explicit model, on every rank alike.
-  const bool eddy =
-      request.slice_eddy &&
-      !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
-  if (request.slice_tau || eddy) {
-    // |τ_SFS| of the halo from its owners, then that (and ν_t) of each slice node's nearest
-    // particle.
-    std::vector<double> norm = stress.norm;
-    if (request.slice_tau) {
-      norm.resize(local.size());
-      std::vector<double>* fields[] = {&norm};
-      halo.update(d, fields);
-    }
-    analysis::NearestInBlock nearest;
-    if (!share.nodes.empty()) {
-      const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
-      nearest = analysis::nearest_particles_in_block(grid, local, share.block,
-                                                     static_cast<int>(std::lround(per_side)));
-    }
-    // A particle left out of `local` is at least the halo width from every node of the sub-box;
-    // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
-    const double halo2 = d.halo_width() * d.halo_width();
-    if (!on_every_rank(d, alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
+  if (slice) {
+    const SliceShare share = slice_share(d, grid, request);
+    // A rank with slice nodes and no particle near them cannot answer for them.
+    if (!on_every_rank(d, share.nodes.empty() || local.size() > 0))
       throw std::invalid_argument(
-          "distributed particle products: a slice node's nearest particle lies further than the "
-          "halo width (" +
-          std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
-    const auto at_nearest = [&](const std::vector<double>& field) {
-      std::vector<double> values(share.nodes.size());
-      for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
-      return gather_slice(d, share, values);
-    };
-    if (request.slice_tau) result.slice_tau = at_nearest(norm);
-    if (eddy) result.slice_eddy = at_nearest(local.eddy_viscosity);
+          "distributed particle products: a rank has slice nodes but no particle near them");
+    if (request.slice_omega2) {
+      // ω of the halo from its owners, then ω² fitted at the slice nodes.
+      std::vector<std::vector<double>*> fields;
+      for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
+        omega.component[c].resize(local.size());
+        fields.push_back(&omega.component[c]);
+      }
+      halo.update(d, fields);
+      std::vector<double> values;
+      if (!share.nodes.empty())
+        values = analysis::fitted_vorticity_squared(grid, local, fit, omega, share.nodes);
+      result.slice_omega2 = gather_slice(d, share, values);
+    }
+    // ν_t travels with the particles (the halo holds the owners' values): only when the run has
+    // an explicit model, on every rank alike.
+    const bool eddy =
+        request.slice_eddy &&
+        !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
+    if (request.slice_tau || eddy) {
+      // |τ_SFS| of the halo from its owners, then that (and ν_t) of each slice node's nearest
+      // particle.
+      std::vector<double> norm = stress.norm;
+      if (request.slice_tau) {
+        norm.resize(local.size());
+        std::vector<double>* fields[] = {&norm};
+        halo.update(d, fields);
+      }
+      analysis::NearestInBlock nearest;
+      if (!share.nodes.empty()) {
+        const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
+        nearest = analysis::nearest_particles_in_block(grid, local, share.block,
+                                                       static_cast<int>(std::lround(per_side)));
+      }
+      // A particle left out of `local` is at least the halo width from every node of the sub-box;
+      // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
+      const double halo2 = d.halo_width() * d.halo_width();
+      if (!on_every_rank(d, alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
+        throw std::invalid_argument(
+            "distributed particle products: a slice node's nearest particle lies further than the "
+            "halo width (" +
+            std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
+      const auto at_nearest = [&](const std::vector<double>& field) {
+        std::vector<double> values(share.nodes.size());
+        for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
+        return gather_slice(d, share, values);
+      };
+      if (request.slice_tau) result.slice_tau = at_nearest(norm);
+      if (eddy) result.slice_eddy = at_nearest(local.eddy_viscosity);
+    }
+  }
+  if (particles) {
+    // Written last: every refusal above comes before the file. ν_t travels with the particles: only
+    // when the run has an explicit model, on every rank alike (a rank may hold no particles).
+    const bool eddy =
+        request.particles.eddy &&
+        !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
+    result.particles = write_particles(d, local, mine, omega2, stress.norm, eddy, request);
   }
   return result;
 }

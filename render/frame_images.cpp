@@ -43,7 +43,9 @@ std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame
     image.milliseconds = elapsed_ms(start);
     images.push_back(std::move(image));
   }
-  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->snapshot) {
+  // (A particle file the ranks wrote comes with no particles here.)
+  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->snapshot &&
+      frame.particles->file.empty()) {
     const analysis::Snapshot& snapshot = *frame.particles->snapshot;
     for (const analysis::ParticleFieldProduct& field : frame.particles->fields) {
       if (field.field != config.view3d.field) continue;

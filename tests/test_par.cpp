@@ -26,8 +26,11 @@
 #include "analysis/products.hpp"
 #include "analysis/spectrum.hpp"
 #include "analysis/vorticity.hpp"
+#include "analysis/writer.hpp"
 #include "io/checkpoint.hpp"
 #include "io/checkpoint_collective.hpp"
+#include "io/particle_snapshot.hpp"
+#include "io/particle_snapshot_collective.hpp"
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/halo.hpp"
@@ -926,6 +929,60 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
           .slice_eddy.empty());
   EXPECT_TRUE(all_ranks(!::testing::Test::HasFailure()));
 
+  // The product "particles": the ranks write, each its id block, the snapshot file that a
+  // RunDirectoryWriter writes from analyse's frame of all particles in one process, at the name
+  // it gives it; the other products are those of before.
+  using analysis::SliceField;
+  const SharedDirectory directory;
+  const io::SnapshotMetadata metadata{"{\"case\": \"test\"}", "test-version"};
+  analysis::AnalysisConfig with_particles = config;
+  with_particles.products.insert(analysis::Product::Particles);
+  with_particles.particle_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm,
+                                    SliceField::EddyViscosity};
+  one.time = 0.25;
+  one.step = 7;
+  if (d.rank() == 0) {
+    analysis::RunDirectoryWriter writer(directory.path / "one", metadata);
+    writer.write(analysis::analyse(one, with_particles));
+    EXPECT_EQ(writer.last_error(), "");
+    std::filesystem::create_directories(directory.path / "ranks" / "snapshots");
+  }
+  MPI_Barrier(MPI_COMM_WORLD);
+  const analysis::ParticleFileTarget target{directory.path / "ranks" / "snapshots", metadata};
+  const analysis::RanksRequest file_request = analysis::ranks_request(one, with_particles, &target);
+  const std::string name = "particles_t0.2500.h5";
+  EXPECT_EQ(file_request.particles.path, (target.directory / name).string());
+  const analysis::RanksProducts written =
+      distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, file_request);
+  ASSERT_TRUE(written.particles);
+  EXPECT_EQ(written.particles->count, all.size());
+  EXPECT_EQ(written.particles->fields,
+            (std::vector<SliceField>{SliceField::VorticitySquared, SliceField::SubfilterStressNorm,
+                                     SliceField::EddyViscosity}));
+  EXPECT_EQ(written.mean_vorticity_squared, got.mean_vorticity_squared);
+  EXPECT_EQ(written.slice_tau, got.slice_tau);
+  if (d.rank() == 0) {
+    const io::ParticleSnapshotContents want =
+        io::read_particle_snapshot(directory.path / "one" / "snapshots" / name);
+    const io::ParticleSnapshotContents have = io::read_particle_snapshot(target.directory / name);
+    EXPECT_EQ(have.attributes, want.attributes);
+    ASSERT_EQ(want.datasets.size(), 9u);
+    for (const auto& [dataset, values] : want.datasets) {
+      ASSERT_TRUE(have.datasets.contains(dataset)) << dataset;
+      const io::ParticleSnapshotContents::Dataset& other = have.datasets.at(dataset);
+      EXPECT_EQ(other.units, values.units) << dataset;
+      ASSERT_EQ(other.values.size(), values.values.size()) << dataset;
+      std::size_t differing = 0;
+      for (std::size_t k = 0; k < values.values.size(); ++k)
+        differing += other.values[k] != values.values[k];  // bit for bit
+      EXPECT_EQ(differing, 0u) << dataset;
+    }
+    EXPECT_EQ(want.attributes.at("time"), "0.25");
+    EXPECT_EQ(want.attributes.at("num_particles"), std::to_string(all.size()));
+    EXPECT_GT(want.datasets.at("omega2").values.at(0), 0.0);
+  }
+  EXPECT_TRUE(all_ranks(!::testing::Test::HasFailure()));
+
   // Fits reaching further than the halo are refused on every rank (one rank has no halo).
   analysis::RanksRequest wide = request;
   wide.fit_radius = 1.2 * support;
@@ -949,6 +1006,45 @@ TEST(DistributedParticleProducts, EqualOneProcessBitForBit3D) {
 TEST(DistributedParticleProducts, ParticlesOutsideTheirSubBoxesMoveFirst) {
   distributed_particle_products_equal_one_process<2>(32, -0.7);
   distributed_particle_products_equal_one_process<3>(16, 0.7);
+}
+
+/// A particle file the ranks cannot write (its directory does not exist; a block out of id
+/// order) fails on every rank with one message naming the file, and leaves no file.
+TEST(DistributedParticleProducts, ParticleFileThatCannotBeWrittenFailsOnEveryRank) {
+  const sim::ParticleArrays all = perturbed_lattice(2, 24, 5);
+  const double spacing = kLength / 24;
+  const Decomposition d(MPI_COMM_WORLD, box_of(2), 2.5 * spacing, spacing);
+  const SharedDirectory directory;
+  analysis::RanksRequest request;
+  request.points_per_side = 48;
+  request.particles.path = (directory.path / "missing" / "particles_t0.0000.h5").string();
+  request.particles.tau = true;
+  expect_one_checkpoint_error(
+      [&] {
+        distributed_particle_products(d, owned_part(d, all), sim::KernelType::WendlandC4,
+                                      2.0 * spacing, request);
+      },
+      "missing/particles_t0.0000.h5");
+  if (d.rank() == 0) {
+    EXPECT_TRUE(directory.files().empty());
+  }
+  // A block that is not in id order (the writer's own check).
+  const io::Block block = io::equal_block(all.size(), d.rank(), d.size());
+  std::vector<std::uint32_t> rows(block.count);
+  for (std::size_t k = 0; k < rows.size(); ++k)
+    rows[k] = static_cast<std::uint32_t>(block.first + block.count - 1 - k);
+  const sim::ParticleArrays reversed = subset(all, rows);
+  const std::filesystem::path file = directory.path / "reversed.h5";
+  expect_one_checkpoint_error(
+      [&] {
+        io::write_particle_snapshot_collective(MPI_COMM_WORLD, file, reversed, block.first,
+                                               all.size(), 0.0, 0, {}, {});
+      },
+      "not in id order");
+  if (d.rank() == 0) {
+    EXPECT_TRUE(directory.files().empty());
+  }
+  EXPECT_TRUE(all_ranks(!HasFailure()));
 }
 
 /// Particles only in x < L/2: a |τ_SFS| slice node's nearest particle lies further than the

@@ -20,6 +20,7 @@
 #include "analysis/products.hpp"
 #include "analysis/timeseries.hpp"
 #include "analysis/writer.hpp"
+#include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/solver.hpp"
 
@@ -371,6 +372,75 @@ TEST(Products, ParticleProductsComputedOnTheRanksServeTheirProducts) {
   EXPECT_TRUE(served_by_ranks(eddy, Product::Slices));
   EXPECT_FALSE(served_by_ranks(config, Product::Particles));
   EXPECT_FALSE(served_by_ranks(config, Product::Fields));
+}
+
+// A distributed run's ranks write the product "particles" themselves (make_snapshot, with the
+// writer's target): the frame names their file and the writer indexes it without writing it.
+TEST(Products, AParticleFileTheRanksWroteIsIndexedNotWritten) {
+  const SnapshotPtr gathered = small_tgv_snapshot("tgv2d", 32, 0.2);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Energy, Product::Particles};
+  config.particle_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
+  EXPECT_TRUE(served_by_ranks(config, Product::Particles, true));
+  EXPECT_FALSE(served_by_ranks(config, Product::Particles, false));  // no directory to write to
+  AnalysisConfig particle = config;
+  particle.gridding.vorticity = VorticityEstimate::Particle;
+  EXPECT_FALSE(served_by_ranks(particle, Product::Particles, true));  // ω² of another estimate
+  particle.particle_fields = {SliceField::SubfilterStressNorm};
+  EXPECT_TRUE(served_by_ranks(particle, Product::Particles, true));
+
+  const std::filesystem::path dir = scratch::scratch_directory("pipeline", "ranks_particles");
+  const ParticleFileTarget target{dir / "snapshots", {"{}", "test"}};
+  const RanksRequest request = ranks_request(*gathered, config, &target);
+  EXPECT_EQ(request.particles.path,
+            (dir / "snapshots" / timed_file_name("particles", gathered->time, ".h5")).string());
+  EXPECT_TRUE(request.particles.omega2 && request.particles.tau && !request.particles.eddy);
+  EXPECT_EQ(request.particles.time, gathered->time);
+  EXPECT_EQ(request.particles.metadata, target.metadata);
+  EXPECT_TRUE(ranks_request(*gathered, config).particles.path.empty());  // no target, no file
+
+  auto ranks = std::make_shared<Snapshot>(*gathered);
+  ranks->particles = sim::ParticleArrays{};
+  ranks->neighbours.reset();
+  ranks->has_particles = false;
+  RanksProducts values;
+  values.request = request;
+  values.particles = WrittenParticles{
+      gathered->size(), {SliceField::VorticitySquared, SliceField::SubfilterStressNorm}};
+  ranks->ranks = values;
+  const AnalysisFrame frame = analyse(SnapshotPtr(ranks), config);
+  ASSERT_TRUE(frame.particles);
+  EXPECT_EQ(frame.particles->file, request.particles.path);
+  EXPECT_EQ(frame.particles->count, gathered->size());
+  ASSERT_EQ(frame.particles->fields.size(), 2u);
+  EXPECT_EQ(frame.particles->fields[1].field, SliceField::SubfilterStressNorm);
+  EXPECT_EQ(frame.particles->fields[1].units, "Pa");
+  EXPECT_TRUE(frame.particles->fields[1].values.empty());
+  for (const auto& [stage, seconds] : frame.timings) EXPECT_NE(stage, "subfilter_stress");
+
+  // The writer lists the file in index.csv and the XDMF series and writes no file of its own.
+  RunDirectoryWriter writer(dir);
+  writer.write(frame);
+  EXPECT_EQ(writer.last_error(), "");
+  const std::string name = std::filesystem::path(request.particles.path).filename().string();
+  EXPECT_FALSE(std::filesystem::exists(dir / "snapshots" / name));
+  const auto rows = read_index(dir / "snapshots" / "index.csv");
+  ASSERT_EQ(rows.size(), 1u);
+  EXPECT_EQ(rows[0].at("file"), name);
+  EXPECT_EQ(rows[0].at("particles"), std::to_string(gathered->size()));
+  EXPECT_EQ(rows[0].at("fields"), "omega2;tau_sfs");
+  std::ifstream xdmf(dir / "snapshots" / "particles.xdmf");
+  const std::string series((std::istreambuf_iterator<char>(xdmf)), {});
+  EXPECT_NE(series.find(name + ":/tau_sfs"), std::string::npos) << series;
+
+  // A live change that stopped asking for particles after the snapshot: the file is on disk
+  // and still indexed.
+  AnalysisConfig energy = config;
+  energy.products = {Product::Energy};
+  const AnalysisFrame later = analyse(SnapshotPtr(ranks), energy);
+  ASSERT_TRUE(later.particles);
+  EXPECT_EQ(later.particles->file, request.particles.path);
 }
 
 TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {

@@ -10,7 +10,8 @@ run writes id order) and the time series:
      one process's file byte for byte), with the energy and spectrum computed on the ranks and equal to
      one process's to 1e-12, and the particle products (the fitted vorticity's ⟨ω²⟩, the ω² and
      |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
-     for bit (no particle gathered for the analysis);
+     for bit, and its particle snapshots written by both ranks into one file each and equal to
+     one process's bit for bit (no particle gathered for the analysis);
      Its checkpoints are written by both ranks into one file each (parallel HDF5), none gathered;
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`), read by the 3
      ranks, each a part of the file.
@@ -29,13 +30,15 @@ import time
 
 import h5py
 import numpy as np
+from compare_snapshots import same_particle_snapshots
 from compare_spectra import compare_spectra
 
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "initial.mass=summation",
     "checkpoint.every=0.1", "checkpoint.keep=10",
     "analysis.every=0.05",
-    'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats"]',
+    'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats","particles"]',
+    'analysis.particle_fields=["omega2","tau_sfs"]',
 ]
 
 
@@ -157,6 +160,7 @@ def main():
     spectra, worst = compare_spectra(one, two, "2 ranks")
     print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
     same_particle_products(one, two, "2 ranks")
+    same_particle_snapshots(one, two, "2 ranks", 5, ["omega2", "tau_sfs"])
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:

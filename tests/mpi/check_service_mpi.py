@@ -5,7 +5,8 @@ Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and
   1. a run created with "ranks": 2, its particles made and packed by the job's ranks, finishes
      with the final checkpoint and the time series of the same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra
      (computed on the job's ranks) equal the 1-rank run's to 1e-12 and its slices and
-     histograms (computed on the ranks too) bit for bit, its checkpoints written by the job's
+     histograms (computed on the ranks too) bit for bit, its particle snapshots written by the
+     job's ranks and equal to the 1-rank run's bit for bit, its checkpoints written by the job's
      ranks (none fetched), its spectra and slices are served, and its job ended (no worker
      process left);
   2. requests the server cannot honour are refused with 400 naming 'ranks';
@@ -29,11 +30,17 @@ import urllib.request
 
 import h5py
 import numpy as np
+from compare_snapshots import same_particle_snapshots
 from compare_spectra import compare_spectra
 
 SCENE = {"preset": "tgv2d",
          "patch": {"particles_per_side": 40,
-                   "time": {"end": 0.2}, "checkpoint": {"every": 0.1, "keep": 10}}}
+                   "time": {"end": 0.2}, "checkpoint": {"every": 0.1, "keep": 10},
+                   "analysis": {"every": 0.05,
+                                "products": ["energy", "spectrum", "vorticity", "slices",
+                                             "sfs_stats", "particles"],
+                                "particle_fields": ["omega2", "tau_sfs"]},
+                   "render": {"fields": ["omega2", "tau_sfs"]}}}
 
 
 def request(base, method, path, body=None):
@@ -192,6 +199,15 @@ def main():
             if f1.read() != f2.read():
                 sys.exit("the time series of 2 ranks differs from 1 rank's")
         compare_products(dirs[1], dirs[2])
+        # The particle snapshots written by the job's ranks, none fetched.
+        snapshots = len([n for n in os.listdir(os.path.join(dirs[1], "snapshots"))
+                         if n.endswith(".h5")])
+        same_particle_snapshots(dirs[1], dirs[2], "service, 2 ranks", snapshots,
+                                ["omega2", "tau_sfs"], unlike=("scene",))
+        on_ranks = log.count("particle products computed on the ranks, no particles gathered")
+        if snapshots < 2 or on_ranks != snapshots:
+            sys.exit(f"{on_ranks} analysis snapshots of the 2-rank run gathered no particles, "
+                     f"expected {snapshots}:\n" + log[-2000:])
         with open(os.path.join(dirs[2], "run.json")) as f:
             if json.load(f).get("ranks") != 2:
                 sys.exit("run.json does not record ranks = 2")
