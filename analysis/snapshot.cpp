@@ -27,9 +27,12 @@ std::shared_ptr<Snapshot> describe(const sim::Simulation& simulation, double ene
   return snapshot;
 }
 
-void copy_particles(const sim::Simulation& simulation, Snapshot& snapshot) {
+/// The particles, and the solver's neighbour list when `with_list` (only the "particle"
+/// vorticity estimate reads it: holding it makes the solver allocate a new list at its next
+/// rebuild, and a distributed solver builds one over the gathered particles to hand it out).
+void copy_particles(const sim::Simulation& simulation, Snapshot& snapshot, bool with_list) {
   snapshot.particles = simulation.particles();
-  snapshot.neighbours = simulation.neighbour_list();
+  if (with_list) snapshot.neighbours = simulation.neighbour_list();
 }
 
 bool cubic(const sim::PeriodicBox& box) {
@@ -99,7 +102,7 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
 
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissipation) {
   auto snapshot = describe(simulation, energy_dissipation);
-  copy_particles(simulation, *snapshot);
+  copy_particles(simulation, *snapshot, true);
   return snapshot;
 }
 
@@ -142,7 +145,8 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
   if (all_served && std::ranges::all_of(config.products, from_ranks))
     snapshot->has_particles = false;
   else
-    copy_particles(simulation, *snapshot);
+    copy_particles(simulation, *snapshot,
+                   config.gridding.vorticity == VorticityEstimate::Particle);
   return snapshot;
 }
 

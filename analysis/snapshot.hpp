@@ -98,7 +98,8 @@ struct Snapshot {
   /// Positions, velocities, masses, densities (volume, pressure and ids as well) at `time`.
   sim::ParticleArrays particles;
   /// The solver's Verlet list for these positions (covers the kernel support), or null; lets
-  /// the "particle" vorticity estimate skip its own neighbour search.
+  /// the "particle" vorticity estimate skip its own neighbour search (make_snapshot with a
+  /// configuration takes it only for that estimate).
   std::shared_ptr<const sim::NeighbourList> neighbours;
   /// The velocity spectrum of SPEC §5 on analysis_grid's nodes, computed where the particles
   /// live by a solver spread over MPI ranks (DistributedProducts); the products "energy" and

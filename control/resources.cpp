@@ -428,12 +428,14 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
     const AnalysisModel am = analysis_model(s, a);
     e.analysis_grid_points = am.grid_points;
     const double retained = rendering ? kFramesRetainedWhileRendering : kFramesRetained;
-    // A snapshot copies the particle arrays and shares the solver's list, which becomes its
-    // own once the solver rebuilds; the "particles" product keeps a snapshot in every frame.
+    // A snapshot copies the particle arrays and, for the "particle" vorticity estimate only,
+    // shares the solver's list, which becomes its own once the solver rebuilds; the
+    // "particles" product keeps a snapshot in every frame.
     const double count = kSnapshotsInPipeline + (a.wants(Product::Particles) ? retained : 0.0);
-    snapshots = count * (n * per_particle + list.list_bytes);
-    snapshot_text = count_text(count) + " x (" + n_text + " x " + count_text(per_particle) +
-                    " B + a neighbour list)";
+    const bool with_list = a.gridding.vorticity == analysis::VorticityEstimate::Particle;
+    snapshots = count * (n * per_particle + (with_list ? list.list_bytes : 0.0));
+    snapshot_text = count_text(count) + " x (" + n_text + " x " + count_text(per_particle) + " B" +
+                    (with_list ? " + a neighbour list)" : ")");
     const double computing = am.work_bytes + retained * am.frame_bytes;
     const double sinking = (retained + kFramesInSink) * am.frame_bytes + am.writer_bytes;
     analysis_bytes = kAnalysisThreadBytes + std::max(computing, sinking);
