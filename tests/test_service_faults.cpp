@@ -593,9 +593,9 @@ TEST(ServiceFaults, TheQueueAndTheNumberOfRunsAreBounded) {
 }
 
 TEST(ServiceFaults, MemoryIsSharedByTheActiveRuns) {
-  // A 3D 16³ run with energy analysis is estimated at about 44 MiB: one fits in 60 MiB, two do
+  // A 3D 16³ run with energy analysis is estimated at about 17 MiB: one fits in 25 MiB, two do
   // not.
-  constexpr double kLimit = 60.0 * 1024 * 1024;
+  constexpr double kLimit = 25.0 * 1024 * 1024;
   TestServer server(scratch("memory") / "data", "", /*max_running=*/2, {},
                     [&](sphles::control::ManagerOptions& m) { m.max_memory_bytes = kLimit; });
   const Api api{server.port()};
