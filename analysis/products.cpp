@@ -147,7 +147,9 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
   const WrittenParticles* written_by_ranks =
       snapshot.ranks && snapshot.ranks->particles ? &*snapshot.ranks->particles : nullptr;
   const bool want_particles = config.wants(Product::Particles) && !written_by_ranks;
-  const bool want_fields = config.wants(Product::Fields);
+  // The grid fields the ranks computed (on the ranks' grid, which is the configuration's).
+  const bool fields_from_ranks = config.wants(Product::Fields) && ranks;
+  const bool want_fields = config.wants(Product::Fields) && !fields_from_ranks;
   const auto grid_field = [&](SliceField f) {
     return want_fields && config.grid_fields.contains(f);
   };
@@ -236,6 +238,25 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     p.count = written_by_ranks->count;
     for (const SliceField f : written_by_ranks->fields) p.fields.push_back({f, units(f), {}});
     frame.particles = std::move(p);
+  }
+  if (fields_from_ranks) {
+    GridFieldsProduct f{analysis_grid(snapshot, config), std::nullopt, {}};
+    if (config.grid_velocity) {
+      VectorField v{f.grid, {}};
+      for (int a = 0; a < snapshot.dimension(); ++a)
+        v.component[static_cast<std::size_t>(a)] =
+            ranks->fields_velocity[static_cast<std::size_t>(a)];
+      f.velocity = std::move(v);
+    }
+    const std::pair<SliceField, const std::vector<double>*> scalars[] = {
+        {SliceField::VorticitySquared, &ranks->fields_omega2},
+        {SliceField::SubfilterStressNorm, &ranks->fields_tau},
+        {SliceField::EddyViscosity, &ranks->fields_eddy}};
+    for (const auto& [field, values] : scalars)
+      // ν_t only when the run has it (the ranks answer none otherwise, as analyse has none).
+      if (config.grid_fields.contains(field) && !values->empty())
+        f.scalars.push_back({field, units(field), *values});
+    frame.fields = std::move(f);
   }
   if (!need_map && !need_velocity_grid && !need_stress && !need_particle_vorticity &&
       !want_particles && !want_fields) {

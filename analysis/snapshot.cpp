@@ -51,6 +51,9 @@ bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file
     case Product::Particles:
       return particle_file &&
              (mls || !config.particle_fields.contains(SliceField::VorticitySquared));
+    case Product::Fields:
+      return (!config.grid_velocity || config.gridding.velocity == VelocityGridding::Nearest) &&
+             (mls || !config.grid_fields.contains(SliceField::VorticitySquared));
     case Product::Energy:
     case Product::Spectrum:
       return config.gridding.velocity == VelocityGridding::Nearest;
@@ -86,6 +89,12 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
     r.histogram_bins = config.histogram_bins;
     r.angle_bins = config.angle_bins;
     r.angle_threshold = config.angle_threshold;
+  }
+  if (config.wants(Product::Fields)) {
+    r.fields.velocity = config.grid_velocity;
+    r.fields.omega2 = config.grid_fields.contains(SliceField::VorticitySquared);
+    r.fields.tau = config.grid_fields.contains(SliceField::SubfilterStressNorm);
+    r.fields.eddy = config.grid_fields.contains(SliceField::EddyViscosity);
   }
   if (particles && config.wants(Product::Particles)) {
     r.particles.path =
@@ -127,9 +136,10 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
   // The particle products only when the ranks serve every product, so that nothing is gathered
   // (with particles gathered for another product, analyse computes them from those).
   const bool all_served = !config.products.empty() && std::ranges::all_of(config.products, served);
-  const bool particle_products =
-      config.wants(Product::Vorticity) || config.wants(Product::Slices) ||
-      config.wants(Product::SubfilterStatistics) || config.wants(Product::Particles);
+  const bool particle_products = config.wants(Product::Vorticity) ||
+                                 config.wants(Product::Slices) ||
+                                 config.wants(Product::SubfilterStatistics) ||
+                                 config.wants(Product::Particles) || config.wants(Product::Fields);
   if (all_served && particle_products) {
     try {
       snapshot->ranks = ranks->particle_products(ranks_request(*snapshot, config, particles));
@@ -145,8 +155,7 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfi
   if (all_served && std::ranges::all_of(config.products, from_ranks))
     snapshot->has_particles = false;
   else
-    copy_particles(simulation, *snapshot,
-                   config.gridding.vorticity == VorticityEstimate::Particle);
+    copy_particles(simulation, *snapshot, config.gridding.vorticity == VorticityEstimate::Particle);
   return snapshot;
 }
 

@@ -39,6 +39,17 @@ struct ParticleFileRequest {
   bool operator==(const ParticleFileRequest&) const = default;
 };
 
+/// Product "fields" (the whole analysis grid) as the ranks compute it: the velocity (with its
+/// mean) and |τ_SFS| and ν_t of each node's nearest particle, ω² fitted at each node ("mls").
+struct GridFieldsRequest {
+  bool velocity = false;
+  bool omega2 = false;
+  bool tau = false;
+  bool eddy = false;  // answered only when the run has an explicit model
+  bool any() const { return velocity || omega2 || tau || eddy; }
+  bool operator==(const GridFieldsRequest&) const = default;
+};
+
 /// The particle products a distributed solver's ranks compute where the particles live
 /// (DistributedProducts::particle_products), as a run's configuration asks for them: the
 /// "mls" vorticity (the default estimate, config.hpp), the ω², |τ_SFS| and ν_t slices and the
@@ -58,6 +69,7 @@ struct RanksRequest {
   double angle_threshold = 0.0;
   /// Product "particles": the file the ranks write (ParticleFileRequest), none by default.
   ParticleFileRequest particles;
+  GridFieldsRequest fields;  // product "fields"
   bool operator==(const RanksRequest&) const = default;
 };
 
@@ -81,6 +93,12 @@ struct RanksProducts {
   std::vector<double> slice_eddy;
   std::optional<SubfilterStatisticsProduct> statistics;
   std::optional<WrittenParticles> particles;  // when request.particles.path was given
+  /// Product "fields" on rank 0 (empty on the others and unless asked): the grid's values in
+  /// node order (analysis::Grid::index), velocity per axis of the run's dimension.
+  std::array<std::vector<double>, 3> fields_velocity;
+  std::vector<double> fields_omega2;
+  std::vector<double> fields_tau;
+  std::vector<double> fields_eddy;
 };
 
 struct Snapshot {
@@ -143,8 +161,9 @@ class DistributedProducts {
 /// Whether DistributedProducts can serve product p as `config` asks for it: energy and spectrum
 /// gridded by nearest particle; vorticity, the ω² and |τ_SFS| slices and sfs_stats with the
 /// "mls" vorticity estimate; particles (the ranks write the file) when `particle_file` (a run
-/// directory to write it to) and ω² is not asked for or is the "mls" estimate's. A snapshot for
-/// products all served needs no particles.
+/// directory to write it to) and ω² is not asked for or is the "mls" estimate's; fields when
+/// the velocity, if asked for, is gridded by nearest particle and ω², if asked for, is the
+/// "mls" estimate's. A snapshot for products all served needs no particles.
 bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file = false);
 
 /// Where the ranks write a snapshot's particle file (product "particles"): a run directory's

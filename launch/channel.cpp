@@ -188,8 +188,9 @@ int small_int(Decoder& d, const char* what) {
 // The request's flags, one bit each.
 constexpr std::uint64_t kVorticity = 1, kSliceOmega2 = 2, kSliceTau = 4, kStatistics = 8,
                         kSliceEddy = 16;
-// The particle snapshot's fields, one bit each.
+// The particle snapshot's fields, one bit each; the grid fields', one bit each.
 constexpr std::uint64_t kParticleOmega2 = 1, kParticleTau = 2, kParticleEddy = 4;
+constexpr std::uint64_t kFieldsVelocity = 1, kFieldsOmega2 = 2, kFieldsTau = 4, kFieldsEddy = 8;
 
 void encode(Encoder& e, const analysis::Histogram2D& h) {
   e.u64(static_cast<std::uint64_t>(h.bins_x));
@@ -227,6 +228,8 @@ void encode(Encoder& e, const analysis::RanksRequest& r) {
   e.u64(r.particles.step);
   e.string(r.particles.metadata.scene_json);
   e.string(r.particles.metadata.code_version);
+  e.u64((r.fields.velocity ? kFieldsVelocity : 0) | (r.fields.omega2 ? kFieldsOmega2 : 0) |
+        (r.fields.tau ? kFieldsTau : 0) | (r.fields.eddy ? kFieldsEddy : 0));
 }
 
 analysis::RanksRequest decode_ranks_request(Decoder& d) {
@@ -254,6 +257,11 @@ analysis::RanksRequest decode_ranks_request(Decoder& d) {
   r.particles.step = d.u64();
   r.particles.metadata.scene_json = d.string();
   r.particles.metadata.code_version = d.string();
+  const std::uint64_t grid = d.u64();
+  r.fields.velocity = (grid & kFieldsVelocity) != 0;
+  r.fields.omega2 = (grid & kFieldsOmega2) != 0;
+  r.fields.tau = (grid & kFieldsTau) != 0;
+  r.fields.eddy = (grid & kFieldsEddy) != 0;
   return r;
 }
 
@@ -263,6 +271,10 @@ void encode(Encoder& e, const analysis::RanksProducts& p) {
   e.doubles(p.slice_omega2);
   e.doubles(p.slice_tau);
   e.doubles(p.slice_eddy);
+  for (const std::vector<double>& c : p.fields_velocity) e.doubles(c);
+  e.doubles(p.fields_omega2);
+  e.doubles(p.fields_tau);
+  e.doubles(p.fields_eddy);
   e.u64(p.particles ? 1 : 0);
   if (p.particles) {
     e.u64(p.particles->count);
@@ -292,6 +304,10 @@ analysis::RanksProducts decode_ranks_products(Decoder& d) {
   p.slice_omega2 = d.doubles();
   p.slice_tau = d.doubles();
   p.slice_eddy = d.doubles();
+  for (std::vector<double>& c : p.fields_velocity) c = d.doubles();
+  p.fields_omega2 = d.doubles();
+  p.fields_tau = d.doubles();
+  p.fields_eddy = d.doubles();
   if (d.u64() != 0) {
     analysis::WrittenParticles& w = p.particles.emplace();
     w.count = d.u64();

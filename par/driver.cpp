@@ -94,12 +94,17 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
   r.angle_bins = static_cast<int>(fields[9]);
   r.angle_threshold = fields[10];
   r.slice_eddy = fields[11] != 0.0;
-  // The particle snapshot's file, fields, time, step and metadata.
-  int particles[3] = {r.particles.omega2, r.particles.tau, r.particles.eddy};
-  MPI_Bcast(particles, 3, MPI_INT, 0, comm);
-  r.particles.omega2 = particles[0] != 0;
-  r.particles.tau = particles[1] != 0;
-  r.particles.eddy = particles[2] != 0;
+  // The grid fields; the particle snapshot's file, fields, time, step and metadata.
+  int flags[7] = {r.fields.velocity,  r.fields.omega2, r.fields.tau,    r.fields.eddy,
+                  r.particles.omega2, r.particles.tau, r.particles.eddy};
+  MPI_Bcast(flags, 7, MPI_INT, 0, comm);
+  r.fields.velocity = flags[0] != 0;
+  r.fields.omega2 = flags[1] != 0;
+  r.fields.tau = flags[2] != 0;
+  r.fields.eddy = flags[3] != 0;
+  r.particles.omega2 = flags[4] != 0;
+  r.particles.tau = flags[5] != 0;
+  r.particles.eddy = flags[6] != 0;
   MPI_Bcast(&r.particles.time, 1, MPI_DOUBLE, 0, comm);
   unsigned long long step = r.particles.step;
   MPI_Bcast(&step, 1, MPI_UNSIGNED_LONG_LONG, 0, comm);

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <numeric>
 #include <stdexcept>
 #include <string>
@@ -157,6 +158,92 @@ analysis::WrittenParticles write_particles(const Decomposition& d, const sim::Pa
   return written;
 }
 
+/// Every node of the grid inside this rank's sub-box, each at its own index (the whole grid as
+/// one "slice": gather_slice then assembles the grid on rank 0). Throws std::invalid_argument
+/// when the grid's nodes exceed MPI's int counts.
+SliceShare grid_share(const Decomposition& d, const analysis::Grid& grid) {
+  if (grid.size() > static_cast<std::size_t>(std::numeric_limits<int>::max()))
+    throw std::invalid_argument("distributed particle products: a grid of " +
+                                std::to_string(grid.size()) +
+                                " nodes exceeds MPI's int counts for gathering it");
+  SliceShare share;
+  share.slice_size = grid.size();
+  share.block = own_block(d, grid);
+  const analysis::NodeBlock& b = share.block;
+  for (int z = 0; z < b.count[2]; ++z)
+    for (int y = 0; y < b.count[1]; ++y)
+      for (int x = 0; x < b.count[0]; ++x) {
+        const std::size_t node = grid.index(b.first[0] + x, b.first[1] + y, b.first[2] + z);
+        share.nodes.push_back(node);
+        share.where.push_back(static_cast<int>(node));
+      }
+  return share;
+}
+
+/// What the values at nodes come from: this rank's particles and halo (`local`, with ω and
+/// |τ_SFS| of the halo filled in where asked), the fits, the particle count and whether this
+/// rank is alone along every axis.
+struct NodeSources {
+  const Decomposition& d;
+  const analysis::Grid& grid;
+  const sim::ParticleArrays& local;
+  const analysis::FitSettings& fit;
+  const analysis::ParticleVorticity& omega;
+  const std::vector<double>& norm;
+  std::uint64_t total;
+  bool alone;
+};
+
+/// Values at a share's nodes, on rank 0 in the share's order (empty on the others, and unless
+/// asked): ω² fitted there, and |τ_SFS|, ν_t and the velocity of each node's nearest particle.
+struct NodeValues {
+  std::vector<double> omega2, tau, eddy;
+  std::array<std::vector<double>, 3> velocity;
+};
+
+NodeValues node_values(const NodeSources& s, const SliceShare& share, bool omega2, bool tau,
+                       bool eddy, bool velocity) {
+  const Decomposition& d = s.d;
+  const int dim = d.dimension();
+  // A rank with nodes and no particle near them cannot answer for them.
+  if (!on_every_rank(d, share.nodes.empty() || s.local.size() > 0))
+    throw std::invalid_argument(
+        "distributed particle products: a rank has grid nodes but no particle near them");
+  NodeValues v;
+  if (omega2) {
+    std::vector<double> values;
+    if (!share.nodes.empty())
+      values = analysis::fitted_vorticity_squared(s.grid, s.local, s.fit, s.omega, share.nodes);
+    v.omega2 = gather_slice(d, share, values);
+  }
+  if (!tau && !eddy && !velocity) return v;
+  analysis::NearestInBlock nearest;
+  if (!share.nodes.empty()) {
+    const double per_side = std::pow(static_cast<double>(s.total), 1.0 / dim);
+    nearest = analysis::nearest_particles_in_block(s.grid, s.local, share.block,
+                                                   static_cast<int>(std::lround(per_side)));
+  }
+  // A particle left out of `local` is at least the halo width from every node of the sub-box;
+  // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
+  const double halo2 = d.halo_width() * d.halo_width();
+  if (!on_every_rank(d, s.alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
+    throw std::invalid_argument(
+        "distributed particle products: a grid node's nearest particle lies further than the "
+        "halo width (" +
+        std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
+  const auto at_nearest = [&](const std::vector<double>& field) {
+    std::vector<double> values(share.nodes.size());
+    for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
+    return gather_slice(d, share, values);
+  };
+  if (tau) v.tau = at_nearest(s.norm);
+  if (eddy) v.eddy = at_nearest(s.local.eddy_viscosity);
+  if (velocity)
+    for (int a = 0; a < dim; ++a)
+      v.velocity[static_cast<std::size_t>(a)] = at_nearest(s.local.velocity[a]);
+  return v;
+}
+
 }  // namespace
 
 analysis::RanksProducts distributed_particle_products(const Decomposition& d,
@@ -170,9 +257,9 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
       throw std::invalid_argument("distributed particle products: the box must be a cube");
   const bool particles = !request.particles.path.empty();
   const bool fits = request.vorticity || request.slice_omega2 || request.statistics ||
-                    (particles && request.particles.omega2);
-  const bool stress_needed =
-      request.slice_tau || request.statistics || (particles && request.particles.tau);
+                    (particles && request.particles.omega2) || request.fields.omega2;
+  const bool stress_needed = request.slice_tau || request.statistics ||
+                             (particles && request.particles.tau) || request.fields.tau;
   const bool slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
   if (request.points_per_side < 1 ||
       (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
@@ -239,60 +326,45 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
     }
     result.statistics = std::move(p);
   }
-  if (slice) {
-    const SliceShare share = slice_share(d, grid, request);
-    // A rank with slice nodes and no particle near them cannot answer for them.
-    if (!on_every_rank(d, share.nodes.empty() || local.size() > 0))
-      throw std::invalid_argument(
-          "distributed particle products: a rank has slice nodes but no particle near them");
-    if (request.slice_omega2) {
-      // ω of the halo from its owners, then ω² fitted at the slice nodes.
-      std::vector<std::vector<double>*> fields;
+  const analysis::GridFieldsRequest& fields = request.fields;
+  if (slice || fields.any()) {
+    // The halo's ω and |τ_SFS| from their owners, for the nodes' fits and nearest particles.
+    const bool omega2_at_nodes = request.slice_omega2 || fields.omega2;
+    const bool tau_at_nodes = request.slice_tau || fields.tau;
+    if (omega2_at_nodes) {
+      std::vector<std::vector<double>*> components;
       for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
         omega.component[c].resize(local.size());
-        fields.push_back(&omega.component[c]);
+        components.push_back(&omega.component[c]);
       }
-      halo.update(d, fields);
-      std::vector<double> values;
-      if (!share.nodes.empty())
-        values = analysis::fitted_vorticity_squared(grid, local, fit, omega, share.nodes);
-      result.slice_omega2 = gather_slice(d, share, values);
+      halo.update(d, components);
+    }
+    std::vector<double> norm = stress.norm;
+    if (tau_at_nodes) {
+      norm.resize(local.size());
+      std::vector<double>* halo_fields[] = {&norm};
+      halo.update(d, halo_fields);
     }
     // ν_t travels with the particles (the halo holds the owners' values): only when the run has
     // an explicit model, on every rank alike.
-    const bool eddy =
-        request.slice_eddy &&
+    const bool has_eddy =
         !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
-    if (request.slice_tau || eddy) {
-      // |τ_SFS| of the halo from its owners, then that (and ν_t) of each slice node's nearest
-      // particle.
-      std::vector<double> norm = stress.norm;
-      if (request.slice_tau) {
-        norm.resize(local.size());
-        std::vector<double>* fields[] = {&norm};
-        halo.update(d, fields);
-      }
-      analysis::NearestInBlock nearest;
-      if (!share.nodes.empty()) {
-        const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
-        nearest = analysis::nearest_particles_in_block(grid, local, share.block,
-                                                       static_cast<int>(std::lround(per_side)));
-      }
-      // A particle left out of `local` is at least the halo width from every node of the sub-box;
-      // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
-      const double halo2 = d.halo_width() * d.halo_width();
-      if (!on_every_rank(d, alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
-        throw std::invalid_argument(
-            "distributed particle products: a slice node's nearest particle lies further than the "
-            "halo width (" +
-            std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
-      const auto at_nearest = [&](const std::vector<double>& field) {
-        std::vector<double> values(share.nodes.size());
-        for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
-        return gather_slice(d, share, values);
-      };
-      if (request.slice_tau) result.slice_tau = at_nearest(norm);
-      if (eddy) result.slice_eddy = at_nearest(local.eddy_viscosity);
+    const NodeSources sources{d, grid, local, fit, omega, norm, total, alone};
+    if (slice) {
+      const SliceShare share = slice_share(d, grid, request);
+      NodeValues v = node_values(sources, share, request.slice_omega2, request.slice_tau,
+                                 request.slice_eddy && has_eddy, false);
+      result.slice_omega2 = std::move(v.omega2);
+      result.slice_tau = std::move(v.tau);
+      result.slice_eddy = std::move(v.eddy);
+    }
+    if (fields.any()) {
+      NodeValues v = node_values(sources, grid_share(d, grid), fields.omega2, fields.tau,
+                                 fields.eddy && has_eddy, fields.velocity);
+      result.fields_omega2 = std::move(v.omega2);
+      result.fields_tau = std::move(v.tau);
+      result.fields_eddy = std::move(v.eddy);
+      result.fields_velocity = std::move(v.velocity);
     }
   }
   if (particles) {

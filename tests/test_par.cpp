@@ -882,19 +882,25 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
   analysis::AnalysisConfig config;
   config.every = 1.0;
   config.products = {analysis::Product::Vorticity, analysis::Product::Slices,
-                     analysis::Product::SubfilterStatistics};
+                     analysis::Product::SubfilterStatistics, analysis::Product::Fields};
+  config.grid_fields = {analysis::SliceField::VorticitySquared,
+                        analysis::SliceField::SubfilterStressNorm,
+                        analysis::SliceField::EddyViscosity};
   config.slice.axis = Dim == 3 ? 1 : 0;
   config.slice.position = 0.4 * kLength;
   config.slice.fields.insert(analysis::SliceField::EddyViscosity);
   config.histogram_bins = 20;
   const analysis::AnalysisFrame frame = analysis::analyse(one, config);
-  ASSERT_TRUE(frame.vorticity && frame.subfilter);
+  ASSERT_TRUE(frame.vorticity && frame.subfilter && frame.fields && frame.fields->velocity);
+  ASSERT_EQ(frame.fields->scalars.size(), 3u);
   ASSERT_EQ(frame.slices.size(), 3u);
   ASSERT_EQ(frame.slices[2].field, analysis::SliceField::EddyViscosity);
 
   const analysis::RanksRequest request = analysis::ranks_request(one, config);
   EXPECT_TRUE(request.vorticity && request.slice_omega2 && request.slice_tau &&
               request.slice_eddy && request.statistics);
+  EXPECT_TRUE(request.fields.velocity && request.fields.omega2 && request.fields.tau &&
+              request.fields.eddy);
   const analysis::RanksProducts got =
       distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, request);
   EXPECT_EQ(got.request, request);
@@ -918,15 +924,26 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
     EXPECT_EQ(got.slice_omega2, frame.slices[0].values);
     EXPECT_EQ(got.slice_tau, frame.slices[1].values);
     EXPECT_EQ(got.slice_eddy, frame.slices[2].values);
+    // The whole grid ("fields"): the nearest particle's velocity (with its mean), |τ_SFS| and ν_t,
+    // ω² fitted at every node, assembled on rank 0 in node order.
+    for (int a = 0; a < Dim; ++a)
+      EXPECT_EQ(got.fields_velocity[static_cast<std::size_t>(a)],
+                frame.fields->velocity->component[static_cast<std::size_t>(a)]);
+    EXPECT_EQ(got.fields_omega2, frame.fields->scalars[0].values);
+    EXPECT_EQ(got.fields_tau, frame.fields->scalars[1].values);
+    EXPECT_EQ(got.fields_eddy, frame.fields->scalars[2].values);
+    EXPECT_EQ(got.fields_tau.size(), frame.fields->grid.size());
   } else {
     EXPECT_TRUE(got.slice_omega2.empty() && got.slice_tau.empty() && got.slice_eddy.empty());
+    EXPECT_TRUE(got.fields_velocity[0].empty() && got.fields_omega2.empty() &&
+                got.fields_tau.empty() && got.fields_eddy.empty());
   }
   // Without ν_t (the implicit model) the ν_t slice is empty on every rank, as analyse has none.
   sim::ParticleArrays implicit = mine;
   implicit.eddy_viscosity.clear();
-  EXPECT_TRUE(
-      distributed_particle_products(d, implicit, sim::KernelType::WendlandC4, support, request)
-          .slice_eddy.empty());
+  const analysis::RanksProducts without_eddy =
+      distributed_particle_products(d, implicit, sim::KernelType::WendlandC4, support, request);
+  EXPECT_TRUE(without_eddy.slice_eddy.empty() && without_eddy.fields_eddy.empty());
   EXPECT_TRUE(all_ranks(!::testing::Test::HasFailure()));
 
   // The product "particles": the ranks write, each its id block, the snapshot file that a

@@ -210,6 +210,17 @@ TEST(Products, SnapshotsHoldTheSolversListOnlyForTheParticleEstimate) {
   EXPECT_EQ(own.subfilter->joint.total, shared.subfilter->joint.total);
 }
 
+/// `gathered` as make_snapshot takes it from a distributed run whose ranks serve every product:
+/// no particles, no list, the ranks' products `values`.
+SnapshotPtr without_particles(const Snapshot& gathered, RanksProducts values) {
+  auto snapshot = std::make_shared<Snapshot>(gathered);
+  snapshot->particles = sim::ParticleArrays{};
+  snapshot->neighbours.reset();
+  snapshot->has_particles = false;
+  snapshot->ranks = std::move(values);
+  return snapshot;
+}
+
 TEST(Products, OnlyRequestedProductsAreComputed) {
   const SnapshotPtr snapshot = small_tgv_snapshot("tgv3d", 16);
   AnalysisConfig config;
@@ -352,11 +363,7 @@ TEST(Products, ParticleProductsComputedOnTheRanksServeTheirProducts) {
   ranks_values.statistics = *whole.subfilter;
   ranks_values.statistics->max_norm += 1.0;
 
-  auto ranks = std::make_shared<Snapshot>(*gathered);
-  ranks->particles = sim::ParticleArrays{};
-  ranks->neighbours.reset();
-  ranks->has_particles = false;
-  ranks->ranks = ranks_values;
+  const SnapshotPtr ranks = without_particles(*gathered, ranks_values);
   const AnalysisFrame frame = analyse(*ranks, config);
   ASSERT_TRUE(frame.vorticity && frame.subfilter);
   EXPECT_EQ(frame.vorticity->mean_vorticity_squared, ranks_values.mean_vorticity_squared);
@@ -403,8 +410,63 @@ TEST(Products, ParticleProductsComputedOnTheRanksServeTheirProducts) {
   AnalysisConfig eddy = config;
   eddy.slice.fields.insert(SliceField::EddyViscosity);
   EXPECT_TRUE(served_by_ranks(eddy, Product::Slices));
-  EXPECT_FALSE(served_by_ranks(config, Product::Particles));
-  EXPECT_FALSE(served_by_ranks(config, Product::Fields));
+  EXPECT_FALSE(served_by_ranks(config, Product::Particles));  // with no directory to write to
+}
+
+// The grid fields the ranks computed (RanksProducts::fields_*) make the product "fields" when
+// the ranks serve it: the velocity gridded by nearest particle, ω² of the "mls" estimate.
+TEST(Products, GridFieldsComputedOnTheRanksServeTheProduct) {
+  const SnapshotPtr gathered = small_tgv_snapshot("tgv2d", 32, 0.2);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Energy, Product::Fields};
+  config.grid_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
+  EXPECT_TRUE(served_by_ranks(config, Product::Fields));
+  AnalysisConfig shepard = config;
+  shepard.gridding.velocity = VelocityGridding::Shepard;
+  EXPECT_FALSE(served_by_ranks(shepard, Product::Fields));
+  shepard.grid_velocity = false;
+  EXPECT_TRUE(served_by_ranks(shepard, Product::Fields));
+  AnalysisConfig grid_estimate = config;
+  grid_estimate.gridding.vorticity = VorticityEstimate::Grid;
+  EXPECT_FALSE(served_by_ranks(grid_estimate, Product::Fields));
+  grid_estimate.grid_fields = {SliceField::SubfilterStressNorm};
+  EXPECT_TRUE(served_by_ranks(grid_estimate, Product::Fields));
+
+  const AnalysisFrame whole = analyse(*gathered, config);
+  ASSERT_TRUE(whole.fields && whole.fields->velocity);
+  ASSERT_EQ(whole.fields->scalars.size(), 2u);
+  const RanksRequest request = ranks_request(*gathered, config);
+  EXPECT_TRUE(request.fields.velocity && request.fields.omega2 && request.fields.tau &&
+              !request.fields.eddy);
+  // Values unlike the particles' own, so that the test sees where the frame took them from.
+  RanksProducts values;
+  values.request = request;
+  for (int a = 0; a < 2; ++a) {
+    values.fields_velocity[static_cast<std::size_t>(a)] =
+        whole.fields->velocity->component[static_cast<std::size_t>(a)];
+    for (double& v : values.fields_velocity[static_cast<std::size_t>(a)]) v += 1.0;
+  }
+  values.fields_omega2 = whole.fields->scalars[0].values;
+  for (double& v : values.fields_omega2) v *= 2.0;
+  values.fields_tau = whole.fields->scalars[1].values;
+  for (double& v : values.fields_tau) v *= 3.0;
+  const SnapshotPtr ranks = without_particles(*gathered, values);
+  const AnalysisFrame frame = analyse(*ranks, config);
+  ASSERT_TRUE(frame.fields && frame.fields->velocity);
+  EXPECT_EQ(frame.fields->grid.points_per_side, whole.fields->grid.points_per_side);
+  EXPECT_EQ(frame.fields->velocity->component[0], values.fields_velocity[0]);
+  EXPECT_EQ(frame.fields->velocity->component[1], values.fields_velocity[1]);
+  EXPECT_TRUE(frame.fields->velocity->component[2].empty());  // 2D, as analyse's own
+  ASSERT_EQ(frame.fields->scalars.size(), 2u);
+  EXPECT_EQ(frame.fields->scalars[0].field, SliceField::VorticitySquared);
+  EXPECT_EQ(frame.fields->scalars[0].values, values.fields_omega2);
+  EXPECT_EQ(frame.fields->scalars[1].values, values.fields_tau);
+  EXPECT_EQ(frame.fields->scalars[1].units, whole.fields->scalars[1].units);
+  for (const auto& [stage, seconds] : frame.timings) {
+    EXPECT_NE(stage, "vorticity") << "computed on the ranks";
+    EXPECT_NE(stage, "grid_map") << "computed on the ranks";
+  }
 }
 
 // A distributed run's ranks write the product "particles" themselves (make_snapshot, with the
@@ -433,16 +495,12 @@ TEST(Products, AParticleFileTheRanksWroteIsIndexedNotWritten) {
   EXPECT_EQ(request.particles.metadata, target.metadata);
   EXPECT_TRUE(ranks_request(*gathered, config).particles.path.empty());  // no target, no file
 
-  auto ranks = std::make_shared<Snapshot>(*gathered);
-  ranks->particles = sim::ParticleArrays{};
-  ranks->neighbours.reset();
-  ranks->has_particles = false;
   RanksProducts values;
   values.request = request;
   values.particles = WrittenParticles{
       gathered->size(), {SliceField::VorticitySquared, SliceField::SubfilterStressNorm}};
-  ranks->ranks = values;
-  const AnalysisFrame frame = analyse(SnapshotPtr(ranks), config);
+  const SnapshotPtr ranks = without_particles(*gathered, values);
+  const AnalysisFrame frame = analyse(ranks, config);
   ASSERT_TRUE(frame.particles);
   EXPECT_EQ(frame.particles->file, request.particles.path);
   EXPECT_EQ(frame.particles->count, gathered->size());
@@ -471,7 +529,7 @@ TEST(Products, AParticleFileTheRanksWroteIsIndexedNotWritten) {
   // and still indexed.
   AnalysisConfig energy = config;
   energy.products = {Product::Energy};
-  const AnalysisFrame later = analyse(SnapshotPtr(ranks), energy);
+  const AnalysisFrame later = analyse(ranks, energy);
   ASSERT_TRUE(later.particles);
   EXPECT_EQ(later.particles->file, request.particles.path);
 }

@@ -660,11 +660,23 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
     Reply r = api.post("/api/estimate", request);
     ASSERT_EQ(r.status, 200) << r.body;
     whole = r.body_json();
-    json fields = request;
-    fields["scene"]["analysis"]["products"] = {"energy", "fields"};
-    r = api.post("/api/estimate", fields);
+    json particle_estimate = request;
+    particle_estimate["scene"]["analysis"]["products"] = {"energy", "vorticity"};
+    particle_estimate["scene"]["analysis"]["gridding"] = {{"vorticity", "particle"}};
+    r = api.post("/api/estimate", particle_estimate);
     ASSERT_EQ(r.status, 200) << r.body;
     gathering = r.body_json();
+    // Particle snapshots are written by the ranks, unless the 3D particle view is rendered here.
+    json particles = request;
+    particles["scene"]["analysis"]["products"] = {"energy", "particles"};
+    r = api.post("/api/estimate", particles);
+    ASSERT_EQ(r.status, 200) << r.body;
+    EXPECT_EQ(part_names(r.body_json()["per_rank"]["service"]), std::set<std::string>{"analysis"})
+        << r.body;
+    particles["scene"]["render"] = {{"view3d", {{"enabled", true}}}};
+    r = api.post("/api/estimate", particles);
+    ASSERT_EQ(r.status, 200) << r.body;
+    EXPECT_TRUE(part_names(r.body_json()["per_rank"]["service"]).contains("snapshots")) << r.body;
   }
   ASSERT_EQ(whole["admitted"], true) << whole;
   EXPECT_TRUE(whole["rank_memory_limit_bytes"].is_null());
@@ -676,7 +688,8 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
   EXPECT_NEAR(here, 2.0 * per_rank + server_share, 1e-9 * here) << whole;
   EXPECT_EQ(part_names(whole["per_rank"]["service"]), std::set<std::string>{"analysis"}) << whole;
   EXPECT_LT(server_share, per_rank) << whole;
-  // Grid fields are gathered: the server then holds snapshots of every particle too.
+  // The "particle" vorticity estimate is computed from gathered particles: the server then
+  // holds snapshots of every particle too.
   EXPECT_EQ(part_names(gathering["per_rank"]["service"]),
             (std::set<std::string>{"analysis", "snapshots"}))
       << gathering;

@@ -10,8 +10,10 @@ run writes id order) and the time series:
      one process's file byte for byte), with the energy and spectrum computed on the ranks and equal to
      one process's to 1e-12, and the particle products (the fitted vorticity's ⟨ω²⟩, the ω² and
      |τ_SFS| slices, the τ_SFS statistics) computed on the ranks and equal to one process's bit
-     for bit, and its particle snapshots written by both ranks into one file each and equal to
-     one process's bit for bit (no particle gathered for the analysis);
+     for bit, its particle snapshots written by both ranks into one file each and equal to
+     one process's bit for bit, and its grid fields (velocity, omega2, tau_SFS over the whole
+     analysis grid) computed on the ranks, their VTK files the same bytes as one process's (no
+     particle gathered for the analysis);
      Its checkpoints are written by both ranks into one file each (parallel HDF5), none gathered;
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`), read by the 3
      ranks, each a part of the file.
@@ -30,14 +32,16 @@ import time
 
 import h5py
 import numpy as np
-from compare_snapshots import same_particle_snapshots
+from compare_snapshots import same_bytes, same_grid_fields, same_particle_snapshots
 from compare_spectra import compare_spectra
 
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "initial.mass=summation",
     "checkpoint.every=0.1", "checkpoint.keep=10",
     "analysis.every=0.05",
-    'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats","particles"]',
+    'analysis.products=["energy","spectrum","vorticity","slices","sfs_stats","particles",'
+    '"fields"]',
+    'analysis.grid_fields=["velocity","omega2","tau_sfs"]',
     'analysis.particle_fields=["omega2","tau_sfs"]',
 ]
 
@@ -94,11 +98,7 @@ def same_particle_products(reference, other, label):
     if not histograms or histograms != sorted(n for n in os.listdir(os.path.join(other, "stats"))
                                               if n != "snapshots.csv"):
         sys.exit(f"{label}: the runs wrote different statistics files: {histograms}")
-    for name in histograms:
-        with open(os.path.join(reference, "stats", name), "rb") as x, \
-                open(os.path.join(other, "stats", name), "rb") as y:
-            if x.read() != y.read():
-                sys.exit(f"{label}: stats/{name} differs from one process")
+    same_bytes(reference, other, "stats", histograms, label)
     names = sorted(n for n in os.listdir(os.path.join(reference, "slices")) if n.endswith(".npy"))
     if len(names) != 2 * len(a):
         sys.exit(f"{label}: expected {2 * len(a)} omega2 and tau_sfs slices, found {names}")
@@ -161,6 +161,7 @@ def main():
     print(f"2 ranks: {spectra} spectra computed on the ranks equal one process's to {worst:.2g}")
     same_particle_products(one, two, "2 ranks")
     same_particle_snapshots(one, two, "2 ranks", 5, ["omega2", "tau_sfs"])
+    same_grid_fields(one, two, "2 ranks", 5)
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:

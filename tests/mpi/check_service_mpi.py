@@ -6,7 +6,8 @@ Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and
      with the final checkpoint and the time series of the same run with "ranks": 1 bit for bit (particles compared by id with h5py), its spectra
      (computed on the job's ranks) equal the 1-rank run's to 1e-12 and its slices and
      histograms (computed on the ranks too) bit for bit, its particle snapshots written by the
-     job's ranks and equal to the 1-rank run's bit for bit, its checkpoints written by the job's
+     job's ranks and equal to the 1-rank run's bit for bit, its grid fields computed on the
+     ranks and written the same bytes, its checkpoints written by the job's
      ranks (none fetched), its spectra and slices are served, and its job ended (no worker
      process left);
   2. requests the server cannot honour are refused with 400 naming 'ranks';
@@ -30,7 +31,7 @@ import urllib.request
 
 import h5py
 import numpy as np
-from compare_snapshots import same_particle_snapshots
+from compare_snapshots import same_grid_fields, same_particle_snapshots
 from compare_spectra import compare_spectra
 
 SCENE = {"preset": "tgv2d",
@@ -38,7 +39,8 @@ SCENE = {"preset": "tgv2d",
                    "time": {"end": 0.2}, "checkpoint": {"every": 0.1, "keep": 10},
                    "analysis": {"every": 0.05,
                                 "products": ["energy", "spectrum", "vorticity", "slices",
-                                             "sfs_stats", "particles"],
+                                             "sfs_stats", "particles", "fields"],
+                                "grid_fields": ["velocity", "omega2", "tau_sfs"],
                                 "particle_fields": ["omega2", "tau_sfs"]},
                    "render": {"fields": ["omega2", "tau_sfs"]}}}
 
@@ -204,6 +206,7 @@ def main():
                          if n.endswith(".h5")])
         same_particle_snapshots(dirs[1], dirs[2], "service, 2 ranks", snapshots,
                                 ["omega2", "tau_sfs"], unlike=("scene",))
+        same_grid_fields(dirs[1], dirs[2], "service, 2 ranks", snapshots)
         on_ranks = log.count("particle products computed on the ranks, no particles gathered")
         if snapshots < 2 or on_ranks != snapshots:
             sys.exit(f"{on_ranks} analysis snapshots of the 2-rank run gathered no particles, "

@@ -1,5 +1,6 @@
-"""Particle snapshots of two runs' snapshots/ directories compared (issue 19: the files a
-distributed run's ranks write, each its block of the particles, equal one process's bit for bit)."""
+"""Particle snapshots and grid fields of two runs compared (issue 19: the files a distributed
+run's ranks write, each its block of the particles, and the grid fields they compute equal one
+process's bit for bit)."""
 import os
 import sys
 
@@ -29,10 +30,26 @@ def same_particle_snapshots(reference, other, label, count, fields, unlike=()):
                 if a[key].attrs["units"] != b[key].attrs["units"] or \
                         not np.array_equal(a[key][()], b[key][()]):
                     sys.exit(f"{label}: {name}: dataset {key} differs from one process")
-    for name in ("index.csv", "particles.xdmf"):
-        with open(os.path.join(directory, name), "rb") as x, \
-                open(os.path.join(other, "snapshots", name), "rb") as y:
-            if x.read() != y.read():
-                sys.exit(f"{label}: snapshots/{name} differs from one process")
+    same_bytes(reference, other, "snapshots", ("index.csv", "particles.xdmf"), label)
     print(f"{label}: {len(names)} particle snapshots written by the ranks equal one process's "
           "bit for bit")
+
+
+def same_grid_fields(reference, other, label, count):
+    """Every file of fields/ (the VTK image data of the whole analysis grid, its index and the
+    ParaView series) is the same bytes in both runs."""
+    names = sorted(os.listdir(os.path.join(reference, "fields")))
+    if len([n for n in names if n.endswith(".vti")]) != count or \
+            names != sorted(os.listdir(os.path.join(other, "fields"))):
+        sys.exit(f"{label}: expected the same {count} grid field files, found {names}")
+    same_bytes(reference, other, "fields", names, label)
+    print(f"{label}: {count} grid fields computed on the ranks equal one process's byte for byte")
+
+
+def same_bytes(reference, other, directory, names, label):
+    """Exits naming the first of `names` in `directory` whose bytes differ between the runs."""
+    for name in names:
+        with open(os.path.join(reference, directory, name), "rb") as x, \
+                open(os.path.join(other, directory, name), "rb") as y:
+            if x.read() != y.read():
+                sys.exit(f"{label}: {directory}/{name} differs from one process")
