@@ -205,10 +205,15 @@ NodeValues node_values(const NodeSources& s, const SliceShare& share, bool omega
                        bool eddy, bool velocity) {
   const Decomposition& d = s.d;
   const int dim = d.dimension();
-  // A rank with nodes and no particle near them cannot answer for them.
+  // A rank with nodes and no particle near them (none of its own, none in its halo) cannot
+  // answer for them: the particles leave a void wider than the halo there.
   if (!on_every_rank(d, share.nodes.empty() || s.local.size() > 0))
     throw std::invalid_argument(
-        "distributed particle products: a rank has grid nodes but no particle near them");
+        "distributed particle products: a rank has grid nodes but no "
+        "particle within the halo width (" +
+        std::to_string(d.halo_width()) +
+        " m) of its sub-box: the particles leave a void wider than the "
+        "halo");
   NodeValues v;
   if (omega2) {
     std::vector<double> values;
