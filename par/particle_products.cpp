@@ -116,11 +116,11 @@ analysis::WrittenParticles write_particles(const Decomposition& d, const sim::Pa
   if (request.particles.omega2) asked.emplace_back(analysis::SliceField::VorticitySquared, &omega2);
   if (request.particles.tau) asked.emplace_back(analysis::SliceField::SubfilterStressNorm, &tau);
   if (eddy) asked.emplace_back(analysis::SliceField::EddyViscosity, &local.eddy_viscosity);
-  // The own particles' columns: position and velocity per axis, mass, density, pressure, the
-  // fields (the fields hold the own particles' values first).
-  std::vector<std::vector<double>> own;
+  // The own particles' columns (the first `mine` entries of each array): position and velocity
+  // per axis, mass, density, pressure, the fields.
+  std::vector<std::span<const double>> columns;
   const auto column = [&](const std::vector<double>& values) {
-    own.emplace_back(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(mine));
+    columns.emplace_back(values.data(), mine);
   };
   for (int a = 0; a < dim; ++a) column(local.position[a]);
   for (int a = 0; a < dim; ++a) column(local.velocity[a]);
@@ -128,11 +128,8 @@ analysis::WrittenParticles write_particles(const Decomposition& d, const sim::Pa
   column(local.density);
   column(local.pressure);
   for (const auto& [field, values] : asked) column(*values);
-  std::vector<const std::vector<double>*> columns;
-  for (const std::vector<double>& c : own) columns.push_back(&c);
   IdBlockColumns block =
       columns_in_id_block(d, std::span<const std::uint64_t>(local.id.data(), mine), columns);
-  own.clear();
   sim::ParticleArrays rows;
   rows.dimension = dim;
   const std::size_t count = block.columns.empty() ? 0 : block.columns[0].size();
@@ -181,8 +178,7 @@ SliceShare grid_share(const Decomposition& d, const analysis::Grid& grid) {
 }
 
 /// What the values at nodes come from: this rank's particles and halo (`local`, with ω and
-/// |τ_SFS| of the halo filled in where asked), the fits, the particle count and whether this
-/// rank is alone along every axis.
+/// |τ_SFS| of the halo filled in where asked), the fits and the particle count.
 struct NodeSources {
   const Decomposition& d;
   const analysis::Grid& grid;
@@ -191,7 +187,6 @@ struct NodeSources {
   const analysis::ParticleVorticity& omega;
   const std::vector<double>& norm;
   std::uint64_t total;
-  bool alone;
 };
 
 /// Values at a share's nodes, on rank 0 in the share's order (empty on the others, and unless
@@ -205,15 +200,11 @@ NodeValues node_values(const NodeSources& s, const SliceShare& share, bool omega
                        bool eddy, bool velocity) {
   const Decomposition& d = s.d;
   const int dim = d.dimension();
-  // A rank with nodes and no particle near them (none of its own, none in its halo) cannot
-  // answer for them: the particles leave a void wider than the halo there.
-  if (!on_every_rank(d, share.nodes.empty() || s.local.size() > 0))
-    throw std::invalid_argument(
-        "distributed particle products: a rank has grid nodes but no "
-        "particle within the halo width (" +
-        std::to_string(d.halo_width()) +
-        " m) of its sub-box: the particles leave a void wider than the "
-        "halo");
+  // The nodes' nearest particles (for |τ_SFS|, ν_t and the velocity), and the refusal of a void
+  // wider than the halo (for the fits too: a rank with nodes and no particle).
+  const analysis::NearestInBlock nearest =
+      nearest_within_halo(d, s.grid, s.local, share.block, s.total, "distributed particle products",
+                          tau || eddy || velocity);
   NodeValues v;
   if (omega2) {
     std::vector<double> values;
@@ -222,20 +213,6 @@ NodeValues node_values(const NodeSources& s, const SliceShare& share, bool omega
     v.omega2 = gather_slice(d, share, values);
   }
   if (!tau && !eddy && !velocity) return v;
-  analysis::NearestInBlock nearest;
-  if (!share.nodes.empty()) {
-    const double per_side = std::pow(static_cast<double>(s.total), 1.0 / dim);
-    nearest = analysis::nearest_particles_in_block(s.grid, s.local, share.block,
-                                                   static_cast<int>(std::lround(per_side)));
-  }
-  // A particle left out of `local` is at least the halo width from every node of the sub-box;
-  // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
-  const double halo2 = d.halo_width() * d.halo_width();
-  if (!on_every_rank(d, s.alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2))
-    throw std::invalid_argument(
-        "distributed particle products: a grid node's nearest particle lies further than the "
-        "halo width (" +
-        std::to_string(d.halo_width()) + " m): the particles leave a void wider than the halo");
   const auto at_nearest = [&](const std::vector<double>& field) {
     std::vector<double> values(share.nodes.size());
     for (std::size_t k = 0; k < values.size(); ++k) values[k] = field[nearest.particle[k]];
@@ -354,7 +331,7 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
     // an explicit model, on every rank alike.
     const bool has_eddy =
         !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
-    const NodeSources sources{d, grid, local, fit, omega, norm, total, alone};
+    const NodeSources sources{d, grid, local, fit, omega, norm, total};
     if (slice) {
       const SliceShare share = slice_share(d, grid, request);
       NodeValues v = node_values(sources, share, request.slice_omega2, request.slice_tau,

@@ -195,29 +195,9 @@ analysis::EnergySpectrum DistributedSpectrum::Impl::compute(const sim::ParticleA
   std::uint64_t my_count = owned.size(), total = 0;
   MPI_Allreduce(&my_count, &total, 1, MPI_UINT64_T, MPI_SUM, d.comm());
 
-  // Nearest particles of this rank's nodes; a cell list of the whole set's density.
-  analysis::NearestInBlock nearest;
-  bool found = true;
-  if (block.size() > 0 && local.size() > 0) {
-    const double per_side = std::pow(static_cast<double>(total), 1.0 / dim);
-    nearest = analysis::nearest_particles_in_block(grid, local, block,
-                                                   static_cast<int>(std::lround(per_side)));
-  } else if (block.size() > 0) {
-    found = false;  // nodes but no particle near them
-  }
-  // A particle left out of `local` is at least the halo width from every node of the sub-box;
-  // along an axis this rank is alone on, none is left out. The margin covers the ties' window.
-  bool alone = true;
-  for (int a = 0; a < dim; ++a) alone = alone && d.dims()[static_cast<std::size_t>(a)] == 1;
-  const double halo2 = d.halo_width() * d.halo_width();
-  found = found && (alone || nearest.max_distance2 * (1.0 + 1e-9) < halo2);
-  if (!on_every_rank(d, found))
-    throw std::invalid_argument(
-        "distributed_energy_spectrum: a grid node's nearest particle lies further than the halo "
-        "width (" +
-        std::to_string(d.halo_width()) +
-        " m) on some rank, so a particle of another rank may be nearer: the particles leave a "
-        "void wider than the halo");
+  // Nearest particles of this rank's nodes, checked to be the whole set's.
+  const analysis::NearestInBlock nearest =
+      nearest_within_halo(d, grid, local, block, total, "distributed_energy_spectrum");
 
   // The spatial mean of the velocity over all nodes (SPEC §5), summed exactly.
   const std::size_t nodes = block.size();

@@ -261,7 +261,7 @@ sim::SolverState scatter_state(const Decomposition& d, const sim::SolverState& w
 }
 
 IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::uint64_t> ids,
-                                   const std::vector<const std::vector<double>*>& columns) {
+                                   const std::vector<std::span<const double>>& columns) {
   const unsigned long long n = ids.size();
   unsigned long long all = 0;
   MPI_Allreduce(&n, &all, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, d.comm());
@@ -276,8 +276,8 @@ IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::
   MPI_Allreduce(MPI_IN_PLACE, shape, 2, MPI_INT, MPI_MAX, d.comm());
   const std::size_t width = all > 0 ? static_cast<std::size_t>(shape[0]) : columns.size();
   int bad = all > 0 && shape[0] != -shape[1] ? 1 : 0;
-  for (const std::vector<double>* c : columns)
-    if (c->size() != ids.size()) bad = 1;
+  for (const std::span<const double> c : columns)
+    if (c.size() != ids.size()) bad = 1;
   const std::size_t stride = width + 1;  // + the id's bits
   std::vector<int> owner(ids.size());
   for (std::size_t i = 0; i < ids.size() && !bad; ++i) {
@@ -304,7 +304,7 @@ IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::
   std::vector<double> out(ids.size() * stride);
   for (std::size_t i = 0; i < ids.size(); ++i) {
     double* record = out.data() + next[static_cast<std::size_t>(owner[i])]++ * stride;
-    for (std::size_t c = 0; c < width; ++c) record[c] = (*columns[c])[i];
+    for (std::size_t c = 0; c < width; ++c) record[c] = columns[c][i];
     std::memcpy(&record[width], &ids[i], sizeof(double));
   }
   std::vector<int> receive_counts(ranks), receive_offsets(ranks);
@@ -344,9 +344,9 @@ IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::
 
 sim::SolverState id_block(const Decomposition& d, const sim::SolverState& local,
                           std::uint64_t& first, std::uint64_t& total) {
-  const auto fields = fields_of(local);
-  IdBlockColumns block = columns_in_id_block(
-      d, local.particles.id, std::vector<const std::vector<double>*>(fields.begin(), fields.end()));
+  std::vector<std::span<const double>> fields;
+  for (const std::vector<double>* f : fields_of(local)) fields.emplace_back(*f);
+  IdBlockColumns block = columns_in_id_block(d, local.particles.id, fields);
   first = block.first;
   total = block.total;
   // The shape of the state: ν_t when any rank's particles have it (a rank may hold none).

@@ -53,7 +53,7 @@ struct IdBlockColumns {
   std::vector<std::vector<double>> columns;
 };
 IdBlockColumns columns_in_id_block(const Decomposition& d, std::span<const std::uint64_t> ids,
-                                   const std::vector<const std::vector<double>*>& columns);
+                                   const std::vector<std::span<const double>>& columns);
 
 /// Every particle of `state` (this rank's, any order) sent to the rank whose sub-box holds its
 /// list reference position: this rank receives its share, in rank order of the senders. What
