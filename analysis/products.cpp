@@ -237,6 +237,7 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
     p.file = snapshot.ranks->request.particles.path;
     p.count = written_by_ranks->count;
     for (const SliceField f : written_by_ranks->fields) p.fields.push_back({f, units(f), {}});
+    p.view = snapshot.ranks->view;
     frame.particles = std::move(p);
   }
   if (fields_from_ranks) {
@@ -403,6 +404,11 @@ AnalysisFrame analyse(const SnapshotPtr& snapshot_ptr, const AnalysisConfig& ask
         snapshot.particles.eddy_viscosity.size() == snapshot.size())
       p.fields.push_back({SliceField::EddyViscosity, units(SliceField::EddyViscosity),
                           snapshot.particles.eddy_viscosity});
+    if (snapshot.view.max_points > 0)
+      for (const ParticleFieldProduct& f : p.fields)
+        if (f.field == snapshot.view.field)
+          p.view = select_view_points(snapshot.particles, snapshot.size(), f.values, f.field,
+                                      view_stride(snapshot.size(), snapshot.view.max_points));
     frame.particles = std::move(p);
   }
 

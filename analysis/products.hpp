@@ -73,6 +73,9 @@ struct ParticlesProduct {
   /// it holds, without values, and the snapshot holds no particles.
   std::string file;
   std::uint64_t count = 0;
+  /// The 3D particle view's points the snapshot asked for (Snapshot::view), from the ranks or
+  /// selected here; none when not asked for or when the run lacks the field (ν_t).
+  std::optional<ViewPoints> view;
 };
 
 struct AnalysisFrame {

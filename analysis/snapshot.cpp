@@ -45,6 +45,32 @@ bool cubic(const sim::PeriodicBox& box) {
 
 DistributedProducts::~DistributedProducts() = default;
 
+std::uint64_t view_stride(std::uint64_t total, std::uint64_t max_points) {
+  if (max_points == 0 || total <= max_points) return 1;
+  return total / max_points + (total % max_points != 0 ? 1 : 0);
+}
+
+ViewPoints select_view_points(const sim::ParticleArrays& p, std::size_t count,
+                              std::span<const double> values, SliceField field,
+                              std::uint64_t stride) {
+  std::vector<std::size_t> chosen;
+  for (std::size_t i = 0; i < count; ++i)
+    if (p.id[i] % stride == 0) chosen.push_back(i);
+  std::sort(chosen.begin(), chosen.end(),
+            [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
+  ViewPoints v;
+  v.field = field;
+  v.stride = stride;
+  for (int a = 0; a < p.dimension; ++a) {
+    std::vector<double>& x = v.position[static_cast<std::size_t>(a)];
+    x.reserve(chosen.size());
+    for (const std::size_t i : chosen) x.push_back(p.position[a][i]);
+  }
+  v.values.reserve(chosen.size());
+  for (const std::size_t i : chosen) v.values.push_back(values[i]);
+  return v;
+}
+
 bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file) {
   const bool mls = config.gridding.vorticity == VorticityEstimate::Mls;
   switch (p) {
@@ -106,6 +132,8 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
     r.particles.step = snapshot.step;
     r.particles.metadata = particles->metadata;
   }
+  if (config.wants(Product::Particles) && config.particle_fields.contains(snapshot.view.field))
+    r.view = snapshot.view;
   return r;
 }
 
@@ -116,8 +144,10 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissi
 }
 
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
-                          double energy_dissipation, const ParticleFileTarget* particles) {
+                          double energy_dissipation, const ParticleFileTarget* particles,
+                          const ViewPointsRequest& view) {
   auto snapshot = describe(simulation, energy_dissipation);
+  snapshot->view = view;
   const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
   const bool on_ranks = ranks && cubic(snapshot->box);
   const auto served = [&](Product p) {

@@ -7,6 +7,7 @@
 #include <limits>
 #include <memory>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -50,6 +51,35 @@ struct GridFieldsRequest {
   bool operator==(const GridFieldsRequest&) const = default;
 };
 
+/// The points of the 3D particle view (render.view3d): at most `max_points` particles, those
+/// whose id is a multiple of view_stride(N, max_points), with one field's values. 0: no view.
+struct ViewPointsRequest {
+  std::uint64_t max_points = 0;
+  SliceField field = SliceField::VorticitySquared;
+  bool operator==(const ViewPointsRequest&) const = default;
+};
+
+/// The view's points in id order: positions per axis of the run's dimension and the field's
+/// values; every `stride`-th particle by id.
+struct ViewPoints {
+  SliceField field = SliceField::VorticitySquared;
+  std::uint64_t stride = 1;
+  std::array<std::vector<double>, 3> position;
+  std::vector<double> values;
+  std::size_t size() const { return values.size(); }
+  bool operator==(const ViewPoints&) const = default;
+};
+
+/// The id stride that leaves at most `max_points` of `total` particles (ids 0 … total-1):
+/// ceil(total / max_points), at least 1.
+std::uint64_t view_stride(std::uint64_t total, std::uint64_t max_points);
+
+/// The view points among the first `count` particles of `p` (in any order) and their
+/// `values`: those whose id is a multiple of `stride`, sorted by id.
+ViewPoints select_view_points(const sim::ParticleArrays& p, std::size_t count,
+                              std::span<const double> values, SliceField field,
+                              std::uint64_t stride);
+
 /// The particle products a distributed solver's ranks compute where the particles live
 /// (DistributedProducts::particle_products), as a run's configuration asks for them: the
 /// "mls" vorticity (the default estimate, config.hpp), the ω², |τ_SFS| and ν_t slices and the
@@ -70,6 +100,7 @@ struct RanksRequest {
   /// Product "particles": the file the ranks write (ParticleFileRequest), none by default.
   ParticleFileRequest particles;
   GridFieldsRequest fields;  // product "fields"
+  ViewPointsRequest view;    // the 3D particle view's points (with product "particles")
   bool operator==(const RanksRequest&) const = default;
 };
 
@@ -99,6 +130,9 @@ struct RanksProducts {
   std::vector<double> fields_omega2;
   std::vector<double> fields_tau;
   std::vector<double> fields_eddy;
+  /// The 3D particle view's points on rank 0, when request.view asked for them (and the field
+  /// exists: ν_t only in a run with an explicit model).
+  std::optional<ViewPoints> view;
 };
 
 struct Snapshot {
@@ -132,6 +166,9 @@ struct Snapshot {
   /// need particles are then skipped for this snapshot (a live change asked for them after it
   /// was taken).
   bool has_particles = true;
+  /// The 3D particle view's points the renderer asks for with this snapshot (make_snapshot):
+  /// the product "particles" carries them (ParticlesProduct::view).
+  ViewPointsRequest view;
 
   int dimension() const { return box.dimension; }
   std::size_t size() const { return particles.size(); }
@@ -190,8 +227,11 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation,
 /// ranks too and nothing is gathered (the ranks write the particle file into
 /// particles->directory, when given, as RunDirectoryWriter would); otherwise the particles are
 /// gathered for them.
+/// `view`: the 3D particle view's points to carry with the product "particles" (the ranks
+/// select and send only those).
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN(),
-                          const ParticleFileTarget* particles = nullptr);
+                          const ParticleFileTarget* particles = nullptr,
+                          const ViewPointsRequest& view = {});
 
 }  // namespace sphles::analysis

@@ -132,8 +132,7 @@ void RenderSink::render_one(const analysis::AnalysisFrame& frame) {
     ++counters_.frames_skipped;
     return;
   }
-  const bool view3d_due = config.view3d.enabled && frame.particles &&
-                          frame.particles->file.empty() &&
+  const bool view3d_due = config.view3d.enabled && frame.particles && frame.particles->view &&
                           (last_view3d_time_ < 0.0 ||
                            frame.time >= last_view3d_time_ + config.view3d.every * (1.0 - 1e-9));
   if (view3d_due) last_view3d_time_ = frame.time;

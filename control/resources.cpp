@@ -448,7 +448,10 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   double render_bytes = 0.0;
   if (rendering) {
     render_bytes = kRenderSetupBytes + kRenderBytesPerPixel * render_pixels(spec.render) +
-                   (spec.render.view3d.enabled ? kView3dBytesPerParticle * n : 0.0);
+                   (spec.render.view3d.enabled
+                        ? kView3dBytesPerParticle *
+                              std::min(n, static_cast<double>(spec.render.view3d.max_points))
+                        : 0.0);
   }
 
   std::vector<MemoryPart> run_parts{
@@ -509,11 +512,9 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
     const std::vector<MemoryPart> run_rank = scaled(run_parts), setup_rank = scaled(setup_parts);
     r.memory = total(setup_rank) > total(run_rank) ? setup_rank : run_rank;
     r.memory_bytes = total(r.memory);
-    // The ranks write the particle file into the run directory unless the 3D particle view,
-    // rendered here, needs the particles (control's run loop).
-    const bool particle_file = !(spec.render.enabled() && spec.render.view3d.enabled);
+    // The ranks write the particle file into the run directory (control's run loop).
     const bool gathers = std::ranges::any_of(
-        a.products, [&](Product p) { return !analysis::served_by_ranks(a, p, particle_file); });
+        a.products, [&](Product p) { return !analysis::served_by_ranks(a, p, true); });
     for (const MemoryPart& p : run_parts)
       if (p.scope == PartScope::Service || (p.scope == PartScope::Gathered && gathers))
         r.service.push_back(p);

@@ -317,12 +317,15 @@ class Run::Impl::Loop {
   /// distributed solver computes the energy, spectrum and, when it serves every product, the
   /// particle products on its ranks (make_snapshot).
   void publish_snapshot() {
-    // A distributed solver's ranks write the particle file themselves, unless the renderer's
-    // 3D particle view needs the particles here.
-    const bool view3d = current_.render.enabled() && current_.render.view3d.enabled;
+    // A distributed solver's ranks write the particle file themselves and send the renderer's
+    // 3D particle view only its points.
+    const render::View3dConfig& view3d = current_.render.view3d;
+    analysis::ViewPointsRequest view;
+    if (current_.render.enabled() && view3d.enabled)
+      view = {static_cast<std::uint64_t>(view3d.max_points), view3d.field};
     const analysis::ParticleFileTarget target = writer_->particle_target();
-    analysis::SnapshotPtr snapshot = analysis::make_snapshot(
-        *simulation_, pipeline_->config(), latest_dissipation_, view3d ? nullptr : &target);
+    analysis::SnapshotPtr snapshot = analysis::make_snapshot(*simulation_, pipeline_->config(),
+                                                             latest_dissipation_, &target, view);
     const char* ranks = snapshot->velocity_spectrum && snapshot->ranks
                             ? "spectrum and particle products"
                         : snapshot->velocity_spectrum ? "spectrum"

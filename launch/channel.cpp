@@ -199,6 +199,16 @@ void encode(Encoder& e, const analysis::Histogram2D& h) {
   e.u64(h.total);
 }
 
+analysis::SliceField field_from_code(std::uint64_t code) {
+  if (code > static_cast<std::uint64_t>(analysis::SliceField::EddyViscosity))
+    throw ProtocolError("particle products: unknown particle field " + std::to_string(code));
+  return static_cast<analysis::SliceField>(code);
+}
+
+analysis::SliceField decode_field(Decoder& d) {
+  return field_from_code(d.u64());
+}
+
 analysis::Histogram2D decode_histogram(Decoder& d) {
   analysis::Histogram2D h;
   h.bins_x = small_int(d, "histogram bins");
@@ -230,6 +240,8 @@ void encode(Encoder& e, const analysis::RanksRequest& r) {
   e.string(r.particles.metadata.code_version);
   e.u64((r.fields.velocity ? kFieldsVelocity : 0) | (r.fields.omega2 ? kFieldsOmega2 : 0) |
         (r.fields.tau ? kFieldsTau : 0) | (r.fields.eddy ? kFieldsEddy : 0));
+  e.u64(r.view.max_points);
+  e.u64(static_cast<std::uint64_t>(r.view.field));
 }
 
 analysis::RanksRequest decode_ranks_request(Decoder& d) {
@@ -262,6 +274,8 @@ analysis::RanksRequest decode_ranks_request(Decoder& d) {
   r.fields.omega2 = (grid & kFieldsOmega2) != 0;
   r.fields.tau = (grid & kFieldsTau) != 0;
   r.fields.eddy = (grid & kFieldsEddy) != 0;
+  r.view.max_points = d.u64();
+  r.view.field = decode_field(d);
   return r;
 }
 
@@ -282,6 +296,13 @@ void encode(Encoder& e, const analysis::RanksProducts& p) {
     for (const analysis::SliceField f : p.particles->fields)
       fields.push_back(static_cast<std::uint64_t>(f));
     e.u64s(fields);
+  }
+  e.u64(p.view ? 1 : 0);
+  if (p.view) {
+    e.u64(static_cast<std::uint64_t>(p.view->field));
+    e.u64(p.view->stride);
+    for (const std::vector<double>& x : p.view->position) e.doubles(x);
+    e.doubles(p.view->values);
   }
   e.u64(p.statistics ? 1 : 0);
   if (!p.statistics) return;
@@ -311,11 +332,14 @@ analysis::RanksProducts decode_ranks_products(Decoder& d) {
   if (d.u64() != 0) {
     analysis::WrittenParticles& w = p.particles.emplace();
     w.count = d.u64();
-    for (const std::uint64_t f : d.u64s()) {
-      if (f > static_cast<std::uint64_t>(analysis::SliceField::EddyViscosity))
-        throw ProtocolError("particle products: unknown particle field " + std::to_string(f));
-      w.fields.push_back(static_cast<analysis::SliceField>(f));
-    }
+    for (const std::uint64_t f : d.u64s()) w.fields.push_back(field_from_code(f));
+  }
+  if (d.u64() != 0) {
+    analysis::ViewPoints& v = p.view.emplace();
+    v.field = decode_field(d);
+    v.stride = d.u64();
+    for (std::vector<double>& x : v.position) x = d.doubles();
+    v.values = d.doubles();
   }
   if (d.u64() == 0) return p;
   analysis::SubfilterStatisticsProduct& s = p.statistics.emplace();

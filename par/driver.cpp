@@ -112,6 +112,11 @@ analysis::RanksRequest broadcast_request(MPI_Comm comm, analysis::RanksRequest r
   broadcast_string(comm, r.particles.path);
   broadcast_string(comm, r.particles.metadata.scene_json);
   broadcast_string(comm, r.particles.metadata.code_version);
+  // The 3D particle view's points.
+  unsigned long long view[2] = {r.view.max_points, static_cast<unsigned long long>(r.view.field)};
+  MPI_Bcast(view, 2, MPI_UNSIGNED_LONG_LONG, 0, comm);
+  r.view.max_points = view[0];
+  r.view.field = static_cast<analysis::SliceField>(view[1]);
   return r;
 }
 

@@ -226,6 +226,57 @@ NodeValues node_values(const NodeSources& s, const SliceShare& share, bool omega
   return v;
 }
 
+/// The 3D particle view's points on rank 0 (empty on the others): each rank selects its own
+/// particles (the first `mine` of `local`) whose id is a multiple of the stride, rank 0
+/// receives them and sorts them by id, as analysis::select_view_points does for all particles.
+/// Collective over d.comm().
+analysis::ViewPoints gather_view_points(const Decomposition& d, const sim::ParticleArrays& local,
+                                        std::size_t mine, std::span<const double> values,
+                                        analysis::SliceField field, std::uint64_t total,
+                                        std::uint64_t max_points) {
+  const int dim = d.dimension();
+  const std::uint64_t stride = analysis::view_stride(total, max_points);
+  const analysis::ViewPoints own = analysis::select_view_points(local, mine, values, field, stride);
+  // Ids and the columns of the selected particles, rank by rank to rank 0.
+  std::vector<std::uint64_t> ids;
+  for (std::size_t i = 0; i < mine; ++i)
+    if (local.id[i] % stride == 0) ids.push_back(local.id[i]);
+  std::sort(ids.begin(), ids.end());
+  const int sent = static_cast<int>(ids.size());
+  std::vector<int> counts(static_cast<std::size_t>(d.size())), offsets(counts.size(), 0);
+  MPI_Gather(&sent, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, d.comm());
+  for (std::size_t r = 1; r < counts.size(); ++r) offsets[r] = offsets[r - 1] + counts[r - 1];
+  const bool root = d.rank() == 0;
+  const std::size_t received = root ? static_cast<std::size_t>(offsets.back() + counts.back()) : 0;
+  std::vector<std::uint64_t> all_ids(received);
+  MPI_Gatherv(ids.data(), sent, MPI_UINT64_T, all_ids.data(), counts.data(), offsets.data(),
+              MPI_UINT64_T, 0, d.comm());
+  const auto gather = [&](const std::vector<double>& column) {
+    std::vector<double> all(received);
+    MPI_Gatherv(column.data(), sent, MPI_DOUBLE, all.data(), counts.data(), offsets.data(),
+                MPI_DOUBLE, 0, d.comm());
+    return all;
+  };
+  std::array<std::vector<double>, 3> position;
+  for (int a = 0; a < dim; ++a)
+    position[static_cast<std::size_t>(a)] = gather(own.position[static_cast<std::size_t>(a)]);
+  const std::vector<double> all_values = gather(own.values);
+  analysis::ViewPoints v;
+  v.field = field;
+  v.stride = stride;
+  if (!root) return v;
+  std::vector<std::size_t> order(received);
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(),
+            [&](std::size_t a, std::size_t b) { return all_ids[a] < all_ids[b]; });
+  for (int a = 0; a < dim; ++a) {
+    const auto axis = static_cast<std::size_t>(a);
+    for (const std::size_t k : order) v.position[axis].push_back(position[axis][k]);
+  }
+  for (const std::size_t k : order) v.values.push_back(all_values[k]);
+  return v;
+}
+
 }  // namespace
 
 analysis::RanksProducts distributed_particle_products(const Decomposition& d,
@@ -238,10 +289,16 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
     if (box.length[static_cast<std::size_t>(a)] != box.length[0])
       throw std::invalid_argument("distributed particle products: the box must be a cube");
   const bool particles = !request.particles.path.empty();
+  const analysis::ViewPointsRequest& view = request.view;
+  const auto view_of = [&](analysis::SliceField f) {
+    return view.max_points > 0 && view.field == f;
+  };
   const bool fits = request.vorticity || request.slice_omega2 || request.statistics ||
-                    (particles && request.particles.omega2) || request.fields.omega2;
+                    (particles && request.particles.omega2) || request.fields.omega2 ||
+                    view_of(analysis::SliceField::VorticitySquared);
   const bool stress_needed = request.slice_tau || request.statistics ||
-                             (particles && request.particles.tau) || request.fields.tau;
+                             (particles && request.particles.tau) || request.fields.tau ||
+                             view_of(analysis::SliceField::SubfilterStressNorm);
   const bool slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
   if (request.points_per_side < 1 ||
       (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
@@ -347,6 +404,19 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
       result.fields_tau = std::move(v.tau);
       result.fields_eddy = std::move(v.eddy);
       result.fields_velocity = std::move(v.velocity);
+    }
+  }
+  if (view.max_points > 0) {
+    // ν_t only when the run has an explicit model, on every rank alike (as for the file).
+    const bool eddy = view.field == analysis::SliceField::EddyViscosity;
+    const bool has_field = !eddy || !on_every_rank(d, local.eddy_viscosity.size() != local.size() ||
+                                                          local.size() == 0);
+    if (has_field) {
+      const std::vector<double>& values = eddy ? local.eddy_viscosity
+                                          : view.field == analysis::SliceField::VorticitySquared
+                                              ? omega2
+                                              : stress.norm;
+      result.view = gather_view_points(d, local, mine, values, view.field, total, view.max_points);
     }
   }
   if (particles) {

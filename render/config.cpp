@@ -109,6 +109,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     view.field = analysis::slice_field_from_name(field, "render.view3d.field");
     v.number("every", view.every);
     read_size(v, view.width, view.height);
+    v.integer("max_points", view.max_points);
     view.colour = parse_mapping(v.object("colour"), view.colour);
     v.reject_unknown();
     if (view.enabled && (!analysis.wants(analysis::Product::Particles) ||
@@ -144,6 +145,7 @@ json render_config_to_json(const RenderConfig& c) {
             {"every", c.view3d.every},
             {"width", c.view3d.width},
             {"height", c.view3d.height},
+            {"max_points", c.view3d.max_points},
             {"colour", mapping_to_json(c.view3d.colour)}}}};
 }
 

@@ -2,6 +2,7 @@
 // they are colour-mapped (docs/rendering.md). Rendering is off unless the section asks for it.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <set>
@@ -25,6 +26,9 @@ struct View3dConfig {
   double every = 0.0;  // simulated time between 3D views [s]; 0 = with every analysis frame
   int width = 800, height = 800;
   ColourMapping colour = log_mapping();
+  /// At most this many particles are drawn: every k-th by id, k = ceil(N / max_points)
+  /// (analysis::view_stride); only those are sent from the ranks of a distributed run.
+  std::int64_t max_points = 1'000'000;
 };
 
 struct RenderConfig {

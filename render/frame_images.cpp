@@ -43,27 +43,24 @@ std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame
     image.milliseconds = elapsed_ms(start);
     images.push_back(std::move(image));
   }
-  // (A particle file the ranks wrote comes with no particles here.)
-  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->snapshot &&
-      frame.particles->file.empty()) {
-    const analysis::Snapshot& snapshot = *frame.particles->snapshot;
-    for (const analysis::ParticleFieldProduct& field : frame.particles->fields) {
-      if (field.field != config.view3d.field) continue;
-      const auto start = Clock::now();
-      const auto& x = snapshot.particles.position;
-      ParticleCloud cloud;
-      cloud.x = x[0];
-      cloud.y = x[1];
-      if (snapshot.dimension() == 3) cloud.z = x[2];
-      cloud.values = field.values;
-      cloud.box_length = snapshot.box.length[0];
-      cloud.field_name = std::string(analysis::slice_field_name(field.field));
-      cloud.units = field.units;
-      FrameImage image{"view3d", render_particles_png(cloud, config.view3d.colour, labels,
-                                                      config.view3d.width, config.view3d.height)};
-      image.milliseconds = elapsed_ms(start);
-      images.push_back(std::move(image));
-    }
+  // The view's points (at most render.view3d.max_points, selected by id where the particles
+  // live: analysis::ViewPoints).
+  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->view &&
+      frame.particles->view->field == config.view3d.field && frame.particles->snapshot) {
+    const analysis::ViewPoints& view = *frame.particles->view;
+    const auto start = Clock::now();
+    ParticleCloud cloud;
+    cloud.x = view.position[0];
+    cloud.y = view.position[1];
+    if (frame.dimension == 3) cloud.z = view.position[2];
+    cloud.values = view.values;
+    cloud.box_length = frame.particles->snapshot->box.length[0];
+    cloud.field_name = std::string(analysis::slice_field_name(view.field));
+    cloud.units = std::string(analysis::slice_field_units(view.field));
+    FrameImage image{"view3d", render_particles_png(cloud, config.view3d.colour, labels,
+                                                    config.view3d.width, config.view3d.height)};
+    image.milliseconds = elapsed_ms(start);
+    images.push_back(std::move(image));
   }
   return images;
 }

@@ -976,9 +976,14 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
                                     SliceField::EddyViscosity};
   one.time = 0.25;
   one.step = 7;
+  // With the 3D particle view's points: every k-th particle by id (k > 1 here).
+  one.view = {300, SliceField::VorticitySquared};
+  const analysis::AnalysisFrame one_frame = analysis::analyse(one, with_particles);
+  ASSERT_TRUE(one_frame.particles && one_frame.particles->view);
+  EXPECT_GT(one_frame.particles->view->stride, 1u);
   if (d.rank() == 0) {
     analysis::RunDirectoryWriter writer(directory.path / "one", metadata);
-    writer.write(analysis::analyse(one, with_particles));
+    writer.write(one_frame);
     EXPECT_EQ(writer.last_error(), "");
     std::filesystem::create_directories(directory.path / "ranks" / "snapshots");
   }
@@ -996,6 +1001,34 @@ void distributed_particle_products_equal_one_process(int per_side, double drift)
                                      SliceField::EddyViscosity}));
   EXPECT_EQ(written.mean_vorticity_squared, got.mean_vorticity_squared);
   EXPECT_EQ(written.slice_tau, got.slice_tau);
+  // The view's points, sent to rank 0 only: those one process selects, bit for bit, for each
+  // field (the others asked without a file).
+  ASSERT_TRUE(written.view);
+  EXPECT_EQ(written.view->stride, one_frame.particles->view->stride);
+  if (d.rank() == 0) {
+    EXPECT_EQ(*written.view, *one_frame.particles->view);
+  } else {
+    EXPECT_EQ(written.view->size(), 0u);
+  }
+  for (const SliceField field : {SliceField::SubfilterStressNorm, SliceField::EddyViscosity}) {
+    one.view = {300, field};
+    const analysis::AnalysisFrame f = analysis::analyse(one, with_particles);
+    ASSERT_TRUE(f.particles && f.particles->view);
+    analysis::RanksRequest view_only = request;
+    view_only.view = one.view;
+    const analysis::RanksProducts v =
+        distributed_particle_products(d, mine, sim::KernelType::WendlandC4, support, view_only);
+    ASSERT_TRUE(v.view);
+    if (d.rank() == 0) {
+      EXPECT_EQ(*v.view, *f.particles->view) << analysis::slice_field_name(field);
+    }
+    // ν_t of an implicit run: no view, on every rank.
+    if (field == SliceField::EddyViscosity) {
+      EXPECT_FALSE(distributed_particle_products(d, implicit, sim::KernelType::WendlandC4, support,
+                                                 view_only)
+                       .view);
+    }
+  }
   if (d.rank() == 0) {
     const io::ParticleSnapshotContents want =
         io::read_particle_snapshot(directory.path / "one" / "snapshots" / name);

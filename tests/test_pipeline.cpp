@@ -3,11 +3,14 @@
 #include <gtest/gtest.h>
 
 #include <hdf5.h>
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <numeric>
+#include <random>
 
 #include <cstdlib>
 #include <regex>
@@ -532,6 +535,80 @@ TEST(Products, AParticleFileTheRanksWroteIsIndexedNotWritten) {
   const AnalysisFrame later = analyse(ranks, energy);
   ASSERT_TRUE(later.particles);
   EXPECT_EQ(later.particles->file, request.particles.path);
+}
+
+TEST(Products, ViewStrideLeavesAtMostTheMaximum) {
+  EXPECT_EQ(view_stride(100, 1000), 1u);
+  EXPECT_EQ(view_stride(1000, 1000), 1u);
+  EXPECT_EQ(view_stride(1001, 1000), 2u);
+  EXPECT_EQ(view_stride(3000, 1000), 3u);
+  EXPECT_EQ(view_stride(3001, 1000), 4u);
+  EXPECT_EQ(view_stride(134217728, 1000000), 135u);  // 512³: 994 225 points
+  EXPECT_EQ(view_stride(5, 0), 1u);
+  for (const std::uint64_t total : {999ULL, 12345ULL, 884736ULL, 134217728ULL})
+    for (const std::uint64_t max : {1000ULL, 4096ULL, 1000000ULL}) {
+      const std::uint64_t k = view_stride(total, max);
+      EXPECT_LE((total + k - 1) / k, max) << total << " " << max;  // ids 0, k, 2k, ...
+      if (k > 1) {                                                 // the smallest such stride
+        EXPECT_GT((total + k - 2) / (k - 1), max) << total << " " << max;
+      }
+    }
+}
+
+// The 3D particle view's points: every k-th particle by id, in id order, with the values of
+// the field at those particles, whatever order the snapshot holds them in; from the ranks
+// they are passed on as they came.
+TEST(Products, ViewPointsAreEveryKthParticleByIdInIdOrder) {
+  const SnapshotPtr packed = small_tgv_snapshot("tgv3d", 16);
+  auto shuffled = std::make_shared<Snapshot>(*packed);
+  sim::ParticleArrays& p = shuffled->particles;
+  std::vector<std::uint32_t> order(p.size());
+  std::iota(order.begin(), order.end(), 0u);
+  std::shuffle(order.begin(), order.end(), std::mt19937(7));
+  p.reorder(order);
+  AnalysisConfig config;
+  config.every = 1.0;
+  config.products = {Product::Particles};
+  config.particle_fields = {SliceField::VorticitySquared, SliceField::SubfilterStressNorm};
+  shuffled->view = {1000, SliceField::SubfilterStressNorm};  // 4096 particles: every 5th
+  const AnalysisFrame frame = analyse(shuffled, config);
+  ASSERT_TRUE(frame.particles && frame.particles->view);
+  const ViewPoints& view = *frame.particles->view;
+  EXPECT_EQ(view.stride, 5u);
+  EXPECT_EQ(view.field, SliceField::SubfilterStressNorm);
+  ASSERT_EQ(view.size(), 820u);  // ids 0, 5, ..., 4095
+  std::vector<std::size_t> at(p.size());
+  for (std::size_t i = 0; i < p.size(); ++i) at[p.id[i]] = i;
+  const std::vector<double>& tau = frame.particles->fields[1].values;
+  for (std::size_t k = 0; k < view.size(); ++k) {
+    const std::size_t i = at[5 * k];
+    for (std::size_t a = 0; a < 3; ++a) ASSERT_EQ(view.position[a][k], p.position[a][i]) << k;
+    ASSERT_EQ(view.values[k], tau[i]) << k;
+  }
+  // Below the maximum: every particle; not asked for, or a field the analysis lacks: none.
+  shuffled->view = {10000, SliceField::VorticitySquared};
+  const AnalysisFrame all = analyse(shuffled, config);
+  ASSERT_TRUE(all.particles && all.particles->view);
+  EXPECT_EQ(all.particles->view->size(), p.size());
+  EXPECT_EQ(all.particles->view->values[0], all.particles->fields[0].values[at[0]]);
+  shuffled->view = {};
+  EXPECT_FALSE(analyse(shuffled, config).particles->view);
+  shuffled->view = {1000, SliceField::EddyViscosity};
+  EXPECT_FALSE(analyse(shuffled, config).particles->view);
+
+  // The request carries the view with the product "particles" and its field.
+  shuffled->view = {1000, SliceField::SubfilterStressNorm};
+  EXPECT_EQ(ranks_request(*shuffled, config).view, shuffled->view);
+  AnalysisConfig omega_only = config;
+  omega_only.particle_fields = {SliceField::VorticitySquared};
+  EXPECT_EQ(ranks_request(*shuffled, omega_only).view, ViewPointsRequest{});
+  RanksProducts values;
+  values.request = ranks_request(*shuffled, config);
+  values.particles = WrittenParticles{p.size(), {SliceField::SubfilterStressNorm}};
+  values.view = view;
+  const AnalysisFrame ranks = analyse(without_particles(*shuffled, values), config);
+  ASSERT_TRUE(ranks.particles && ranks.particles->view);
+  EXPECT_EQ(*ranks.particles->view, view);
 }
 
 TEST(Products, TwoDimensionalRunHasWholeFieldSliceAndAlignment) {

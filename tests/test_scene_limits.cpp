@@ -184,6 +184,7 @@ TEST(SceneLimits, BoundsAreAcceptedAndTheNextValueBeyondIsRefused) {
   for (const std::string key :
        {"render.width", "render.height", "render.view3d.width", "render.view3d.height"})
     expect_bound(tgv3d, key, max_side, max_side + 1, key);
+  expect_bound(tgv3d, "render.view3d.max_points", 1000, 999, "render.view3d.max_points");
 }
 
 TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {

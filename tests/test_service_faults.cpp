@@ -666,7 +666,8 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
     r = api.post("/api/estimate", particle_estimate);
     ASSERT_EQ(r.status, 200) << r.body;
     gathering = r.body_json();
-    // Particle snapshots are written by the ranks, unless the 3D particle view is rendered here.
+    // Particle snapshots are written by the ranks, and the 3D particle view is sent only its
+    // points: the server renders it without holding the particles.
     json particles = request;
     particles["scene"]["analysis"]["products"] = {"energy", "particles"};
     r = api.post("/api/estimate", particles);
@@ -676,7 +677,9 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
     particles["scene"]["render"] = {{"view3d", {{"enabled", true}}}};
     r = api.post("/api/estimate", particles);
     ASSERT_EQ(r.status, 200) << r.body;
-    EXPECT_TRUE(part_names(r.body_json()["per_rank"]["service"]).contains("snapshots")) << r.body;
+    EXPECT_EQ(part_names(r.body_json()["per_rank"]["service"]),
+              (std::set<std::string>{"analysis", "rendering"}))
+        << r.body;
   }
   ASSERT_EQ(whole["admitted"], true) << whole;
   EXPECT_TRUE(whole["rank_memory_limit_bytes"].is_null());

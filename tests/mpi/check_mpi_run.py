@@ -43,6 +43,8 @@ SCENE_SETTINGS = [
     '"fields"]',
     'analysis.grid_fields=["velocity","omega2","tau_sfs"]',
     'analysis.particle_fields=["omega2","tau_sfs"]',
+    "render.view3d.enabled=true", "render.view3d.max_points=1000",
+    "render.view3d.width=320", "render.view3d.height=320",
 ]
 
 
@@ -112,6 +114,20 @@ def same_particle_products(reference, other, label):
           "for bit")
 
 
+def same_views(reference, other, label, count):
+    """The 3D particle view's frames (every second particle by id of 1600: render.view3d.
+    max_points = 1000), drawn from the points the ranks sent, the same bytes as one process's."""
+    names = sorted(n for n in os.listdir(os.path.join(reference, "frames"))
+                   if n.startswith("view3d_") and n.endswith(".png"))
+    if len(names) != count or names != sorted(
+            n for n in os.listdir(os.path.join(other, "frames"))
+            if n.startswith("view3d_") and n.endswith(".png")):
+        sys.exit(f"{label}: expected {count} view3d frames in both runs, found {names}")
+    same_bytes(reference, other, "frames", names, label)
+    print(f"{label}: {len(names)} 3D particle views from the ranks' points equal one process's "
+          "byte for byte")
+
+
 def main():
     sphles, mpiexec, work = sys.argv[1:4]
     scene = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scenes",
@@ -162,6 +178,7 @@ def main():
     same_particle_products(one, two, "2 ranks")
     same_particle_snapshots(one, two, "2 ranks", 5, ["omega2", "tau_sfs"])
     same_grid_fields(one, two, "2 ranks", 5)
+    same_views(one, two, "2 ranks", 5)
     same_final_state(one, two, "2 ranks")
     with open(os.path.join(one, "timeseries.csv")) as f1, \
             open(os.path.join(two, "timeseries.csv")) as f2:

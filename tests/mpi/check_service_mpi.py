@@ -42,7 +42,9 @@ SCENE = {"preset": "tgv2d",
                                              "sfs_stats", "particles", "fields"],
                                 "grid_fields": ["velocity", "omega2", "tau_sfs"],
                                 "particle_fields": ["omega2", "tau_sfs"]},
-                   "render": {"fields": ["omega2", "tau_sfs"]}}}
+                   "render": {"fields": ["omega2", "tau_sfs"],
+                              "view3d": {"enabled": True, "max_points": 1000,
+                                         "width": 320, "height": 320}}}}
 
 
 def request(base, method, path, body=None):
@@ -220,6 +222,17 @@ def main():
         status, image = request(base, "GET", f"/api/runs/{ids[2]}/images/omega2")
         if status != 200 or not image.startswith(b"\x89PNG"):
             sys.exit(f"the 2-rank run serves no omega2 image: {status}")
+        # The 3D particle view, drawn from the points the job's ranks sent (every second
+        # particle by id) at every analysis frame. (Its title names the run, so the two runs'
+        # frames differ; mpi_run compares them with one process's byte for byte.)
+        for run_dir in (dirs[1], dirs[2]):
+            views = [n for n in os.listdir(os.path.join(run_dir, "frames"))
+                     if n.startswith("view3d_") and n.endswith(".png")]
+            if len(views) != snapshots:
+                sys.exit(f"{run_dir}: expected {snapshots} view3d frames, found {views}")
+        status, image = request(base, "GET", f"/api/runs/{ids[2]}/images/view3d")
+        if status != 200 or not image.startswith(b"\x89PNG"):
+            sys.exit(f"the 2-rank run serves no view3d image: {status}")
         with open(os.path.join(dirs[2], "job.log")) as f:
             if "rank 0 of 2 done" not in f.read():
                 sys.exit("job.log does not show the job's rank 0 finishing")
