@@ -50,14 +50,24 @@ std::uint64_t view_stride(std::uint64_t total, std::uint64_t max_points) {
   return total / max_points + (total % max_points != 0 ? 1 : 0);
 }
 
-ViewPoints select_view_points(const sim::ParticleArrays& p, std::size_t count,
-                              std::span<const double> values, SliceField field,
-                              std::uint64_t stride) {
+std::vector<std::size_t> view_point_indices(const sim::ParticleArrays& p, std::size_t count,
+                                            std::uint64_t stride) {
   std::vector<std::size_t> chosen;
   for (std::size_t i = 0; i < count; ++i)
     if (p.id[i] % stride == 0) chosen.push_back(i);
   std::sort(chosen.begin(), chosen.end(),
             [&](std::size_t a, std::size_t b) { return p.id[a] < p.id[b]; });
+  return chosen;
+}
+
+ViewPoints select_view_points(const sim::ParticleArrays& p, std::size_t count,
+                              std::span<const double> values, SliceField field,
+                              std::uint64_t stride) {
+  return view_points_at(p, view_point_indices(p, count, stride), values, field, stride);
+}
+
+ViewPoints view_points_at(const sim::ParticleArrays& p, std::span<const std::size_t> chosen,
+                          std::span<const double> values, SliceField field, std::uint64_t stride) {
   ViewPoints v;
   v.field = field;
   v.stride = stride;

@@ -74,8 +74,17 @@ struct ViewPoints {
 /// ceil(total / max_points), at least 1.
 std::uint64_t view_stride(std::uint64_t total, std::uint64_t max_points);
 
+/// The indices among the first `count` particles of `p` (in any order) whose id is a multiple
+/// of `stride`, in ascending id order.
+std::vector<std::size_t> view_point_indices(const sim::ParticleArrays& p, std::size_t count,
+                                            std::uint64_t stride);
+
+/// The view points at `chosen` (view_point_indices) with their `values`, in that order.
+ViewPoints view_points_at(const sim::ParticleArrays& p, std::span<const std::size_t> chosen,
+                          std::span<const double> values, SliceField field, std::uint64_t stride);
+
 /// The view points among the first `count` particles of `p` (in any order) and their
-/// `values`: those whose id is a multiple of `stride`, sorted by id.
+/// `values`: those of view_point_indices, in id order.
 ViewPoints select_view_points(const sim::ParticleArrays& p, std::size_t count,
                               std::span<const double> values, SliceField field,
                               std::uint64_t stride);

@@ -236,12 +236,11 @@ analysis::ViewPoints gather_view_points(const Decomposition& d, const sim::Parti
                                         std::uint64_t max_points) {
   const int dim = d.dimension();
   const std::uint64_t stride = analysis::view_stride(total, max_points);
-  const analysis::ViewPoints own = analysis::select_view_points(local, mine, values, field, stride);
+  const std::vector<std::size_t> chosen = analysis::view_point_indices(local, mine, stride);
+  const analysis::ViewPoints own = analysis::view_points_at(local, chosen, values, field, stride);
   // Ids and the columns of the selected particles, rank by rank to rank 0.
   std::vector<std::uint64_t> ids;
-  for (std::size_t i = 0; i < mine; ++i)
-    if (local.id[i] % stride == 0) ids.push_back(local.id[i]);
-  std::sort(ids.begin(), ids.end());
+  for (const std::size_t i : chosen) ids.push_back(local.id[i]);
   const int sent = static_cast<int>(ids.size());
   std::vector<int> counts(static_cast<std::size_t>(d.size())), offsets(counts.size(), 0);
   MPI_Gather(&sent, 1, MPI_INT, counts.data(), 1, MPI_INT, 0, d.comm());
