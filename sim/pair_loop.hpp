@@ -5,7 +5,8 @@
 // gives the contribution of every neighbour j inside the kernel support, the loop sums them,
 // and the evaluator's `finish` writes the sums. The loop owns what is not physics:
 //  - the pair geometry: x_ij = x_i - x_j through a geometry policy (PeriodicGeometry: the minimum
-//    image of the periodic box; a halo geometry can take its place), r² and r;
+//    image of the periodic box, skipped for the particles at least H from its faces, where it is
+//    the plain difference bit for bit; a halo geometry can take its place), r² and r;
 //  - the support test 0 < r < H (r = 0 too for evaluators with coincident_pairs, the density);
 //  - the threading: OpenMP over i, each i summed by one thread in a fixed order, so results do
 //    not depend on the thread count;
@@ -56,7 +57,29 @@ struct Pair {
   double r;
 };
 
-/// x_ij under the minimum image of the periodic box.
+/// x_ij = x_i - x_j as the plain difference of the stored positions: the geometry of the
+/// particles PeriodicGeometry::interior finds far enough from the box's faces.
+template <int Dim>
+class DirectGeometry {
+ public:
+  explicit DirectGeometry(const double* const (&x)[Dim]) {
+    for (int d = 0; d < Dim; ++d) x_[d] = x[d];
+  }
+  double separation(const double (&xi)[Dim], std::uint32_t j, double (&dx)[Dim]) const {
+    double r2 = 0.0;
+    for (int d = 0; d < Dim; ++d) {
+      dx[d] = xi[d] - x_[d][j];
+      r2 += dx[d] * dx[d];
+    }
+    return r2;
+  }
+
+ private:
+  const double* x_[Dim];
+};
+
+/// x_ij under the minimum image of the periodic box. The positions must lie in [0, L)
+/// (wrap_periodic), as the solver keeps them.
 template <int Dim>
 class PeriodicGeometry {
  public:
@@ -79,11 +102,34 @@ class PeriodicGeometry {
     }
     return r2;
   }
+  /// Whether x_i lies at least `reach` (times 1 + kInteriorMargin) from every face of the box.
+  /// Then every particle j within `reach` of i along each axis sits at x_i - x_ij without a
+  /// periodic shift, so the plain difference x_i - x_j is the minimum image bit for bit (no
+  /// select of `separation` fires), and a particle beyond `reach` stays beyond it in the plain
+  /// difference (which is never shorter than the minimum image). The pair loop then sums i's
+  /// pairs with direct(): the same results, without the minimum image's compares and blends.
+  bool interior(const double (&xi)[Dim], double reach) const {
+    const double margin = reach * (1.0 + kInteriorMargin);
+    bool inside = true;
+    for (int d = 0; d < Dim; ++d) inside &= (xi[d] >= margin) & (xi[d] <= length_[d] - margin);
+    return inside;
+  }
+  DirectGeometry<Dim> direct() const { return DirectGeometry<Dim>(x_); }
+
+  /// Relative headroom of interior() over the reach, far above the rounding of x_i ± reach.
+  static constexpr double kInteriorMargin = 1e-9;
 
  private:
   const double* x_[Dim];
   double length_[Dim];
   double half_length_[Dim];
+};
+
+/// A geometry with a shortcut for the particles far from the box's faces (PeriodicGeometry).
+template <class Geometry, int Dim>
+concept HasInteriorShortcut = requires(const Geometry& g, const double (&xi)[Dim]) {
+  { g.interior(xi, 1.0) } -> std::convertible_to<bool>;
+  g.direct();
 };
 
 /// The pairs inside the kernel support (0 < r < H) of every particle, in Verlet-list order: the
@@ -289,6 +335,15 @@ inline void evaluate_particle(const E& e, const Geometry& geometry,
   geometry.position(i, xi);
   double sum[E::outputs];
   for (double& s : sum) s = reduction_identity<E>();
+  if constexpr (HasInteriorShortcut<Geometry, Dim>) {
+    // Every pair that counts lies within the support radius (the interaction list's too).
+    if (geometry.interior(xi, std::sqrt(support2))) {
+      sum_pairs<Dim, S, TestSupport, Record>(e, geometry.direct(), own, xi, js, support2, sum,
+                                             keep);
+      e.finish(i, own, sum);
+      return;
+    }
+  }
   sum_pairs<Dim, S, TestSupport, Record>(e, geometry, own, xi, js, support2, sum, keep);
   e.finish(i, own, sum);
 }

@@ -1,7 +1,8 @@
 // The pair loop and its evaluators (sim/pair_loop.hpp, issue 18): every pairwise momentum term is
 // antisymmetric bit for bit, the vectorised and the ordered summation agree to round-off, the
 // interaction list holds exactly the pairs inside the support, and a pass over it equals the same
-// pass over the Verlet list.
+// pass over the Verlet list, and the shortcut for particles far from the box's faces is the
+// minimum image bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +10,7 @@
 #include <cmath>
 #include <cstring>
 #include <random>
+#include <tuple>
 #include <vector>
 
 #include "sim/pair_loop.hpp"
@@ -296,6 +298,79 @@ TEST(PairLoop, InteractionListIsTheVerletListCutToTheSupport) {
             << dim << "D axis " << d;
     });
   }
+}
+
+/// PeriodicGeometry without its interior shortcut: the minimum image for every particle.
+template <int Dim>
+class MinimumImageEverywhere {
+ public:
+  explicit MinimumImageEverywhere(const PeriodicGeometry<Dim>& g) : g_(g) {}
+  void position(std::size_t i, double (&xi)[Dim]) const { g_.position(i, xi); }
+  double separation(const double (&xi)[Dim], std::uint32_t j, double (&dx)[Dim]) const {
+    return g_.separation(xi, j, dx);
+  }
+
+ private:
+  PeriodicGeometry<Dim> g_;
+};
+
+template <int Dim>
+void check_interior_shortcut(int per_side) {
+  testing::RandomFlow flow = prepared_flow(Dim, per_side, 11);
+  const SolverConfig& c = flow.config;
+  ParticleArrays& p = flow.particles;
+  // Particles right at the shortcut's edge, x = H (1 + margin) from a face and just inside it,
+  // and right at the faces: the pairs that decide whether the edge is drawn correctly.
+  const double h = c.support_radius;
+  const double edge = h * (1.0 + PeriodicGeometry<Dim>::kInteriorMargin);
+  const double length = c.box.length[0];
+  const double at[] = {
+      std::nextafter(edge, 0.0),  edge, std::nextafter(edge, 2 * edge), length - edge, 0.0,
+      std::nextafter(length, 0.0)};
+  for (std::size_t k = 0; k < std::size(at); ++k) p.position[k % Dim][k] = at[k];
+  VerletNeighbourSearch search(c.box, h, 0.15 * h);
+  p.reorder(search.locality_order(view_positions(p)));
+  search.build(view_positions(p));
+  const Kernel<kernel_shape::WendlandC4, Dim> kernel(h);
+  const PeriodicGeometry<Dim> shortcut(c.box, p);
+  const MinimumImageEverywhere<Dim> everywhere(shortcut);
+  std::size_t interior = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    double xi[Dim];
+    shortcut.position(i, xi);
+    interior += shortcut.interior(xi, h) ? 1 : 0;
+  }
+  EXPECT_GT(interior, p.size() / 10) << Dim << "D: the shortcut is taken";
+  EXPECT_LT(interior, p.size()) << Dim << "D: and not taken";
+  const auto run = [&](const auto& geometry) {
+    InteractionList pairs;
+    compacting_pair_pass<Dim>(SummationDensity<Dim, decltype(kernel)>(kernel, c.fluid, p), geometry,
+                              search.list(), h, 0, p.size(), pairs);
+    std::vector<std::vector<std::uint32_t>> lists(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i)
+      lists[i].assign(pairs.of(i).begin(), pairs.of(i).end());
+    ThesisMomentum<Dim, decltype(kernel), false> e(kernel, c.fluid, view_velocity(p), p, nullptr);
+    pair_pass<Dim>(e, geometry, pairs, h, 0, p.size());
+    return std::tuple(p.density, lists, p.acceleration);
+  };
+  const auto [density_everywhere, lists_everywhere, a_everywhere] = run(everywhere);
+  const auto [density_shortcut, lists_shortcut, a_shortcut] = run(shortcut);
+  EXPECT_EQ(
+      std::memcmp(density_everywhere.data(), density_shortcut.data(), p.size() * sizeof(double)), 0)
+      << Dim << "D density";
+  std::size_t lists_differing = 0;
+  for (std::size_t i = 0; i < p.size(); ++i)
+    lists_differing += lists_everywhere[i] == lists_shortcut[i] ? 0 : 1;
+  EXPECT_EQ(lists_differing, 0u) << Dim << "D interaction lists";
+  for (int d = 0; d < Dim; ++d)
+    EXPECT_EQ(std::memcmp(a_everywhere[d].data(), a_shortcut[d].data(), p.size() * sizeof(double)),
+              0)
+        << Dim << "D acceleration, axis " << d;
+}
+
+TEST(PairLoop, InteriorShortcutIsTheMinimumImageBitForBit) {
+  check_interior_shortcut<3>(20);
+  check_interior_shortcut<2>(48);
 }
 
 /// A reduction other than a sum: the largest r² inside the support and the count of pairs there
