@@ -328,23 +328,26 @@ namespace pair_loop_detail {
 /// list.of(i).size()).
 template <int Dim, Summation S, bool TestSupport, bool Record, class E, class Geometry>
 inline void evaluate_particle(const E& e, const Geometry& geometry,
-                              std::span<const std::uint32_t> js, std::size_t i, double support2,
-                              std::uint32_t* keep) {
+                              std::span<const std::uint32_t> js, std::size_t i,
+                              double support_radius, std::uint32_t* keep) {
+  const double support2 = support_radius * support_radius;
   const typename E::Own own = e.own(i);
   double xi[Dim];
   geometry.position(i, xi);
   double sum[E::outputs];
   for (double& s : sum) s = reduction_identity<E>();
+  const auto sum_with = [&](const auto& g) {
+    sum_pairs<Dim, S, TestSupport, Record>(e, g, own, xi, js, support2, sum, keep);
+  };
   if constexpr (HasInteriorShortcut<Geometry, Dim>) {
     // Every pair that counts lies within the support radius (the interaction list's too).
-    if (geometry.interior(xi, std::sqrt(support2))) {
-      sum_pairs<Dim, S, TestSupport, Record>(e, geometry.direct(), own, xi, js, support2, sum,
-                                             keep);
-      e.finish(i, own, sum);
-      return;
-    }
+    if (geometry.interior(xi, support_radius))
+      sum_with(geometry.direct());
+    else
+      sum_with(geometry);
+  } else {
+    sum_with(geometry);
   }
-  sum_pairs<Dim, S, TestSupport, Record>(e, geometry, own, xi, js, support2, sum, keep);
   e.finish(i, own, sum);
 }
 
@@ -356,14 +359,13 @@ template <int Dim, Summation S = kDefaultSummation, class E, class List, class G
 void pair_pass(const E& e, const Geometry& geometry, const List& list, double support_radius,
                std::size_t begin, std::size_t end) {
   constexpr bool kTestSupport = !std::is_same_v<List, InteractionList>;
-  const double support2 = support_radius * support_radius;
   const auto first = static_cast<std::ptrdiff_t>(begin);
   const auto last = static_cast<std::ptrdiff_t>(end);
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t si = first; si < last; ++si) {
     const auto i = static_cast<std::size_t>(si);
     pair_loop_detail::evaluate_particle<Dim, S, kTestSupport, false>(e, geometry, list.of(i), i,
-                                                                     support2, nullptr);
+                                                                     support_radius, nullptr);
   }
 }
 
@@ -373,7 +375,6 @@ template <int Dim, Summation S = kDefaultSummation, class E, class Geometry>
 void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourList& list,
                           double support_radius, std::size_t begin, std::size_t end,
                           InteractionList& interactions) {
-  const double support2 = support_radius * support_radius;
   interactions.prepare(list, Dim);
   // Blocks of particles, each compacted into its thread's buffer and copied to a range of the
   // list reserved by an atomic counter; a block whose range lies beyond the array's end keeps
@@ -400,7 +401,7 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
       for (std::size_t i = first; i < last; ++i) {
         const std::span<const std::uint32_t> js = list.of(i);
         keep.resize(js.size());
-        pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support2,
+        pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support_radius,
                                                                 keep.data());
         // append_selected writes up to all of i's candidates before counting the kept ones.
         if (buffer.size() < used + js.size()) buffer.resize(2 * (used + js.size()));
