@@ -44,9 +44,20 @@ void check_run_options(const RunOptions& o) {
         "give either SCENE.json or --restart, not both (the scene is in the checkpoint)");
 }
 
+/// The signals that stop a run with a checkpoint. SIGUSR1 is there for MPI jobs and batch
+/// systems: Open MPI's mpirun forwards it to every rank and does nothing else, whereas on SIGINT
+/// or SIGTERM it sends the ranks SIGTERM and, odls_base_sigkill_timeout seconds later (default
+/// 1), SIGKILL; Slurm sends it ahead of a time limit with --signal=USR1@SECONDS.
+sigset_t stop_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int signal : {SIGINT, SIGTERM, SIGUSR1}) sigaddset(&signals, signal);
+  return signals;
+}
+
 }  // namespace
 
-/// Stops the run on SIGINT/SIGTERM: it finishes its step, writes a checkpoint and exits.
+/// Stops the run on SIGINT/SIGTERM/SIGUSR1: it finishes its step, writes a checkpoint and exits.
 std::atomic<control::Run*> g_interruptible_run{nullptr};
 
 /// Ranks of the MPI job this process was started in by mpirun or mpiexec (OpenMPI, or an MPI
@@ -137,14 +148,11 @@ int run_here(const RunOptions& options, par::Driver* driver) {
 
   g_interruptible_run = run.get();
   std::thread signal_waiter;
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
+  const sigset_t signals = stop_signals();
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   signal_waiter = std::thread([signals] {
     int signal = 0;
-    if (sigwait(&signals, &signal) == 0 && signal != SIGUSR1) {
+    if (sigwait(&signals, &signal) == 0) {
       if (control::Run* r = g_interruptible_run.load()) {
         std::fprintf(stderr, "sphles run: signal %d, stopping after this step\n", signal);
         try {
@@ -208,13 +216,10 @@ int run_command(const RunOptions& options) {
   if (options.dry_run) return dry_run(options);
   if (launched_ranks() <= 1) return run_here(options, nullptr);
   // Under mpirun: rank 0 runs as one process would, with the solver over every rank; the others
-  // serve it. mpirun forwards SIGINT and SIGTERM to every rank: they are blocked on all ranks
-  // before MPI starts its threads, so rank 0 alone acts on them (it stops after the step and
-  // writes a checkpoint, with every rank) and the others wait for its word.
-  sigset_t signals;
-  sigemptyset(&signals);
-  sigaddset(&signals, SIGINT);
-  sigaddset(&signals, SIGTERM);
+  // serve it. mpirun sends the stop signals to every rank: they are blocked on all ranks before
+  // MPI starts its threads, so rank 0 alone acts on them (it stops after the step and writes a
+  // checkpoint, with every rank) and the others wait for its word.
+  const sigset_t signals = stop_signals();
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   return par::drive_from_rank_zero([&](par::Driver& driver) { return run_here(options, &driver); });
 }
@@ -227,8 +232,9 @@ void add_run_command(CLI::App& app, int& exit_code) {
       "writing DIR/scene.json, DIR/run.json, DIR/timeseries.csv, checkpoints and the analysis "
       "products the scene asks for (docs/scenes.md). Under mpirun or mpiexec the solver spans "
       "the ranks, bitwise as one process (docs/scaling.md). Exit 0 when the end time is reached, "
-      "1 when the run fails or is stopped by a signal (it then writes a checkpoint), 2 for a bad "
-      "command line or scene.");
+      "1 when the run fails or is stopped by a signal (SIGINT, SIGTERM or SIGUSR1: it finishes "
+      "the step and writes a checkpoint; under Open MPI's mpirun send SIGUSR1, since on SIGINT "
+      "or SIGTERM mpirun kills the ranks 1 s later), 2 for a bad command line or scene.");
   run->add_option("scene", options->scene_file, "scene file (JSON) or preset name")
       ->type_name("SCENE.json|PRESET");
   repeatable(run->add_option("--set", options->overrides,

@@ -17,7 +17,7 @@ run writes id order) and the time series:
      Its checkpoints are written by both ranks into one file each (parallel HDF5), none gathered;
   3. the 2-rank run's middle checkpoint continued on 3 ranks (`--restart`), read by the 3
      ranks, each a part of the file.
-Then SIGTERM to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
+Then SIGUSR1 to mpiexec stops a 2-rank run as it stops one process: rank 0 finishes the step,
 every rank helps write a checkpoint, the exit code is 1, and one process continues from it.
 Usage: check_mpi_run.py SPHLES MPIEXEC WORKDIR
 """
@@ -28,12 +28,14 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 
 import h5py
 import numpy as np
 from compare_snapshots import same_bytes, same_grid_fields, same_particle_snapshots
 from compare_spectra import compare_spectra
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "cli"))
+from run_signals import stop_by_signal  # noqa: E402
 
 SCENE_SETTINGS = [
     "particles_per_side=40", "time.end=0.2", "initial.mass=summation",
@@ -199,43 +201,10 @@ def main():
         sys.exit("the 3-rank restart did not read its checkpoint on the ranks:\n" + log[-2000:])
     same_final_state(one, three, "restart of 2 ranks on 3")
 
-    stop_by_signal(sphles, mpi, scene, env, os.path.join(work, "stopped"))
-
-
-def rows(path):
-    try:
-        with open(path) as f:
-            return sum(1 for _ in f) - 1
-    except FileNotFoundError:
-        return 0
-
-
-def stop_by_signal(sphles, mpi, scene, env, out):
-    long_run = ["particles_per_side=40", "time.end=100", "packing.enabled=false"]
-    command = mpi + ["2", sphles, "run", scene, *[a for s in long_run for a in ("--set", s)],
-                     "--out", out]
-    print("+", " ".join(command), flush=True)
-    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 120
-    while rows(os.path.join(out, "timeseries.csv")) < 20:
-        if process.poll() is not None or time.monotonic() > deadline:
-            process.kill()
-            sys.exit("the long 2-rank run did not get going:\n" + process.communicate()[1])
-        time.sleep(0.2)
-    process.send_signal(signal.SIGTERM)
-    _, err = process.communicate(timeout=120)
-    if process.returncode != 1 or "stopped at" not in err:
-        sys.exit(f"SIGTERM: expected rc 1 and 'stopped at', got rc {process.returncode}:\n{err}")
-    files = checkpoints(out)
-    if not files:
-        sys.exit("SIGTERM: no checkpoint written")
-    with open(os.path.join(out, "timeseries.csv")) as f:
-        t_stop = float(list(csv.DictReader(f))[-1]["t"])
-    # One process continues a little from the checkpoint the 2 ranks wrote.
-    run([sphles, "run", "--restart", out, "--set", f"time.end={t_stop + 0.02}"], env)
-    print(f"SIGTERM: stopped at t = {t_stop} with {os.path.basename(files[-1])}; "
-          "one process continued from it")
+    # mpirun forwards SIGUSR1 to every rank and does nothing else (on SIGTERM it kills the
+    # ranks 1 s after forwarding it, whether their checkpoint is written or not).
+    stop_by_signal(mpi + ["2"], sphles, scene, os.path.join(work, "stopped"), signal.SIGUSR1,
+                   env)
 
 
 if __name__ == "__main__":

@@ -1,0 +1,83 @@
+#!/usr/bin/env python3
+"""A signal stops `sphles run` with a checkpoint that continues (app/run_command.cpp).
+
+For each of SIGINT, SIGTERM and SIGUSR1, a long 2D Taylor-Green run of one process is signalled
+once it has written 20 rows of its time series; it must exit 1, say "stopped at" and which
+signal stopped it, leave a complete checkpoint (no temporary file beside it) and continue from
+that checkpoint with `--restart`. tests/mpi/check_mpi_run.py uses `stop_by_signal` for a 2-rank
+run stopped through mpiexec.
+Usage: run_signals.py SPHLES SCENE WORKDIR
+"""
+import csv
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+LONG_RUN = ["particles_per_side=40", "time.end=1000", "packing.enabled=false"]
+
+
+def rows(path):
+    try:
+        with open(path) as f:
+            return sum(1 for _ in f) - 1
+    except FileNotFoundError:
+        return 0
+
+
+def stop_by_signal(launch, sphles, scene, out, signum, env):
+    """Starts `launch + [sphles, "run", scene, ...]` into `out`, sends `signum` to the launched
+    process (sphles, or mpiexec) once the run is going, checks the stop and continues the run
+    from its checkpoint with one process. Returns the time the run stopped at."""
+    name = signal.Signals(signum).name
+    command = launch + [sphles, "run", scene, *[a for s in LONG_RUN for a in ("--set", s)],
+                        "--out", out]
+    print("+", " ".join(command), flush=True)
+    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while rows(os.path.join(out, "timeseries.csv")) < 20:
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            sys.exit(f"{name}: the long run did not get going:\n" + process.communicate()[1])
+        time.sleep(0.2)
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=300)
+    expected = f"interrupted by signal {int(signum)}"
+    if process.returncode != 1 or "stopped at" not in err or expected not in err:
+        sys.exit(f"{name}: expected rc 1, 'stopped at' and '{expected}', got rc "
+                 f"{process.returncode}:\n{err}")
+    names = sorted(os.listdir(os.path.join(out, "checkpoints")))
+    files = [n for n in names if n.endswith(".h5")]
+    if not files:
+        sys.exit(f"{name}: no checkpoint written: {names}")
+    if any(".tmp" in n for n in names):
+        sys.exit(f"{name}: a temporary checkpoint file was left: {names}")
+    with open(os.path.join(out, "timeseries.csv")) as f:
+        t_stop = float(list(csv.DictReader(f))[-1]["t"])
+    if not 0 < t_stop < 1000:
+        sys.exit(f"{name}: the time series ends at t = {t_stop}")
+    # One process continues a little from the checkpoint.
+    more = [sphles, "run", "--restart", out, "--set", f"time.end={t_stop + 0.02}"]
+    print("+", " ".join(more), flush=True)
+    done = subprocess.run(more, env=env, capture_output=True, text=True, timeout=300)
+    if done.returncode != 0:
+        sys.exit(f"{name}: the restart failed with rc {done.returncode}:\n{done.stderr}")
+    print(f"{name}: stopped at t = {t_stop} with {files[-1]}; one process continued from it",
+          flush=True)
+    return t_stop
+
+
+def main():
+    sphles, scene, work = sys.argv[1:4]
+    shutil.rmtree(work, ignore_errors=True)
+    os.makedirs(work)
+    env = dict(os.environ, OMP_NUM_THREADS="1")
+    for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1):
+        stop_by_signal([], sphles, scene, os.path.join(work, signum.name), signum, env)
+
+
+if __name__ == "__main__":
+    main()
