@@ -32,6 +32,8 @@
 // and is reduced in list order.
 #pragma once
 
+#include <omp.h>
+
 #include <algorithm>
 #include <atomic>
 #include <cmath>
@@ -135,9 +137,9 @@ concept HasInteriorShortcut = requires(const Geometry& g, const double (&xi)[Dim
 /// The pairs inside the kernel support (0 < r < H) of every particle, in Verlet-list order: the
 /// list the passes after the density pass of a force evaluation loop over (no support test, 40 %
 /// fewer entries than the Verlet list). Built by density pass (compacting_pair_pass) at the
-/// positions of that evaluation; valid until the positions change. Sized by its use: the
-/// entries of a block of particles sit together wherever the block's thread placed them, in an
-/// array of about kMargin times the pairs of the last pass (not the Verlet list's size).
+/// positions of that evaluation; valid until the positions change. Sized by its use: a
+/// particle's entries sit together in a region of the array its thread reserved, an array of
+/// about kMargin times the pairs of the last pass (not the Verlet list's size).
 class InteractionList {
  public:
   /// Headroom of the entries' array over the last pass' pairs, so that the next passes' few per
@@ -148,6 +150,18 @@ class InteractionList {
   /// 0.66); a pass that needs more grows it once.
   static constexpr double kFirstShare2D = 0.8;
   static constexpr double kFirstShare3D = 0.7;
+  /// The compaction's regions (compacting_pair_pass): each thread reserves about this many per
+  /// pass, so that their unused tails stay a few per cent of the array, within these bounds.
+  static constexpr std::size_t kRegionsPerThread = 16;
+  static constexpr std::size_t kMinRegion = std::size_t{1} << 13;
+  static constexpr std::size_t kMaxRegion = std::size_t{1} << 16;
+  /// The entries a thread reserves at a time in an array of `capacity` entries filled by
+  /// `threads` threads (more when one particle's candidates need more).
+  static std::size_t region_size(std::size_t capacity, int threads) {
+    return std::clamp<std::size_t>(
+        capacity / (kRegionsPerThread * static_cast<std::size_t>(std::max(1, threads))), kMinRegion,
+        kMaxRegion);
+  }
 
   std::size_t num_particles() const { return count_.size(); }
   std::span<const std::uint32_t> of(std::size_t i) const {
@@ -175,14 +189,10 @@ class InteractionList {
       indices_.resize(wanted);
     }
   }
-  /// Entries [at, at + size) hold the pairs of particles first, first + 1, ... in order, with
-  /// counts `counts`: the block's place in the list.
-  void place(std::size_t first, std::span<const std::uint32_t> counts, std::size_t at) {
-    for (std::size_t k = 0; k < counts.size(); ++k) {
-      offsets_[first + k] = at;
-      count_[first + k] = counts[k];
-      at += counts[k];
-    }
+  /// Particle i's `count` pairs are entries [at, at + count).
+  void place(std::size_t i, std::size_t at, std::uint32_t count) {
+    offsets_[i] = at;
+    count_[i] = count;
   }
   std::uint32_t* entries(std::size_t at) { return indices_.data() + at; }
   /// Grows the array to `size` entries, keeping those written.
@@ -376,12 +386,15 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
                           double support_radius, std::size_t begin, std::size_t end,
                           InteractionList& interactions) {
   interactions.prepare(list, Dim);
-  // Blocks of particles, each compacted into its thread's buffer and copied to a range of the
-  // list reserved by an atomic counter; a block whose range lies beyond the array's end keeps
-  // its buffer until the array has grown.
+  // Each thread compacts its particles' pairs straight into a region of the list it reserved
+  // by an atomic counter, and reserves the next region when a particle's candidates no longer
+  // fit in the rest (append_selected may write all of them). A region that lies beyond the
+  // array's end is filled in a buffer of the thread's and copied once the array has grown.
+  // Where a particle's pairs lie depends on the threads' timing, what they are does not.
   constexpr std::size_t kBlock = 256;
   const std::size_t blocks = end > begin ? (end - begin + kBlock - 1) / kBlock : 0;
   const std::size_t capacity = interactions.capacity();
+  const std::size_t region_size = InteractionList::region_size(capacity, omp_get_max_threads());
   std::atomic<std::size_t> next{0};
   struct Late {
     std::size_t at;
@@ -391,36 +404,44 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
   const auto signed_blocks = static_cast<std::ptrdiff_t>(blocks);
 #pragma omp parallel
   {
-    std::vector<std::uint32_t> keep, buffer, counts;
+    std::vector<std::uint32_t> keep;
+    // The thread's region [at, limit) of the list, filled up to `used`; `buffer` holds it when
+    // it lies beyond the array's end.
+    std::size_t at = 0, used = 0, limit = 0;
+    bool buffered = false;
+    std::vector<std::uint32_t> buffer;
+    const auto set_aside = [&] {
+      if (!buffered) return;
+      buffer.resize(used - at);
+#pragma omp critical(sphles_interaction_list_late)
+      late.push_back({at, std::move(buffer)});
+      buffer = {};
+      buffered = false;
+    };
 #pragma omp for schedule(dynamic, 1)
     for (std::ptrdiff_t b = 0; b < signed_blocks; ++b) {
       const std::size_t first = begin + static_cast<std::size_t>(b) * kBlock;
       const std::size_t last = std::min(end, first + kBlock);
-      counts.resize(last - first);
-      std::size_t used = 0;
       for (std::size_t i = first; i < last; ++i) {
         const std::span<const std::uint32_t> js = list.of(i);
+        if (used + js.size() > limit) {
+          set_aside();
+          const std::size_t size = std::max(region_size, js.size());
+          at = used = next.fetch_add(size, std::memory_order_relaxed);
+          limit = at + size;
+          buffered = limit > capacity;
+          if (buffered) buffer.resize(size);
+        }
         keep.resize(js.size());
         pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support_radius,
                                                                 keep.data());
-        // append_selected writes up to all of i's candidates before counting the kept ones.
-        if (buffer.size() < used + js.size()) buffer.resize(2 * (used + js.size()));
-        const std::size_t kept =
-            append_selected(js.data(), keep.data(), js.size(), buffer.data() + used);
-        counts[i - first] = static_cast<std::uint32_t>(kept);
+        std::uint32_t* out = buffered ? buffer.data() + (used - at) : interactions.entries(used);
+        const std::size_t kept = append_selected(js.data(), keep.data(), js.size(), out);
+        interactions.place(i, used, static_cast<std::uint32_t>(kept));
         used += kept;
       }
-      const std::size_t at = next.fetch_add(used, std::memory_order_relaxed);
-      interactions.place(first, counts, at);
-      if (at + used <= capacity) {
-        std::copy_n(buffer.data(), used, interactions.entries(at));
-      } else {
-#pragma omp critical(sphles_interaction_list_late)
-        late.push_back(
-            {at, std::vector<std::uint32_t>(buffer.begin(),
-                                            buffer.begin() + static_cast<std::ptrdiff_t>(used))});
-      }
     }
+    set_aside();
   }
   if (!late.empty()) {
     interactions.grow(
