@@ -1,29 +1,31 @@
 #include "sim/run_log.hpp"
 
-#include <cerrno>
+#include <algorithm>
 #include <cmath>
-#include <cstring>
-#include <stdexcept>
+#include <cstdio>
 
 namespace sphles::sim {
 
 ProgressReporter::ProgressReporter(double end_time, double interval_seconds)
     : end_time_(end_time), interval_(interval_seconds) {}
 
-std::string ProgressReporter::update(const StepDiagnostics& d, bool force) {
-  const auto now = Clock::now();
-  if (!started_) {
-    started_ = true;
-    last_wall_ = now;
-    last_time_ = d.time;
-    last_step_ = d.step;
+std::string ProgressReporter::update(const StepDiagnostics& d, Clock::time_point now, bool force) {
+  const auto seconds_since = [&](const Sample& s) {
+    return std::chrono::duration<double>(now - s.wall).count();
+  };
+  if (samples_.empty()) {
+    samples_.push_back({now, d.time, d.step});
     if (!force) return {};
   }
-  const double elapsed = std::chrono::duration<double>(now - last_wall_).count();
-  if (!force && elapsed < interval_) return {};
+  if (!force && seconds_since(samples_.back()) < interval_) return {};
+  // The oldest sample within the window, or the newest one before this line.
+  while (samples_.size() > 1 && seconds_since(samples_[1]) >= kRateWindowSeconds)
+    samples_.pop_front();
+  const Sample& first = samples_.front();
+  const double elapsed = seconds_since(first);
   const double steps_per_second =
-      elapsed > 0.0 ? static_cast<double>(d.step - last_step_) / elapsed : 0.0;
-  const double sim_rate = elapsed > 0.0 ? (d.time - last_time_) / elapsed : 0.0;
+      elapsed > 0.0 ? static_cast<double>(d.step - first.step) / elapsed : 0.0;
+  const double sim_rate = elapsed > 0.0 ? (d.time - first.time) / elapsed : 0.0;
   std::string eta = "--:--:--";
   if (sim_rate > 0.0) {
     const long seconds = std::lround(std::max(0.0, end_time_ - d.time) / sim_rate);
@@ -34,13 +36,11 @@ std::string ProgressReporter::update(const StepDiagnostics& d, bool force) {
   }
   char line[256];
   std::snprintf(line, sizeof line,
-                "t = %.4f / %.4f  step %llu  %.1f steps/s  ETA %s  e_v = %.6g  "
+                "t = %.4f / %.4f  step %llu  %.3g steps/s  ETA %s  e_v = %.6g  "
                 "max|drho|/rho = %.3g  max|v| = %.4g",
                 d.time, end_time_, static_cast<unsigned long long>(d.step), steps_per_second,
                 eta.c_str(), d.kinetic_energy, d.max_density_deviation, d.max_speed);
-  last_wall_ = now;
-  last_time_ = d.time;
-  last_step_ = d.step;
+  samples_.push_back({now, d.time, d.step});
   return line;
 }
 

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <chrono>
+#include <deque>
 #include <string>
 
 #include "sim/solver.hpp"
@@ -9,21 +10,31 @@
 namespace sphles::sim {
 
 /// Formats "t = 1.200 / 15.000  step 120  41.2 steps/s  ETA 0:05:12  e_v = 0.12312".
-/// The rate is measured between consecutive calls of update().
+/// The rate and the ETA are measured over the lines of about the last kRateWindowSeconds of wall
+/// time (at least the last two), as the dashboard's ETA is: a single interval would make them
+/// jump with every step shortened to land on an output time or slowed by a checkpoint.
 class ProgressReporter {
  public:
+  using Clock = std::chrono::steady_clock;
+  static constexpr double kRateWindowSeconds = 60.0;
+
   ProgressReporter(double end_time, double interval_seconds);
   /// Returns a line when `interval_seconds` have passed since the last one (or `force`), else "".
-  std::string update(const StepDiagnostics& diagnostics, bool force = false);
+  std::string update(const StepDiagnostics& diagnostics, bool force = false) {
+    return update(diagnostics, Clock::now(), force);
+  }
+  /// The same at wall time `now` (for tests).
+  std::string update(const StepDiagnostics& diagnostics, Clock::time_point now, bool force);
 
  private:
-  using Clock = std::chrono::steady_clock;
+  struct Sample {
+    Clock::time_point wall;
+    double time;
+    std::uint64_t step;
+  };
   double end_time_;
   double interval_;
-  Clock::time_point last_wall_;
-  double last_time_ = 0.0;
-  std::uint64_t last_step_ = 0;
-  bool started_ = false;
+  std::deque<Sample> samples_;  // the first call's state, then one per line, oldest first
 };
 
 }  // namespace sphles::sim
