@@ -391,8 +391,6 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
   // fit in the rest (append_selected may write all of them). A region that lies beyond the
   // array's end is filled in a buffer of the thread's and copied once the array has grown.
   // Where a particle's pairs lie depends on the threads' timing, what they are does not.
-  constexpr std::size_t kBlock = 256;
-  const std::size_t blocks = end > begin ? (end - begin + kBlock - 1) / kBlock : 0;
   const std::size_t capacity = interactions.capacity();
   const std::size_t region_size = InteractionList::region_size(capacity, omp_get_max_threads());
   std::atomic<std::size_t> next{0};
@@ -401,7 +399,8 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
     std::vector<std::uint32_t> entries;
   };
   std::vector<Late> late;
-  const auto signed_blocks = static_cast<std::ptrdiff_t>(blocks);
+  const auto first = static_cast<std::ptrdiff_t>(begin);
+  const auto last = static_cast<std::ptrdiff_t>(end);
 #pragma omp parallel
   {
     std::vector<std::uint32_t> keep;
@@ -418,28 +417,25 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
       buffer = {};
       buffered = false;
     };
-#pragma omp for schedule(dynamic, 1)
-    for (std::ptrdiff_t b = 0; b < signed_blocks; ++b) {
-      const std::size_t first = begin + static_cast<std::size_t>(b) * kBlock;
-      const std::size_t last = std::min(end, first + kBlock);
-      for (std::size_t i = first; i < last; ++i) {
-        const std::span<const std::uint32_t> js = list.of(i);
-        if (used + js.size() > limit) {
-          set_aside();
-          const std::size_t size = std::max(region_size, js.size());
-          at = used = next.fetch_add(size, std::memory_order_relaxed);
-          limit = at + size;
-          buffered = limit > capacity;
-          if (buffered) buffer.resize(size);
-        }
-        keep.resize(js.size());
-        pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support_radius,
-                                                                keep.data());
-        std::uint32_t* out = buffered ? buffer.data() + (used - at) : interactions.entries(used);
-        const std::size_t kept = append_selected(js.data(), keep.data(), js.size(), out);
-        interactions.place(i, used, static_cast<std::uint32_t>(kept));
-        used += kept;
+#pragma omp for schedule(dynamic, 256)
+    for (std::ptrdiff_t si = first; si < last; ++si) {
+      const auto i = static_cast<std::size_t>(si);
+      const std::span<const std::uint32_t> js = list.of(i);
+      if (used + js.size() > limit) {
+        set_aside();
+        const std::size_t size = std::max(region_size, js.size());
+        at = used = next.fetch_add(size, std::memory_order_relaxed);
+        limit = at + size;
+        buffered = limit > capacity;
+        if (buffered) buffer.resize(size);
       }
+      keep.resize(js.size());
+      pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support_radius,
+                                                              keep.data());
+      std::uint32_t* out = buffered ? buffer.data() + (used - at) : interactions.entries(used);
+      const std::size_t kept = append_selected(js.data(), keep.data(), js.size(), out);
+      interactions.place(i, used, static_cast<std::uint32_t>(kept));
+      used += kept;
     }
     set_aside();
   }
