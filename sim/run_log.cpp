@@ -13,7 +13,8 @@ std::string ProgressReporter::update(const StepDiagnostics& d, Clock::time_point
   const auto seconds_since = [&](const Sample& s) {
     return std::chrono::duration<double>(now - s.wall).count();
   };
-  if (samples_.empty()) {
+  const bool first_call = samples_.empty();
+  if (first_call) {
     samples_.push_back({now, d.time, d.step});
     if (!force) return {};
   }
@@ -40,7 +41,7 @@ std::string ProgressReporter::update(const StepDiagnostics& d, Clock::time_point
                 "max|drho|/rho = %.3g  max|v| = %.4g",
                 d.time, end_time_, static_cast<unsigned long long>(d.step), steps_per_second,
                 eta.c_str(), d.kinetic_energy, d.max_density_deviation, d.max_speed);
-  samples_.push_back({now, d.time, d.step});
+  if (!first_call) samples_.push_back({now, d.time, d.step});  // the first is stored above
   return line;
 }
 
