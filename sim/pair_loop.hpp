@@ -407,15 +407,14 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
     // The thread's region [at, limit) of the list, filled up to `used`; `buffer` holds it when
     // it lies beyond the array's end.
     std::size_t at = 0, used = 0, limit = 0;
-    bool buffered = false;
     std::vector<std::uint32_t> buffer;
+    const auto buffered = [&] { return limit > capacity; };
     const auto set_aside = [&] {
-      if (!buffered) return;
+      if (!buffered()) return;
       buffer.resize(used - at);
 #pragma omp critical(sphles_interaction_list_late)
       late.push_back({at, std::move(buffer)});
       buffer = {};
-      buffered = false;
     };
 #pragma omp for schedule(dynamic, 256)
     for (std::ptrdiff_t si = first; si < last; ++si) {
@@ -426,13 +425,12 @@ void compacting_pair_pass(const E& e, const Geometry& geometry, const NeighbourL
         const std::size_t size = std::max(region_size, js.size());
         at = used = next.fetch_add(size, std::memory_order_relaxed);
         limit = at + size;
-        buffered = limit > capacity;
-        if (buffered) buffer.resize(size);
+        if (buffered()) buffer.resize(size);
       }
       keep.resize(js.size());
       pair_loop_detail::evaluate_particle<Dim, S, true, true>(e, geometry, js, i, support_radius,
                                                               keep.data());
-      std::uint32_t* out = buffered ? buffer.data() + (used - at) : interactions.entries(used);
+      std::uint32_t* out = buffered() ? buffer.data() + (used - at) : interactions.entries(used);
       const std::size_t kept = append_selected(js.data(), keep.data(), js.size(), out);
       interactions.place(i, used, static_cast<std::uint32_t>(kept));
       used += kept;
