@@ -59,6 +59,15 @@ struct Pair {
   double r;
 };
 
+/// |x_ij|² summed from its first term, not 0.0 + dx₀²: the same bits (dx₀² ≥ 0), and one vector
+/// addition fewer per pair in the vectorised loops (GCC keeps the addition of zero).
+template <int Dim>
+inline double squared_norm(const double (&dx)[Dim]) {
+  double r2 = dx[0] * dx[0];
+  for (int d = 1; d < Dim; ++d) r2 += dx[d] * dx[d];
+  return r2;
+}
+
 /// x_ij = x_i - x_j as the plain difference of the stored positions: the geometry of the
 /// particles PeriodicGeometry::interior finds far enough from the box's faces.
 template <int Dim>
@@ -68,14 +77,8 @@ class DirectGeometry {
     for (int d = 0; d < Dim; ++d) x_[d] = x[d];
   }
   double separation(const double (&xi)[Dim], std::uint32_t j, double (&dx)[Dim]) const {
-    // r² from its first term, not 0.0 + dx₀²: the same bits (dx₀² ≥ 0), one addition fewer.
-    dx[0] = xi[0] - x_[0][j];
-    double r2 = dx[0] * dx[0];
-    for (int d = 1; d < Dim; ++d) {
-      dx[d] = xi[d] - x_[d][j];
-      r2 += dx[d] * dx[d];
-    }
-    return r2;
+    for (int d = 0; d < Dim; ++d) dx[d] = xi[d] - x_[d][j];
+    return squared_norm(dx);
   }
 
  private:
@@ -99,13 +102,9 @@ class PeriodicGeometry {
   }
   /// x_i - x_j (minimum image) into dx; returns |x_ij|².
   double separation(const double (&xi)[Dim], std::uint32_t j, double (&dx)[Dim]) const {
-    dx[0] = minimum_image(xi[0] - x_[0][j], length_[0], half_length_[0]);
-    double r2 = dx[0] * dx[0];  // as in DirectGeometry
-    for (int d = 1; d < Dim; ++d) {
+    for (int d = 0; d < Dim; ++d)
       dx[d] = minimum_image(xi[d] - x_[d][j], length_[d], half_length_[d]);
-      r2 += dx[d] * dx[d];
-    }
-    return r2;
+    return squared_norm(dx);
   }
   /// Whether x_i lies at least `reach` (times 1 + kInteriorMargin) from every face of the box.
   /// Then every particle j within `reach` of i along each axis sits at x_i - x_ij without a
