@@ -24,6 +24,14 @@ inline constexpr int kExitUsage = 2;
 ///   [--packing-cache DIR] | --restart CHECKPOINT|RUN_DIR [--set ...] [--out DIR]
 void add_run_command(CLI::App& app, int& exit_code);
 
+/// sphles reference SCENE|PRESET [--set ...] [--out DIR] | --restart DIR: the spectral
+/// reference of the scene's case (spectral/reference_run.hpp).
+void add_reference_command(CLI::App& app, int& exit_code);
+
+/// sphles compare RUN REF [--from T] [--to T] [--json]: a run's resolved-scale errors against
+/// a reference run (analysis/resolved_scales.hpp).
+void add_compare_command(CLI::App& app, int& exit_code);
+
 /// sphles inspect FILE: validates a checkpoint or snapshot and prints its contents.
 void add_inspect_command(CLI::App& app, int& exit_code);
 

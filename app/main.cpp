@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
   app::add_run_command(cli, exit_code);
   app::add_serve_command(cli, exit_code);
   app::add_presets_command(cli, exit_code);
+  app::add_reference_command(cli, exit_code);
+  app::add_compare_command(cli, exit_code);
   app::add_schema_command(cli, exit_code);
   app::add_estimate_command(cli, exit_code);
   app::add_inspect_command(cli, exit_code);

@@ -42,7 +42,8 @@ nlohmann::json load_scene_document(const std::string& scene_or_preset,
 analysis::RunConfig load_run_config(const std::string& scene_or_preset,
                                     const std::vector<std::string>& overrides) {
   nlohmann::json document = load_scene_document(scene_or_preset, overrides);
-  document.erase("render");  // the solver and analysis sections only
+  document.erase("render");     // the solver and analysis sections only
+  document.erase("reference");  // the spectral reference's (sphles reference)
   return analysis::parse_run_config(document);
 }
 

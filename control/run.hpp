@@ -28,6 +28,7 @@
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "sim/solver_factories.hpp"
+#include "spectral/reference_run.hpp"
 
 namespace sphles::control {
 
@@ -35,6 +36,7 @@ namespace sphles::control {
 struct RunSpec {
   analysis::RunConfig run;
   render::RenderConfig render;
+  spectral::ReferenceConfig reference;  // the case's spectral reference (sphles reference)
 };
 
 /// Throws sim::SceneError naming the field.

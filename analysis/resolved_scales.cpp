@@ -1,0 +1,168 @@
+#include "analysis/resolved_scales.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+#include "analysis/writer.hpp"
+
+namespace sphles::analysis {
+
+namespace {
+
+// A shell counts as at or below a wavenumber when its centre is, up to round-off of k_p = pΔk.
+constexpr double kShellTolerance = 1e-9;
+
+double cell(const std::map<std::string, std::string>& row, const std::string& key,
+            const std::filesystem::path& file) {
+  const auto it = row.find(key);
+  if (it == row.end() || it->second.empty())
+    throw std::runtime_error("'" + file.string() + "': a row has no '" + key + "'");
+  try {
+    return std::stod(it->second);
+  } catch (const std::exception&) {
+    throw std::runtime_error("'" + file.string() + "': '" + key + "' is not a number: '" +
+                             it->second + "'");
+  }
+}
+
+ShellSpectrum blend(const ShellSpectrum& a, const ShellSpectrum& b, double time) {
+  ShellSpectrum s = a;
+  s.time = time;
+  const double w = (time - a.time) / (b.time - a.time);
+  const std::size_t shells = std::min(a.energy.size(), b.energy.size());
+  s.wavenumber.resize(shells);
+  s.energy.resize(shells);
+  for (std::size_t p = 0; p < shells; ++p) s.energy[p] = (1.0 - w) * a.energy[p] + w * b.energy[p];
+  return s;
+}
+
+}  // namespace
+
+std::vector<ShellSpectrum> read_run_spectra(const std::filesystem::path& run_directory) {
+  const std::filesystem::path index = run_directory / "spectra" / "index.csv";
+  if (!std::filesystem::exists(index))
+    throw std::runtime_error("'" + run_directory.string() +
+                             "' has no spectra (spectra/index.csv): run it with the analysis "
+                             "product \"spectrum\"");
+  std::vector<ShellSpectrum> out;
+  for (const auto& row : read_index(index)) {
+    if (row.size() < 3) continue;  // a row being appended
+    ShellSpectrum s;
+    s.time = cell(row, "t", index);
+    s.delta_k = cell(row, "delta_k", index);
+    s.kernel_wavenumber = cell(row, "k_kernel", index);
+    const std::filesystem::path file = run_directory / "spectra" / row.at("file");
+    std::ifstream in(file);
+    if (!in) throw std::runtime_error("'" + file.string() + "' cannot be read");
+    std::string line;
+    std::getline(in, line);  // k,E,...
+    while (std::getline(in, line)) {
+      std::stringstream cells(line);
+      std::string k, e;
+      std::getline(cells, k, ',');
+      std::getline(cells, e, ',');
+      try {
+        s.wavenumber.push_back(std::stod(k));
+        s.energy.push_back(std::stod(e));
+      } catch (const std::exception&) {
+        throw std::runtime_error("'" + file.string() + "': malformed row '" + line + "'");
+      }
+    }
+    out.push_back(std::move(s));
+  }
+  std::stable_sort(out.begin(), out.end(),
+                   [](const ShellSpectrum& a, const ShellSpectrum& b) { return a.time < b.time; });
+  return out;
+}
+
+ShellSpectrum spectrum_at(const std::vector<ShellSpectrum>& reference, double time) {
+  if (reference.empty()) return {};
+  const double spacing = reference.size() > 1 ? (reference.back().time - reference.front().time) /
+                                                    static_cast<double>(reference.size() - 1)
+                                              : 1.0;
+  const double tolerance = 1e-6 * spacing;
+  for (const ShellSpectrum& s : reference)
+    if (std::abs(s.time - time) <= tolerance) return s;
+  for (std::size_t i = 1; i < reference.size(); ++i)
+    if (reference[i - 1].time < time && time < reference[i].time)
+      return blend(reference[i - 1], reference[i], time);
+  return {};
+}
+
+ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& reference,
+                               double kernel_wavenumber) {
+  if (std::abs(run.delta_k - reference.delta_k) > 1e-12 * run.delta_k)
+    throw std::invalid_argument("the run's shells (delta_k " + std::to_string(run.delta_k) +
+                                ") and the reference's (" + std::to_string(reference.delta_k) +
+                                ") differ: not the same box");
+  ResolvedScales r;
+  r.time = run.time;
+  r.kernel_wavenumber = kernel_wavenumber;
+  r.sph_wavenumber = 0.5 * kernel_wavenumber;
+  const double dk = run.delta_k;
+  auto sums = [&](const ShellSpectrum& s, double& resolved, double& above) {
+    resolved = above = 0.0;
+    for (std::size_t p = 0; p < s.energy.size(); ++p) {
+      const double k = s.wavenumber[p];
+      if (k <= r.sph_wavenumber * (1.0 + kShellTolerance)) resolved += s.energy[p] * dk;
+      if (k > kernel_wavenumber * (1.0 + kShellTolerance)) above += s.energy[p] * dk;
+    }
+  };
+  sums(run, r.resolved_energy, r.energy_above_kernel);
+  sums(reference, r.reference_resolved_energy, r.reference_energy_above_kernel);
+  for (std::size_t p = 1; p < run.energy.size(); ++p) {
+    const double k = run.wavenumber[p];
+    if (k > kernel_wavenumber * (1.0 + kShellTolerance)) break;
+    r.shell.push_back(k);
+    const double ref = p < reference.energy.size() ? reference.energy[p] : 0.0;
+    r.shell_ratio.push_back(ref > 0.0 ? run.energy[p] / ref
+                                      : std::numeric_limits<double>::quiet_NaN());
+  }
+  return r;
+}
+
+ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
+                                 const std::vector<ShellSpectrum>& reference, double t_min,
+                                 double t_max) {
+  ResolvedHistory h;
+  for (const ShellSpectrum& s : run) {
+    if (s.time < t_min || s.time > t_max) continue;
+    const ShellSpectrum ref = spectrum_at(reference, s.time);
+    if (ref.energy.empty()) continue;
+    h.samples.push_back(resolved_scales(s, ref, s.kernel_wavenumber));
+  }
+  double num = 0.0, den = 0.0;
+  for (const ResolvedScales& r : h.samples) {
+    const double d = r.resolved_energy - r.reference_resolved_energy;
+    num += d * d;
+    den += r.reference_resolved_energy * r.reference_resolved_energy;
+    if (r.reference_resolved_energy > 0.0)
+      h.max_relative_error = std::max(
+          h.max_relative_error, std::abs(r.resolved_energy / r.reference_resolved_energy - 1.0));
+  }
+  h.l2_misfit = den > 0.0 ? std::sqrt(num / den) : 0.0;
+  for (std::size_t i = 1; i + 1 < h.samples.size(); ++i) {
+    const ResolvedScales &a = h.samples[i - 1], &b = h.samples[i + 1];
+    const double dt = b.time - a.time;
+    h.flux_time.push_back(h.samples[i].time);
+    h.flux.push_back(-(b.resolved_energy - a.resolved_energy) / dt);
+    h.reference_flux.push_back(-(b.reference_resolved_energy - a.reference_resolved_energy) / dt);
+  }
+  if (!h.flux.empty()) {
+    const auto peak = std::max_element(h.flux.begin(), h.flux.end()) - h.flux.begin();
+    const auto ref_peak = std::max_element(h.reference_flux.begin(), h.reference_flux.end()) -
+                          h.reference_flux.begin();
+    h.flux_peak_time = h.flux_time[peak];
+    h.flux_peak = h.flux[peak];
+    h.reference_flux_peak_time = h.flux_time[ref_peak];
+    h.reference_flux_peak = h.reference_flux[ref_peak];
+  }
+  return h;
+}
+
+}  // namespace sphles::analysis

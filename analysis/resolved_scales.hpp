@@ -1,0 +1,67 @@
+// Resolved-scale errors of a run against a reference (SPEC §9): what an implicit LES is judged
+// by. With the kernel wavenumber k_kern = 2π/D_K and the best resolvable scale k_SPH = k_kern/2
+// (SPEC §7, finding 4), at equal times:
+//   the resolved energy E_res = Σ_{k_p <= k_SPH} E(k_p) Δk, against the reference's;
+//   the per-shell ratio E(k_p)/E_ref(k_p) for the shells k_p <= k_kern;
+//   the energy above k_kern (particle-scale motion), against the reference's there;
+// and over time the resolved energy's misfit and its rate -dE_res/dt (the flux leaving the
+// resolved scales).
+#pragma once
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace sphles::analysis {
+
+/// One spectrum of a run directory's spectra/ (writer.hpp): shells k_p = p Δk and E(k_p).
+struct ShellSpectrum {
+  double time = 0.0;
+  double delta_k = 1.0;
+  double kernel_wavenumber = 0.0;  // the run's k_kern (index column k_kernel)
+  std::vector<double> wavenumber, energy;
+};
+
+/// Every spectrum listed in DIR/spectra/index.csv, in time order. Throws std::runtime_error
+/// naming the file when one is missing or malformed.
+std::vector<ShellSpectrum> read_run_spectra(const std::filesystem::path& run_directory);
+
+/// The reference's spectrum at `time`: the one at that time (within 1e-6 of its spacing), else
+/// linear in time between the two around it (the reference writes densely). Empty optional-like
+/// result (no shells) when `time` lies outside the reference's times.
+ShellSpectrum spectrum_at(const std::vector<ShellSpectrum>& reference, double time);
+
+struct ResolvedScales {
+  double time = 0.0;
+  double kernel_wavenumber = 0.0;  // k_kern
+  double sph_wavenumber = 0.0;     // k_SPH = k_kern / 2
+  double resolved_energy = 0.0, reference_resolved_energy = 0.0;
+  double energy_above_kernel = 0.0, reference_energy_above_kernel = 0.0;
+  std::vector<double> shell;        // k_p of the shells 0 < k_p <= k_kern
+  std::vector<double> shell_ratio;  // E(k_p)/E_ref(k_p) (NaN where E_ref = 0)
+};
+
+/// The measures at one time, with the run's k_kern. Throws std::invalid_argument when the two
+/// spectra's Δk differ.
+ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& reference,
+                               double kernel_wavenumber);
+
+struct ResolvedHistory {
+  std::vector<ResolvedScales> samples;  // at the run's spectra times the reference covers
+  /// sqrt(Σ (E_res - E_res,ref)² / Σ E_res,ref²) over the samples.
+  double l2_misfit = 0.0;
+  /// max |E_res / E_res,ref - 1| over the samples.
+  double max_relative_error = 0.0;
+  /// -dE_res/dt by centred differences at the interior samples (and its reference's), and the
+  /// times of their largest values.
+  std::vector<double> flux_time, flux, reference_flux;
+  double flux_peak_time = 0.0, reference_flux_peak_time = 0.0;
+  double flux_peak = 0.0, reference_flux_peak = 0.0;
+};
+
+/// The measures at every time of `run` the reference covers, from t_min to t_max.
+ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
+                                 const std::vector<ShellSpectrum>& reference, double t_min = 0.0,
+                                 double t_max = 1e300);
+
+}  // namespace sphles::analysis

@@ -1,0 +1,101 @@
+// sphles compare RUN REF: a run's resolved scales against a reference (SPEC §9).
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <nlohmann/json.hpp>
+
+#include "analysis/resolved_scales.hpp"
+#include "app/commands.hpp"
+
+namespace sphles::app {
+
+namespace {
+
+struct CompareOptions {
+  std::string run, reference;
+  double from = 0.0, to = 1e300;
+  bool json = false;
+};
+
+nlohmann::json to_json(const analysis::ResolvedHistory& h) {
+  nlohmann::json samples = nlohmann::json::array();
+  for (const auto& s : h.samples)
+    samples.push_back({{"t", s.time},
+                       {"k_kernel", s.kernel_wavenumber},
+                       {"k_sph", s.sph_wavenumber},
+                       {"resolved_energy", s.resolved_energy},
+                       {"reference_resolved_energy", s.reference_resolved_energy},
+                       {"energy_above_kernel", s.energy_above_kernel},
+                       {"reference_energy_above_kernel", s.reference_energy_above_kernel},
+                       {"shell", s.shell},
+                       {"shell_ratio", s.shell_ratio}});
+  return {{"samples", samples},
+          {"resolved_energy_l2_misfit", h.l2_misfit},
+          {"resolved_energy_max_relative_error", h.max_relative_error},
+          {"flux", {{"t", h.flux_time}, {"run", h.flux}, {"reference", h.reference_flux}}},
+          {"flux_peak", {{"t", h.flux_peak_time}, {"value", h.flux_peak}}},
+          {"reference_flux_peak",
+           {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}}};
+}
+
+int compare_command(const CompareOptions& o) {
+  try {
+    const auto run = analysis::read_run_spectra(o.run);
+    const auto ref = analysis::read_run_spectra(o.reference);
+    const analysis::ResolvedHistory h = analysis::resolved_history(run, ref, o.from, o.to);
+    if (h.samples.empty())
+      throw std::runtime_error("no time of '" + o.run + "' in [" + std::to_string(o.from) + ", " +
+                               std::to_string(o.to) + "] lies within the reference's times");
+    if (o.json) {
+      std::printf("%s\n", to_json(h).dump(2).c_str());
+      return kExitOk;
+    }
+    const auto& first = h.samples.front();
+    std::printf("%s against %s: k_kern = %g, k_SPH = %g (SPEC §9)\n", o.run.c_str(),
+                o.reference.c_str(), first.kernel_wavenumber, first.sph_wavenumber);
+    std::printf("%8s %11s %11s %7s %11s %11s   E(k)/E_ref(k), k =", "t", "E_res", "E_res,ref",
+                "ratio", ">k_kern", ">k_kern,ref");
+    for (double k : first.shell) std::printf(" %5g", k);
+    std::printf("\n");
+    for (const auto& s : h.samples) {
+      std::printf("%8.3f %11.5e %11.5e %7.3f %11.4e %11.4e                    ", s.time,
+                  s.resolved_energy, s.reference_resolved_energy,
+                  s.resolved_energy / s.reference_resolved_energy, s.energy_above_kernel,
+                  s.reference_energy_above_kernel);
+      for (double r : s.shell_ratio) std::printf(" %5.2f", r);
+      std::printf("\n");
+    }
+    std::printf("E_res misfit: L2 %.2f %%, max %.2f %% over %zu times\n", 100.0 * h.l2_misfit,
+                100.0 * h.max_relative_error, h.samples.size());
+    if (!h.flux.empty())
+      std::printf("-dE_res/dt peak: %.5g at t = %.3f (reference %.5g at t = %.3f)\n", h.flux_peak,
+                  h.flux_peak_time, h.reference_flux_peak, h.reference_flux_peak_time);
+    return kExitOk;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles compare: %s\n", e.what());
+    return kExitUsage;
+  }
+}
+
+}  // namespace
+
+void add_compare_command(CLI::App& app, int& exit_code) {
+  auto o = std::make_shared<CompareOptions>();
+  CLI::App* cmd = app.add_subcommand(
+      "compare", "a run's resolved scales against a reference run (E_res, shells, noise)");
+  cmd->footer(
+      "At the run's spectra times: the resolved energy E_res = sum of E(k) over k <= k_SPH = "
+      "k_kern/2, the shell ratios E(k)/E_ref(k) up to k_kern, the energy above k_kern, and over "
+      "time the misfit of E_res and the peak of -dE_res/dt (SPEC §9; docs/reference.md). REF is a "
+      "`sphles reference` run directory of the same case.");
+  cmd->add_option("run", o->run, "run directory with spectra/")->required()->type_name("RUN");
+  cmd->add_option("reference", o->reference, "reference run directory")
+      ->required()
+      ->type_name("REF");
+  cmd->add_option("--from", o->from, "first time compared")->type_name("T");
+  cmd->add_option("--to", o->to, "last time compared")->type_name("T");
+  cmd->add_flag("--json", o->json, "print JSON instead of a table");
+  cmd->callback([o, &exit_code] { exit_code = compare_command(*o); });
+}
+
+}  // namespace sphles::app

@@ -1,0 +1,189 @@
+// sphles reference SCENE|PRESET: the spectral reference of a scene's case (docs/reference.md).
+#include <omp.h>
+#include <pthread.h>
+#include <signal.h>
+
+#include <atomic>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <thread>
+
+#include "app/commands.hpp"
+#include "control/render_sink.hpp"
+#include "control/resources.hpp"
+#include "control/run.hpp"
+#include "io/checkpoint.hpp"
+#include "spectral/reference_run.hpp"
+
+namespace sphles::app {
+
+namespace {
+
+struct ReferenceOptions {
+  std::string scene;
+  std::vector<std::string> overrides;
+  std::string out;
+  std::string restart;
+  int threads = 0;
+  bool overwrite = false;
+  bool dry_run = false;
+  std::string log_level;
+};
+
+std::atomic<bool> g_stop{false};
+
+int reference_command(const ReferenceOptions& options) {
+  namespace fs = std::filesystem;
+  logging::configure(logging::ConsoleStyle::plain, logging::parse_level(options.log_level));
+  if (options.threads > 0) omp_set_num_threads(options.threads);
+  nlohmann::json document;
+  fs::path dir;
+  sim::Scene scene;
+  analysis::AnalysisConfig analysis;
+  spectral::ReferenceConfig config;
+  try {
+    if (!options.restart.empty()) {
+      if (!options.scene.empty())
+        throw sim::SceneError("give either SCENE or --restart DIR, not both");
+      dir = options.restart;
+      if (!fs::exists(dir / "scene.json"))
+        throw sim::SceneError("'" + dir.string() + "' holds no reference run (no scene.json)");
+      document = sim::read_scene_file(dir / "scene.json");
+      for (const std::string& a : options.overrides) sim::apply_override(document, a);
+    } else {
+      if (options.scene.empty()) throw sim::SceneError("SCENE or --restart DIR is required");
+      document = load_scene_document(options.scene, options.overrides);
+    }
+    const control::RunSpec spec = control::parse_run_spec(document);
+    scene = spec.run.scene;
+    analysis = spec.run.analysis;
+    config = spec.reference;
+    document = control::run_spec_to_json(spec);
+    const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config);
+    const double machine = static_cast<double>(control::machine_memory_bytes());
+    const bool fits = machine <= 0.0 || e.memory_bytes <= machine;
+    if (options.dry_run || !fits) {
+      std::printf(
+          "reference grid       %d^%d points, modes |m| <= %d per axis\n"
+          "memory at the peak   %s (machine %s)%s\n"
+          "checkpoint           %s each\n"
+          "time steps           about %.0f to t = %g (CFL %g at the initial speed)\n",
+          config.points_per_side, scene.dimension(), e.max_wavenumber,
+          control::format_bytes(e.memory_bytes).c_str(), control::format_bytes(machine).c_str(),
+          fits ? "" : ": does NOT fit", control::format_bytes(e.checkpoint_bytes).c_str(), e.steps,
+          scene.end_time, config.cfl);
+      if (!fits)
+        throw sim::SceneError(
+            "'reference.points_per_side' = " + std::to_string(config.points_per_side) +
+            " needs about " + control::format_bytes(e.memory_bytes) +
+            ", more than this machine's " + control::format_bytes(machine));
+      if (options.dry_run) return kExitOk;
+    }
+    if (options.restart.empty()) {
+      dir = options.out.empty()
+                ? fs::path("reference-" + (scene.name.empty() ? std::string("run") : scene.name))
+                : fs::path(options.out);
+      if ((fs::exists(dir / "run.json") || fs::exists(dir / "checkpoints")) && !options.overwrite)
+        throw sim::SceneError("'" + dir.string() +
+                              "' already holds a run: continue it with --restart " + dir.string() +
+                              ", choose another --out, or pass --overwrite");
+      if (options.overwrite) {
+        fs::remove_all(dir / "checkpoints");
+        fs::remove_all(dir / "spectra");
+        fs::remove_all(dir / "slices");
+        fs::remove_all(dir / "stats");
+        fs::remove_all(dir / "frames");
+      }
+    }
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    return kExitUsage;
+  }
+
+  // SIGINT, SIGTERM, SIGUSR1: stop after the step with a checkpoint (as `sphles run`).
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int s : {SIGINT, SIGTERM, SIGUSR1}) sigaddset(&signals, s);
+  pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+  std::atomic<bool> done{false};
+  std::thread waiter([&signals, &done] {
+    int s = 0;
+    if (sigwait(&signals, &s) == 0 && !done.load()) {
+      std::fprintf(stderr, "sphles reference: signal %d, stopping after this step\n", s);
+      g_stop = true;
+    }
+  });
+  int rc = kExitOk;
+  try {
+    fs::create_directories(dir);
+    render::RenderConfig render;
+    render.fields = {analysis::SliceField::VorticitySquared};
+    render.combined = false;
+    render.save = true;
+    control::RenderSink sink(
+        render, std::string(sim::case_name(scene.case_type)), dir / "frames",
+        [](const control::RenderedImage&) {}, [] { return false; });
+    spectral::ReferenceRunOptions run_options;
+    run_options.directory = dir;
+    run_options.restart = !options.restart.empty();
+    run_options.stop_requested = [] { return g_stop.load(); };
+    run_options.on_frame = [&sink](std::shared_ptr<const analysis::AnalysisFrame> f) {
+      sink.post(std::move(f));
+    };
+    if (run_options.restart) control::RenderSink::truncate_index_after(dir / "frames", 0.0);
+    const spectral::ReferenceRunResult r =
+        spectral::run_reference(scene, analysis, config, document, run_options);
+    sink.close(true);
+    if (!sink.error().empty()) throw std::runtime_error("rendering: " + sink.error());
+    if (r.stopped) {
+      std::fprintf(stderr, "sphles reference: stopped at t = %.6g; continue with --restart %s\n",
+                   r.time, dir.c_str());
+      rc = kExitFailure;
+    } else {
+      std::printf("sphles reference: t = %g after %llu steps, %zu spectra in %s\n", r.time,
+                  static_cast<unsigned long long>(r.steps), r.frames, dir.c_str());
+    }
+  } catch (const sim::SceneError& e) {
+    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    rc = kExitUsage;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    rc = kExitFailure;
+  }
+  done = true;
+  pthread_kill(waiter.native_handle(), SIGINT);
+  waiter.join();
+  return rc;
+}
+
+}  // namespace
+
+void add_reference_command(CLI::App& app, int& exit_code) {
+  auto options = std::make_shared<ReferenceOptions>();
+  CLI::App* cmd =
+      app.add_subcommand("reference", "compute the spectral (DNS) reference of a scene's case");
+  cmd->footer(
+      "An incompressible pseudo-spectral Navier-Stokes solver of the scene's periodic case "
+      "(2/3-rule dealiasing, RK4 with an integrating factor, CFL-adaptive step) at "
+      "reference.points_per_side points per side. Writes timeseries.csv (E, -dE/dt, 2nuZ, Z, "
+      "injection), spectra/ (the same shells as a particle run's), slices/, frames/ and "
+      "checkpoints/ into --out (docs/reference.md).");
+  cmd->add_option("scene", options->scene, "scene file or preset name")
+      ->type_name("SCENE.json|PRESET");
+  repeatable(cmd->add_option("--set", options->overrides,
+                             "override a scene key, e.g. reference.points_per_side=256")
+                 ->type_name("KEY=VALUE"));
+  cmd->add_option("--out", options->out, "run directory (default reference-NAME)")
+      ->type_name("DIR");
+  cmd->add_option("--restart", options->restart, "continue the reference run in DIR")
+      ->type_name("DIR");
+  cmd->add_flag("--overwrite", options->overwrite, "replace the run already in --out");
+  cmd->add_flag("--dry-run", options->dry_run,
+                "print the memory, checkpoint size and steps the run needs, and stop");
+  add_threads_option(*cmd, options->threads, "OpenMP threads");
+  add_log_level_option(*cmd, options->log_level);
+  cmd->callback([options, &exit_code] { exit_code = reference_command(*options); });
+}
+
+}  // namespace sphles::app

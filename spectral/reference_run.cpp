@@ -1,0 +1,469 @@
+#include "spectral/reference_run.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <numbers>
+#include <sstream>
+
+#include "analysis/spectrum.hpp"
+#include "analysis/writer.hpp"
+#include "io/checkpoint.hpp"
+#include "logging/logging.hpp"
+#include "sim/initial_conditions.hpp"
+#include "sim/json_reader.hpp"
+#include "spectral/reference_checkpoint.hpp"
+
+namespace sphles::spectral {
+
+using nlohmann::json;
+
+namespace {
+
+// Output times closer than this fraction of a step to the current time count as reached: the
+// step that lands on an output time ends there up to round-off.
+constexpr double kLandingTolerance = 1e-9;
+// The program's own resident memory (code, VTK and OSMesa for the frames, the MPI and HDF5
+// libraries): the peak RSS of an 8³ reference run, 148 MB.
+constexpr double kProgramFootprintBytes = 150e6;
+// Outputs per run when neither reference.every nor analysis.every sets the cadence.
+constexpr double kDefaultOutputsPerRun = 80.0;
+
+std::string number(double v) {
+  std::ostringstream s;
+  s.precision(17);
+  s << v;
+  return s.str();
+}
+
+/// The next multiple of `every` after `t` (or at `t` when `inclusive`); infinity when every <= 0.
+double next_multiple(double t, double every, bool inclusive) {
+  if (!(every > 0.0)) return std::numeric_limits<double>::infinity();
+  double k = std::floor(t / every);
+  double next = k * every;
+  while (inclusive ? next < t - kLandingTolerance * every : next <= t + kLandingTolerance * every)
+    next = (++k) * every;
+  return next;
+}
+
+/// Keeps the header and the rows of a CSV whose first column is at most `time` (a restart
+/// writes the later rows again).
+void truncate_rows_after(const std::filesystem::path& path, double time) {
+  std::ifstream in(path);
+  if (!in) return;
+  std::string line, kept;
+  bool header = true;
+  while (std::getline(in, line)) {
+    if (header || line.empty() || std::stod(line.substr(0, line.find(','))) <= time)
+      kept += line + '\n';
+    header = false;
+  }
+  in.close();
+  const std::filesystem::path tmp = path.string() + ".tmp";
+  std::ofstream(tmp) << kept;
+  std::filesystem::rename(tmp, path);
+}
+
+void write_json_atomically(const std::filesystem::path& path, const json& j) {
+  const std::filesystem::path tmp = path.string() + ".tmp";
+  {
+    std::ofstream out(tmp);
+    out << j.dump(2) << '\n';
+    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
+  }
+  std::filesystem::rename(tmp, path);
+}
+
+/// The keys a restart may change: when the run ends and how often it writes.
+json restart_invariant(json scene) {
+  scene.erase("time");
+  scene.erase("analysis");
+  scene.erase("checkpoint");
+  scene.erase("output");
+  scene.erase("render");
+  scene.erase("name");
+  if (scene.contains("reference")) scene["reference"].erase("every");
+  if (scene.contains("reference")) scene["reference"].erase("cfl");
+  return scene;
+}
+
+}  // namespace
+
+ReferenceConfig parse_reference_config(const json& document) {
+  ReferenceConfig c;
+  static const json kEmpty = json::object();
+  const auto it = document.find("reference");
+  sim::ObjectReader r(it == document.end() ? kEmpty : *it, "reference");
+  r.integer("points_per_side", c.points_per_side);
+  r.number("cfl", c.cfl);
+  r.number("every", c.every);
+  r.reject_unknown();
+  if (c.points_per_side % 2 != 0)
+    throw sim::SceneError("scene: 'reference.points_per_side' must be even, got " +
+                          std::to_string(c.points_per_side));
+  return c;
+}
+
+json reference_config_to_json(const ReferenceConfig& c) {
+  return {{"points_per_side", c.points_per_side}, {"cfl", c.cfl}, {"every", c.every}};
+}
+
+FlowParameters flow_of(const sim::Scene& scene) {
+  FlowParameters f;
+  f.dimension = scene.dimension();
+  f.box_length = scene.box_length();
+  f.viscosity = scene.fluid.kinematic_viscosity();
+  if (scene.case_type == sim::CaseType::Kolmogorov2D) {
+    f.friction = scene.forcing.friction;
+    f.forcing_amplitude = scene.forcing.amplitude;
+    f.forcing_periods = scene.forcing.periods;
+  }
+  return f;
+}
+
+std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene, int n) {
+  const int dim = scene.dimension();
+  const std::size_t plane = static_cast<std::size_t>(n) * n;
+  const int planes = dim == 3 ? n : 1;
+  const double h = scene.box_length() / n;
+  std::array<std::vector<double>, 3> grid;
+  for (int c = 0; c < dim; ++c) grid[c].resize(plane * planes);
+  // One plane of nodes at a time, as particles at the nodes: the particle run's own functions
+  // give the field (and keep it one definition).
+  sim::ParticleArrays p;
+  p.dimension = dim;
+  p.resize(plane);
+  for (int z = 0; z < planes; ++z) {
+    for (int y = 0; y < n; ++y)
+      for (int x = 0; x < n; ++x) {
+        const std::size_t i = static_cast<std::size_t>(x) + static_cast<std::size_t>(n) * y;
+        p.position[0][i] = x * h;
+        p.position[1][i] = y * h;
+        if (dim == 3) p.position[2][i] = z * h;
+      }
+    switch (scene.case_type) {
+      case sim::CaseType::TaylorGreen3D:
+        sim::set_taylor_green_3d(scene, p);
+        break;
+      case sim::CaseType::TaylorGreen2D:
+        sim::set_taylor_green_2d(scene, p);
+        break;
+      case sim::CaseType::Kolmogorov2D:
+        sim::set_kolmogorov_2d(scene, p);
+        break;
+    }
+    for (int c = 0; c < dim; ++c)
+      std::copy(p.velocity[c].begin(), p.velocity[c].end(), grid[c].begin() + plane * z);
+  }
+  return grid;
+}
+
+double reference_output_every(const ReferenceConfig& config, const sim::Scene& scene,
+                              const analysis::AnalysisConfig& analysis) {
+  if (config.every > 0.0) return config.every;
+  if (analysis.every > 0.0) return analysis.every;
+  return scene.end_time / kDefaultOutputsPerRun;
+}
+
+ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config) {
+  const double n = config.points_per_side, d = scene.dimension();
+  const double complex_size = (n / 2 + 1) * std::pow(n, d - 1), real_size = std::pow(n, d);
+  const double vorticity = d == 3 ? 3.0 : 1.0;
+  const double complex_bytes = 16.0 * complex_size, real_bytes = 8.0 * real_size;
+  // NavierStokesSolver: state, N(û), stage, sum (d each), two transform scratch arrays, the
+  // integrating factors, and the grid velocity and vorticity of the nonlinear term.
+  const double solver =
+      (4.0 * d + 2.0) * complex_bytes + 8.0 * complex_size + (d + vorticity) * real_bytes;
+  // A frame's vorticity (modes, grid, scratch) or a checkpoint's copy and HDF5 image.
+  const double frame = (vorticity + 1.0) * complex_bytes + vorticity * real_bytes;
+  const double checkpoint = 2.0 * d * complex_bytes;
+  ReferenceEstimate e;
+  e.memory_bytes = solver + std::max(frame, checkpoint) + kProgramFootprintBytes;
+  e.checkpoint_bytes = d * complex_bytes;
+  e.max_wavenumber = dealiased_max_wavenumber(config.points_per_side);
+  // The initial largest Σ|u_i|: v0 (Taylor-Green) or the laminar speed the forcing drives
+  // (Kolmogorov flow), plus the uniform velocity.
+  double speed = std::abs(scene.uniform_velocity[0]) + std::abs(scene.uniform_velocity[1]) +
+                 std::abs(scene.uniform_velocity[2]);
+  if (scene.case_type == sim::CaseType::Kolmogorov2D) {
+    const double k = scene.forcing_wavenumber();
+    speed += scene.forcing.amplitude /
+             (scene.fluid.kinematic_viscosity() * k * k + scene.forcing.friction);
+  } else {
+    speed += std::abs(scene.velocity_amplitude);
+  }
+  const double dt = config.cfl * scene.box_length() / n / std::max(speed, 1e-300);
+  e.steps = std::ceil(scene.end_time / dt);
+  return e;
+}
+
+std::string reference_timeseries_header() {
+  return "t,step,dt,E,minus_dE_dt,epsilon,Z,injection,film_dissipation,transfer,max_speed";
+}
+
+analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::Scene& scene,
+                                        const analysis::AnalysisConfig& analysis) {
+  const Budget& b = solver.budget();
+  const RealFft& fft = solver.fft();
+  const int n = fft.n(), half = fft.half(), dim = fft.dimension();
+  analysis::AnalysisFrame frame;
+  frame.time = solver.time();
+  frame.step = solver.step();
+  frame.dimension = dim;
+  frame.kinetic_energy = b.energy;
+  frame.energy_dissipation = -b.rate;
+  frame.grid_kinetic_energy = b.energy;
+
+  // The spectrum through the particle analysis' own shell sums: FFTW's unnormalised r2c
+  // output is N^d û.
+  analysis::ShellSums sums = analysis::empty_shell_sums(dim, n);
+  const double scale = static_cast<double>(fft.real_size());
+  const std::size_t plane_values = static_cast<std::size_t>(half) * (dim == 3 ? n : 1);
+  const int planes = n;  // 3D: the z planes; 2D: the rows, each a plane of the layout
+  std::vector<double> buffer(2 * plane_values);
+  for (int c = 0; c < dim; ++c) {
+    const std::span<const Complex> m = solver.modes(c);
+    for (int p = 0; p < planes; ++p) {
+      for (std::size_t j = 0; j < plane_values; ++j) {
+        const Complex z = m[static_cast<std::size_t>(p) * plane_values + j] * scale;
+        buffer[2 * j] = z.real();
+        buffer[2 * j + 1] = z.imag();
+      }
+      analysis::add_transform_planes(sums, buffer.data(), p, 1);
+    }
+  }
+  analysis::SpectrumProduct sp;
+  sp.spectrum = analysis::spectrum_from_shell_sums(sums, scene.box_length());
+  sp.kinetic_energy_grid = analysis::spectrum_energy(sp.spectrum);
+  const double nu = scene.fluid.kinematic_viscosity();
+  sp.dissipation = analysis::spectral_dissipation(sp.spectrum, nu);
+  sp.kernel_wavenumber = 2.0 * std::numbers::pi / scene.kernel_diameter();
+  sp.resolution_wavenumber = solver.max_wavenumber() * sp.spectrum.delta_k;
+  sp.dissipation_resolved = sp.dissipation;
+  sp.length_scale = analysis.spectrum_length_scale;
+  frame.spectrum = sp;
+
+  analysis::VorticityProduct vp;
+  vp.estimate = analysis::VorticityEstimate::Grid;
+  vp.mean_vorticity_squared = 2.0 * b.enstrophy;
+  vp.dissipation = b.dissipation;
+  frame.vorticity = vp;
+
+  // ω² on the grid plane nearest the slice position (3D), or the whole grid (2D).
+  const std::vector<std::vector<double>> omega = solver.vorticity_grid();
+  analysis::SliceProduct s;
+  s.field = analysis::SliceField::VorticitySquared;
+  s.units = std::string(analysis::slice_field_units(s.field));
+  s.spacing = solver.grid_spacing();
+  s.width = s.height = n;
+  s.values.resize(static_cast<std::size_t>(n) * n);
+  auto omega2 = [&](std::size_t node) {
+    double w2 = 0.0;
+    for (const auto& w : omega) w2 += w[node] * w[node];
+    return w2;
+  };
+  if (dim == 3) {
+    const int a = analysis.slice.axis;
+    const long index = std::lround(analysis.slice.position / s.spacing);
+    const int plane = static_cast<int>(((index % n) + n) % n);
+    s.normal_axis = a;
+    s.position = plane * s.spacing;
+    s.axis_u = a == 0 ? 1 : 0;
+    s.axis_v = a == 2 ? 1 : 2;
+    for (int v = 0; v < n; ++v)
+      for (int u = 0; u < n; ++u) {
+        std::array<std::size_t, 3> ijk{};
+        ijk[a] = plane;
+        ijk[s.axis_u] = u;
+        ijk[s.axis_v] = v;
+        const std::size_t node = ijk[0] + n * (ijk[1] + static_cast<std::size_t>(n) * ijk[2]);
+        s.values[u + static_cast<std::size_t>(n) * v] = omega2(node);
+      }
+  } else {
+    s.normal_axis = 2;
+    s.axis_u = 0;
+    s.axis_v = 1;
+    for (std::size_t node = 0; node < s.values.size(); ++node) s.values[node] = omega2(node);
+  }
+  frame.slices.push_back(std::move(s));
+  return frame;
+}
+
+ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
+                                 const ReferenceConfig& config, const json& scene_document,
+                                 const ReferenceRunOptions& options) {
+  namespace fs = std::filesystem;
+  const fs::path dir = options.directory;
+  const fs::path checkpoints = dir / "checkpoints";
+  fs::create_directories(checkpoints);
+  logging::RunLog log(scene.name.empty() ? "reference" : scene.name, dir / "run.log",
+                      options.echo_progress);
+
+  NavierStokesSolver solver(flow_of(scene), config.points_per_side);
+  ReferenceRunResult result;
+  if (options.restart) {
+    // The newest checkpoint that reads back valid; damaged ones are skipped with a warning.
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(checkpoints))
+      if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+        files.push_back(e.path());
+    std::sort(files.rbegin(), files.rend());
+    bool restored = false;
+    for (const fs::path& f : files) {
+      try {
+        ReferenceState st = read_reference_checkpoint(f);
+        if (st.points_per_side != config.points_per_side || st.dimension != scene.dimension())
+          throw io::CheckpointError(
+              "'" + f.string() + "' holds a " + std::to_string(st.points_per_side) + "^" +
+              std::to_string(st.dimension) + " state, the scene asks for " +
+              std::to_string(config.points_per_side) + "^" + std::to_string(scene.dimension()));
+        if (restart_invariant(json::parse(st.scene)) != restart_invariant(scene_document))
+          throw io::CheckpointError("'" + f.string() +
+                                    "' was written for another scene (only time.end, the output "
+                                    "cadences, reference.every and reference.cfl may change)");
+        solver.set_modes(st.modes, st.time, st.step);
+        log.info("restart from {} at t = {} (step {})", f.filename().string(), st.time, st.step);
+        restored = true;
+        break;
+      } catch (const io::CheckpointError& e) {
+        if (files.size() == 1 || f == files.back()) throw;
+        log.warn("skipping checkpoint: {}", e.what());
+      }
+    }
+    if (!restored)
+      throw io::CheckpointError("no reference checkpoint in '" + checkpoints.string() + "'");
+  } else {
+    solver.set_velocity(initial_velocity_grid(scene, config.points_per_side));
+  }
+  write_json_atomically(dir / "scene.json", scene_document);
+
+  const fs::path series = dir / "timeseries.csv";
+  analysis::RunDirectoryWriter writer(dir);
+  if (options.restart) {
+    truncate_rows_after(series, solver.time());
+    truncate_rows_after(dir / "spectra" / "index.csv", solver.time());
+    truncate_rows_after(dir / "slices" / "index.csv", solver.time());
+    truncate_rows_after(dir / "stats" / "snapshots.csv", solver.time());
+  } else {
+    std::ofstream(series) << reference_timeseries_header() << '\n';
+  }
+  std::ofstream out(series, std::ios::app);
+
+  const double every = reference_output_every(config, scene, analysis);
+  const double t_end = scene.end_time;
+  const bool fresh = !options.restart;
+  double next_frame = next_multiple(solver.time(), every, fresh);
+  double next_row = next_multiple(solver.time(), scene.output.timeseries_every, fresh);
+  double next_checkpoint = next_multiple(solver.time(), scene.checkpoint.every, false);
+  double last_dt = 0.0;
+
+  auto status = [&](const std::string& state) {
+    write_json_atomically(dir / "run.json", {{"kind", "reference"},
+                                             {"state", state},
+                                             {"time", solver.time()},
+                                             {"step", solver.step()},
+                                             {"end_time", t_end},
+                                             {"points_per_side", config.points_per_side},
+                                             {"max_wavenumber", solver.max_wavenumber()},
+                                             {"spectra_every", every},
+                                             {"frames", result.frames}});
+  };
+  auto checkpoint = [&] {
+    ReferenceState st;
+    st.time = solver.time();
+    st.step = solver.step();
+    st.dimension = scene.dimension();
+    st.points_per_side = config.points_per_side;
+    st.scene = scene_document.dump();
+    for (int c = 0; c < scene.dimension(); ++c)
+      st.modes[c].assign(solver.modes(c).begin(), solver.modes(c).end());
+    const fs::path file = checkpoints / reference_checkpoint_name(st.step);
+    write_reference_checkpoint(file, st);
+    // Keep the newest checkpoint.keep files.
+    std::vector<fs::path> files;
+    for (const auto& e : fs::directory_iterator(checkpoints))
+      if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+        files.push_back(e.path());
+    std::sort(files.begin(), files.end());
+    const std::size_t keep = static_cast<std::size_t>(std::max(1, scene.checkpoint.keep));
+    for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
+    log.info("checkpoint {} at t = {}", file.filename().string(), st.time);
+  };
+
+  log.info("reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}",
+           config.points_per_side, scene.dimension(), solver.max_wavenumber(),
+           scene.fluid.kinematic_viscosity(), solver.time(), t_end);
+  status("running");
+  const auto wall_start = std::chrono::steady_clock::now();
+  auto last_progress = wall_start;
+  const std::uint64_t first_step = solver.step();
+  while (true) {
+    const Budget b = solver.budget();
+    if (!std::isfinite(b.energy))
+      throw std::runtime_error("reference: the energy is not finite at t = " +
+                               number(solver.time()) + " (step " + std::to_string(solver.step()) +
+                               "); lower reference.cfl or raise reference.points_per_side");
+    const double t = solver.time();
+    const bool at_end = t >= t_end - kLandingTolerance * std::max(last_dt, 1e-300);
+    if (scene.output.timeseries_every <= 0.0 || t >= next_row - kLandingTolerance * every ||
+        at_end) {
+      out << number(t) << ',' << solver.step() << ',' << number(last_dt) << ',' << number(b.energy)
+          << ',' << number(-b.rate) << ',' << number(b.dissipation) << ',' << number(b.enstrophy)
+          << ',' << number(b.injection) << ',' << number(b.film) << ',' << number(b.transfer) << ','
+          << number(b.max_speed) << '\n';
+      out.flush();
+      next_row = next_multiple(t, scene.output.timeseries_every, false);
+    }
+    if (t >= next_frame - kLandingTolerance * every || (at_end && fresh && result.frames == 0)) {
+      auto frame =
+          std::make_shared<analysis::AnalysisFrame>(reference_frame(solver, scene, analysis));
+      writer.write(*frame);
+      if (!writer.last_error().empty())
+        throw std::runtime_error("reference: " + writer.last_error());
+      ++result.frames;
+      if (options.on_frame) options.on_frame(frame);
+      next_frame = next_multiple(t, every, false);
+    }
+    if (t >= next_checkpoint - kLandingTolerance * every) {
+      checkpoint();
+      next_checkpoint = next_multiple(t, scene.checkpoint.every, false);
+    }
+    if (at_end) break;
+    if (options.stop_requested && options.stop_requested()) {
+      result.stopped = true;
+      break;
+    }
+    double dt = solver.stable_step(config.cfl);
+    double target = std::min({t_end, next_frame, next_row, next_checkpoint});
+    bool lands = false;
+    if (t + dt >= target - kLandingTolerance * dt) {
+      dt = target - t;
+      lands = true;
+    } else if (t + 2.0 * dt > target) {
+      dt = 0.5 * (target - t);  // two equal steps rather than a long one and a sliver
+    }
+    solver.advance(dt);
+    if (lands) solver.set_time(target);
+    last_dt = dt;
+    const auto now = std::chrono::steady_clock::now();
+    if (std::chrono::duration<double>(now - last_progress).count() >=
+        scene.output.progress_every_seconds) {
+      const double wall = std::chrono::duration<double>(now - wall_start).count();
+      const double steps_per_s = static_cast<double>(solver.step() - first_step) / wall;
+      log.progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s", solver.time(),
+                   t_end, solver.step(), dt, b.energy, steps_per_s);
+      last_progress = now;
+    }
+  }
+  checkpoint();
+  result.time = solver.time();
+  result.steps = solver.step();
+  status(result.stopped ? "stopped" : "done");
+  log.info("reference {} at t = {} after {} steps", result.stopped ? "stopped" : "done",
+           result.time, result.steps);
+  return result;
+}
+
+}  // namespace sphles::spectral
