@@ -16,6 +16,9 @@ namespace {
 
 // A shell counts as at or below a wavenumber when its centre is, up to round-off of k_p = pΔk.
 constexpr double kShellTolerance = 1e-9;
+// A reference shell holding less than this fraction of the reference's energy counts as empty:
+// round-off of the transforms (10⁻³⁰ of the energy) rather than flow.
+constexpr double kEmptyShell = 1e-12;
 
 double cell(const std::map<std::string, std::string>& row, const std::string& key,
             const std::filesystem::path& file) {
@@ -115,13 +118,18 @@ ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& re
   };
   sums(run, r.resolved_energy, r.energy_above_kernel);
   sums(reference, r.reference_resolved_energy, r.reference_energy_above_kernel);
+  double reference_total = 0.0;
+  for (double e : reference.energy) reference_total += e * dk;
   for (std::size_t p = 1; p < run.energy.size(); ++p) {
     const double k = run.wavenumber[p];
     if (k > kernel_wavenumber * (1.0 + kShellTolerance)) break;
     r.shell.push_back(k);
     const double ref = p < reference.energy.size() ? reference.energy[p] : 0.0;
-    r.shell_ratio.push_back(ref > 0.0 ? run.energy[p] / ref
-                                      : std::numeric_limits<double>::quiet_NaN());
+    // A shell the reference leaves empty (the Taylor-Green vortex's odd shells early on) has
+    // no ratio.
+    r.shell_ratio.push_back(ref * dk > kEmptyShell * reference_total
+                                ? run.energy[p] / ref
+                                : std::numeric_limits<double>::quiet_NaN());
   }
   return r;
 }

@@ -38,7 +38,7 @@ struct ResolvedScales {
   double resolved_energy = 0.0, reference_resolved_energy = 0.0;
   double energy_above_kernel = 0.0, reference_energy_above_kernel = 0.0;
   std::vector<double> shell;        // k_p of the shells 0 < k_p <= k_kern
-  std::vector<double> shell_ratio;  // E(k_p)/E_ref(k_p) (NaN where E_ref = 0)
+  std::vector<double> shell_ratio;  // E(k_p)/E_ref(k_p); NaN where the reference's shell is empty
 };
 
 /// The measures at one time, with the run's k_kern. Throws std::invalid_argument when the two

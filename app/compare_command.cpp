@@ -1,4 +1,5 @@
 // sphles compare RUN REF: a run's resolved scales against a reference (SPEC §9).
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -53,16 +54,16 @@ int compare_command(const CompareOptions& o) {
     const auto& first = h.samples.front();
     std::printf("%s against %s: k_kern = %g, k_SPH = %g (SPEC §9)\n", o.run.c_str(),
                 o.reference.c_str(), first.kernel_wavenumber, first.sph_wavenumber);
-    std::printf("%8s %11s %11s %7s %11s %11s   E(k)/E_ref(k), k =", "t", "E_res", "E_res,ref",
+    std::printf("%8s %11s %11s %7s %11s %11s  E(k)/E_ref(k) at k =", "t", "E_res", "E_res,ref",
                 "ratio", ">k_kern", ">k_kern,ref");
     for (double k : first.shell) std::printf(" %5g", k);
     std::printf("\n");
     for (const auto& s : h.samples) {
-      std::printf("%8.3f %11.5e %11.5e %7.3f %11.4e %11.4e                    ", s.time,
-                  s.resolved_energy, s.reference_resolved_energy,
-                  s.resolved_energy / s.reference_resolved_energy, s.energy_above_kernel,
-                  s.reference_energy_above_kernel);
-      for (double r : s.shell_ratio) std::printf(" %5.2f", r);
+      std::printf("%8.3f %11.5e %11.5e %7.3f %11.4e %11.4e  %20s", s.time, s.resolved_energy,
+                  s.reference_resolved_energy, s.resolved_energy / s.reference_resolved_energy,
+                  s.energy_above_kernel, s.reference_energy_above_kernel, "");
+      for (double r : s.shell_ratio)
+        std::isnan(r) ? std::printf("     -") : std::printf(" %5.2f", r);
       std::printf("\n");
     }
     std::printf("E_res misfit: L2 %.2f %%, max %.2f %% over %zu times\n", 100.0 * h.l2_misfit,
