@@ -12,6 +12,7 @@
 #include "analysis/writer.hpp"
 #include "io/checkpoint.hpp"
 #include "logging/logging.hpp"
+#include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/json_reader.hpp"
 #include "spectral/reference_checkpoint.hpp"
@@ -22,9 +23,6 @@ using nlohmann::json;
 
 namespace {
 
-// Output times closer than this fraction of a step to the current time count as reached: the
-// step that lands on an output time ends there up to round-off.
-constexpr double kLandingTolerance = 1e-9;
 // The program's own resident memory (code, VTK and OSMesa for the frames, the MPI and HDF5
 // libraries): the peak RSS of an 8³ reference run, 148 MB.
 constexpr double kProgramFootprintBytes = 150e6;
@@ -36,16 +34,6 @@ std::string number(double v) {
   s.precision(17);
   s << v;
   return s.str();
-}
-
-/// The next multiple of `every` after `t` (or at `t` when `inclusive`); infinity when every <= 0.
-double next_multiple(double t, double every, bool inclusive) {
-  if (!(every > 0.0)) return std::numeric_limits<double>::infinity();
-  double k = std::floor(t / every);
-  double next = k * every;
-  while (inclusive ? next < t - kLandingTolerance * every : next <= t + kLandingTolerance * every)
-    next = (++k) * every;
-  return next;
 }
 
 /// Keeps the header and the rows of a CSV whose first column is at most `time` (a restart
@@ -353,10 +341,10 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
 
   const double every = reference_output_every(config, scene, analysis);
   const double t_end = scene.end_time;
-  const bool fresh = !options.restart;
-  double next_frame = next_multiple(solver.time(), every, fresh);
-  double next_row = next_multiple(solver.time(), scene.output.timeseries_every, fresh);
-  double next_checkpoint = next_multiple(solver.time(), scene.checkpoint.every, false);
+  // The points k · every the loop lands on, the same in a fresh and a restarted run; a fresh
+  // run also writes its row and frame at t = 0.
+  sim::Cadence frames(every, solver.time()), rows(scene.output.timeseries_every, solver.time()),
+      checkpoints_due(scene.checkpoint.every, solver.time());
   double last_dt = 0.0;
 
   auto status = [&](const std::string& state) {
@@ -399,64 +387,74 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
   const auto wall_start = std::chrono::steady_clock::now();
   auto last_progress = wall_start;
   const std::uint64_t first_step = solver.step();
-  while (true) {
-    const Budget b = solver.budget();
+  auto budget = [&]() -> const Budget& {
+    const Budget& b = solver.budget();
     if (!std::isfinite(b.energy))
       throw std::runtime_error("reference: the energy is not finite at t = " +
                                number(solver.time()) + " (step " + std::to_string(solver.step()) +
                                "); lower reference.cfl or raise reference.points_per_side");
-    const double t = solver.time();
-    const bool at_end = t >= t_end - kLandingTolerance * std::max(last_dt, 1e-300);
-    if (scene.output.timeseries_every <= 0.0 || t >= next_row - kLandingTolerance * every ||
-        at_end) {
-      out << number(t) << ',' << solver.step() << ',' << number(last_dt) << ',' << number(b.energy)
-          << ',' << number(-b.rate) << ',' << number(b.dissipation) << ',' << number(b.enstrophy)
-          << ',' << number(b.injection) << ',' << number(b.film) << ',' << number(b.transfer) << ','
-          << number(b.max_speed) << '\n';
-      out.flush();
-      next_row = next_multiple(t, scene.output.timeseries_every, false);
-    }
-    if (t >= next_frame - kLandingTolerance * every || (at_end && fresh && result.frames == 0)) {
-      auto frame =
-          std::make_shared<analysis::AnalysisFrame>(reference_frame(solver, scene, analysis));
-      writer.write(*frame);
-      if (!writer.last_error().empty())
-        throw std::runtime_error("reference: " + writer.last_error());
-      ++result.frames;
-      if (options.on_frame) options.on_frame(frame);
-      next_frame = next_multiple(t, every, false);
-    }
-    if (t >= next_checkpoint - kLandingTolerance * every) {
-      checkpoint();
-      next_checkpoint = next_multiple(t, scene.checkpoint.every, false);
-    }
-    if (at_end) break;
+    return b;
+  };
+  auto write_row = [&] {
+    const Budget& b = budget();
+    out << number(solver.time()) << ',' << solver.step() << ',' << number(last_dt) << ','
+        << number(b.energy) << ',' << number(-b.rate) << ',' << number(b.dissipation) << ','
+        << number(b.enstrophy) << ',' << number(b.injection) << ',' << number(b.film) << ','
+        << number(b.transfer) << ',' << number(b.max_speed) << '\n';
+    out.flush();
+  };
+  auto write_frame = [&] {
+    budget();
+    auto frame =
+        std::make_shared<analysis::AnalysisFrame>(reference_frame(solver, scene, analysis));
+    writer.write(*frame);
+    if (!writer.last_error().empty()) throw std::runtime_error("reference: " + writer.last_error());
+    ++result.frames;
+    if (options.on_frame) options.on_frame(frame);
+  };
+  if (!options.restart) {
+    write_row();
+    write_frame();
+  }
+  bool row_written = true;
+  while (!sim::reached_end(solver.time(), t_end)) {
     if (options.stop_requested && options.stop_requested()) {
       result.stopped = true;
       break;
     }
+    const double t = solver.time();
+    budget();
+    // The CFL step, cut to land on the end and the next output points; a step that would leave
+    // a sliver before a point is split into two equal ones.
+    const double target = std::min({t_end, frames.next(), rows.next(), checkpoints_due.next()});
+    const double limit = target - t;
     double dt = solver.stable_step(config.cfl);
-    double target = std::min({t_end, next_frame, next_row, next_checkpoint});
-    bool lands = false;
-    if (t + dt >= target - kLandingTolerance * dt) {
-      dt = target - t;
-      lands = true;
-    } else if (t + 2.0 * dt > target) {
-      dt = 0.5 * (target - t);  // two equal steps rather than a long one and a sliver
-    }
+    const bool lands = dt >= limit;
+    if (lands)
+      dt = limit;
+    else if (2.0 * dt > limit)
+      dt = 0.5 * limit;
     solver.advance(dt);
     if (lands) solver.set_time(target);
     last_dt = dt;
+    row_written = false;
+    if (!rows.active() || rows.take(solver.time())) {
+      write_row();
+      row_written = true;
+    }
+    if (frames.take(solver.time())) write_frame();
+    if (checkpoints_due.take(solver.time())) checkpoint();
     const auto now = std::chrono::steady_clock::now();
     if (std::chrono::duration<double>(now - last_progress).count() >=
         scene.output.progress_every_seconds) {
       const double wall = std::chrono::duration<double>(now - wall_start).count();
       const double steps_per_s = static_cast<double>(solver.step() - first_step) / wall;
       log.progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s", solver.time(),
-                   t_end, solver.step(), dt, b.energy, steps_per_s);
+                   t_end, solver.step(), dt, budget().energy, steps_per_s);
       last_progress = now;
     }
   }
+  if (!row_written) write_row();  // the state the run ends with
   checkpoint();
   result.time = solver.time();
   result.steps = solver.step();
