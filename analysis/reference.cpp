@@ -13,12 +13,34 @@
 namespace sphles::analysis {
 
 namespace {
-constexpr double kDnsReynolds = 5000.0;            // Re = V0 L / ν of the DNS, V0 = 1, L = 1
 constexpr double kDnsMatchTolerance = 1e-9;        // relative, on ν, v0 and the box
 constexpr double kTwoPi = 2.0 * std::numbers::pi;  // the Taylor-Green box [m]
 
 bool close(double a, double b) {
   return std::abs(a - b) <= kDnsMatchTolerance * std::abs(b);
+}
+
+/// The shipped DNS of the 3D Taylor-Green vortex (data/reference/README.md), v0 = 1, L = 1.
+struct DnsFile {
+  double reynolds;  // V0 L / ν
+  const char* file;
+  const char* label;
+  const char* source;
+};
+constexpr DnsFile kTgv3dDns[] = {
+    {1600.0, kTgv3dRe1600DnsFile, "DNS, Re = 1600",
+     "512³ pseudo-spectral DNS of the International Workshop on High-Order CFD Methods, case "
+     "C3.5 (data/reference/README.md)"},
+    {5000.0, kTgv3dDnsFile, "DNS, Re = 5000",
+     "Incompact3d DNS on 1280³ nodes, Dairay, Lamballais, Laizet & Vassilicos, J. Comput. Phys. "
+     "337 (2017) 252-274 (data/reference/README.md)"},
+};
+
+const DnsFile* tgv3d_dns(const sim::Scene& scene) {
+  if (!close(scene.velocity_amplitude, 1.0) || !close(scene.box_length(), kTwoPi)) return nullptr;
+  for (const DnsFile& d : kTgv3dDns)
+    if (close(scene.fluid.kinematic_viscosity(), 1.0 / d.reynolds)) return &d;
+  return nullptr;
 }
 
 double uniform_energy(const sim::Scene& scene) {
@@ -54,11 +76,11 @@ std::optional<std::string> missing_reference(const sim::Scene& scene) {
     case sim::CaseType::TaylorGreen2D:
       return std::nullopt;
     case sim::CaseType::TaylorGreen3D:
-      if (close(nu, 1.0 / kDnsReynolds) && close(v0, 1.0) && close(scene.box_length(), kTwoPi))
-        return std::nullopt;
-      return "the DNS reference is the 3D Taylor-Green vortex at Re = 5000 (v0 = 1 m/s, L = 2π m, "
-             "ν = 2e-4 m²/s); this run has v0 = " +
-             sim::format_number(v0) + " m/s, ν = " + sim::format_number(nu) + " m²/s";
+      if (tgv3d_dns(scene)) return std::nullopt;
+      return "the DNS references are the 3D Taylor-Green vortex at Re = 1600 and Re = 5000 (v0 = "
+             "1 m/s, L = 2π m, ν = 6.25e-4 or 2e-4 m²/s); this run has v0 = " +
+             sim::format_number(v0) + " m/s, ν = " + sim::format_number(nu) +
+             " m²/s (`sphles reference` computes one for any Re)";
     case sim::CaseType::Kolmogorov2D:
       if (scene.uniform_velocity[1] == 0.0) return std::nullopt;
       return "the Kolmogorov flow's laminar reference is a shear flow along x; this run's uniform "
@@ -94,11 +116,10 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
       return c;
     }
     case sim::CaseType::TaylorGreen3D: {
-      const DnsHistory dns = read_dns_history(reference_dir / kTgv3dDnsFile);
-      c.label = "DNS, Re = 5000";
-      c.source =
-          "Incompact3d DNS on 1280³ nodes, Dairay, Lamballais, Laizet & Vassilicos, "
-          "J. Comput. Phys. 337 (2017) 252-274 (data/reference/README.md)";
+      const DnsFile& file = *tgv3d_dns(scene);
+      const DnsHistory dns = read_dns_history(reference_dir / file.file);
+      c.label = file.label;
+      c.source = file.source;
       for (std::size_t k = 0; k < dns.time.size() && dns.time[k] <= end; ++k) {
         c.time.push_back(dns.time[k]);
         c.energy.push_back(dns.energy[k] + shift);

@@ -1,6 +1,6 @@
 // Reference curves a run is compared with (dashboard, accuracy benchmark): the kinetic energy
 // e_v(t) and its dissipation -de_v/dt of the 2D Taylor-Green vortex (analytic, SPEC §6.2), of
-// the 3D Taylor-Green vortex at Re = 5000 (the DNS shipped in data/reference/, SPEC §6.1) and of
+// the 3D Taylor-Green vortex at Re = 1600 and 5000 (the DNS shipped in data/reference/) and of
 // the laminar Kolmogorov flow from rest (analytic, SPEC §6.3).
 #pragma once
 
@@ -21,8 +21,10 @@ struct DnsHistory {
 };
 DnsHistory read_dns_history(const std::filesystem::path& file);
 
-/// The DNS file's name in the reference directory.
+/// The DNS files' names in the reference directory: Re = 5000 (Incompact3d) and Re = 1600 (the
+/// HiOCFD workshop's spectral DNS; both read by read_dns_history).
 inline constexpr const char* kTgv3dDnsFile = "tgv_re5000_incompact3d_1280_dairay2017.dat";
+inline constexpr const char* kTgv3dRe1600DnsFile = "tgv_re1600_spectral_512_hiocfd.gdiag";
 
 struct ReferenceCurve {
   std::string label;                              // e.g. "DNS, Re = 5000 (Dairay et al. 2017)"
@@ -34,8 +36,9 @@ struct ReferenceCurve {
 std::optional<std::string> missing_reference(const sim::Scene& scene);
 
 /// The reference of a scene, if it has one: the analytic decay for tgv2d (sampled at
-/// `samples` times over [0, time.end]), the DNS for tgv3d when the scene is the DNS' flow (v0 =
-/// 1, L = 2π, ν = 1/5000 within 1e-9 relative; up to time.end, and the DNS' t ≤ 20), the laminar
+/// `samples` times over [0, time.end]), the DNS for tgv3d when the scene is a DNS' flow (v0 =
+/// 1, L = 2π, ν = 1/1600 or 1/5000 within 1e-9 relative; up to time.end, and the DNS' t ≤ 20),
+/// the laminar
 /// spin-up from rest for kolmogorov2d (sampled as tgv2d; a uniform velocity along x only). A
 /// uniform velocity U adds ½|U|² to e_v (decaying by the friction in the Kolmogorov flow).
 /// Otherwise throws std::invalid_argument saying why there is none.

@@ -263,7 +263,7 @@ Response analysis_history(const Router::Services& s, const Context& c) {
 }
 
 /// The run's reference curve (analysis/reference.hpp): the analytic decay of the 2D TGV, the DNS
-/// of the 3D TGV at Re = 5000, the laminar Kolmogorov flow; 404 saying why a run has none.
+/// of the 3D TGV at Re = 1600 and 5000, the laminar Kolmogorov flow; 404 saying why a run has none.
 /// `until` ends it early (the analytic curves then sampled over the shorter span).
 Response reference(const Router::Services& s, const Context& c) {
   constexpr int kSamples = 201;

@@ -2,6 +2,8 @@
 // the 3D Taylor-Green vortex at Re = 5000 shipped in data/reference/.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -49,6 +51,21 @@ TEST(Reference, TaylorGreen3dAtRe5000IsTheDnsUpToTheEndTime) {
     if (c.dissipation[k] > c.dissipation[peak]) peak = k;
   EXPECT_NEAR(c.time[peak], 8.74, 1e-9);
   EXPECT_NEAR(c.dissipation[peak], 0.0155441, 1e-7);
+}
+
+TEST(Reference, TaylorGreen3dAtRe1600IsTheWorkshopsSpectralDns) {
+  const sim::Scene scene = sim::parse_scene({{"case", "tgv3d"},
+                                             {"fluid", {{"dynamic_viscosity", 1.0 / 1600.0}}},
+                                             {"time", {{"end", 20.0}}}});
+  EXPECT_FALSE(missing_reference(scene));
+  const ReferenceCurve c = reference_curve(scene, kReferenceDir);
+  EXPECT_EQ(c.label, "DNS, Re = 1600");
+  ASSERT_EQ(c.time.size(), 2000u);  // t = 0, 0.01, ..., 19.99 (CRLF lines)
+  EXPECT_EQ(c.energy.front(), 0.125);
+  // data/reference/README.md: peak -dE/dt = 0.012857528 at t = 8.97.
+  const auto peak = std::max_element(c.dissipation.begin(), c.dissipation.end());
+  EXPECT_NEAR(c.time[peak - c.dissipation.begin()], 8.97, 1e-9);
+  EXPECT_NEAR(*peak, 0.012857528, 1e-9);
 }
 
 TEST(Reference, KolmogorovIsTheLaminarSpinUpFromRest) {
