@@ -7,6 +7,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "analysis/config.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/json_reader.hpp"
 
@@ -154,6 +155,42 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
     }
   }
   throw std::logic_error("missing_reference and reference_curve disagree");  // not reached
+}
+
+std::optional<std::filesystem::path> find_reference_run(
+    const sim::Scene& scene, const std::filesystem::path& reference_dir) {
+  namespace fs = std::filesystem;
+  std::optional<fs::path> best;
+  int best_points = 0;
+  std::error_code ec;
+  for (const fs::directory_entry& e : fs::directory_iterator(reference_dir, ec)) {
+    const fs::path dir = e.path();
+    if (!fs::exists(dir / "scene.json") || !fs::exists(dir / "spectra" / "index.csv")) continue;
+    try {
+      nlohmann::json document = sim::read_scene_file(dir / "scene.json");
+      const int points =
+          document.value("reference", nlohmann::json::object()).value("points_per_side", 0);
+      document.erase("reference");
+      document.erase("render");
+      const sim::Scene r = parse_run_config(document).scene;
+      const bool same = r.case_type == scene.case_type &&
+                        close(r.box_length(), scene.box_length()) &&
+                        close(r.fluid.kinematic_viscosity(), scene.fluid.kinematic_viscosity()) &&
+                        close(r.velocity_amplitude, scene.velocity_amplitude) &&
+                        r.uniform_velocity == scene.uniform_velocity &&
+                        (scene.case_type != sim::CaseType::Kolmogorov2D ||
+                         (close(r.forcing.amplitude, scene.forcing.amplitude) &&
+                          r.forcing.periods == scene.forcing.periods &&
+                          close(r.forcing.friction, scene.forcing.friction)));
+      if (same && (points > best_points || (points == best_points && best && dir < *best))) {
+        best = dir;
+        best_points = points;
+      }
+    } catch (const std::exception&) {
+      continue;  // not a reference run of this version's scenes
+    }
+  }
+  return best;
 }
 
 }  // namespace sphles::analysis

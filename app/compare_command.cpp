@@ -5,8 +5,10 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 
+#include "analysis/reference.hpp"
 #include "analysis/resolved_scales.hpp"
 #include "app/commands.hpp"
+#include "sim/json_reader.hpp"
 
 namespace sphles::app {
 
@@ -39,8 +41,24 @@ nlohmann::json to_json(const analysis::ResolvedHistory& h) {
            {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}}};
 }
 
-int compare_command(const CompareOptions& o) {
+int compare_command(CompareOptions o) {
   try {
+    if (o.reference.empty()) {
+      // The shipped reference of the run's flow (data/reference/).
+      nlohmann::json document = sim::read_scene_file(std::filesystem::path(o.run) / "scene.json");
+      document.erase("reference");
+      document.erase("render");
+      const sim::Scene scene = analysis::parse_run_config(document).scene;
+      const auto found = analysis::find_reference_run(scene, SPHLES_REFERENCE_DIR);
+      if (!found)
+        throw std::runtime_error("no shipped reference matches the flow of '" + o.run + "' (case " +
+                                 std::string(sim::case_name(scene.case_type)) +
+                                 ", nu = " + sim::format_number(scene.fluid.kinematic_viscosity()) +
+                                 "): compute one with `sphles reference " + o.run +
+                                 "/scene.json` and give its "
+                                 "directory as REF");
+      o.reference = found->string();
+    }
     const auto run = analysis::read_run_spectra(o.run);
     const auto ref = analysis::read_run_spectra(o.reference);
     const analysis::ResolvedHistory h = analysis::resolved_history(run, ref, o.from, o.to);
@@ -88,10 +106,11 @@ void add_compare_command(CLI::App& app, int& exit_code) {
       "At the run's spectra times: the resolved energy E_res = sum of E(k) over k <= k_SPH = "
       "k_kern/2, the shell ratios E(k)/E_ref(k) up to k_kern, the energy above k_kern, and over "
       "time the misfit of E_res and the peak of -dE_res/dt (SPEC §9; docs/reference.md). REF is a "
-      "`sphles reference` run directory of the same case.");
+      "`sphles reference` run directory of the same flow; without it, the one shipped in "
+      "data/reference/ for the run's case and Reynolds number.");
   cmd->add_option("run", o->run, "run directory with spectra/")->required()->type_name("RUN");
-  cmd->add_option("reference", o->reference, "reference run directory")
-      ->required()
+  cmd->add_option("reference", o->reference,
+                  "reference run directory (default: the shipped one of the run's flow)")
       ->type_name("REF");
   cmd->add_option("--from", o->from, "first time compared")->type_name("T");
   cmd->add_option("--to", o->to, "last time compared")->type_name("T");

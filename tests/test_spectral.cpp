@@ -10,6 +10,7 @@
 #include <numbers>
 #include <sstream>
 
+#include "analysis/reference.hpp"
 #include "analysis/writer.hpp"
 #include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
@@ -340,6 +341,14 @@ TEST(ReferenceCommand, WritesARunDirectoryAndRestarts) {
   EXPECT_EQ(read_file(out / "timeseries.csv"), read_file(straight / "timeseries.csv"));
   EXPECT_EQ(read_file(out / "spectra" / "E_t1.0000.csv"),
             read_file(straight / "spectra" / "E_t1.0000.csv"));
+
+  // The run is found as the reference of its flow, and of no other.
+  const sim::Scene same = sim::parse_scene(
+      {{"preset", "tgv2d"}, {"fluid", {{"dynamic_viscosity", 0.02}}}, {"particles_per_side", 16}});
+  EXPECT_EQ(analysis::find_reference_run(same, dir), out);
+  sim::Scene other = same;
+  other.fluid.dynamic_viscosity = 0.021;
+  EXPECT_FALSE(analysis::find_reference_run(other, dir));
 
   // Bad input: the field and the reason, exit 2, nothing written.
   EXPECT_EQ(
