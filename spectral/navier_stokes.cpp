@@ -301,56 +301,46 @@ void NavierStokesSolver::advance(double h) {
     else
       extra = f;
   };
-  each_mode([&](std::size_t i, std::size_t r, int ix, int my, int mz) {
-    const std::array<double, 3> k = wavevector(r, ix);
-    const double L =
-        linear_rate(k[0] * k[0] + k[1] * k[1] + k[2] * k[2], flow_.viscosity, flow_.friction);
-    const double e = std::exp(0.5 * h * L);
-    factor[i] = e;
-    Complex shift, extra;
-    forcing(r, ix, my, mz, shift, extra);
-    for (int c = 0; c < components_; ++c) {
-      const Complex s = c == 0 ? shift : Complex(0.0, 0.0);
-      const Complex a = rhs_[c][i] + (c == 0 ? extra : Complex(0.0, 0.0));
-      sum_[c][i] = e * e * a;
-      stage_[c][i] = LawsonRk4::stage1(e, h, modes_[c][i] - s, a) + s;
-    }
-  });
-  nonlinear(stage_, rhs_, nullptr);
-  each_mode([&](std::size_t i, std::size_t r, int ix, int my, int mz) {
-    const double e = factor[i];
-    Complex shift, extra;
-    forcing(r, ix, my, mz, shift, extra);
-    for (int c = 0; c < components_; ++c) {
-      const Complex s = c == 0 ? shift : Complex(0.0, 0.0);
-      const Complex b = rhs_[c][i] + (c == 0 ? extra : Complex(0.0, 0.0));
-      sum_[c][i] += 2.0 * e * b;
-      stage_[c][i] = LawsonRk4::stage2(e, h, modes_[c][i] - s, b) + s;
-    }
-  });
-  nonlinear(stage_, rhs_, nullptr);
-  each_mode([&](std::size_t i, std::size_t r, int ix, int my, int mz) {
-    const double e = factor[i];
-    Complex shift, extra;
-    forcing(r, ix, my, mz, shift, extra);
-    for (int c = 0; c < components_; ++c) {
-      const Complex s = c == 0 ? shift : Complex(0.0, 0.0);
-      const Complex cc = rhs_[c][i] + (c == 0 ? extra : Complex(0.0, 0.0));
-      sum_[c][i] += 2.0 * e * cc;
-      stage_[c][i] = LawsonRk4::stage3(e, h, modes_[c][i] - s, cc) + s;
-    }
-  });
-  nonlinear(stage_, rhs_, nullptr);
-  each_mode([&](std::size_t i, std::size_t r, int ix, int my, int mz) {
-    const double e = factor[i];
-    Complex shift, extra;
-    forcing(r, ix, my, mz, shift, extra);
-    for (int c = 0; c < components_; ++c) {
-      const Complex s = c == 0 ? shift : Complex(0.0, 0.0);
-      const Complex d = rhs_[c][i] + (c == 0 ? extra : Complex(0.0, 0.0));
-      modes_[c][i] = LawsonRk4::final_step(e, h, modes_[c][i] - s, sum_[c][i] + d) + s;
-    }
-  });
+  // After the stage k's N(·) is in rhs_ (k = 0: a = N(û)): add it with its weight to the sum
+  // and form the next stage's state (k = 3: the new state).
+  auto finish_stage = [&](int k) {
+    each_mode([&](std::size_t i, std::size_t r, int ix, int my, int mz) {
+      if (k == 0) {
+        const std::array<double, 3> kv = wavevector(r, ix);
+        factor[i] = std::exp(0.5 * h *
+                             linear_rate(kv[0] * kv[0] + kv[1] * kv[1] + kv[2] * kv[2],
+                                         flow_.viscosity, flow_.friction));
+      }
+      const double e = factor[i];
+      Complex shift, extra;
+      forcing(r, ix, my, mz, shift, extra);
+      for (int c = 0; c < components_; ++c) {
+        const Complex s = c == 0 ? shift : Complex(0.0, 0.0);
+        const Complex v = modes_[c][i] - s;
+        const Complex n = rhs_[c][i] + (c == 0 ? extra : Complex(0.0, 0.0));
+        switch (k) {
+          case 0:
+            sum_[c][i] = e * e * n;
+            stage_[c][i] = LawsonRk4::stage1(e, h, v, n) + s;
+            break;
+          case 1:
+            sum_[c][i] += 2.0 * e * n;
+            stage_[c][i] = LawsonRk4::stage2(e, h, v, n) + s;
+            break;
+          case 2:
+            sum_[c][i] += 2.0 * e * n;
+            stage_[c][i] = LawsonRk4::stage3(e, h, v, n) + s;
+            break;
+          default:
+            modes_[c][i] = LawsonRk4::final_step(e, h, v, sum_[c][i] + n) + s;
+        }
+      }
+    });
+  };
+  for (int k = 0; k < 4; ++k) {
+    if (k > 0) nonlinear(stage_, rhs_, nullptr);
+    finish_stage(k);
+  }
   time_ += h;
   ++step_;
   have_rhs_ = false;
