@@ -131,7 +131,6 @@ int reference_command(const ReferenceOptions& options) {
     run_options.on_frame = [&sink](std::shared_ptr<const analysis::AnalysisFrame> f) {
       sink.post(std::move(f));
     };
-    if (run_options.restart) control::RenderSink::truncate_index_after(dir / "frames", 0.0);
     const spectral::ReferenceRunResult r =
         spectral::run_reference(scene, analysis, config, document, run_options);
     sink.close(true);

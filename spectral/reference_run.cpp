@@ -334,6 +334,7 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
     truncate_rows_after(dir / "spectra" / "index.csv", solver.time());
     truncate_rows_after(dir / "slices" / "index.csv", solver.time());
     truncate_rows_after(dir / "stats" / "snapshots.csv", solver.time());
+    truncate_rows_after(dir / "frames" / "index.csv", solver.time());
   } else {
     std::ofstream(series) << reference_timeseries_header() << '\n';
   }

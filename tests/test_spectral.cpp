@@ -332,6 +332,7 @@ TEST(ReferenceCommand, WritesARunDirectoryAndRestarts) {
   ASSERT_EQ(0, run("reference --restart " + out.string() + " --set time.end=1", dir / "log2.txt"))
       << read_file(dir / "log2.txt");
   EXPECT_EQ(analysis::read_index(out / "spectra" / "index.csv").size(), 5u);
+  EXPECT_EQ(analysis::read_index(out / "frames" / "index.csv").size(), 5u);
   const std::filesystem::path straight = dir / "straight";
   ASSERT_EQ(0, run("reference tgv2d --set reference.points_per_side=32 --set time.end=1 "
                    "--set reference.every=0.25 --set fluid.dynamic_viscosity=0.02 --out " +
