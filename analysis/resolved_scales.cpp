@@ -173,4 +173,29 @@ ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
   return h;
 }
 
+nlohmann::json resolved_history_to_json(const ResolvedHistory& h) {
+  nlohmann::json samples = nlohmann::json::array();
+  for (const ResolvedScales& s : h.samples) {
+    nlohmann::json ratios = nlohmann::json::array();
+    for (double r : s.shell_ratio)
+      ratios.push_back(std::isnan(r) ? nlohmann::json() : nlohmann::json(r));
+    samples.push_back({{"t", s.time},
+                       {"k_kernel", s.kernel_wavenumber},
+                       {"k_sph", s.sph_wavenumber},
+                       {"resolved_energy", s.resolved_energy},
+                       {"reference_resolved_energy", s.reference_resolved_energy},
+                       {"energy_above_kernel", s.energy_above_kernel},
+                       {"reference_energy_above_kernel", s.reference_energy_above_kernel},
+                       {"shell", s.shell},
+                       {"shell_ratio", ratios}});
+  }
+  return {{"samples", samples},
+          {"resolved_energy_l2_misfit", h.l2_misfit},
+          {"resolved_energy_max_relative_error", h.max_relative_error},
+          {"flux", {{"t", h.flux_time}, {"run", h.flux}, {"reference", h.reference_flux}}},
+          {"flux_peak", {{"t", h.flux_peak_time}, {"value", h.flux_peak}}},
+          {"reference_flux_peak",
+           {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}}};
+}
+
 }  // namespace sphles::analysis

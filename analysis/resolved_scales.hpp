@@ -9,6 +9,7 @@
 #pragma once
 
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -63,5 +64,11 @@ struct ResolvedHistory {
 ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
                                  const std::vector<ShellSpectrum>& reference, double t_min = 0.0,
                                  double t_max = 1e300);
+
+/// The history as JSON: "samples" (t, k_kernel, k_sph, resolved_energy, reference_resolved_energy,
+/// energy_above_kernel, reference_energy_above_kernel, shell, shell_ratio; NaN ratios as null),
+/// "resolved_energy_l2_misfit", "resolved_energy_max_relative_error", "flux" {t, run,
+/// reference}, "flux_peak" and "reference_flux_peak" {t, value}.
+nlohmann::json resolved_history_to_json(const ResolvedHistory& history);
 
 }  // namespace sphles::analysis

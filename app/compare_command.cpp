@@ -20,27 +20,6 @@ struct CompareOptions {
   bool json = false;
 };
 
-nlohmann::json to_json(const analysis::ResolvedHistory& h) {
-  nlohmann::json samples = nlohmann::json::array();
-  for (const auto& s : h.samples)
-    samples.push_back({{"t", s.time},
-                       {"k_kernel", s.kernel_wavenumber},
-                       {"k_sph", s.sph_wavenumber},
-                       {"resolved_energy", s.resolved_energy},
-                       {"reference_resolved_energy", s.reference_resolved_energy},
-                       {"energy_above_kernel", s.energy_above_kernel},
-                       {"reference_energy_above_kernel", s.reference_energy_above_kernel},
-                       {"shell", s.shell},
-                       {"shell_ratio", s.shell_ratio}});
-  return {{"samples", samples},
-          {"resolved_energy_l2_misfit", h.l2_misfit},
-          {"resolved_energy_max_relative_error", h.max_relative_error},
-          {"flux", {{"t", h.flux_time}, {"run", h.flux}, {"reference", h.reference_flux}}},
-          {"flux_peak", {{"t", h.flux_peak_time}, {"value", h.flux_peak}}},
-          {"reference_flux_peak",
-           {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}}};
-}
-
 int compare_command(CompareOptions o) {
   try {
     if (o.reference.empty()) {
@@ -66,7 +45,7 @@ int compare_command(CompareOptions o) {
       throw std::runtime_error("no time of '" + o.run + "' in [" + std::to_string(o.from) + ", " +
                                std::to_string(o.to) + "] lies within the reference's times");
     if (o.json) {
-      std::printf("%s\n", to_json(h).dump(2).c_str());
+      std::printf("%s\n", analysis::resolved_history_to_json(h).dump(2).c_str());
       return kExitOk;
     }
     const auto& first = h.samples.front();

@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "analysis/reference.hpp"
+#include "analysis/resolved_scales.hpp"
 #include "control/scene_schema.hpp"
 #include "logging/logging.hpp"
 #include "server/auth.hpp"
@@ -285,6 +286,37 @@ Response reference(const Router::Services& s, const Context& c) {
                                    {"data", {curve.time, curve.energy, curve.dissipation}}});
 }
 
+/// The run's resolved scales against the reference run of its flow in the server's reference
+/// data (analysis/resolved_scales.hpp, SPEC §9): at every analysed time the reference covers,
+/// and the reference's E(k) at the latest of them; 404 saying why when there is none.
+Response resolved(const Router::Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  const sim::Scene scene = run->spec().run.scene;
+  const auto reference = analysis::find_reference_run(scene, s.options.reference_dir);
+  if (!reference)
+    throw ApiError(404, "run '" + run->id() +
+                            "' has no reference run of its flow in the server's reference data "
+                            "(`sphles reference` computes one; docs/reference.md)");
+  if (!fs::exists(run->directory() / "spectra" / "index.csv"))
+    throw ApiError(404, "run '" + run->id() + "' has no spectra yet");
+  std::vector<analysis::ShellSpectrum> ref;
+  analysis::ResolvedHistory h;
+  try {
+    ref = analysis::read_run_spectra(*reference);
+    h = analysis::resolved_history(analysis::read_run_spectra(run->directory()), ref);
+  } catch (const std::runtime_error& e) {
+    throw ApiError(500, e.what());
+  }
+  if (h.samples.empty())
+    throw ApiError(404, "no spectrum of run '" + run->id() + "' lies within the reference's times");
+  nlohmann::json body = analysis::resolved_history_to_json(h);
+  const analysis::ShellSpectrum latest = analysis::spectrum_at(ref, h.samples.back().time);
+  body["reference"] = reference->filename().string();
+  body["reference_spectrum"] = {
+      {"t", latest.time}, {"k", latest.wavenumber}, {"energy", latest.energy}};
+  return json_response(c.request, body);
+}
+
 /// The end of the run's run.log as text: the last `lines` lines (default 200, at most the
 /// server's rows per answer), "" before the run has logged anything.
 Response run_log(const Router::Services& s, const Context& c) {
@@ -539,6 +571,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/log", false}, run_log},
       {{V::get, "/api/runs/{id}/analysis", false}, analysis_history},
       {{V::get, "/api/runs/{id}/reference", false}, reference},
+      {{V::get, "/api/runs/{id}/resolved", false}, resolved},
       {{V::get, "/api/runs/{id}/files", false}, list_files},
       {{V::get, "/api/runs/{id}/files/{name}", false}, get_file},
       {{V::get, "/api/runs/{id}/files/{dir}/{name}", false}, get_file},

@@ -464,6 +464,50 @@ TEST(Server, TimeSeries) {
   expect_error(api.get("/api/runs/" + id + "/timeseries?since_step=soon"), 400, "since_step");
 }
 
+// The resolved scales (SPEC §9) of a run against the reference run of its flow in the server's
+// reference data, here a `sphles reference` run of the tiny 2D Taylor-Green vortex.
+TEST(Server, ResolvedScalesAgainstTheReferenceRunOfTheFlow) {
+  const fs::path base = scratch("resolved");
+  const fs::path references = base / "references";
+  fs::create_directories(references);
+  const std::string command = std::string(SPHLES_BINARY) +
+                              " reference tgv2d --set reference.points_per_side=32 "
+                              "--set time.end=1 --set reference.every=0.1 --out " +
+                              (references / "tgv2d_re100_sphles_32").string() + " > " +
+                              (base / "reference.log").string() + " 2>&1";
+  ASSERT_EQ(std::system(command.c_str()), 0);
+  TestServer server(base / "data", "", 2, [&](ServerOptions& o) { o.reference_dir = references; });
+  const Api api{server.port()};
+  json scene = rendered_scene(0.3);
+  scene["fluid"] = {{"dynamic_viscosity", 0.01}};  // the preset's Re = 100, as the reference
+  scene["render"] = {{"fields", json::array()}};
+  const std::string id = api.create({{"scene", scene}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  const Reply r = api.get("/api/runs/" + id + "/resolved");
+  ASSERT_EQ(r.status, 200) << r.body;
+  const json body = r.body_json();
+  EXPECT_EQ(body["reference"], "tgv2d_re100_sphles_32");
+  const json& samples = body["samples"];
+  ASSERT_EQ(samples.size(), 7u) << body;  // t = 0, 0.05, ..., 0.3 (between the reference's 0.1)
+  // 16², D_K = 8Δl: k_kern = 2, k_SPH = 1; at t = 0 the only shell, k = 1, holds the energy.
+  EXPECT_DOUBLE_EQ(samples[0]["k_kernel"].get<double>(), 2.0);
+  EXPECT_EQ(samples[0]["shell"], json({1.0, 2.0}));
+  EXPECT_NEAR(samples[0]["reference_resolved_energy"].get<double>(), 0.25, 1e-12);
+  EXPECT_TRUE(samples[0]["shell_ratio"][1].is_null());  // the reference's shell 2 is empty
+  const double ratio = samples[6]["resolved_energy"].get<double>() /
+                       samples[6]["reference_resolved_energy"].get<double>();
+  EXPECT_GT(ratio, 0.5);
+  EXPECT_LT(ratio, 1.1);
+  EXPECT_NEAR(body["reference_spectrum"]["t"].get<double>(), samples[6]["t"].get<double>(), 1e-9);
+  EXPECT_FALSE(body["reference_spectrum"]["energy"].empty());
+  // Another Reynolds number: none, and why.
+  scene["fluid"] = {{"dynamic_viscosity", 0.02}};
+  const std::string other = api.create({{"scene", scene}, {"start", false}});
+  const Reply none = api.get("/api/runs/" + other + "/resolved");
+  expect_error(none, 404);
+  EXPECT_NE(none.body.find("sphles reference"), std::string::npos) << none.body;
+}
+
 // The analysis history (issue 20): one row per analysis frame from stats/snapshots.csv, so that a
 // page loaded late (or after a restart) plots the dissipation estimates and |τ_SFS| of every
 // frame, not only those streamed since it connected.
