@@ -120,6 +120,7 @@ ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& re
   sums(reference, r.reference_resolved_energy, r.reference_energy_above_kernel);
   double reference_total = 0.0;
   for (double e : reference.energy) reference_total += e * dk;
+  r.reference_energy = reference_total;
   for (std::size_t p = 1; p < run.energy.size(); ++p) {
     const double k = run.wavenumber[p];
     if (k > kernel_wavenumber * (1.0 + kShellTolerance)) break;
@@ -145,15 +146,18 @@ ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
     h.samples.push_back(resolved_scales(s, ref, s.kernel_wavenumber));
   }
   double num = 0.0, den = 0.0;
+  bool any = false;
   for (const ResolvedScales& r : h.samples) {
+    if (!(r.reference_resolved_energy > kEmptyShell * r.reference_energy)) continue;
+    any = true;
     const double d = r.resolved_energy - r.reference_resolved_energy;
     num += d * d;
     den += r.reference_resolved_energy * r.reference_resolved_energy;
-    if (r.reference_resolved_energy > 0.0)
-      h.max_relative_error = std::max(
-          h.max_relative_error, std::abs(r.resolved_energy / r.reference_resolved_energy - 1.0));
+    h.max_relative_error = std::max(
+        h.max_relative_error, std::abs(r.resolved_energy / r.reference_resolved_energy - 1.0));
   }
-  h.l2_misfit = den > 0.0 ? std::sqrt(num / den) : 0.0;
+  if (!any) h.max_relative_error = std::numeric_limits<double>::quiet_NaN();
+  h.l2_misfit = any ? std::sqrt(num / den) : std::numeric_limits<double>::quiet_NaN();
   for (std::size_t i = 1; i + 1 < h.samples.size(); ++i) {
     const ResolvedScales &a = h.samples[i - 1], &b = h.samples[i + 1];
     const double dt = b.time - a.time;
@@ -186,6 +190,7 @@ nlohmann::json resolved_history_to_json(const ResolvedHistory& h) {
                        {"reference_resolved_energy", s.reference_resolved_energy},
                        {"energy_above_kernel", s.energy_above_kernel},
                        {"reference_energy_above_kernel", s.reference_energy_above_kernel},
+                       {"reference_energy", s.reference_energy},
                        {"shell", s.shell},
                        {"shell_ratio", ratios}});
   }

@@ -38,6 +38,7 @@ struct ResolvedScales {
   double sph_wavenumber = 0.0;     // k_SPH = k_kern / 2
   double resolved_energy = 0.0, reference_resolved_energy = 0.0;
   double energy_above_kernel = 0.0, reference_energy_above_kernel = 0.0;
+  double reference_energy = 0.0;    // Σ_k E_ref(k) Δk
   std::vector<double> shell;        // k_p of the shells 0 < k_p <= k_kern
   std::vector<double> shell_ratio;  // E(k_p)/E_ref(k_p); NaN where the reference's shell is empty
 };
@@ -49,9 +50,11 @@ ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& re
 
 struct ResolvedHistory {
   std::vector<ResolvedScales> samples;  // at the run's spectra times the reference covers
-  /// sqrt(Σ (E_res - E_res,ref)² / Σ E_res,ref²) over the samples.
+  /// sqrt(Σ (E_res - E_res,ref)² / Σ E_res,ref²) over the samples whose reference has resolved
+  /// energy (more than 10⁻¹² of its total: a kernel so wide that k_SPH lies below the flow's
+  /// scales has none); NaN when none has.
   double l2_misfit = 0.0;
-  /// max |E_res / E_res,ref - 1| over the samples.
+  /// max |E_res / E_res,ref - 1| over the same samples (NaN when none).
   double max_relative_error = 0.0;
   /// -dE_res/dt by centred differences at the interior samples (and its reference's), and the
   /// times of their largest values.

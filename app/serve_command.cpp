@@ -82,6 +82,12 @@ void add_serve_options(CLI::App& serve, ServeOptions& o) {
       .add_option("--web", o.server.web_root,
                   "directory of the dashboard's files (default: web/ of the source tree)")
       ->type_name("DIR");
+  serve
+      .add_option("--reference-dir", o.server.reference_dir,
+                  "reference data: the DNS histories and `sphles reference` runs the runs are "
+                  "compared with (default: data/reference/ of the source tree)")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
   serve.add_option("--max-running", o.manager.max_running, "runs stepping at once")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();

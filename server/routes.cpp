@@ -172,7 +172,12 @@ Response estimate_run(const Router::Services& s, const Context& c) {
 
 Response get_run(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  return json_response(c.request, run_detail_json(*run, s.streams.counters(run->id())));
+  nlohmann::json detail = run_detail_json(*run, s.streams.counters(run->id()));
+  // Whether GET resolved answers: a spectrum and a reference run of the run's flow.
+  detail["available"]["resolved"] =
+      detail["available"]["spectrum"].get<bool>() &&
+      analysis::find_reference_run(run->spec().run.scene, s.options.reference_dir).has_value();
+  return json_response(c.request, detail);
 }
 
 template <void (control::RunManager::*Action)(const std::string&)>

@@ -64,6 +64,13 @@ TEST(ResolvedScales, HistoryInterpolatesTheReferenceAndFindsTheFluxPeak) {
   EXPECT_LT(h.l2_misfit, 0.11);
   EXPECT_DOUBLE_EQ(h.flux_peak_time, 3.75);  // the last interior sample
   EXPECT_NEAR(h.flux_peak, 0.9 * 0.02 * 3.75, 1e-12);
+  // A reference without resolved energy (every shell above k_SPH) has no misfit.
+  std::vector<ShellSpectrum> wide_run, wide_ref;
+  for (int i = 0; i <= 2; ++i) {
+    wide_run.push_back(spectrum(i, {0.0, 0.0, 0.1}, 2.0));
+    wide_ref.push_back(spectrum(i, {1e-40, 0.0, 0.1}, 2.0));
+  }
+  EXPECT_TRUE(std::isnan(resolved_history(wide_run, wide_ref).l2_misfit));
   // A window that the reference does not cover gives no samples.
   EXPECT_TRUE(resolved_history(run, ref, 5.0, 6.0).samples.empty());
 }

@@ -207,6 +207,12 @@ export const api = {
   reference: (id, until) => call('get', '/api/runs/{id}/reference',
     until === undefined ? ofRun(id) : { params: { id }, query: { until } }),
   /**
+   * The run's resolved scales against the reference run of its flow (SPEC §9): E_res, the
+   * shell ratios, the energy above k_kern, and the reference's E(k) at the latest time.
+   * @param {string} id
+   */
+  resolved: (id) => call('get', '/api/runs/{id}/resolved', ofRun(id)),
+  /**
    * Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series.
    * @param {string} id
    */

@@ -592,6 +592,7 @@ function selectRun(id) {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
     reference: null, referenceWhy: null, referencePending: false, referenceRetry: { failures: 0, at: 0 },
+    resolved: null, resolvedAvailable: false, resolvedAt: 0,
     live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
@@ -612,6 +613,9 @@ function selectRun(id) {
   $('run-files').dataset.count = '0';
   refreshFiles();
   setText('cap-spectrum', 'no spectrum yet');
+  $('resolved-table').replaceChildren();
+  $('resolved-table').dataset.shells = '0';
+  setText('cap-resolved', 'no reference run of this flow (docs/reference.md)');
   setText('cap-stats', 'no statistics yet');
   ensureCharts();
   renderRunList();
@@ -655,6 +659,7 @@ async function backfill(id) {
     const available = detail.available ?? {};
     if (available.reference && !app.reference) loadReference(id);
     else if (!available.reference) app.referenceWhy = 'none for this case and Reynolds number (GET /api/runs/{id}/reference says why)';
+    app.resolvedAvailable = Boolean(available.resolved);
     if (available.spectrum) {
       const s = await api.spectrum(id).catch(() => null);
       if (s && id === app.selectedId) onSpectrum(s);
@@ -1040,8 +1045,50 @@ function addAnalysisHistory(history) {
   scheduleRedraw();
 }
 
+/** The resolved scales against the reference run of the flow, at most every 2 s of wall time. */
+async function loadResolved(id) {
+  if (!app.resolvedAvailable || Date.now() < app.resolvedAt) return;
+  app.resolvedAt = Date.now() + 2000;
+  const r = await api.resolved(id).catch(() => null);
+  if (!r || id !== app.selectedId) return;
+  app.resolved = r;
+  showResolved(r);
+  scheduleRedraw();
+}
+
+/** The latest sample's resolved energy, shell ratios and particle-scale energy as a table. */
+function showResolved(r) {
+  const table = $('resolved-table');
+  const s = r.samples[r.samples.length - 1];
+  if (!s) return;
+  const ratio = (v) => (v === null || v === undefined || !Number.isFinite(v) ? '–' : v.toFixed(2));
+  const rows = [
+    ['t', formatNumber(s.t)],
+    ['E_res / E_res,ref (k ≤ k_SPH = ' + formatNumber(s.k_sph) + ')',
+      // None where the reference has no resolved energy (k_SPH below the flow's scales).
+      ratio(s.reference_resolved_energy > 1e-12 * s.reference_energy
+        ? s.resolved_energy / s.reference_resolved_energy : null)],
+    ...s.shell.map((k, i) => [`E(k)/E_ref(k), k = ${formatNumber(k)}`, ratio(s.shell_ratio[i])]),
+    ['energy above k_kern, run / reference', `${formatNumber(s.energy_above_kernel)} / ${formatNumber(s.reference_energy_above_kernel)}`],
+    ['E_res misfit so far (L2)', Number.isFinite(r.resolved_energy_l2_misfit)
+      ? `${(100 * r.resolved_energy_l2_misfit).toFixed(1)} %` : '–'],
+  ];
+  table.replaceChildren(...rows.map(([name, value]) => {
+    const tr = document.createElement('tr');
+    const th = document.createElement('th');
+    th.textContent = name;
+    const td = document.createElement('td');
+    td.textContent = value;
+    tr.append(th, td);
+    return tr;
+  }));
+  table.dataset.shells = String(s.shell.length);
+  setText('cap-resolved', `against ${r.reference}`);
+}
+
 function onSpectrum(m) {
   app.spectrum = m;
+  if (app.selectedId) loadResolved(app.selectedId);
   const vorticity = finite(m.dissipation_vorticity) ?? finite(m.vorticity?.dissipation);
   addAnalysisPoint({ time: finite(m.time), spectral: finite(m.dissipation), vorticity });
   setText('cap-spectrum', `t = ${formatNumber(m.time)} s, step ${m.step ?? '–'}` +
@@ -1303,7 +1350,17 @@ function redraw() {
   // Only the selected run's spectrum: none yet (a run just selected) empties the plot.
   const s = app.spectrum;
   const hasSpectrum = s && Array.isArray(s.k) && Array.isArray(s.energy);
-  const own = hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []);
+  // The reference's E(k) at the latest compared time, dashed (GET resolved).
+  // Shells the reference leaves empty (round-off, 10⁻³⁰ of its peak) are not drawn: they
+  // would stretch the log axis over tens of decades.
+  const refSpectrum = hasSpectrum ? app.resolved?.reference_spectrum : null;
+  const refPeak = refSpectrum ? Math.max(...refSpectrum.energy) : 0;
+  const refKeep = refSpectrum
+    ? refSpectrum.k.map((k, i) => i).filter((i) => refSpectrum.k[i] > 0 && refSpectrum.energy[i] > 1e-12 * refPeak)
+    : [];
+  const own = mergeOnTime(hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []),
+    { x: refKeep.map((i) => refSpectrum.k[i]), ys: [refKeep.map((i) => refSpectrum.energy[i])] });
+  $('chart-spectrum').dataset.referencePoints = String(refKeep.length);
   const d = withCompared(own, (r) => {
     const k = r.spectrum?.k ?? [];
     const e = r.spectrum?.energy ?? [];

@@ -217,6 +217,7 @@ export function spectrumChart(container) {
     series: [
       { label: 'E(k)', points: true, width: 1.5 },
       { label: 'k^(−5/3)', stroke: '#999999', dash: [6, 4], width: 1 },
+      { label: 'reference E(k)', stroke: '#000000', dash: [3, 3], width: 1.5 },
     ],
   });
 }
