@@ -460,6 +460,36 @@ async function run() {
   const otherRemoved = await fetch(`${base}/api/runs/${otherId}`, { method: 'DELETE' });
   if (otherRemoved.status !== 204 && otherRemoved.status !== 200) fail(`deleting the compared run: HTTP ${otherRemoved.status}`);
 
+  // The resolved scales (SPEC §9) of a 3D Taylor-Green run at Re = 1600 against the reference run
+  // shipped in data/reference/: the reference's E(k) dashed on the spectrum plot and the table
+  // of the shell ratios.
+  currentStep = 'resolved scales';
+  const re1600 = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ scene: { case: 'tgv3d', name: 'e2e-re1600', particles_per_side: 16,
+      fluid: { dynamic_viscosity: 6.25e-4 }, packing: { enabled: false }, time: { end: 0.5 },
+      analysis: { every: 0.25, products: ['spectrum'] } } }),
+  });
+  if (re1600.status !== 201) fail(`creating the Re = 1600 run: HTTP ${re1600.status}`);
+  const re1600Id = (await re1600.json()).id;
+  await waitFor('the Re = 1600 run to finish', async () =>
+    (await (await fetch(`${base}/api/runs/${re1600Id}`)).json()).state === 'finished', 60_000);
+  const re1600Item = page.locator(`#run-list li[data-id="${re1600Id}"] button`);
+  await waitFor('the Re = 1600 run in the list', async () => (await re1600Item.count()) === 1, 10_000);
+  await re1600Item.click();
+  const resolved = await waitFor('the reference spectrum and the resolved-scales table', async () => {
+    const refPoints = Number(await page.locator('#chart-spectrum').getAttribute('data-reference-points'));
+    const shells = Number(await page.locator('#resolved-table').getAttribute('data-shells'));
+    return refPoints > 0 && shells > 0 ? { refPoints, shells } : null;
+  }, 20_000);
+  const against = await text(page, '#cap-resolved');
+  if (!against.includes('tgv3d_re1600')) fail(`the resolved scales name no Re = 1600 reference: "${against}"`);
+  pass(`resolved scales of a Re = 1600 run ${against}: ${resolved.refPoints} reference E(k) points, ${resolved.shells} shell ratios`);
+  const re1600Removed = await fetch(`${base}/api/runs/${re1600Id}`, { method: 'DELETE' });
+  if (re1600Removed.status !== 204 && re1600Removed.status !== 200) fail(`deleting the Re = 1600 run: HTTP ${re1600Removed.status}`);
+  await page.locator('#run-list li button', { hasText: 'e2e-tgv2d' }).click();
+  await waitFor('the first run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
+
   // Downloads (issue 20): the stopped run's files, its final checkpoint among them, as links
   // that fetch the files themselves.
   currentStep = 'files';
