@@ -187,6 +187,13 @@ class Client:
         answer = self._request("GET", self._run(run_id) + "/reference")
         return {"label": answer["label"], "source": answer["source"], **self._columns(answer)}
 
+    def resolved(self, run_id):
+        """The run's resolved scales against the reference run of its flow (SPEC §9): the
+        answer of GET /api/runs/{id}/resolved as a dict ("samples" with E_res, shell ratios
+        and the energy above k_kern per time, "resolved_energy_l2_misfit", "reference",
+        "reference_spectrum"); ApiError 404 (saying why) when there is none."""
+        return self._request("GET", self._run(run_id) + "/resolved")
+
     def log(self, run_id, lines=200):
         """The last lines of the run's run.log."""
         return self._request("GET", f"{self._run(run_id)}/log?lines={lines}", raw=True).decode()

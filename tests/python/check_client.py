@@ -100,6 +100,12 @@ def main():
         reference = client.reference(run_id)
         check(reference["label"] == "analytic decay" and reference["time"][-1] == 0.3,
               "reference curve")
+        try:
+            client.resolved(run_id)
+            check(False, "resolved scales of a flow without a reference run")
+        except ApiError as e:
+            check(e.status == 404 and "sphles reference" in e.message,
+                  f"no resolved scales without a reference run of the flow: {e.message}")
 
         omega2 = client.slice(run_id, "omega2")
         check(omega2.ndim == 2 and omega2.shape[0] > 8 and np.all(np.isfinite(omega2)),
