@@ -1,12 +1,16 @@
 // sphles compare RUN REF: a run's resolved scales against a reference (SPEC §9).
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <limits>
 #include <memory>
 #include <nlohmann/json.hpp>
+#include <vector>
 
 #include "analysis/reference.hpp"
 #include "analysis/resolved_scales.hpp"
+#include "analysis/writer.hpp"
 #include "app/commands.hpp"
 #include "sim/json_reader.hpp"
 
@@ -19,6 +23,34 @@ struct CompareOptions {
   double from = 0.0, to = 1e300;
   bool json = false;
 };
+
+/// sqrt(Σ (e_v - E_ref)² / Σ E_ref²) over the run's time series rows in [from, to] that the
+/// reference's time series covers (E_ref linear between its rows); NaN without such rows.
+double total_energy_misfit(const std::filesystem::path& run, const std::filesystem::path& reference,
+                           double from, double to) {
+  const auto rows = analysis::read_index(run / "timeseries.csv");
+  const auto ref = analysis::read_index(reference / "timeseries.csv");
+  std::vector<double> rt, re;
+  for (const auto& r : ref)
+    if (r.contains("t") && r.contains("E")) {
+      rt.push_back(std::stod(r.at("t")));
+      re.push_back(std::stod(r.at("E")));
+    }
+  double num = 0.0, den = 0.0;
+  for (const auto& r : rows) {
+    if (!r.contains("t") || !r.contains("e_v")) continue;
+    const double t = std::stod(r.at("t"));
+    if (t < from || t > to || rt.size() < 2 || t < rt.front() || t > rt.back()) continue;
+    const std::size_t i =
+        static_cast<std::size_t>(std::lower_bound(rt.begin(), rt.end(), t) - rt.begin());
+    const double e =
+        i == 0 ? re[0] : re[i - 1] + (re[i] - re[i - 1]) * (t - rt[i - 1]) / (rt[i] - rt[i - 1]);
+    const double d = std::stod(r.at("e_v")) - e;
+    num += d * d;
+    den += e * e;
+  }
+  return den > 0.0 ? std::sqrt(num / den) : std::numeric_limits<double>::quiet_NaN();
+}
 
 int compare_command(CompareOptions o) {
   try {
@@ -68,6 +100,10 @@ int compare_command(CompareOptions o) {
     if (!h.flux.empty())
       std::printf("-dE_res/dt peak: %.5g at t = %.3f (reference %.5g at t = %.3f)\n", h.flux_peak,
                   h.flux_peak_time, h.reference_flux_peak, h.reference_flux_peak_time);
+    // The secondary measure beside it: the particles' e_v against the reference's E.
+    const double misfit = total_energy_misfit(o.run, o.reference, o.from, o.to);
+    if (std::isfinite(misfit))
+      std::printf("e_v against E (secondary): L2 misfit %.2f %%\n", 100.0 * misfit);
     return kExitOk;
   } catch (const std::exception& e) {
     std::fprintf(stderr, "sphles compare: %s\n", e.what());
