@@ -836,7 +836,8 @@ TEST(Server, TokenGuardsMutatingCalls) {
   EXPECT_EQ(owner.run(id)["available"], json({{"spectrum", false},
                                               {"statistics", false},
                                               {"images", json::array()},
-                                              {"reference", true}}));
+                                              {"reference", true},
+                                              {"resolved", false}}));
   // Reading needs no token.
   EXPECT_EQ(anonymous.get("/api/runs").status, 200);
   EXPECT_EQ(anonymous.get("/api/runs/" + id).status, 200);
