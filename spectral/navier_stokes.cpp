@@ -127,23 +127,28 @@ std::vector<std::vector<double>> NavierStokesSolver::velocity_grid() const {
   return to_grid(modes_, components_);
 }
 
-std::vector<std::vector<double>> NavierStokesSolver::vorticity_grid() const {
-  const int count = flow_.dimension == 3 ? 3 : 1;
-  std::array<std::vector<Complex>, 3> w = complex_fields(fft_.complex_size(), count);
-  const long rows = static_cast<long>(fft_.complex_size() / fft_.half());
+void NavierStokesSolver::vorticity_modes(const std::array<std::vector<Complex>, 3>& u,
+                                         std::array<std::vector<Complex>, 3>& w) const {
   const int half = fft_.half();
+  const long rows = static_cast<long>(fft_.complex_size() / half);
 #pragma omp parallel for schedule(static)
   for (long r = 0; r < rows; ++r)
     for (int ix = 0; ix < half; ++ix) {
       const std::size_t i = static_cast<std::size_t>(r) * half + ix;
-      ComplexVector u{};
-      for (int c = 0; c < components_; ++c) u[c] = modes_[c][i];
-      const ComplexVector omega = curl(wavevector(static_cast<std::size_t>(r), ix), u);
-      if (count == 3)
+      ComplexVector v{};
+      for (int c = 0; c < components_; ++c) v[c] = u[c][i];
+      const ComplexVector omega = curl(wavevector(static_cast<std::size_t>(r), ix), v);
+      if (flow_.dimension == 3)
         for (int c = 0; c < 3; ++c) w[c][i] = omega[c];
       else
         w[0][i] = omega[2];
     }
+}
+
+std::vector<std::vector<double>> NavierStokesSolver::vorticity_grid() const {
+  const int count = flow_.dimension == 3 ? 3 : 1;
+  std::array<std::vector<Complex>, 3> w = complex_fields(fft_.complex_size(), count);
+  vorticity_modes(modes_, w);
   return to_grid(w, count);
 }
 
@@ -153,18 +158,7 @@ void NavierStokesSolver::nonlinear(const std::array<std::vector<Complex>, 3>& u,
   const int vorticity_count = dim == 3 ? 3 : 1;
   const long rows = static_cast<long>(fft_.complex_size() / half);
   // ω̂ = i k × û into `out` (used as scratch until the product's transform overwrites it).
-#pragma omp parallel for schedule(static)
-  for (long r = 0; r < rows; ++r)
-    for (int ix = 0; ix < half; ++ix) {
-      const std::size_t i = static_cast<std::size_t>(r) * half + ix;
-      ComplexVector v{};
-      for (int c = 0; c < components_; ++c) v[c] = u[c][i];
-      const ComplexVector omega = curl(wavevector(static_cast<std::size_t>(r), ix), v);
-      if (dim == 3)
-        for (int c = 0; c < 3; ++c) out[c][i] = omega[c];
-      else
-        out[0][i] = omega[2];
-    }
+  vorticity_modes(u, out);
   for (int c = 0; c < vorticity_count; ++c)
     fft_.backward(out[c].data(), grid_vorticity_[c].data(), transform_scratch_.data());
   for (int c = 0; c < components_; ++c)

@@ -83,6 +83,9 @@ class NavierStokesSolver {
 
  private:
   std::array<double, 3> wavevector(std::size_t row, int ix) const;
+  /// ω̂ = i k × û of every mode (3D: three components; 2D: ω_z into w[0]).
+  void vorticity_modes(const std::array<std::vector<Complex>, 3>& u,
+                       std::array<std::vector<Complex>, 3>& w) const;
   void nonlinear(const std::array<std::vector<Complex>, 3>& u,
                  std::array<std::vector<Complex>, 3>& out, double* max_speed);
   std::vector<std::vector<double>> to_grid(const std::array<std::vector<Complex>, 3>& fields,
