@@ -11,6 +11,7 @@
 #include "analysis/spectrum.hpp"
 #include "analysis/writer.hpp"
 #include "io/checkpoint.hpp"
+#include "io/hdf5_file.hpp"
 #include "logging/logging.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
@@ -49,19 +50,13 @@ void truncate_rows_after(const std::filesystem::path& path, double time) {
     header = false;
   }
   in.close();
-  const std::filesystem::path tmp = path.string() + ".tmp";
-  std::ofstream(tmp) << kept;
-  std::filesystem::rename(tmp, path);
+  io::detail::write_file_atomically(path, kept, "index '" + path.string() + "'");
 }
 
 void write_json_atomically(const std::filesystem::path& path, const json& j) {
-  const std::filesystem::path tmp = path.string() + ".tmp";
-  {
-    std::ofstream out(tmp);
-    out << j.dump(2) << '\n';
-    if (!out) throw std::runtime_error("cannot write '" + tmp.string() + "'");
-  }
-  std::filesystem::rename(tmp, path);
+  std::string text = j.dump(2);
+  text.push_back('\n');
+  io::detail::write_file_atomically(path, text, "run file '" + path.string() + "'");
 }
 
 /// The keys a restart may change: when the run ends and how often it writes.
