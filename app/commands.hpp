@@ -3,6 +3,8 @@
 // and sets the process exit code. `sphles COMMAND --help` prints a command's own help (rc 0).
 #pragma once
 
+#include <signal.h>
+
 #include <CLI/CLI.hpp>
 #include <optional>
 #include <string>
@@ -76,6 +78,10 @@ void add_docs_command(CLI::App& app, int& exit_code);
 inline CLI::Option* repeatable(CLI::Option* option) {
   return option->expected(1)->allow_extra_args(false)->take_all();
 }
+
+/// SIGINT, SIGTERM and SIGUSR1: the signals that stop a run (or a reference run) after its step
+/// with a checkpoint (run_command.cpp says why SIGUSR1).
+sigset_t stop_signals();
 
 /// --threads N (1 to 1024) of the commands that run a solver.
 inline CLI::Option* add_threads_option(CLI::App& command, int& threads, const std::string& what) {

@@ -102,9 +102,7 @@ int reference_command(const ReferenceOptions& options) {
   }
 
   // SIGINT, SIGTERM, SIGUSR1: stop after the step with a checkpoint (as `sphles run`).
-  sigset_t signals;
-  sigemptyset(&signals);
-  for (int s : {SIGINT, SIGTERM, SIGUSR1}) sigaddset(&signals, s);
+  const sigset_t signals = stop_signals();
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::atomic<bool> done{false};
   std::thread waiter([&signals, &done] {

@@ -16,6 +16,17 @@
 
 namespace sphles::app {
 
+/// The signals that stop a run with a checkpoint. SIGUSR1 is there for MPI jobs and batch
+/// systems: Open MPI's mpirun forwards it to every rank and does nothing else, whereas on SIGINT
+/// or SIGTERM it sends the ranks SIGTERM and, odls_base_sigkill_timeout seconds later (default
+/// 1), SIGKILL; Slurm sends it ahead of a time limit with --signal=USR1@SECONDS.
+sigset_t stop_signals() {
+  sigset_t signals;
+  sigemptyset(&signals);
+  for (int signal : {SIGINT, SIGTERM, SIGUSR1}) sigaddset(&signals, signal);
+  return signals;
+}
+
 namespace {
 
 struct RunOptions {
@@ -42,17 +53,6 @@ void check_run_options(const RunOptions& o) {
   if (!o.scene_file.empty() && !o.restart.empty())
     throw UsageError(
         "give either SCENE.json or --restart, not both (the scene is in the checkpoint)");
-}
-
-/// The signals that stop a run with a checkpoint. SIGUSR1 is there for MPI jobs and batch
-/// systems: Open MPI's mpirun forwards it to every rank and does nothing else, whereas on SIGINT
-/// or SIGTERM it sends the ranks SIGTERM and, odls_base_sigkill_timeout seconds later (default
-/// 1), SIGKILL; Slurm sends it ahead of a time limit with --signal=USR1@SECONDS.
-sigset_t stop_signals() {
-  sigset_t signals;
-  sigemptyset(&signals);
-  for (int signal : {SIGINT, SIGTERM, SIGUSR1}) sigaddset(&signals, signal);
-  return signals;
 }
 
 }  // namespace
