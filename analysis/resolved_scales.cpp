@@ -83,6 +83,11 @@ std::vector<ShellSpectrum> read_run_spectra(const std::filesystem::path& run_dir
   return out;
 }
 
+ShellSpectrum shell_spectrum(double time, const EnergySpectrum& spectrum,
+                             double kernel_wavenumber) {
+  return {time, spectrum.delta_k, kernel_wavenumber, spectrum.wavenumber, spectrum.energy};
+}
+
 ShellSpectrum spectrum_at(const std::vector<ShellSpectrum>& reference, double time) {
   if (reference.empty()) return {};
   const double spacing = reference.size() > 1 ? (reference.back().time - reference.front().time) /

@@ -13,6 +13,8 @@
 #include <string>
 #include <vector>
 
+#include "analysis/spectrum.hpp"
+
 namespace sphles::analysis {
 
 /// One spectrum of a run directory's spectra/ (writer.hpp): shells k_p = p Δk and E(k_p).
@@ -22,6 +24,9 @@ struct ShellSpectrum {
   double kernel_wavenumber = 0.0;  // the run's k_kern (index column k_kernel)
   std::vector<double> wavenumber, energy;
 };
+
+/// A spectrum computed in-process (e.g. by a benchmark) as the shells read_run_spectra gives.
+ShellSpectrum shell_spectrum(double time, const EnergySpectrum& spectrum, double kernel_wavenumber);
 
 /// Every spectrum listed in DIR/spectra/index.csv, in time order. Throws std::runtime_error
 /// naming the file when one is missing or malformed.

@@ -9,12 +9,16 @@
 #include <iomanip>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <ostream>
 #include <sstream>
 #include <stdexcept>
 
 #include "analysis/grid.hpp"
+#include "analysis/products.hpp"
 #include "analysis/reference.hpp"
+#include "analysis/resolved_scales.hpp"
+#include "analysis/snapshot.hpp"
 #include "analysis/vorticity.hpp"
 #include "bench/process_time.hpp"
 #include "sim/cadence.hpp"
@@ -66,9 +70,10 @@ json peers_scene(int n, const json& scheme, const std::string& initial_mass, dou
           {"time", {{"end", 4.0 * std::numbers::pi}}}};
 }
 
-/// 3D Taylor-Green vortex (SPEC §6.1: c_s = 5, p_ref = 6.25) at the DNS' Re = 5000
-/// (η = 2·10⁻⁴ with ρ_ref = 1), t ∈ [0, 12].
-json tgv3d_scene(int n, const std::string& kernel, double dk, const std::string& model) {
+/// 3D Taylor-Green vortex (SPEC §6.1: c_s = 5, p_ref = 6.25) at a DNS' Reynolds number, 1600 or
+/// 5000 (η = 1/Re with ρ_ref = v0 = 1, L = 1), t ∈ [0, 12].
+json tgv3d_scene(int n, const std::string& kernel, double dk, const std::string& model,
+                 double reynolds = 5000.0) {
   return {{"case", "tgv3d"},
           {"particles_per_side", n},
           {"kernel", {{"type", kernel}, {"diameter_over_spacing", dk}}},
@@ -76,7 +81,7 @@ json tgv3d_scene(int n, const std::string& kernel, double dk, const std::string&
            {{"reference_density", 1.0},
             {"sound_speed", 5.0},
             {"reference_pressure", 6.25},
-            {"dynamic_viscosity", 2e-4}}},
+            {"dynamic_viscosity", 1.0 / reynolds}}},
           {"subfilter", {{"model", model}}},
           {"initial", {{"mass", "lattice"}}},
           {"time", {{"end", kMisfitEndTime}}}};
@@ -191,7 +196,45 @@ void finish_tgv2d(RunResult& r) {
   r.energy_error_end = r.history.back().kinetic_energy / r.history.back().reference_energy - 1.0;
 }
 
-void finish_tgv3d(RunResult& r, const ReferenceHistory& dns) {
+/// "k:ratio" of every shell of `s` (NaN ratios as "-"), separated by spaces.
+std::string shell_ratio_list(const analysis::ResolvedScales& s) {
+  std::ostringstream out;
+  out << std::setprecision(3);
+  for (std::size_t p = 0; p < s.shell.size(); ++p) {
+    if (p > 0) out << ' ';
+    out << s.shell[p] << ':';
+    if (std::isnan(s.shell_ratio[p]))
+      out << '-';
+    else
+      out << s.shell_ratio[p];
+  }
+  return out.str();
+}
+
+/// The resolved-scale errors (SPEC §9) of the run's spectra against the reference run's over
+/// t ∈ [0, 12], and E_res of both at the samples taken at the spectrum times.
+void finish_resolved(RunResult& r, const std::vector<analysis::ShellSpectrum>& spectra,
+                     const std::vector<analysis::ShellSpectrum>& reference) {
+  const analysis::ResolvedHistory h =
+      analysis::resolved_history(spectra, reference, 0.0, kMisfitEndTime);
+  r.resolved_misfit = h.l2_misfit;
+  r.resolved_max_error = h.max_relative_error;
+  if (!h.flux.empty()) {
+    r.resolved_flux_peak_time = h.flux_peak_time;
+    r.reference_resolved_flux_peak_time = h.reference_flux_peak_time;
+  }
+  for (const analysis::ResolvedScales& s : h.samples) {
+    if (std::abs(s.time - 8.0) < 1e-6) r.shell_ratios_t8 = shell_ratio_list(s);
+    if (std::abs(s.time - 9.0) < 1e-6) r.shell_ratios_t9 = shell_ratio_list(s);
+    for (Sample& sample : r.history)
+      if (std::abs(sample.time - s.time) < 1e-9) {
+        sample.resolved_energy = s.resolved_energy;
+        sample.reference_resolved_energy = s.reference_resolved_energy;
+      }
+  }
+}
+
+void finish_tgv3d(RunResult& r, const analysis::ReferenceCurve* dns) {
   std::vector<Sample>& h = r.history;
   const std::size_t n = h.size();
   // ε = -de_v/dt (5.4) by centred differences of the recorded samples, one-sided at both ends.
@@ -206,7 +249,7 @@ void finish_tgv3d(RunResult& r, const ReferenceHistory& dns) {
       r.peak_dissipation = s.dissipation;
       r.peak_time = s.time;
     }
-  if (r.status != "completed") {
+  if (r.status != "completed" || dns == nullptr) {
     r.energy_misfit = r.dissipation_misfit = std::numeric_limits<double>::quiet_NaN();
     return;
   }
@@ -219,14 +262,14 @@ void finish_tgv3d(RunResult& r, const ReferenceHistory& dns) {
   // Relative L2 misfit on the DNS time grid (Δt = 0.02) over t ∈ [0, 12], the run's history
   // interpolated linearly.
   double de = 0.0, ne = 0.0, dd = 0.0, nd = 0.0;
-  for (std::size_t k = 0; k < dns.time.size(); ++k) {
-    if (dns.time[k] > kMisfitEndTime + 1e-9) break;
-    const double se = interpolate(t, e, dns.time[k]);
-    const double sd = interpolate(t, eps, dns.time[k]);
-    de += (se - dns.energy[k]) * (se - dns.energy[k]);
-    ne += dns.energy[k] * dns.energy[k];
-    dd += (sd - dns.dissipation[k]) * (sd - dns.dissipation[k]);
-    nd += dns.dissipation[k] * dns.dissipation[k];
+  for (std::size_t k = 0; k < dns->time.size(); ++k) {
+    if (dns->time[k] > kMisfitEndTime + 1e-9) break;
+    const double se = interpolate(t, e, dns->time[k]);
+    const double sd = interpolate(t, eps, dns->time[k]);
+    de += (se - dns->energy[k]) * (se - dns->energy[k]);
+    ne += dns->energy[k] * dns->energy[k];
+    dd += (sd - dns->dissipation[k]) * (sd - dns->dissipation[k]);
+    nd += dns->dissipation[k] * dns->dissipation[k];
   }
   r.energy_misfit = std::sqrt(de / ne);
   r.dissipation_misfit = std::sqrt(dd / nd);
@@ -258,11 +301,6 @@ void finish_kolmogorov(RunResult& r) {
 
 }  // namespace
 
-ReferenceHistory read_reference(const std::string& path) {
-  analysis::DnsHistory dns = analysis::read_dns_history(path);
-  return {std::move(dns.time), std::move(dns.energy), std::move(dns.dissipation)};
-}
-
 std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
   std::vector<RunSpec> runs;
   if (study == "2d") {
@@ -280,8 +318,8 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
                                      tgv2d_scene(reynolds, n, kernel, dk), 0.05));
           }
   } else if (study == "3d") {
-    // WC4 with D_K = 8Δl and QS with D_K = 6Δl (SPEC Table 5.1), implicit and SMAG.
-    // Quick: the implicit runs at N = 24 only.
+    // WC4 with D_K = 8Δl and QS with D_K = 6Δl (SPEC Table 5.1), implicit and SMAG, at
+    // Re = 5000; the implicit runs also at Re = 1600. Quick: the implicit runs at N = 24 only.
     const char* const kernels[] = {"wendland_c4", "quintic_spline"};
     const double diameters[] = {8.0, 6.0};
     for (std::size_t c = 0; c < 2; ++c)
@@ -289,9 +327,12 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
         for (const int n : {24, 32}) {
           if (quick && (model == "smag" || n == 32)) continue;
           const std::string kernel = kernels[c];
-          runs.push_back(make_spec("tgv3d_re5000",
-                                   kernel + " D_K/dl=" + number_label(diameters[c]) + " " + model,
-                                   tgv3d_scene(n, kernel, diameters[c], model), 0.1));
+          for (const double reynolds : {5000.0, 1600.0}) {
+            if (reynolds != 5000.0 && model != "implicit") continue;
+            runs.push_back(make_spec("tgv3d_re" + number_label(reynolds),
+                                     kernel + " D_K/dl=" + number_label(diameters[c]) + " " + model,
+                                     tgv3d_scene(n, kernel, diameters[c], model, reynolds), 0.1));
+          }
         }
   } else if (study == "peers") {
     // The peers' 2D case (SPEC §8) at 100²: the thesis model as the peers' comparison ran it
@@ -432,6 +473,10 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
          {24, 32},
          0.1,
          [](int n) { return tgv3d_scene(n, "wendland_c4", 8.0, "implicit"); }},
+        {"schemes_tgv3d_re1600",
+         {24, 32},
+         0.1,
+         [](int n) { return tgv3d_scene(n, "wendland_c4", 8.0, "implicit", 1600.0); }},
         {"schemes_kolmogorov", {24, 36, 48}, 0.02, [](int n) { return kolmogorov_scene(n); }},
     };
     for (const SchemeCase& c : cases)
@@ -473,8 +518,7 @@ RunSpec with_resolution(const RunSpec& spec, int particles_per_side) {
   return r;
 }
 
-RunResult run_one(const RunSpec& spec, const RunOptions& options,
-                  const ReferenceHistory* reference) {
+RunResult run_one(const RunSpec& spec, const RunOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   auto wall = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -493,9 +537,22 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
   const bool tgv2d = scene.case_type == sim::CaseType::TaylorGreen2D;
   const bool tgv3d = scene.case_type == sim::CaseType::TaylorGreen3D;
   const bool kolmogorov = scene.case_type == sim::CaseType::Kolmogorov2D;
-  if (tgv3d && reference == nullptr)
-    throw std::invalid_argument("run_one: tgv3d needs the DNS reference");
   const double nu = scene.fluid.kinematic_viscosity();
+  // The 3D TGV's references: the DNS' E(t) where one exists at the run's Re, and the spectra of
+  // the `sphles reference` run of the flow.
+  std::optional<analysis::ReferenceCurve> dns;
+  std::vector<analysis::ShellSpectrum> reference_spectra, spectra;
+  analysis::AnalysisConfig spectrum_config;
+  spectrum_config.products = {analysis::Product::Spectrum};
+  if (tgv3d) {
+    if (!analysis::missing_reference(scene))
+      dns = analysis::reference_curve(scene, options.reference_dir);
+    if (const auto run = analysis::find_reference_run(scene, options.reference_dir)) {
+      r.resolved_reference = run->filename().string();
+      reference_spectra = analysis::read_run_spectra(*run);
+    }
+  }
+  const bool resolved = !reference_spectra.empty();
 
   sim::RunSetup setup = sim::setup_run(scene);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -510,7 +567,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
       s.velocity_error = tgv2d_velocity_error(p, scene.velocity_amplitude, nu, s.time);
       s.speed_l1_error = tgv2d_speed_l1_error(p, scene.velocity_amplitude, nu, s.time);
     } else if (tgv3d) {
-      s.reference_energy = interpolate(reference->time, reference->energy, s.time);
+      if (dns) s.reference_energy = interpolate(dns->time, dns->energy, s.time);
     } else if (kolmogorov) {
       const std::vector<double> d = sim::case_diagnostics(scene, p);  // (4.3)
       s.energy_injection = d[0];
@@ -526,9 +583,19 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
     r.history.push_back(s);
   };
 
+  // The run's spectrum as `sphles run` writes it (analysis grid Δl/2, SPEC §5).
+  auto take_spectrum = [&] {
+    const analysis::AnalysisFrame frame =
+        analysis::analyse(*analysis::make_snapshot(*simulation, spectrum_config), spectrum_config);
+    spectra.push_back(analysis::shell_spectrum(simulation->time(), frame.spectrum->spectrum,
+                                               frame.spectrum->kernel_wavenumber));
+  };
+
   sample();
+  if (resolved) take_spectrum();
   try {
     sim::Cadence samples(spec.sample_interval, simulation->time());
+    sim::Cadence spectrum_times(resolved ? options.spectrum_interval : 0.0, simulation->time());
     while (!sim::reached_end(simulation->time(), r.end_time)) {
       if (wall() > options.wall_limit_seconds) {
         r.status = "wall_limit";
@@ -537,13 +604,16 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
       const double t = simulation->time();
       const auto step_start = std::chrono::steady_clock::now();
       const double cpu_start = bench::process_cpu_seconds();
-      simulation->step(samples.limit_step(t, r.end_time - t));
+      simulation->step(samples.limit_step(t, spectrum_times.limit_step(t, r.end_time - t)));
       r.cpu_seconds += bench::process_cpu_seconds() - cpu_start;
       r.wall_seconds +=
           std::chrono::duration<double>(std::chrono::steady_clock::now() - step_start).count();
       // On the fixed grid k · interval, and at the end.
-      if (samples.take(simulation->time()) || sim::reached_end(simulation->time(), r.end_time))
-        sample();
+      const bool at_end = sim::reached_end(simulation->time(), r.end_time);
+      const bool spectrum_due = spectrum_times.take(simulation->time()) || (resolved && at_end);
+      const bool sample_due = samples.take(simulation->time()) || at_end;
+      if (spectrum_due) take_spectrum();
+      if (spectrum_due || sample_due) sample();
     }
   } catch (const sim::BlowUpError& e) {
     r.status = "blown_up";
@@ -552,7 +622,8 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options,
   r.steps = simulation->step_count();
   r.final_energy = r.history.back().kinetic_energy;
   if (tgv2d) finish_tgv2d(r);
-  if (tgv3d) finish_tgv3d(r, *reference);
+  if (tgv3d) finish_tgv3d(r, dns ? &*dns : nullptr);
+  if (resolved) finish_resolved(r, spectra, reference_spectra);
   if (kolmogorov) finish_kolmogorov(r);
   r.total_wall_seconds = wall();
   return r;
@@ -575,7 +646,9 @@ void write_summary_header(std::ostream& out) {
          "cpu_seconds,total_wall_seconds,energy_error,velocity_error_end,velocity_error_rms,"
          "energy_misfit,dissipation_misfit,peak_dissipation,peak_time,final_energy,mean_u_rms,"
          "mean_energy_injection,mean_viscous_dissipation,mean_film_dissipation,"
-         "mean_energy_change,budget_imbalance,energy_error_end,speed_l1_error_end\n";
+         "mean_energy_change,budget_imbalance,energy_error_end,speed_l1_error_end,"
+         "resolved_reference,resolved_misfit,resolved_max_error,shell_ratios_t8,shell_ratios_t9,"
+         "resolved_flux_peak_time,reference_resolved_flux_peak_time\n";
 }
 
 void write_summary_row(std::ostream& out, const RunResult& r) {
@@ -596,12 +669,17 @@ void write_summary_row(std::ostream& out, const RunResult& r) {
       << optional_number(kf, r.mean_film_dissipation) << ','
       << optional_number(kf, r.mean_energy_change) << ',' << optional_number(kf, r.budget_imbalance)
       << ',' << optional_number(t2, r.energy_error_end) << ','
-      << optional_number(t2, r.speed_l1_error_end) << '\n';
+      << optional_number(t2, r.speed_l1_error_end) << ',' << r.resolved_reference << ','
+      << optional_number(t3, r.resolved_misfit) << ',' << optional_number(t3, r.resolved_max_error)
+      << ',' << r.shell_ratios_t8 << ',' << r.shell_ratios_t9 << ','
+      << optional_number(t3, r.resolved_flux_peak_time) << ','
+      << optional_number(t3, r.reference_resolved_flux_peak_time) << '\n';
 }
 
 void write_history_header(std::ostream& out) {
   out << "study,label,time,kinetic_energy,reference_energy,velocity_error,dissipation,"
-         "energy_injection,viscous_dissipation,film_dissipation,u_rms,speed_l1_error\n";
+         "energy_injection,viscous_dissipation,film_dissipation,u_rms,speed_l1_error,"
+         "resolved_energy,reference_resolved_energy\n";
 }
 
 void write_history_rows(std::ostream& out, const RunResult& r) {
@@ -610,7 +688,10 @@ void write_history_rows(std::ostream& out, const RunResult& r) {
     out << r.spec.study << ',' << r.spec.label << ',' << s.time << ',' << s.kinetic_energy << ','
         << s.reference_energy << ',' << s.velocity_error << ',' << s.dissipation << ','
         << s.energy_injection << ',' << s.viscous_dissipation << ',' << s.film_dissipation << ','
-        << s.u_rms << ',' << s.speed_l1_error << '\n';
+        << s.u_rms << ',' << s.speed_l1_error << ','
+        << optional_number(!std::isnan(s.resolved_energy), s.resolved_energy) << ','
+        << optional_number(!std::isnan(s.reference_resolved_energy), s.reference_resolved_energy)
+        << '\n';
 }
 
 }  // namespace sphles::accuracy

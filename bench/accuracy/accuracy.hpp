@@ -1,11 +1,13 @@
-// Run time against error (issue 8, docs/accuracy.md): a matrix of small scenes, each run on the
-// calling thread's OpenMP settings with its error measured against a reference while the solver
-// steps (2D Taylor-Green: analytic solution, SPEC §6.2; 3D Taylor-Green at Re = 5000: the
-// Incompact3d DNS of Dairay et al. 2017; Kolmogorov flow: its own energy budget, SPEC (4.3)).
+// Run time against error (docs/accuracy.md): a matrix of small scenes, each run on the calling
+// thread's OpenMP settings with its error measured against a reference while the solver steps
+// (2D Taylor-Green: analytic solution, SPEC §6.2; 3D Taylor-Green at Re = 1600 and 5000: first
+// the resolved energy against the `sphles reference` run of the flow (SPEC §9), then e_v against
+// the DNS; Kolmogorov flow: its own energy budget, SPEC (4.3)).
 #pragma once
 
 #include <cstdint>
 #include <iosfwd>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -22,16 +24,6 @@ struct RunSpec {
   double sample_interval = 0.1;  // simulated time between recorded samples [s]
 };
 
-/// DNS history (columns 1-3 of the reference file): t, E, -dE/dt.
-struct ReferenceHistory {
-  std::vector<double> time;
-  std::vector<double> energy;
-  std::vector<double> dissipation;
-};
-
-/// Reads the Incompact3d file (lines starting with '#' are skipped). Throws std::runtime_error.
-ReferenceHistory read_reference(const std::string& path);
-
 /// One recorded sample of a run. Fields a study does not use stay 0.
 struct Sample {
   double time = 0.0;                 // [s]
@@ -44,6 +36,10 @@ struct Sample {
   double viscous_dissipation = 0.0;  // kolmogorov: ν⟨ω²⟩ on the Δl/2 grid (4.6) [m²/s³]
   double film_dissipation = 0.0;     // kolmogorov: μ⟨|v|²⟩ [m²/s³]
   double u_rms = 0.0;                // kolmogorov: sqrt(⟨|v|²⟩) [m/s]
+  /// tgv3d at the spectrum times: E_res (k <= k_SPH, SPEC §9) of the run and of the reference
+  /// run; NaN at the other samples.
+  double resolved_energy = std::numeric_limits<double>::quiet_NaN();
+  double reference_resolved_energy = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct RunResult {
@@ -70,7 +66,15 @@ struct RunResult {
   double velocity_error_rms = 0.0;  // RMS over the samples of the relative L2 velocity error
   double energy_error_end = 0.0;    // e_v(end) / e_v,exact(end) - 1 (signed)
   double speed_l1_error_end = 0.0;  // PySPH's L1 error of |v| at end_time
-  // tgv3d (t in [0, 12] on the DNS time grid)
+  // tgv3d, the primary error (SPEC §9): against the `sphles reference` run of the flow, at the
+  // spectrum times in [0, 12]; NaN without a reference run (its name then empty)
+  std::string resolved_reference;
+  double resolved_misfit = std::numeric_limits<double>::quiet_NaN();     // L2 of E_res
+  double resolved_max_error = std::numeric_limits<double>::quiet_NaN();  // max |E_res/E_res,ref-1|
+  std::string shell_ratios_t8, shell_ratios_t9;  // "k:E(k)/E_ref(k)" for k <= k_kern, by spaces
+  double resolved_flux_peak_time = std::numeric_limits<double>::quiet_NaN();  // -dE_res/dt
+  double reference_resolved_flux_peak_time = std::numeric_limits<double>::quiet_NaN();
+  // tgv3d (t in [0, 12] on the DNS time grid); NaN without a DNS at the run's Re
   double energy_misfit = 0.0;       // relative L2 of e_v against the DNS E
   double dissipation_misfit = 0.0;  // relative L2 of -de_v/dt against the DNS -dE/dt
   double peak_dissipation = 0.0;    // maximum of -de_v/dt over the samples
@@ -97,12 +101,14 @@ RunSpec with_resolution(const RunSpec& spec, int particles_per_side);
 
 struct RunOptions {
   double wall_limit_seconds = 1800.0;  // per run
-  std::string reference_path;          // DNS file, needed by tgv3d_re5000
-  bool trace = false;                  // print every sample to stderr
+  /// The reference data (data/reference/): the 3D Taylor-Green DNS curves and the `sphles
+  /// reference` runs whose spectra judge the resolved scales.
+  std::string reference_dir;
+  double spectrum_interval = 0.25;  // tgv3d: simulated time between spectra [s]
+  bool trace = false;               // print every sample to stderr
 };
 
-RunResult run_one(const RunSpec& spec, const RunOptions& options,
-                  const ReferenceHistory* reference);
+RunResult run_one(const RunSpec& spec, const RunOptions& options);
 
 void write_summary_header(std::ostream& out);
 void write_summary_row(std::ostream& out, const RunResult& result);
