@@ -223,9 +223,12 @@ async function loadPresets() {
   app.presets = Array.isArray(presets) ? presets.slice() : [];
   if (!app.presets.some((p) => p.case === 'tgv2d')) app.presets.unshift(TGV2D_SCENE_OPTION);
   renderPresetOptions();
-  // Prefer a small 2D Taylor-Green vortex as the first choice: it runs in seconds.
-  const tgv2d = app.presets.findIndex((p) => p.case === 'tgv2d');
-  $('create-preset').value = String(Math.max(0, tgv2d));
+  // The first choice is a flow sphles has references for from its first plot (the DNS' e_v,
+  // the spectral reference's E(k) and resolved scales): the 3D vortex at Re = 1600; else the 2D
+  // vortex (its analytic decay).
+  const first = ['tgv3d-re1600', 'tgv2d'].map((name) => app.presets.findIndex((p) => p.name === name))
+    .find((i) => i >= 0) ?? app.presets.findIndex((p) => p.case === 'tgv2d');
+  $('create-preset').value = String(Math.max(0, first));
   fillCreateForm();
 }
 
@@ -1327,13 +1330,21 @@ function redraw() {
   refreshReferenceSpan(horizon);
   const ref = app.reference ? clipReference(app.reference, horizon) : null;
   const refRows = ref ? { x: ref.time, ys: [ref.energy] } : { x: [], ys: [[]] };
+  // E_res beside e_v: the energy e_v hides behind the particle-scale part (GET resolved).
+  const res = app.resolved?.samples ?? [];
+  const resRows = {
+    x: res.map((r) => r.t),
+    ys: [res.map((r) => r.resolved_energy),
+      res.map((r) => (r.reference_resolved_energy > 1e-12 * r.reference_energy ? r.reference_resolved_energy : null))],
+  };
   const energy = withCompared(
-    mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows),
+    mergeOnTime(mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows), resRows),
     (r) => ({ x: r.time, y: r.energy }));
   const labels = comparedRuns().map((r) => r.label);
   for (const chart of [c.energy, c.dissipation, c.spectrum]) chart.setExtraSeries(labels);
   c.energy.setData(energy.x, energy.ys);
   $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
+  $('chart-energy').dataset.resolvedPoints = String(res.length);
   $('chart-energy').dataset.referenceEnd = String(ref && ref.time.length ? ref.time[ref.time.length - 1] : 0);
   $('chart-energy').dataset.latest = String(latest);
 

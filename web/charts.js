@@ -190,6 +190,9 @@ export function energyChart(container) {
     series: [
       { label: 'eᵥ (particles)' },
       { label: 'reference', stroke: '#555555', dash: [6, 4], width: 1.5 },
+      // SPEC §9: the energy of the shells k ≤ k_SPH, the run's and its reference run's.
+      { label: 'E_res (k ≤ k_SPH)', points: true, width: 1 },
+      { label: 'E_res reference', stroke: '#000000', dash: [3, 3], width: 1.5 },
     ],
   });
 }

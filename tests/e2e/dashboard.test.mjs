@@ -461,8 +461,8 @@ async function run() {
   if (otherRemoved.status !== 204 && otherRemoved.status !== 200) fail(`deleting the compared run: HTTP ${otherRemoved.status}`);
 
   // The resolved scales (SPEC §9) of a 3D Taylor-Green run at Re = 1600 against the reference run
-  // shipped in data/reference/: the reference's E(k) dashed on the spectrum plot and the table
-  // of the shell ratios.
+  // shipped in data/reference/: the reference's E(k) dashed on the spectrum plot, E_res(t) beside
+  // e_v(t) and the table of the shell ratios.
   currentStep = 'resolved scales';
   const re1600 = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },
@@ -480,11 +480,12 @@ async function run() {
   const resolved = await waitFor('the reference spectrum and the resolved-scales table', async () => {
     const refPoints = Number(await page.locator('#chart-spectrum').getAttribute('data-reference-points'));
     const shells = Number(await page.locator('#resolved-table').getAttribute('data-shells'));
-    return refPoints > 0 && shells > 0 ? { refPoints, shells } : null;
+    const energyPoints = Number(await page.locator('#chart-energy').getAttribute('data-resolved-points'));
+    return refPoints > 0 && shells > 0 && energyPoints > 0 ? { refPoints, shells, energyPoints } : null;
   }, 20_000);
   const against = await text(page, '#cap-resolved');
   if (!against.includes('tgv3d_re1600')) fail(`the resolved scales name no Re = 1600 reference: "${against}"`);
-  pass(`resolved scales of a Re = 1600 run ${against}: ${resolved.refPoints} reference E(k) points, ${resolved.shells} shell ratios`);
+  pass(`resolved scales of a Re = 1600 run ${against}: ${resolved.refPoints} reference E(k) points, ${resolved.shells} shell ratios, E_res(t) at ${resolved.energyPoints} times beside e_v`);
   const re1600Removed = await fetch(`${base}/api/runs/${re1600Id}`, { method: 'DELETE' });
   if (re1600Removed.status !== 204 && re1600Removed.status !== 200) fail(`deleting the Re = 1600 run: HTTP ${re1600Removed.status}`);
   await page.locator('#run-list li button', { hasText: 'e2e-tgv2d' }).click();
