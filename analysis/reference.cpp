@@ -157,14 +157,27 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
   throw std::logic_error("missing_reference and reference_curve disagree");  // not reached
 }
 
+std::vector<std::filesystem::path> reference_run_directories(
+    const std::filesystem::path& reference_dir) {
+  std::vector<std::filesystem::path> directories;
+  std::error_code ec;
+  for (const std::filesystem::directory_entry& e :
+       std::filesystem::directory_iterator(reference_dir, ec))
+    if (e.is_directory(ec)) directories.push_back(e.path());
+  return directories;
+}
+
 std::optional<std::filesystem::path> find_reference_run(
     const sim::Scene& scene, const std::filesystem::path& reference_dir) {
+  return best_reference_run(scene, reference_run_directories(reference_dir));
+}
+
+std::optional<std::filesystem::path> best_reference_run(
+    const sim::Scene& scene, const std::vector<std::filesystem::path>& runs) {
   namespace fs = std::filesystem;
   std::optional<fs::path> best;
   int best_points = 0;
-  std::error_code ec;
-  for (const fs::directory_entry& e : fs::directory_iterator(reference_dir, ec)) {
-    const fs::path dir = e.path();
+  for (const fs::path& dir : runs) {
     if (!fs::exists(dir / "scene.json") || !fs::exists(dir / "spectra" / "index.csv")) continue;
     try {
       nlohmann::json document = sim::read_scene_file(dir / "scene.json");

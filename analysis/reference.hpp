@@ -48,10 +48,19 @@ ReferenceCurve reference_curve(const sim::Scene& scene, const std::filesystem::p
                                int samples = 201,
                                double until = std::numeric_limits<double>::infinity());
 
-/// A reference run of the scene's flow in `reference_dir` (a `sphles reference` run directory
-/// with spectra/ and scene.json, e.g. the shipped data/reference/tgv3d_re1600_sphles_256): the
-/// same case, box, viscosity, v0, uniform velocity and forcing (1e-9 relative). The one with the
-/// most grid points when several match (the first by name among equals); nothing when none does.
+/// The reference run of the scene's flow among `runs` (`sphles reference` run directories with
+/// spectra/ and scene.json, e.g. the shipped data/reference/tgv3d_re1600_sphles_256, or the
+/// service's finished reference jobs): the same case, box, viscosity, v0, uniform velocity and
+/// forcing (1e-9 relative). The one with the most grid points when several match (the first by
+/// path among equals); nothing when none does.
+std::optional<std::filesystem::path> best_reference_run(
+    const sim::Scene& scene, const std::vector<std::filesystem::path>& runs);
+
+/// The directories directly in `reference_dir` (none if it cannot be read).
+std::vector<std::filesystem::path> reference_run_directories(
+    const std::filesystem::path& reference_dir);
+
+/// best_reference_run among the run directories in `reference_dir`.
 std::optional<std::filesystem::path> find_reference_run(const sim::Scene& scene,
                                                         const std::filesystem::path& reference_dir);
 

@@ -380,6 +380,10 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
            config.points_per_side, scene.dimension(), solver.max_wavenumber(),
            scene.fluid.kinematic_viscosity(), solver.time(), t_end);
   status("running");
+  const auto report_step = [&] {
+    if (options.on_step) options.on_step(solver.time(), solver.step());
+  };
+  report_step();
   const auto wall_start = std::chrono::steady_clock::now();
   auto last_progress = wall_start;
   const std::uint64_t first_step = solver.step();
@@ -433,6 +437,7 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
     solver.advance(dt);
     if (lands) solver.set_time(target);
     last_dt = dt;
+    report_step();
     row_written = false;
     if (!rows.active() || rows.take(solver.time())) {
       write_row();

@@ -72,6 +72,9 @@ struct ReferenceRunOptions {
   bool restart = false;
   bool echo_progress = true;
   std::function<bool()> stop_requested;  // checked after every step
+  /// Called with the time and step count at the start (after a restart's restore) and after
+  /// every step (a service's progress).
+  std::function<void(double time, std::uint64_t step)> on_step;
   /// Called with each analysis frame written (for rendering).
   std::function<void(std::shared_ptr<const analysis::AnalysisFrame>)> on_frame;
 };
