@@ -10,7 +10,7 @@
 #include <thread>
 
 #include "app/commands.hpp"
-#include "control/render_sink.hpp"
+#include "control/reference_jobs.hpp"
 #include "control/resources.hpp"
 #include "control/run.hpp"
 #include "io/checkpoint.hpp"
@@ -39,9 +39,7 @@ int reference_command(const ReferenceOptions& options) {
   if (options.threads > 0) omp_set_num_threads(options.threads);
   nlohmann::json document;
   fs::path dir;
-  sim::Scene scene;
-  analysis::AnalysisConfig analysis;
-  spectral::ReferenceConfig config;
+  control::RunSpec spec;
   try {
     if (!options.restart.empty()) {
       if (!options.scene.empty())
@@ -55,11 +53,10 @@ int reference_command(const ReferenceOptions& options) {
       if (options.scene.empty()) throw sim::SceneError("SCENE or --restart DIR is required");
       document = load_scene_document(options.scene, options.overrides);
     }
-    const control::RunSpec spec = control::parse_run_spec(document);
-    scene = spec.run.scene;
-    analysis = spec.run.analysis;
-    config = spec.reference;
+    spec = control::parse_run_spec(document);
     document = control::run_spec_to_json(spec);
+    const sim::Scene& scene = spec.run.scene;
+    const spectral::ReferenceConfig& config = spec.reference;
     const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config);
     const double machine = static_cast<double>(control::machine_memory_bytes());
     const bool fits = machine <= 0.0 || e.memory_bytes <= machine;
@@ -114,25 +111,12 @@ int reference_command(const ReferenceOptions& options) {
   });
   int rc = kExitOk;
   try {
-    fs::create_directories(dir);
-    render::RenderConfig render;
-    render.fields = {analysis::SliceField::VorticitySquared};
-    render.combined = false;
-    render.save = true;
-    control::RenderSink sink(
-        render, std::string(sim::case_name(scene.case_type)), dir / "frames",
-        [](const control::RenderedImage&) {}, [] { return false; });
     spectral::ReferenceRunOptions run_options;
     run_options.directory = dir;
     run_options.restart = !options.restart.empty();
     run_options.stop_requested = [] { return g_stop.load(); };
-    run_options.on_frame = [&sink](std::shared_ptr<const analysis::AnalysisFrame> f) {
-      sink.post(std::move(f));
-    };
     const spectral::ReferenceRunResult r =
-        spectral::run_reference(scene, analysis, config, document, run_options);
-    sink.close(true);
-    if (!sink.error().empty()) throw std::runtime_error("rendering: " + sink.error());
+        control::run_rendered_reference(spec, document, run_options);
     if (r.stopped) {
       std::fprintf(stderr, "sphles reference: stopped at t = %.6g; continue with --restart %s\n",
                    r.time, dir.c_str());

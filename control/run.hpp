@@ -55,6 +55,12 @@ class StateError : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// A run or reference job id that does not exist (HTTP 404).
+class UnknownRunError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
 /// A parameter change that is malformed or not allowed while the run exists (HTTP 400/422).
 class ChangeError : public std::runtime_error {
  public:

@@ -199,6 +199,7 @@ RunManager::RunManager(ManagerOptions options)
     next_number_ =
         std::max<std::uint64_t>(next_number_, std::strtoull(id.c_str(), nullptr, 10) + 1);
   }
+  references_ = std::make_unique<ReferenceJobs>(options_.data_directory, options_.max_memory_bytes);
   scheduler_ = std::thread([this] { schedule_loop(); });
 }
 
@@ -558,6 +559,7 @@ void RunManager::shutdown() {
       }
     }
   }
+  references_->shutdown();  // the running reference stops after its step, with a checkpoint
 }
 
 json RunManager::presets() {

@@ -1,6 +1,8 @@
 // The runs of one data directory: creation from presets or scenes, a bounded number running at
-// once (the rest queue), and recovery of the runs a previous process left behind.
-//   {data}/runs/{id}/   one run directory each (see control/run.hpp)
+// once (the rest queue), and recovery of the runs a previous process left behind; beside them
+// the spectral references computed for their flows (control/reference_jobs.hpp).
+//   {data}/runs/{id}/         one run directory each (see control/run.hpp)
+//   {data}/references/{id}/   one reference job each
 #pragma once
 
 #include <condition_variable>
@@ -14,6 +16,7 @@
 #include <thread>
 #include <vector>
 
+#include "control/reference_jobs.hpp"
 #include "control/run.hpp"
 
 namespace sphles::control {
@@ -66,12 +69,6 @@ nlohmann::json with_live_defaults(nlohmann::json document);
 /// Parses a create request body: {"preset"|"scene", "patch", "overrides", "name", "start"}.
 /// Throws sim::SceneError naming the field for unknown keys and wrong types.
 CreateRequest parse_create_request(const nlohmann::json& body);
-
-/// A run id that does not exist (HTTP 404).
-class UnknownRunError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 /// The server is at a configured capacity (runs, queue): try again later (HTTP 429).
 class CapacityError : public std::runtime_error {
@@ -128,6 +125,10 @@ class RunManager {
 
   const ManagerOptions& options() const { return options_; }
 
+  /// The reference jobs of the data directory, admitted against max_memory_bytes; shutdown()
+  /// stops them too.
+  ReferenceJobs& references() { return *references_; }
+
   /// The built-in presets: [{"name", "case", "dimension", "particles_per_side", "kernel",
   /// "subfilter_model", "description", "scene": {...}}].
   static nlohmann::json presets();
@@ -177,6 +178,7 @@ class RunManager {
   std::vector<std::string> queue_;  // ids waiting for a slot, oldest first
   std::uint64_t next_number_ = 1;
   bool shut_down_ = false;
+  std::unique_ptr<ReferenceJobs> references_;
   std::thread scheduler_;  // starts queued runs when a slot frees (last member: starts last)
 };
 
