@@ -49,6 +49,22 @@ nlohmann::json metrics_json(const control::MetricsSample& s) {
   return j;
 }
 
+nlohmann::json reference_job_json(const control::ReferenceJobStatus& job) {
+  const double progress = job.end_time > 0.0 ? std::clamp(job.time / job.end_time, 0.0, 1.0) : 0.0;
+  return {{"id", job.id},
+          {"run", job.run},
+          {"state", control::job_state_name(job.state)},
+          {"error", job.error},
+          {"time", job.time},
+          {"end_time", job.end_time},
+          {"step", job.step},
+          {"progress", progress},
+          {"points_per_side", job.points_per_side},
+          {"cfl", job.cfl},
+          {"directory", job.directory.filename().string()},
+          {"estimate", control::reference_estimate_json(job.estimate)}};
+}
+
 nlohmann::json run_summary_json(const control::Run& run) {
   return run_summary_json(run, run.status(), run.document());
 }

@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 
+#include "control/reference_jobs.hpp"
 #include "control/run.hpp"
 
 namespace sphles::server {
@@ -26,6 +27,11 @@ nlohmann::json metrics_json(const control::MetricsSample& sample);
 nlohmann::json run_summary_json(const control::Run& run);
 nlohmann::json run_summary_json(const control::Run& run, const control::RunStatus& status,
                                 const nlohmann::json& document);
+/// A reference job: {"id","run","state","error","time","end_time","step","progress",
+/// "points_per_side","cfl","directory","estimate":{"memory_bytes","checkpoint_bytes","steps",
+/// "max_wavenumber"}}.
+nlohmann::json reference_job_json(const control::ReferenceJobStatus& job);
+
 /// Summary + {"scene","latest","changeable","counters","stream"}.
 nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& stream);
 

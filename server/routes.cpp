@@ -170,13 +170,20 @@ Response estimate_run(const Router::Services& s, const Context& c) {
   return json_response(c.request, s.manager.estimate(control::parse_create_request(body)));
 }
 
+/// The reference run of the scene's flow in the server's reference data or among its finished
+/// reference jobs: the one with the most grid points.
+std::optional<fs::path> reference_run_of(const Router::Services& s, const sim::Scene& scene) {
+  std::vector<fs::path> runs = analysis::reference_run_directories(s.options.reference_dir);
+  for (fs::path& job : s.manager.references().done_directories()) runs.push_back(std::move(job));
+  return analysis::best_reference_run(scene, runs);
+}
+
 Response get_run(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
   nlohmann::json detail = run_detail_json(*run, s.streams.counters(run->id()));
   // Whether GET resolved answers: a spectrum and a reference run of the run's flow.
-  detail["available"]["resolved"] =
-      detail["available"]["spectrum"].get<bool>() &&
-      analysis::find_reference_run(run->spec().run.scene, s.options.reference_dir).has_value();
+  detail["available"]["resolved"] = detail["available"]["spectrum"].get<bool>() &&
+                                    reference_run_of(s, run->spec().run.scene).has_value();
   return json_response(c.request, detail);
 }
 
@@ -297,11 +304,12 @@ Response reference(const Router::Services& s, const Context& c) {
 Response resolved(const Router::Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
   const sim::Scene scene = run->spec().run.scene;
-  const auto reference = analysis::find_reference_run(scene, s.options.reference_dir);
+  const auto reference = reference_run_of(s, scene);
   if (!reference)
     throw ApiError(404, "run '" + run->id() +
                             "' has no reference run of its flow in the server's reference data "
-                            "(`sphles reference` computes one; docs/reference.md)");
+                            "(POST /api/references or `sphles reference` computes one; "
+                            "docs/reference.md)");
   if (!fs::exists(run->directory() / "spectra" / "index.csv"))
     throw ApiError(404, "run '" + run->id() + "' has no spectra yet");
   std::vector<analysis::ShellSpectrum> ref;
@@ -544,6 +552,48 @@ Response get_archive(const Router::Services& s, const Context& c) {
                            "application/x-tar", run->id() + ".tar");
 }
 
+// --- reference jobs (control/reference_jobs.hpp) ------------------------------------------------
+
+/// A spectral reference of a run's flow: its estimate with "dry_run", else a queued job.
+Response create_reference(const Router::Services& s, const Context& c) {
+  const control::ReferenceRequest request = control::parse_reference_request(json_body(c.request));
+  std::shared_ptr<control::Run> run;
+  try {
+    run = s.manager.get(request.run);
+  } catch (const control::UnknownRunError& e) {
+    throw ApiError(404, e.what(), "run");
+  }
+  control::ReferenceJobs& jobs = s.manager.references();
+  const control::ReferencePlan plan = control::ReferenceJobs::plan(run->document(), request);
+  if (request.dry_run) return json_response(c.request, jobs.estimate(plan));
+  const control::ReferenceJobStatus job = jobs.submit(run->id(), plan);
+  Response res = json_response(c.request, reference_job_json(job), http::status::created);
+  res.set(http::field::location, "/api/references/" + job.id);
+  return res;
+}
+
+Response list_references(const Router::Services& s, const Context& c) {
+  nlohmann::json jobs = nlohmann::json::array();
+  for (const auto& job : s.manager.references().list()) jobs.push_back(reference_job_json(job));
+  return json_response(c.request, jobs);
+}
+
+Response get_reference(const Router::Services& s, const Context& c) {
+  return json_response(c.request, reference_job_json(s.manager.references().get(c.params[0])));
+}
+
+template <void (control::ReferenceJobs::*Action)(const std::string&)>
+Response reference_transition(const Router::Services& s, const Context& c) {
+  control::ReferenceJobs& jobs = s.manager.references();
+  (jobs.*Action)(c.params[0]);
+  return json_response(c.request, reference_job_json(jobs.get(c.params[0])));
+}
+
+Response delete_reference(const Router::Services& s, const Context& c) {
+  s.manager.references().remove(c.params[0]);  // 404 unknown, 409 queued or running
+  return json_response(c.request, {{"deleted", c.params[0]}});
+}
+
 Response stream_without_upgrade(const Router::Services& s, const Context& c) {
   find_run(s, c.params[0]);
   Response res = error_response(
@@ -556,6 +606,7 @@ Response stream_without_upgrade(const Router::Services& s, const Context& c) {
 const std::vector<Route>& route_table() {
   using V = http::verb;
   using M = control::RunManager;
+  using R = control::ReferenceJobs;
   static const std::vector<Route> table = {
       {{V::get, "/api/health", false}, health},
       {{V::get, "/api/openapi.json", false}, openapi},
@@ -587,6 +638,12 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/frames", false}, list_frames},
       {{V::get, "/api/runs/{id}/frames/{file}", false}, get_frame},
       {{V::get, "/api/runs/{id}/stream", false}, stream_without_upgrade},
+      {{V::get, "/api/references", false}, list_references},
+      {{V::post, "/api/references", true}, create_reference, true},
+      {{V::get, "/api/references/{id}", false}, get_reference},
+      {{V::delete_, "/api/references/{id}", true}, delete_reference},
+      {{V::post, "/api/references/{id}/stop", true}, reference_transition<&R::stop>},
+      {{V::post, "/api/references/{id}/resume", true}, reference_transition<&R::resume>},
   };
   return table;
 }
