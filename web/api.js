@@ -68,6 +68,9 @@ export class ApiError extends Error {
  *   ? B : undefined} Body
  */
 
+/** @typedef {Body<'/api/references', 'post'>} ReferenceRequest */
+/** @typedef {import('sphles-openapi').components['schemas']['ReferenceJob']} ReferenceJob */
+
 /**
  * One operation of the API: `path` is a path of the OpenAPI document ("/api/runs/{id}"), its
  * {parameters} filled from `params`.
@@ -212,6 +215,28 @@ export const api = {
    * @param {string} id
    */
   resolved: (id) => call('get', '/api/runs/{id}/resolved', ofRun(id)),
+  /** The spectral reference jobs of the server, oldest first. */
+  references: () => call('get', '/api/references'),
+  /**
+   * What the spectral reference of a run's flow would need (POST /api/references with dry_run):
+   * memory, steps, checkpoint size and whether the server admits it; creates nothing.
+   * @param {ReferenceRequest} body
+   */
+  estimateReference: (body) => call('post', '/api/references', { body: { ...body, dry_run: true } }),
+  /**
+   * Starts computing it: the job, queued (201; the document's 200 is the dry run's estimate).
+   * @param {ReferenceRequest} body
+   * @returns {Promise<ReferenceJob>}
+   */
+  computeReference: (body) =>
+    /** @type {Promise<ReferenceJob>} */ (/** @type {unknown} */ (call('post', '/api/references', { body }))),
+  /** @param {string} id a reference job's id */
+  referenceJob: (id) => call('get', '/api/references/{id}', { params: { id } }),
+  /**
+   * @param {string} id a reference job's id
+   * @param {'stop' | 'resume'} verb
+   */
+  referenceAction: (id, verb) => call('post', `/api/references/{id}/${verb}`, { params: { id } }),
   /**
    * Every analysis frame's scalars (stats/snapshots.csv), decimated as the time series.
    * @param {string} id

@@ -10,6 +10,8 @@ import {
 } from './charts.js';
 
 const POLL_MS = 2000;
+const REFERENCE_POLL_MS = 2000;  // a reference job's progress while it is queued or running
+const REFERENCE_ACTIVE = new Set(['queued', 'running']);
 const LOG_POLL_MS = 3000;  // the selected run's log while it is active
 const LOG_LINES = 500;     // of run.log shown
 const REDRAW_MS = 250;
@@ -86,6 +88,9 @@ const app = {
   referenceWhy: null,     // why it has none
   referencePending: false,
   referenceRetry: { failures: 0, at: 0 },  // back-off of failed refetches (loadReference)
+  referenceJob: null,     // the spectral reference job of the selected run's flow it follows
+  referenceJobTimer: null,
+  availableAfterSpectrum: false,  // ask again what the run has once its first spectrum arrives
   charts: null,
   redrawTimer: null,
   busy: false,
@@ -595,7 +600,7 @@ function selectRun(id) {
     selectedId: id, summary: app.runs.find((r) => r.id === id) ?? null, detail: null,
     samples: [], analysis: [], stats: [], spectrum: null, latestStatistics: null, frames: [],
     reference: null, referenceWhy: null, referencePending: false, referenceRetry: { failures: 0, at: 0 },
-    resolved: null, resolvedAvailable: false, resolvedAt: 0,
+    resolved: null, resolvedAvailable: false, resolvedAt: 0, availableAfterSpectrum: false,
     live: true, liveImage: {}, shownUrl: {}, progressHistory: [],
   });
   history.replaceState(null, '', `#run=${encodeURIComponent(id)}`);
@@ -619,6 +624,7 @@ function selectRun(id) {
   $('resolved-table').replaceChildren();
   $('resolved-table').dataset.shells = '0';
   setText('cap-resolved', 'no reference run of this flow (docs/reference.md)');
+  resetReferenceForm();
   setText('cap-stats', 'no statistics yet');
   ensureCharts();
   renderRunList();
@@ -662,7 +668,7 @@ async function backfill(id) {
     const available = detail.available ?? {};
     if (available.reference && !app.reference) loadReference(id);
     else if (!available.reference) app.referenceWhy = 'none for this case and Reynolds number (GET /api/runs/{id}/reference says why)';
-    app.resolvedAvailable = Boolean(available.resolved);
+    applyAvailable(id, available);
     if (available.spectrum) {
       const s = await api.spectrum(id).catch(() => null);
       if (s && id === app.selectedId) onSpectrum(s);
@@ -753,6 +759,7 @@ function deselectRun() {
   app.stream = null;
   app.selectedId = null;
   app.summary = null;
+  resetReferenceForm();  // its job goes on; the page stops polling it
   history.replaceState(null, '', location.pathname);
   $('run-detail').hidden = true;
   $('no-run').hidden = false;
@@ -1089,8 +1096,156 @@ function showResolved(r) {
   setText('cap-resolved', `against ${r.reference}`);
 }
 
+// ---------------------------------------------------------------- spectral reference jobs
+
+/** What the run detail says exists for the resolved scales: the table when a reference run of
+ *  the flow exists; else, once the run has spectra, the form that computes one. */
+function applyAvailable(id, available) {
+  app.resolvedAvailable = Boolean(available.resolved);
+  app.availableAfterSpectrum = !available.spectrum;
+  if (app.resolvedAvailable) {
+    $('reference-form').hidden = true;
+    app.resolvedAt = 0;
+    loadResolved(id);
+  } else if (available.spectrum) {
+    offerReference(id);
+  }
+}
+
+/** The run detail again (its first spectrum has come, or its reference job is done). */
+async function refreshAvailable(id) {
+  const detail = await api.run(id).catch(() => null);
+  if (detail && id === app.selectedId) applyAvailable(id, detail.available ?? {});
+}
+
+function resetReferenceForm() {
+  clearTimeout(app.referenceJobTimer);
+  app.referenceJob = null;
+  $('reference-form').hidden = true;
+  $('reference-form').dataset.state = '';
+  $('reference-progress').hidden = true;
+  $('reference-toggle').hidden = true;
+  showStatus('reference-status', '');
+}
+
+/** Offers "Compute reference" for the selected run, with its scene's grid (or 64), and follows
+ *  a job of this run already under way (another page, a reload). */
+async function offerReference(id) {
+  const form = $('reference-form');
+  if (!form.hidden) return;
+  form.hidden = false;
+  const scene = app.detail?.id === id ? app.detail.scene : null;
+  $('reference-points').value = String(getPath(scene, 'reference.points_per_side') ?? 64);
+  const jobs = await api.references().catch(() => []);
+  if (id !== app.selectedId || app.referenceJob) return;
+  const job = jobs.filter((j) => j.run === id).pop();
+  if (job) followReferenceJob(id, job);
+}
+
+/** The request of the form: the selected run and the points per side, if given. */
+function referenceRequest() {
+  /** @type {{ run: string, points_per_side?: number }} */
+  const body = { run: app.selectedId };
+  const points = $('reference-points').value.trim();
+  if (points !== '') body.points_per_side = Number(points);
+  return body;
+}
+
+async function onEstimateReference() {
+  const button = $('reference-estimate');
+  button.disabled = true;
+  try {
+    const e = await api.estimateReference(referenceRequest());
+    const text = `${e.points_per_side}³ points (modes |m| ≤ ${e.max_wavenumber}): ` +
+      `${fmtBytes(e.memory_bytes)} at the peak of the ${fmtBytes(e.memory_limit_bytes)} allowed, ` +
+      `about ${formatNumber(e.steps)} steps to t = ${formatNumber(e.end_time)} s, ` +
+      `checkpoints of ${fmtBytes(e.checkpoint_bytes)}`;
+    if (e.admitted) showStatus('reference-status', `${text}: fits.`, 'ok');
+    else showStatus('reference-status', `${text}: refused: ${e.refusal?.message ?? ''}`, 'error');
+  } catch (e) {
+    showStatus('reference-status', errorText(e), 'error');
+  } finally {
+    button.disabled = false;
+  }
+}
+
+async function onComputeReference(event) {
+  event.preventDefault();
+  const id = app.selectedId;
+  const button = $('reference-compute');
+  button.disabled = true;
+  try {
+    const job = await api.computeReference(referenceRequest());
+    if (id === app.selectedId) followReferenceJob(id, job);
+  } catch (e) {
+    showStatus('reference-status', errorText(e), 'error');
+  } finally {
+    button.disabled = false;
+  }
+}
+
+/** Stop a queued or running job (it writes a checkpoint), resume a stopped or failed one. */
+async function onToggleReference() {
+  const id = app.selectedId;
+  const job = app.referenceJob;
+  if (!job) return;
+  const button = $('reference-toggle');
+  button.disabled = true;
+  try {
+    const next = await api.referenceAction(job.id, REFERENCE_ACTIVE.has(job.state) ? 'stop' : 'resume');
+    if (id === app.selectedId) followReferenceJob(id, next);
+  } catch (e) {
+    showStatus('reference-status', errorText(e), 'error');
+  } finally {
+    button.disabled = false;
+  }
+}
+
+/** Shows a job of the selected run's flow, polls it while it is queued or running, and shows the
+ *  resolved scales once it is done. */
+function followReferenceJob(id, job) {
+  clearTimeout(app.referenceJobTimer);
+  app.referenceJob = job;
+  showReferenceJob(job);
+  if (REFERENCE_ACTIVE.has(job.state)) {
+    app.referenceJobTimer = setTimeout(async () => {
+      const next = await api.referenceJob(job.id).catch((e) => {
+        showStatus('reference-status', errorText(e), 'error');
+        return job;  // polled again
+      });
+      if (id === app.selectedId && app.referenceJob?.id === job.id) followReferenceJob(id, next);
+    }, REFERENCE_POLL_MS);
+  } else if (job.state === 'done') {
+    refreshAvailable(id);
+  }
+}
+
+function showReferenceJob(job) {
+  $('reference-form').dataset.state = job.state;
+  const progress = $('reference-progress');
+  progress.hidden = job.state !== 'running';
+  progress.value = job.progress;
+  const toggle = $('reference-toggle');
+  toggle.hidden = job.state === 'done';
+  toggle.textContent = REFERENCE_ACTIVE.has(job.state) ? 'Stop' : 'Resume';
+  const at = `t = ${formatNumber(job.time)} / ${formatNumber(job.end_time)} s, step ${job.step}`;
+  const texts = {
+    queued: [`Reference ${job.id} waits for the job before it.`, ''],
+    running: [`Reference ${job.id}: ${at}.`, ''],
+    done: [`Reference ${job.id} computed (${job.points_per_side}³ points, ${job.step} steps).`, 'ok'],
+    stopped: [`Reference ${job.id} stopped at ${at}; Resume continues from its checkpoint.`, ''],
+    failed: [`Reference ${job.id} failed: ${job.error}`, 'error'],
+  };
+  const [text, kind] = texts[job.state] ?? [`Reference ${job.id}: ${job.state}`, ''];
+  showStatus('reference-status', text, kind);
+}
+
 function onSpectrum(m) {
   app.spectrum = m;
+  if (app.selectedId && app.availableAfterSpectrum) {
+    app.availableAfterSpectrum = false;
+    refreshAvailable(app.selectedId);
+  }
   if (app.selectedId) loadResolved(app.selectedId);
   const vorticity = finite(m.dissipation_vorticity) ?? finite(m.vorticity?.dissipation);
   addAnalysisPoint({ time: finite(m.time), spectral: finite(m.dissipation), vorticity });
@@ -1470,6 +1625,9 @@ function main() {
   $('create-estimate').addEventListener('click', onEstimate);
   $('btn-clone').addEventListener('click', cloneSelectedRun);
   $('files-refresh').addEventListener('click', refreshFiles);
+  $('reference-form').addEventListener('submit', onComputeReference);
+  $('reference-estimate').addEventListener('click', onEstimateReference);
+  $('reference-toggle').addEventListener('click', onToggleReference);
   $('create-preset').addEventListener('change', fillCreateForm);
   $('create-live').addEventListener('change', applyLiveChoice);
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);

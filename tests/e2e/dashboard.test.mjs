@@ -488,6 +488,40 @@ async function run() {
   pass(`resolved scales of a Re = 1600 run ${against}: ${resolved.refPoints} reference E(k) points, ${resolved.shells} shell ratios, E_res(t) at ${resolved.energyPoints} times beside e_v`);
   const re1600Removed = await fetch(`${base}/api/runs/${re1600Id}`, { method: 'DELETE' });
   if (re1600Removed.status !== 204 && re1600Removed.status !== 200) fail(`deleting the Re = 1600 run: HTTP ${re1600Removed.status}`);
+
+  // A flow without a reference run (Re = 1000): the panel offers to compute one; its estimate,
+  // then the job (16³ to t = 0.5, well under a second), then the resolved scales against it.
+  currentStep = 'compute reference';
+  const re1000 = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ scene: { case: 'tgv3d', name: 'e2e-re1000', particles_per_side: 16,
+      fluid: { dynamic_viscosity: 1e-3 }, packing: { enabled: false }, time: { end: 0.5 },
+      analysis: { every: 0.25, products: ['spectrum'] } } }),
+  });
+  if (re1000.status !== 201) fail(`creating the Re = 1000 run: HTTP ${re1000.status}`);
+  const re1000Id = (await re1000.json()).id;
+  await waitFor('the Re = 1000 run to finish', async () =>
+    (await (await fetch(`${base}/api/runs/${re1000Id}`)).json()).state === 'finished', 60_000);
+  const re1000Item = page.locator(`#run-list li[data-id="${re1000Id}"] button`);
+  await waitFor('the Re = 1000 run in the list', async () => (await re1000Item.count()) === 1, 10_000);
+  await re1000Item.click();
+  await waitFor('the Compute reference form', async () => page.locator('#reference-form').isVisible(), 20_000);
+  await page.locator('#reference-points').fill('16');
+  await page.locator('#reference-estimate').click();
+  const estimate = await waitFor('the reference\'s estimate', async () => {
+    const t = await text(page, '#reference-status');
+    return /fits\.$/.test(t) ? t : null;
+  }, 10_000);
+  await page.locator('#reference-compute').click();
+  const computed = await waitFor('the resolved scales against the computed reference', async () => {
+    const shells = Number(await page.locator('#resolved-table').getAttribute('data-shells'));
+    const against = await text(page, '#cap-resolved');
+    return shells > 0 && /e2e-re1000-n16/.test(against) ? against : null;
+  }, 30_000);
+  if (await page.locator('#reference-form').isVisible()) fail('the Compute reference form stays beside the resolved scales');
+  pass(`reference computed from the dashboard (${estimate}); resolved scales ${computed}`);
+  const re1000Removed = await fetch(`${base}/api/runs/${re1000Id}`, { method: 'DELETE' });
+  if (re1000Removed.status !== 200) fail(`deleting the Re = 1000 run: HTTP ${re1000Removed.status}`);
   await page.locator('#run-list li button', { hasText: 'e2e-tgv2d' }).click();
   await waitFor('the first run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
 
