@@ -194,6 +194,70 @@ class Client:
         "reference_spectrum"); ApiError 404 (saying why) when there is none."""
         return self._request("GET", self._run(run_id) + "/resolved")
 
+    # -- spectral references computed by the server -------------------------------------------
+
+    @staticmethod
+    def _reference_job(job_id):
+        return "/api/references/" + urllib.parse.quote(job_id, safe="")
+
+    @staticmethod
+    def _reference_request(run_id, points_per_side, cfl, dry_run):
+        body = {"run": run_id}
+        if points_per_side is not None:
+            body["points_per_side"] = points_per_side
+        if cfl is not None:
+            body["cfl"] = cfl
+        if dry_run:
+            body["dry_run"] = True
+        return body
+
+    def estimate_reference(self, run_id, points_per_side=None, cfl=None):
+        """What the spectral reference of the run's flow would need, creating nothing:
+        {"memory_bytes", "steps", "checkpoint_bytes", "max_wavenumber", "admitted", ...};
+        ``points_per_side`` and ``cfl`` default to the run's scene's reference section."""
+        return self._request("POST", "/api/references",
+                             self._reference_request(run_id, points_per_side, cfl, True))
+
+    def compute_reference(self, run_id, points_per_side=None, cfl=None):
+        """Starts computing the spectral reference of the run's flow on the server (queued
+        behind other reference jobs); the job: {"id", "state", "progress", "directory", ...}.
+        Once it is done, ``resolved(run_id)`` judges the run against it."""
+        return self._request("POST", "/api/references",
+                             self._reference_request(run_id, points_per_side, cfl, False))
+
+    def reference_jobs(self):
+        """Every reference job of the server, oldest first."""
+        return self._request("GET", "/api/references")
+
+    def reference_job(self, job_id):
+        """A reference job: state (queued, running, done, stopped, failed), time, step,
+        progress, estimate, directory, error."""
+        return self._request("GET", self._reference_job(job_id))
+
+    def stop_reference(self, job_id):
+        """Stops a queued or running job (with a checkpoint); the job."""
+        return self._request("POST", self._reference_job(job_id) + "/stop")
+
+    def resume_reference(self, job_id):
+        """Queues a stopped or failed job again, to continue from its checkpoint; the job."""
+        return self._request("POST", self._reference_job(job_id) + "/resume")
+
+    def delete_reference(self, job_id):
+        """Deletes a job that is done, stopped or failed, with its directory."""
+        return self._request("DELETE", self._reference_job(job_id))
+
+    def wait_reference(self, job_id, states=("done", "stopped", "failed"), timeout=600.0,
+                       poll=0.2):
+        """Polls until the job is in one of ``states``; the job. TimeoutError otherwise."""
+        deadline = time.monotonic() + timeout
+        while True:
+            job = self.reference_job(job_id)
+            if job["state"] in states:
+                return job
+            if time.monotonic() > deadline:
+                raise TimeoutError(f"reference job {job_id} is {job['state']} after {timeout} s")
+            time.sleep(poll)
+
     def log(self, run_id, lines=200):
         """The last lines of the run's run.log."""
         return self._request("GET", f"{self._run(run_id)}/log?lines={lines}", raw=True).decode()

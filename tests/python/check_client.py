@@ -106,6 +106,20 @@ def main():
         except ApiError as e:
             check(e.status == 404 and "sphles reference" in e.message,
                   f"no resolved scales without a reference run of the flow: {e.message}")
+        estimate = client.estimate_reference(run_id, points_per_side=16)
+        check(estimate["admitted"] and estimate["max_wavenumber"] == 5 and estimate["steps"] > 0
+              and client.reference_jobs() == [],
+              "the reference's estimate, nothing created")
+        try:
+            client.compute_reference(run_id, points_per_side=15)
+            check(False, "an odd points_per_side is refused")
+        except ApiError as e:
+            check(e.status == 400 and e.field == "points_per_side", f"400 naming the field: {e}")
+        job = client.compute_reference(run_id, points_per_side=16)
+        job = client.wait_reference(job["id"], timeout=120)
+        check(job["state"] == "done" and job["time"] == 0.3, f"reference job {job['id']} done")
+        check(client.resolved(run_id)["reference"] == job["directory"],
+              "resolved scales against the computed reference")
 
         omega2 = client.slice(run_id, "omega2")
         check(omega2.ndim == 2 and omega2.shape[0] > 8 and np.all(np.isfinite(omega2)),
