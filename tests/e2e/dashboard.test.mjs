@@ -138,6 +138,25 @@ async function waitFor(what, fn, timeoutMs) {
 }
 
 const text = (page, selector) => page.locator(selector).textContent();
+
+/** A 16³ 3D Taylor-Green run of viscosity `eta` (ρ = 1: Re = 1/eta) to t = 0.5 with spectra at
+ *  t = 0, 0.25 and 0.5, created through the API, finished and selected in the run list; its id. */
+async function selectFinishedTgv3d(base, name, eta) {
+  const created = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ scene: { case: 'tgv3d', name, particles_per_side: 16,
+      fluid: { dynamic_viscosity: eta }, packing: { enabled: false }, time: { end: 0.5 },
+      analysis: { every: 0.25, products: ['spectrum'] } } }),
+  });
+  if (created.status !== 201) fail(`creating run ${name}: HTTP ${created.status}`);
+  const id = (await created.json()).id;
+  await waitFor(`run ${name} to finish`, async () =>
+    (await (await fetch(`${base}/api/runs/${id}`)).json()).state === 'finished', 60_000);
+  const item = page.locator(`#run-list li[data-id="${id}"] button`);
+  await waitFor(`run ${name} in the list`, async () => (await item.count()) === 1, 10_000);
+  await item.click();
+  return id;
+}
 const stepOf = async (page) => Number(await text(page, '#run-step'));
 
 async function imageState(page) {
@@ -464,19 +483,7 @@ async function run() {
   // shipped in data/reference/: the reference's E(k) dashed on the spectrum plot, E_res(t) beside
   // e_v(t) and the table of the shell ratios.
   currentStep = 'resolved scales';
-  const re1600 = await fetch(`${base}/api/runs`, {
-    method: 'POST', headers: { 'Content-Type': 'application/json' },
-    body: JSON.stringify({ scene: { case: 'tgv3d', name: 'e2e-re1600', particles_per_side: 16,
-      fluid: { dynamic_viscosity: 6.25e-4 }, packing: { enabled: false }, time: { end: 0.5 },
-      analysis: { every: 0.25, products: ['spectrum'] } } }),
-  });
-  if (re1600.status !== 201) fail(`creating the Re = 1600 run: HTTP ${re1600.status}`);
-  const re1600Id = (await re1600.json()).id;
-  await waitFor('the Re = 1600 run to finish', async () =>
-    (await (await fetch(`${base}/api/runs/${re1600Id}`)).json()).state === 'finished', 60_000);
-  const re1600Item = page.locator(`#run-list li[data-id="${re1600Id}"] button`);
-  await waitFor('the Re = 1600 run in the list', async () => (await re1600Item.count()) === 1, 10_000);
-  await re1600Item.click();
+  const re1600Id = await selectFinishedTgv3d(base, 'e2e-re1600', 6.25e-4);
   const resolved = await waitFor('the reference spectrum and the resolved-scales table', async () => {
     const refPoints = Number(await page.locator('#chart-spectrum').getAttribute('data-reference-points'));
     const shells = Number(await page.locator('#resolved-table').getAttribute('data-shells'));
@@ -492,19 +499,7 @@ async function run() {
   // A flow without a reference run (Re = 1000): the panel offers to compute one; its estimate,
   // then the job (16³ to t = 0.5, well under a second), then the resolved scales against it.
   currentStep = 'compute reference';
-  const re1000 = await fetch(`${base}/api/runs`, {
-    method: 'POST', headers: { 'Content-Type': 'application/json' },
-    body: JSON.stringify({ scene: { case: 'tgv3d', name: 'e2e-re1000', particles_per_side: 16,
-      fluid: { dynamic_viscosity: 1e-3 }, packing: { enabled: false }, time: { end: 0.5 },
-      analysis: { every: 0.25, products: ['spectrum'] } } }),
-  });
-  if (re1000.status !== 201) fail(`creating the Re = 1000 run: HTTP ${re1000.status}`);
-  const re1000Id = (await re1000.json()).id;
-  await waitFor('the Re = 1000 run to finish', async () =>
-    (await (await fetch(`${base}/api/runs/${re1000Id}`)).json()).state === 'finished', 60_000);
-  const re1000Item = page.locator(`#run-list li[data-id="${re1000Id}"] button`);
-  await waitFor('the Re = 1000 run in the list', async () => (await re1000Item.count()) === 1, 10_000);
-  await re1000Item.click();
+  const re1000Id = await selectFinishedTgv3d(base, 'e2e-re1000', 1e-3);
   await waitFor('the Compute reference form', async () => page.locator('#reference-form').isVisible(), 20_000);
   await page.locator('#reference-points').fill('16');
   await page.locator('#reference-estimate').click();
