@@ -1123,6 +1123,7 @@ function resetReferenceForm() {
   app.referenceJob = null;
   $('reference-form').hidden = true;
   $('reference-form').dataset.state = '';
+  $('reference-compute').disabled = false;
   $('reference-progress').hidden = true;
   $('reference-toggle').hidden = true;
   showStatus('reference-status', '');
@@ -1180,7 +1181,7 @@ async function onComputeReference(event) {
   } catch (e) {
     showStatus('reference-status', errorText(e), 'error');
   } finally {
-    button.disabled = false;
+    button.disabled = REFERENCE_ACTIVE.has(app.referenceJob?.state);  // one job of a run at a time
   }
 }
 
@@ -1222,6 +1223,7 @@ function followReferenceJob(id, job) {
 
 function showReferenceJob(job) {
   $('reference-form').dataset.state = job.state;
+  $('reference-compute').disabled = REFERENCE_ACTIVE.has(job.state);
   const progress = $('reference-progress');
   progress.hidden = job.state !== 'running';
   progress.value = job.progress;
