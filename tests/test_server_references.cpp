@@ -118,13 +118,22 @@ TEST(ServerReferences, ComputesTheReferenceOfARunsFlow) {
   EXPECT_EQ(resolved.body_json()["reference"], job);
   EXPECT_EQ(resolved.body_json()["samples"].size(), 3u);  // t = 0, 0.25, 0.5
 
+  // A server started again on the data directory lists the job, and judges the run by it.
+  server.shutdown();
+  TestServer again(base / "data");
+  const Api next{again.port()};
+  const json listed = next.get("/api/references").body_json();
+  ASSERT_EQ(listed.size(), 1u) << listed;
+  EXPECT_EQ(listed[0]["state"], "done");
+  EXPECT_EQ(next.get("/api/runs/" + id + "/resolved").body_json()["reference"], job);
+
   // Deleted, it is gone with its directory, and the run has no reference again.
-  const Reply deleted = api.remove("/api/references/" + job);
+  const Reply deleted = next.remove("/api/references/" + job);
   ASSERT_EQ(deleted.status, 200) << deleted.body;
   EXPECT_EQ(deleted.body_json()["deleted"], job);
   EXPECT_FALSE(fs::exists(base / "data" / "references" / job));
-  expect_error(api.get("/api/references/" + job), 404);
-  EXPECT_EQ(api.run(id)["available"]["resolved"], false);
+  expect_error(next.get("/api/references/" + job), 404);
+  EXPECT_EQ(next.run(id)["available"]["resolved"], false);
 }
 
 // A long job stops with a checkpoint, refuses deletion while it runs, is listed after a server
