@@ -12,6 +12,7 @@
 #include "logging/logging.hpp"
 #include "sim/json_reader.hpp"
 #include "sim/scene_schema.hpp"
+#include "spectral/fourier_terms.hpp"
 
 namespace sphles::control {
 
@@ -217,6 +218,17 @@ ReferencePlan ReferenceJobs::plan(json scene_document, const ReferenceRequest& r
   p.spec = parse_run_spec(scene_document);
   p.document = run_spec_to_json(p.spec);
   p.estimate = spectral::estimate_reference(p.spec.run.scene, p.spec.reference);
+  // The solver refuses a forcing it cannot represent; say so before the job is queued.
+  const int forcing = spectral::flow_of(p.spec.run.scene).forcing_periods;
+  if (forcing > p.estimate.max_wavenumber) {
+    int enough = p.spec.reference.points_per_side;
+    while (spectral::dealiased_max_wavenumber(enough) < forcing) enough += 2;
+    throw SceneError(
+        "request: 'points_per_side' = " + std::to_string(p.spec.reference.points_per_side) +
+        " keeps modes up to |m| = " + std::to_string(p.estimate.max_wavenumber) +
+        ", below the Kolmogorov forcing's wavenumber " + std::to_string(forcing) +
+        " (forcing.periods): take at least " + std::to_string(enough));
+  }
   return p;
 }
 

@@ -555,5 +555,76 @@ TEST(RunManager, CreateRequestsAreValidatedBeforeAnythingIsCreated) {
   EXPECT_FALSE(RunManager::presets().empty());
 }
 
+// The spectral references a service computes (ReferenceJobs): one worker, jobs in order, stop
+// with a checkpoint and resume from it, admission by memory, requests refused naming the key.
+TEST(ReferenceJobs, ComputesStopsResumesAndAdmitsJobs) {
+  const auto data = fresh_directory("reference_jobs");
+  ReferenceRequest grid;
+  grid.points_per_side = 16;
+  const ReferencePlan quick =
+      ReferenceJobs::plan({{"preset", "tgv2d"},
+                           {"time", {{"end", 0.5}}},
+                           {"reference", {{"every", 0.25}}}},  // 3 frames to render
+                          grid);
+  // The Kolmogorov forcing's wavenumber 7 needs 22 points; forced, the flow keeps its speed:
+  // millions of steps to t = 1e4.
+  const json kolmogorov = {{"preset", "kolmogorov2d"}, {"time", {{"end", 1e4}}}};
+  try {
+    ReferenceJobs::plan(kolmogorov, grid);
+    ADD_FAILURE() << "a grid without the forcing's wavenumber is accepted";
+  } catch (const sim::SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("at least 22"), std::string::npos) << e.what();
+  }
+  grid.points_per_side = 22;
+  const ReferencePlan slow = ReferenceJobs::plan(kolmogorov, grid);
+  grid.points_per_side = 16;
+  {
+    ReferenceJobs jobs(data, 1e12);
+    const std::string first = jobs.submit("0001-a", slow).id;
+    const std::string second = jobs.submit("0002-b", quick).id;
+    EXPECT_EQ(first.substr(0, 5), "0001-");
+    ASSERT_TRUE(eventually([&] { return jobs.get(first).step > 0; }));
+    EXPECT_EQ(jobs.get(second).state, JobState::Queued);  // one job at a time
+    EXPECT_THROW(jobs.remove(first), StateError);
+    jobs.stop(first);  // returns once the checkpoint is written
+    EXPECT_EQ(jobs.get(first).state, JobState::Stopped);
+    EXPECT_FALSE(fs::is_empty(data / "references" / first / "checkpoints"));
+    ASSERT_TRUE(eventually([&] { return jobs.get(second).state == JobState::Done; }));
+    EXPECT_EQ(jobs.done_directories(), std::vector<fs::path>{data / "references" / second});
+    const double stopped_at = jobs.get(first).time;
+    jobs.resume(first);
+    ASSERT_TRUE(eventually([&] { return jobs.get(first).time > stopped_at; }));
+    EXPECT_THROW(jobs.resume(first), StateError);
+    EXPECT_THROW(jobs.get("nope"), UnknownRunError);
+  }  // shutdown: the running job stops with a checkpoint
+  ReferenceJobs again(data, 1e6);
+  ASSERT_EQ(again.list().size(), 2u);
+  EXPECT_EQ(again.list()[0].state, JobState::Stopped);
+  EXPECT_EQ(again.list()[1].state, JobState::Done);
+  try {
+    again.submit("0001-a", quick);
+    ADD_FAILURE() << "a reference beyond the memory limit is admitted";
+  } catch (const AdmissionError& e) {
+    EXPECT_EQ(e.field(), "points_per_side");
+  }
+  again.remove(again.list()[1].id);
+  EXPECT_EQ(again.list().size(), 1u);
+
+  const auto refusal = [](const json& body) -> std::string {
+    try {
+      parse_reference_request(body);
+    } catch (const sim::SceneError& e) {
+      return e.what();
+    }
+    return "accepted";
+  };
+  EXPECT_EQ(refusal({{"run", "0001-a"}, {"points_per_side", 64}, {"dry_run", true}}), "accepted");
+  EXPECT_NE(refusal({{"run", "0001-a"}, {"points_per_side", 33}}).find("'points_per_side'"),
+            std::string::npos);
+  EXPECT_NE(refusal({{"run", "0001-a"}, {"cfl", 0}}).find("in (0, 1.5]"), std::string::npos);
+  EXPECT_NE(refusal({{"points_per_side", 64}}).find("'run'"), std::string::npos);
+  EXPECT_NE(refusal({{"run", "0001-a"}, {"every", 1}}).find("'every'"), std::string::npos);
+}
+
 }  // namespace
 }  // namespace sphles::control
