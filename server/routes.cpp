@@ -308,8 +308,8 @@ Response resolved(const Router::Services& s, const Context& c) {
   if (!reference)
     throw ApiError(404, "run '" + run->id() +
                             "' has no reference run of its flow in the server's reference data "
-                            "(POST /api/references or `sphles reference` computes one; "
-                            "docs/reference.md)");
+                            "or done reference jobs (POST /api/references or `sphles reference` "
+                            "computes one; docs/reference.md)");
   if (!fs::exists(run->directory() / "spectra" / "index.csv"))
     throw ApiError(404, "run '" + run->id() + "' has no spectra yet");
   std::vector<analysis::ShellSpectrum> ref;
