@@ -245,13 +245,13 @@ TEST(SceneLimits, EveryPresetAndShippedSceneParses) {
   }
 }
 
-// scenes/tgv2d-peers.json and scenes/tgv3d-accurate.json run the TVF at a larger step than the
+// scenes/tgv2d-peers.json and scenes/tgv3d-tvf.json run the TVF at a larger step than the
 // default with p_b lowered so that p_b Δt, which sets the background pressure's regularisation
 // per unit time, stays that of the configuration each was calibrated from: p_b = ρ c_s² at the
 // default acoustic step (docs/accuracy.md, docs/models.md). Editing one without the other breaks
 // that calibration.
 TEST(SceneLimits, TvfScenesKeepTheCalibratedBackgroundPressureTimesStep) {
-  for (const char* name : {"tgv2d-peers.json", "tgv3d-accurate.json"}) {
+  for (const char* name : {"tgv2d-peers.json", "tgv3d-tvf.json"}) {
     SCOPED_TRACE(name);
     const json document = sim::read_scene_file(fs::path(SPHLES_SOURCE_DIR) / "scenes" / name);
     const sim::Scene scene = parse_run_spec(document).run.scene;
