@@ -83,6 +83,10 @@ inline CLI::Option* repeatable(CLI::Option* option) {
 /// with a checkpoint (run_command.cpp says why SIGUSR1).
 sigset_t stop_signals();
 
+/// Ranks of the MPI job this process was started in by mpirun or mpiexec, 1 when it was started
+/// alone (run_command.cpp).
+int launched_ranks();
+
 /// --threads N (1 to 1024) of the commands that run a solver.
 inline CLI::Option* add_threads_option(CLI::App& command, int& threads, const std::string& what) {
   return command.add_option("--threads", threads, what)->type_name("N")->check(CLI::Range(1, 1024));

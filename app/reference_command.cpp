@@ -14,6 +14,7 @@
 #include "control/resources.hpp"
 #include "control/run.hpp"
 #include "io/checkpoint.hpp"
+#include "par/slab_exchange.hpp"
 #include "spectral/reference_run.hpp"
 
 namespace sphles::app {
@@ -33,9 +34,18 @@ struct ReferenceOptions {
 
 std::atomic<bool> g_stop{false};
 
-int reference_command(const ReferenceOptions& options) {
+/// The reference on this process; under mpirun (`mpi`) on every rank of MPI_COMM_WORLD, a 3D
+/// grid shared among them (par::MpiSlabExchange), rank 0 printing and writing.
+int reference_command(const ReferenceOptions& options, bool mpi) {
   namespace fs = std::filesystem;
-  logging::configure(logging::ConsoleStyle::plain, logging::parse_level(options.log_level));
+  int rank = 0, ranks = 1;
+  if (mpi) {
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  }
+  const bool root = rank == 0;
+  logging::configure(logging::ConsoleStyle::plain,
+                     root ? logging::parse_level(options.log_level) : logging::Level::off);
   if (options.threads > 0) omp_set_num_threads(options.threads);
   nlohmann::json document;
   fs::path dir;
@@ -57,19 +67,23 @@ int reference_command(const ReferenceOptions& options) {
     document = control::run_spec_to_json(spec);
     const sim::Scene& scene = spec.run.scene;
     const spectral::ReferenceConfig& config = spec.reference;
-    const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config);
+    if (scene.dimension() == 2) ranks = 1;  // a 2D reference runs on rank 0 alone
+    const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config, ranks);
+    // Every rank of this machine's job together (mpirun on one node).
     const double machine = static_cast<double>(control::machine_memory_bytes());
-    const bool fits = machine <= 0.0 || e.memory_bytes <= machine;
-    if (options.dry_run || !fits) {
+    const bool fits = machine <= 0.0 || e.memory_bytes * ranks <= machine;
+    if (root && (options.dry_run || !fits))
       std::printf(
           "reference grid       %d^%d points, modes |m| <= %d per axis\n"
-          "memory at the peak   %s (machine %s)%s\n"
+          "memory at the peak   %s%s (machine %s)%s\n"
           "checkpoint           %s each\n"
           "time steps           about %.0f to t = %g (CFL %g at the initial speed)\n",
           config.points_per_side, scene.dimension(), e.max_wavenumber,
-          control::format_bytes(e.memory_bytes).c_str(), control::format_bytes(machine).c_str(),
-          fits ? "" : ": does NOT fit", control::format_bytes(e.checkpoint_bytes).c_str(), e.steps,
-          scene.end_time, config.cfl);
+          control::format_bytes(e.memory_bytes).c_str(),
+          ranks > 1 ? (" per rank, " + std::to_string(ranks) + " ranks").c_str() : "",
+          control::format_bytes(machine).c_str(), fits ? "" : ": does NOT fit",
+          control::format_bytes(e.checkpoint_bytes).c_str(), e.steps, scene.end_time, config.cfl);
+    if (options.dry_run || !fits) {
       if (!fits)
         throw sim::SceneError(
             "'reference.points_per_side' = " + std::to_string(config.points_per_side) +
@@ -85,7 +99,7 @@ int reference_command(const ReferenceOptions& options) {
         throw sim::SceneError("'" + dir.string() +
                               "' already holds a run: continue it with --restart " + dir.string() +
                               ", choose another --out, or pass --overwrite");
-      if (options.overwrite) {
+      if (options.overwrite && root) {
         fs::remove_all(dir / "checkpoints");
         fs::remove_all(dir / "spectra");
         fs::remove_all(dir / "slices");
@@ -94,18 +108,23 @@ int reference_command(const ReferenceOptions& options) {
       }
     }
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
     return kExitUsage;
+  }
+  if (mpi && spec.run.scene.dimension() == 2) {
+    if (!root) return kExitOk;
+    std::fprintf(stderr, "sphles reference: a 2D reference runs on rank 0 alone\n");
+    mpi = false;
   }
 
   // SIGINT, SIGTERM, SIGUSR1: stop after the step with a checkpoint (as `sphles run`).
   const sigset_t signals = stop_signals();
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::atomic<bool> done{false};
-  std::thread waiter([&signals, &done] {
+  std::thread waiter([&signals, &done, root] {
     int s = 0;
     if (sigwait(&signals, &s) == 0 && !done.load()) {
-      std::fprintf(stderr, "sphles reference: signal %d, stopping after this step\n", s);
+      if (root) std::fprintf(stderr, "sphles reference: signal %d, stopping after this step\n", s);
       g_stop = true;
     }
   });
@@ -115,21 +134,33 @@ int reference_command(const ReferenceOptions& options) {
     run_options.directory = dir;
     run_options.restart = !options.restart.empty();
     run_options.stop_requested = [] { return g_stop.load(); };
+    run_options.echo_progress = root;
+    std::unique_ptr<par::MpiSlabExchange> exchange;
+    if (mpi) {
+      exchange =
+          std::make_unique<par::MpiSlabExchange>(MPI_COMM_WORLD, spec.reference.points_per_side);
+      run_options.exchange = exchange.get();
+      if (root) std::fprintf(stderr, "sphles reference: the grid spans %d MPI ranks\n", ranks);
+    }
+    // Rank 0 renders the frames; the other ranks step their slabs.
     const spectral::ReferenceRunResult r =
-        control::run_rendered_reference(spec, document, run_options);
+        root ? control::run_rendered_reference(spec, document, run_options)
+             : spectral::run_reference(spec.run.scene, spec.run.analysis, spec.reference, document,
+                                       run_options);
     if (r.stopped) {
-      std::fprintf(stderr, "sphles reference: stopped at t = %.6g; continue with --restart %s\n",
-                   r.time, dir.c_str());
+      if (root)
+        std::fprintf(stderr, "sphles reference: stopped at t = %.6g; continue with --restart %s\n",
+                     r.time, dir.c_str());
       rc = kExitFailure;
-    } else {
+    } else if (root) {
       std::printf("sphles reference: t = %g after %llu steps, %zu spectra in %s\n", r.time,
                   static_cast<unsigned long long>(r.steps), r.frames, dir.c_str());
     }
   } catch (const sim::SceneError& e) {
-    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
     rc = kExitUsage;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
     rc = kExitFailure;
   }
   done = true;
@@ -149,7 +180,8 @@ void add_reference_command(CLI::App& app, int& exit_code) {
       "(2/3-rule dealiasing, RK4 with an integrating factor, CFL-adaptive step) at "
       "reference.points_per_side points per side. Writes timeseries.csv (E, -dE/dt, 2nuZ, Z, "
       "injection), spectra/ (the same shells as a particle run's), slices/, frames/ and "
-      "checkpoints/ into --out (docs/reference.md).");
+      "checkpoints/ into --out (docs/reference.md). Under mpirun or mpiexec a 3D grid is shared "
+      "among the ranks in slabs, bitwise as one process; rank 0 writes the run directory.");
   cmd->add_option("scene", options->scene, "scene file or preset name")
       ->type_name("SCENE.json|PRESET");
   repeatable(cmd->add_option("--set", options->overrides,
@@ -164,7 +196,20 @@ void add_reference_command(CLI::App& app, int& exit_code) {
                 "print the memory, checkpoint size and steps the run needs, and stop");
   add_threads_option(*cmd, options->threads, "OpenMP threads");
   add_log_level_option(*cmd, options->log_level);
-  cmd->callback([options, &exit_code] { exit_code = reference_command(*options); });
+  cmd->callback([options, &exit_code] {
+    if (launched_ranks() <= 1) {
+      exit_code = reference_command(*options, false);
+      return;
+    }
+    // mpirun sends the stop signals to every rank: blocked before MPI starts its threads, they
+    // reach the waiter of each rank, and rank 0's word stops them all (run_reference).
+    const sigset_t signals = stop_signals();
+    pthread_sigmask(SIG_BLOCK, &signals, nullptr);
+    int provided = 0;
+    MPI_Init_thread(nullptr, nullptr, MPI_THREAD_FUNNELED, &provided);
+    exit_code = reference_command(*options, true);
+    MPI_Finalize();
+  });
 }
 
 }  // namespace sphles::app

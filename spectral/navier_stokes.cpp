@@ -41,9 +41,22 @@ Complex forcing_coefficient(double amplitude, int my, int periods) {
   return {0.0, 0.0};
 }
 
-NavierStokesSolver::NavierStokesSolver(const FlowParameters& flow, int n)
+std::vector<double> sum_over_planes(const RealFft& fft, const std::vector<double>& per_plane,
+                                    std::size_t width) {
+  const int planes = fft.dimension() == 3 ? fft.n() : 1;
+  std::vector<double> all(static_cast<std::size_t>(planes) * width, kSumIdentity);
+  std::copy(per_plane.begin(), per_plane.end(),
+            all.begin() + static_cast<std::ptrdiff_t>(fft.first_plane() * width));
+  fft.exchange().sum(all.data(), all.size());  // each plane on one rank: exact
+  std::vector<double> total(width, 0.0);
+  for (int p = 0; p < planes; ++p)
+    for (std::size_t j = 0; j < width; ++j) total[j] += all[p * width + j];
+  return total;
+}
+
+NavierStokesSolver::NavierStokesSolver(const FlowParameters& flow, int n, SlabExchange* exchange)
     : flow_(flow),
-      fft_(flow.dimension, n, dealiased_max_wavenumber(n)),
+      fft_(flow.dimension, n, dealiased_max_wavenumber(n), exchange),
       kmax_(dealiased_max_wavenumber(n)) {
   check_flow(flow);
   if (flow.forcing_periods > kmax_)
@@ -65,9 +78,7 @@ NavierStokesSolver::NavierStokesSolver(const FlowParameters& flow, int n)
 }
 
 std::array<double, 3> NavierStokesSolver::wavevector(std::size_t row, int ix) const {
-  const int n = fft_.n();
-  const int my = signed_wavenumber(static_cast<int>(row % n), n);
-  const int mz = flow_.dimension == 3 ? signed_wavenumber(static_cast<int>(row / n), n) : 0;
+  const auto [my, mz] = fft_.row_wavenumbers(static_cast<long>(row));
   return {ix * dk_, my * dk_, mz * dk_};
 }
 
@@ -75,7 +86,7 @@ void NavierStokesSolver::set_velocity(const std::array<std::vector<double>, 3>& 
                                       std::uint64_t step) {
   const std::size_t size = fft_.complex_size();
   const long rows = static_cast<long>(size / fft_.half());
-  const double scale = 1.0 / static_cast<double>(fft_.real_size());
+  const double scale = 1.0 / static_cast<double>(fft_.points());
   for (int c = 0; c < components_; ++c) {
     if (grid[c].size() != fft_.real_size())
       throw std::invalid_argument("reference: velocity component " + std::to_string(c) + " has " +
@@ -83,11 +94,10 @@ void NavierStokesSolver::set_velocity(const std::array<std::vector<double>, 3>& 
                                   std::to_string(fft_.real_size()));
     fft_.forward(grid[c].data(), modes_[c].data());
   }
-  const int n = fft_.n(), half = fft_.half();
+  const int half = fft_.half();
 #pragma omp parallel for schedule(static)
   for (long r = 0; r < rows; ++r) {
-    const int my = signed_wavenumber(static_cast<int>(r % n), n);
-    const int mz = flow_.dimension == 3 ? signed_wavenumber(static_cast<int>(r / n), n) : 0;
+    const auto [my, mz] = fft_.row_wavenumbers(r);
     for (int ix = 0; ix < half; ++ix) {
       const std::size_t i = static_cast<std::size_t>(r) * half + ix;
       ComplexVector u{};
@@ -102,16 +112,69 @@ void NavierStokesSolver::set_velocity(const std::array<std::vector<double>, 3>& 
   have_rhs_ = false;
 }
 
+// The canonical layout holds, per k_z plane, the k_y rows of k_x values; this rank's modes are
+// the k_y planes [first, first + planes) of (k_z rows of k_x values). One canonical k_z plane at
+// a time goes between the ranks, so that no rank but rank 0 holds more than its share.
+std::array<std::vector<Complex>, 3> NavierStokesSolver::gathered_modes() const {
+  const int n = fft_.n(), half = fft_.half();
+  SlabExchange& x = fft_.exchange();
+  std::array<std::vector<Complex>, 3> all;
+  if (flow_.dimension == 2) {  // one process holds every mode, already in canonical order
+    for (int c = 0; c < components_; ++c) all[c] = modes_[c];
+    return all;
+  }
+  const std::size_t plane = static_cast<std::size_t>(half) * n;
+  if (x.rank() == 0)
+    for (int c = 0; c < components_; ++c) all[c].resize(plane * n);
+  std::vector<Complex> buffer(plane);
+  for (int c = 0; c < components_; ++c)
+    for (int kz = 0; kz < n; ++kz) {
+      std::fill(buffer.begin(), buffer.end(), Complex(kSumIdentity, kSumIdentity));
+      for (int p = 0; p < fft_.planes(); ++p) {
+        const Complex* row = modes_[c].data() + (static_cast<std::size_t>(p) * n + kz) * half;
+        std::copy(row, row + half,
+                  buffer.begin() + static_cast<std::ptrdiff_t>((fft_.first_plane() + p) * half));
+      }
+      x.sum(reinterpret_cast<double*>(buffer.data()), 2 * plane);  // each row on one rank
+      if (x.rank() == 0) std::copy(buffer.begin(), buffer.end(), all[c].begin() + kz * plane);
+    }
+  return all;
+}
+
 void NavierStokesSolver::set_modes(const std::array<std::vector<Complex>, 3>& modes, double time,
                                    std::uint64_t step) {
+  const int n = fft_.n(), half = fft_.half();
+  SlabExchange& x = fft_.exchange();
+  const std::size_t whole =
+      static_cast<std::size_t>(half) * n * (flow_.dimension == 3 ? static_cast<std::size_t>(n) : 1);
   for (int c = 0; c < components_; ++c)
-    if (modes[c].size() != fft_.complex_size())
+    if (x.rank() == 0 && modes[c].size() != whole)
       throw std::invalid_argument("reference: the state's component " + std::to_string(c) +
                                   " has " + std::to_string(modes[c].size()) + " modes, expected " +
-                                  std::to_string(fft_.complex_size()));
-  for (int c = 0; c < components_; ++c) modes_[c] = modes[c];
-  time_ = time;
-  step_ = step;
+                                  std::to_string(whole));
+  if (flow_.dimension == 2) {
+    for (int c = 0; c < components_; ++c) modes_[c] = modes[c];
+  } else {
+    const std::size_t plane = static_cast<std::size_t>(half) * n;
+    std::vector<Complex> buffer(plane);
+    for (int c = 0; c < components_; ++c)
+      for (int kz = 0; kz < n; ++kz) {
+        if (x.rank() == 0)
+          std::copy(modes[c].begin() + static_cast<std::ptrdiff_t>(kz * plane),
+                    modes[c].begin() + static_cast<std::ptrdiff_t>((kz + 1) * plane),
+                    buffer.begin());
+        x.broadcast(reinterpret_cast<double*>(buffer.data()), 2 * plane);
+        for (int p = 0; p < fft_.planes(); ++p)
+          std::copy_n(
+              buffer.begin() + static_cast<std::ptrdiff_t>((fft_.first_plane() + p) * half), half,
+              modes_[c].begin() +
+                  static_cast<std::ptrdiff_t>((static_cast<std::size_t>(p) * n + kz) * half));
+      }
+  }
+  double when[2] = {time, static_cast<double>(step)};
+  x.broadcast(when, 2);
+  time_ = when[0];
+  step_ = static_cast<std::uint64_t>(when[1]);
   have_rhs_ = false;
 }
 
@@ -184,14 +247,16 @@ void NavierStokesSolver::nonlinear(const std::array<std::vector<Complex>, 3>& u,
     }
     row_max[static_cast<std::size_t>(r)] = m;
   }
-  if (max_speed) *max_speed = *std::max_element(row_max.begin(), row_max.end());
+  if (max_speed) {
+    const double local = row_max.empty() ? 0.0 : *std::max_element(row_max.begin(), row_max.end());
+    *max_speed = fft_.exchange().max(local);
+  }
 
   for (int c = 0; c < components_; ++c) fft_.forward(grid_velocity_[c].data(), out[c].data());
-  const double scale = 1.0 / static_cast<double>(fft_.real_size());
+  const double scale = 1.0 / static_cast<double>(fft_.points());
 #pragma omp parallel for schedule(static)
   for (long r = 0; r < rows; ++r) {
-    const int my = signed_wavenumber(static_cast<int>(r % n), n);
-    const int mz = dim == 3 ? signed_wavenumber(static_cast<int>(r / n), n) : 0;
+    const auto [my, mz] = fft_.row_wavenumbers(r);
     for (int ix = 0; ix < half; ++ix) {
       const std::size_t i = static_cast<std::size_t>(r) * half + ix;
       ComplexVector p{};
@@ -215,8 +280,7 @@ const Budget& NavierStokesSolver::budget() {
 #pragma omp parallel for schedule(static)
   for (long r = 0; r < rows; ++r) {
     std::array<double, 4> s{0.0, 0.0, 0.0, 0.0};
-    const int my = signed_wavenumber(static_cast<int>(r % n), n);
-    const int mz = flow_.dimension == 3 ? signed_wavenumber(static_cast<int>(r / n), n) : 0;
+    const auto [my, mz] = fft_.row_wavenumbers(r);
     for (int ix = 0; ix < half; ++ix) {
       const std::size_t i = static_cast<std::size_t>(r) * half + ix;
       const double w = conjugate_weight(ix, n);
@@ -237,9 +301,14 @@ const Budget& NavierStokesSolver::budget() {
     }
     partial[static_cast<std::size_t>(r)] = s;
   }
-  std::array<double, 4> total{0.0, 0.0, 0.0, 0.0};
-  for (const auto& s : partial)
-    for (int j = 0; j < 4; ++j) total[j] += s[j];
+  // Per k_y plane, its rows in order; then the planes in order (sum_over_planes).
+  const long rows_per_plane = flow_.dimension == 3 ? n : rows;
+  std::vector<double> per_plane(static_cast<std::size_t>(fft_.planes()) * 4, 0.0);
+  for (long r = 0; r < rows; ++r)
+    for (int j = 0; j < 4; ++j)
+      per_plane[static_cast<std::size_t>(r / rows_per_plane) * 4 + j] +=
+          partial[static_cast<std::size_t>(r)][j];
+  const std::vector<double> total = sum_over_planes(fft_, per_plane, 4);
   Budget& b = budget_;
   b.energy = 0.5 * total[0];
   b.enstrophy = 0.5 * total[1];
@@ -266,14 +335,13 @@ void NavierStokesSolver::advance(double h) {
   if (!(h > 0.0) || !std::isfinite(h))
     throw std::invalid_argument("reference: time step must be positive and finite");
   budget();  // a = N(û) of the current state, in rhs_
-  const int n = fft_.n(), half = fft_.half(), dim = flow_.dimension;
+  const int half = fft_.half();
   const long rows = static_cast<long>(fft_.complex_size() / half);
   std::vector<double> factor(fft_.complex_size());
   auto each_mode = [&](auto&& body) {
 #pragma omp parallel for schedule(static)
     for (long r = 0; r < rows; ++r) {
-      const int my = signed_wavenumber(static_cast<int>(r % n), n);
-      const int mz = dim == 3 ? signed_wavenumber(static_cast<int>(r / n), n) : 0;
+      const auto [my, mz] = fft_.row_wavenumbers(r);
       for (int ix = 0; ix < half; ++ix)
         if (kept_mode(ix, my, mz, kmax_))
           body(static_cast<std::size_t>(r) * half + ix, static_cast<std::size_t>(r), ix, my, mz);

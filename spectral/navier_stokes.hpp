@@ -4,8 +4,9 @@
 // State: the Fourier coefficients û(k) of the velocity (u(x) = Σ_k û(k) e^{ik·x}), divergence-
 // free and zero outside the 2/3 rule's cube. Time stepping: RK4 in integrating-factor form
 // (fourier_terms.hpp, LawsonRk4), its step chosen by the caller (stable_step: the CFL limit).
-// Deterministic: the same bits for any number of OpenMP threads (real_fft.hpp; every sum over
-// modes or grid points is taken row by row and the rows are added in order).
+// Deterministic: the same bits for any number of OpenMP threads and, in 3D, MPI ranks
+// (real_fft.hpp; every sum over modes is taken row by row within a k_y plane, and the planes'
+// sums are added in the order of the planes, whichever rank holds them).
 #pragma once
 
 #include <array>
@@ -47,7 +48,9 @@ struct Budget {
 class NavierStokesSolver {
  public:
   /// n points per side (even, >= 4). Throws std::invalid_argument on a bad flow or n.
-  NavierStokesSolver(const FlowParameters& flow, int n);
+  /// `exchange` (3D; made for n, outliving the solver) shares the planes among MPI ranks: every
+  /// call below is then collective, and grids and modes are this rank's slab (RealFft).
+  NavierStokesSolver(const FlowParameters& flow, int n, SlabExchange* exchange = nullptr);
 
   const FlowParameters& flow() const { return flow_; }
   const RealFft& fft() const { return fft_; }
@@ -59,12 +62,17 @@ class NavierStokesSolver {
   double grid_spacing() const { return flow_.box_length / n(); }
 
   /// Sets the state from grid values of the velocity (component c at node x + n (y + n z), the
-  /// node at (x, y, z) L/n): transformed, truncated and projected onto divergence-free fields.
+  /// node at (x, y, z) L/n; this rank's z slab): transformed, truncated and projected onto
+  /// divergence-free fields.
   void set_velocity(const std::array<std::vector<double>, 3>& grid, double time = 0.0,
                     std::uint64_t step = 0);
-  /// The coefficients û_c(k) in RealFft's layout (normalised: u = Σ û e^{ik·x}).
+  /// The coefficients û_c(k) of this rank in RealFft's layout (normalised: u = Σ û e^{ik·x}).
   std::span<const Complex> modes(int component) const { return modes_[component]; }
-  /// Restores a state written from modes(); throws std::invalid_argument on a size mismatch.
+  /// Every coefficient in the canonical layout of a checkpoint, k_x + half (k_y + n k_z) (the
+  /// layout of FFTW's r2c output), on rank 0 (empty elsewhere).
+  std::array<std::vector<Complex>, 3> gathered_modes() const;
+  /// Restores a state from gathered_modes() given on rank 0 (ignored elsewhere); throws
+  /// std::invalid_argument on a size mismatch.
   void set_modes(const std::array<std::vector<Complex>, 3>& modes, double time, std::uint64_t step);
 
   /// The budget of the current state (computes the nonlinear term once per state).
@@ -77,7 +85,7 @@ class NavierStokesSolver {
   /// Sets the clock after a step meant to land on an output time (t + dt rounds).
   void set_time(double time) { time_ = time; }
 
-  /// Velocity (c < dimension) and vorticity (3D: 3 components; 2D: ω_z) on the grid.
+  /// Velocity (c < dimension) and vorticity (3D: 3 components; 2D: ω_z) on this rank's grid.
   std::vector<std::vector<double>> velocity_grid() const;
   std::vector<std::vector<double>> vorticity_grid() const;
 
@@ -107,6 +115,12 @@ class NavierStokesSolver {
   std::vector<std::vector<double>> grid_velocity_, grid_vorticity_;
   std::vector<Complex> spectral_scratch_, transform_scratch_;
 };
+
+/// Σ over every mode of `width` values per k_y plane: `per_plane` holds this rank's planes
+/// (fft.planes() × width, each the sum of its rows in row order); the planes' sums are added in
+/// plane order, the same bits for any rank count. Collective.
+std::vector<double> sum_over_planes(const RealFft& fft, const std::vector<double>& per_plane,
+                                    std::size_t width);
 
 /// The forcing's coefficient f̂_x at the mode (0, ±periods): χ sin(k_y y) = χ (e^{ik_y y} -
 /// e^{-ik_y y}) / 2i.

@@ -35,26 +35,46 @@ using Plan = std::unique_ptr<fftw_plan_s, PlanDeleter>;
 
 }  // namespace
 
+void OneProcess::transpose(Complex* in, Complex* out, bool) {
+  // [a][b][k_x] -> [b][a][k_x]: the same move both ways on a square.
+  const long n = n_, half = n_ / 2 + 1;
+#pragma omp parallel for schedule(static)
+  for (long b = 0; b < n; ++b)
+    for (long a = 0; a < n; ++a)
+      std::copy(in + (a * n + b) * half, in + (a * n + b + 1) * half, out + (b * n + a) * half);
+}
+
 struct RealFft::Plans {
   Plan row_forward, row_backward;
-  // Per axis 1 (y) and 2 (z): a batch of kBatch columns and the last, narrower one (if any),
-  // forward and backward.
-  Plan column[3][2][2];
+  // A batch of kBatch columns (stride half, n long) and the last, narrower one (if any),
+  // forward and backward: the y columns of a z plane and the z columns of a k_y plane alike.
+  Plan column[2][2];
   int chunks = 0, tail = 0;
-  // The batches of columns transformed along axis 1 and 2: (group, chunk), in a fixed order.
+  // The batches of columns transformed along y (axis 1) and z (axis 2): (local plane, chunk),
+  // in a fixed order.
   std::vector<std::pair<long, int>> units[3];
 };
 
-RealFft::RealFft(int dimension, int n, int kept) : dimension_(dimension), n_(n), kept_(kept) {
+RealFft::RealFft(int dimension, int n, int kept, SlabExchange* exchange)
+    : dimension_(dimension), n_(n), kept_(kept), exchange_(exchange), slab_(1, 1, 0) {
   if (dimension != 2 && dimension != 3)
     throw std::invalid_argument("reference grid: dimension must be 2 or 3, got " +
                                 std::to_string(dimension));
   if (n < 4 || n % 2 != 0)
     throw std::invalid_argument("reference.points_per_side must be even and at least 4, got " +
                                 std::to_string(n));
+  if (exchange_ == nullptr) {
+    own_exchange_ = std::make_unique<OneProcess>(n);
+    exchange_ = own_exchange_.get();
+  }
+  if (dimension == 2 && exchange_->ranks() > 1)
+    throw std::invalid_argument("reference grid: a 2D reference runs on one process");
+  if (dimension == 3) slab_ = Slab(n, exchange_->ranks(), exchange_->rank());
   const std::size_t ns = static_cast<std::size_t>(n);
-  real_size_ = dimension == 3 ? ns * ns * ns : ns * ns;
-  complex_size_ = static_cast<std::size_t>(half()) * (dimension == 3 ? ns * ns : ns);
+  const std::size_t planes = static_cast<std::size_t>(slab_.count);
+  real_size_ = dimension == 3 ? ns * ns * planes : ns * ns;
+  complex_size_ = static_cast<std::size_t>(half()) * (dimension == 3 ? ns * planes : ns);
+  if (dimension == 3) work_.assign(complex_size_, Complex(0.0, 0.0));
   plans_ = std::make_unique<Plans>();
   Plans& p = *plans_;
   p.chunks = (half() + kBatch - 1) / kBatch;
@@ -62,50 +82,54 @@ RealFft::RealFft(int dimension, int n, int kept) : dimension_(dimension), n_(n),
 
   // FFTW_ESTIMATE plans do not touch the arrays they are planned on.
   double* real = fftw_alloc_real(ns);
-  fftw_complex* cplx = fftw_alloc_complex(complex_size_);
+  fftw_complex* cplx = fftw_alloc_complex(static_cast<std::size_t>(half()) * ns);
   const auto lock = analysis::fftw_planner_lock();
   p.row_forward.reset(fftw_plan_many_dft_r2c(1, &n_, 1, real, nullptr, 1, n, cplx, nullptr, 1,
                                              half(), kFlags | FFTW_PRESERVE_INPUT));
   p.row_backward.reset(fftw_plan_many_dft_c2r(1, &n_, 1, cplx, nullptr, 1, half(), real, nullptr, 1,
                                               n, kFlags | FFTW_DESTROY_INPUT));
-  for (int axis = 1; axis < dimension; ++axis) {
-    const int stride = axis == 1 ? half() : half() * n;
-    for (int last = 0; last < 2; ++last) {
-      const int howmany = last ? p.tail : kBatch;
-      for (int dir = 0; dir < 2; ++dir)
-        p.column[axis][last][dir].reset(
-            fftw_plan_many_dft(1, &n_, howmany, cplx, nullptr, stride, 1, cplx, nullptr, stride, 1,
-                               dir == 0 ? FFTW_FORWARD : FFTW_BACKWARD, kFlags));
-    }
+  for (int last = 0; last < 2; ++last) {
+    const int howmany = last ? p.tail : kBatch;
+    for (int dir = 0; dir < 2; ++dir)
+      p.column[last][dir].reset(
+          fftw_plan_many_dft(1, &n_, howmany, cplx, nullptr, half(), 1, cplx, nullptr, half(), 1,
+                             dir == 0 ? FFTW_FORWARD : FFTW_BACKWARD, kFlags));
   }
   fftw_free(real);
   fftw_free(cplx);
-  // Pruning: only the chunks that hold kx <= kept, and along z only the y rows with
+  // Pruning: only the chunks that hold kx <= kept, and along z only the k_y planes with
   // |ky| <= kept, carry non-zero values (or values that are kept).
   const int chunk_limit = kept < 0 ? p.chunks : std::min(p.chunks, kept / kBatch + 1);
-  for (int axis = 1; axis < dimension; ++axis) {
-    const long groups = axis == 1 ? planes() : n;
+  const long groups = dimension == 3 ? slab_.count : 1;
+  for (int axis = 1; axis < dimension; ++axis)
     for (long g = 0; g < groups; ++g) {
       if (axis == 2 && kept >= 0) {
-        const long ky = g <= n / 2 ? g : g - n;
+        const long ky = first_plane() + g <= n / 2 ? first_plane() + g : first_plane() + g - n;
         if (ky > kept || -ky > kept) continue;
       }
       for (int c = 0; c < chunk_limit; ++c) p.units[axis].emplace_back(g, c);
     }
-  }
   bool ok = p.row_forward && p.row_backward;
-  for (int axis = 1; axis < dimension; ++axis)
-    for (int last = 0; last < 2; ++last)
-      for (int dir = 0; dir < 2; ++dir) ok = ok && p.column[axis][last][dir];
+  for (int last = 0; last < 2; ++last)
+    for (int dir = 0; dir < 2; ++dir) ok = ok && p.column[last][dir];
   if (!ok) throw std::runtime_error("FFTW could not plan the reference grid's transforms");
 }
 
 RealFft::~RealFft() = default;
 
+std::array<int, 2> RealFft::row_wavenumbers(long row) const {
+  auto signed_index = [this](long i) { return static_cast<int>(i <= n_ / 2 ? i : i - n_); };
+  if (dimension_ == 2) return {signed_index(row), 0};
+  return {signed_index(first_plane() + row / n_), signed_index(row % n_)};
+}
+
+int RealFft::plane_of_row(long row) const {
+  return dimension_ == 3 ? first_plane() + static_cast<int>(row / n_) : 0;
+}
+
 void RealFft::columns(Complex* data, int axis, bool forward) const {
   const Plans& p = *plans_;
-  // Axis 1: the columns of each z plane; axis 2: the columns along z through each y row.
-  const long group_stride = axis == 1 ? static_cast<long>(half()) * n_ : half();
+  const long group_stride = static_cast<long>(half()) * n_;
   const std::vector<std::pair<long, int>>& units = p.units[axis];
   const long count = static_cast<long>(units.size());
 #pragma omp parallel for schedule(static)
@@ -113,43 +137,53 @@ void RealFft::columns(Complex* data, int axis, bool forward) const {
     const auto [group, chunk] = units[static_cast<std::size_t>(u)];
     Complex* start = data + group * group_stride + chunk * kBatch;
     const bool last = chunk == p.chunks - 1 && p.tail != kBatch;
-    fftw_execute_dft(p.column[axis][last ? 1 : 0][forward ? 0 : 1].get(), as_fftw(start),
-                     as_fftw(start));
+    fftw_execute_dft(p.column[last ? 1 : 0][forward ? 0 : 1].get(), as_fftw(start), as_fftw(start));
   }
 }
 
 void RealFft::zero_outside(Complex* data) const {
   if (kept_ < 0) return;
-  const long rows = static_cast<long>(complex_size_ / half());
+  const long count = rows();
 #pragma omp parallel for schedule(static)
-  for (long r = 0; r < rows; ++r) {
-    const long y = r % n_, z = r / n_;
-    const long ky = y <= n_ / 2 ? y : y - n_, kz = z <= n_ / 2 ? z : z - n_;
-    const bool row_kept = std::abs(ky) <= kept_ && (dimension_ == 2 || std::abs(kz) <= kept_);
+  for (long r = 0; r < count; ++r) {
+    const auto [ky, kz] = row_wavenumbers(r);
+    const bool row_kept = std::abs(ky) <= kept_ && std::abs(kz) <= kept_;
     Complex* row = data + r * half();
     std::fill(row + (row_kept ? std::min(kept_ + 1, half()) : 0), row + half(), Complex(0.0, 0.0));
   }
 }
 
 void RealFft::forward(const double* in, Complex* out) const {
-  const long rows = static_cast<long>(complex_size_ / half());
+  // 3D: rows and y columns in the z slab (work_), then the transpose into the k_y slab (out).
+  Complex* slab = dimension_ == 3 ? work_.data() : out;
+  const long count = rows();
 #pragma omp parallel for schedule(static)
-  for (long r = 0; r < rows; ++r)
+  for (long r = 0; r < count; ++r)
     fftw_execute_dft_r2c(plans_->row_forward.get(), const_cast<double*>(in + r * n_),
-                         as_fftw(out + r * half()));
-  for (int axis = 1; axis < dimension_; ++axis) columns(out, axis, true);
+                         as_fftw(slab + r * half()));
+  columns(slab, 1, true);
+  if (dimension_ == 3) {
+    exchange_->transpose(slab, out, true);
+    columns(out, 2, true);
+  }
   zero_outside(out);
 }
 
 void RealFft::backward(const Complex* in, double* out, Complex* scratch) const {
-  const long rows = static_cast<long>(complex_size_ / half());
+  const long count = rows();
 #pragma omp parallel for schedule(static)
-  for (long r = 0; r < rows; ++r)
+  for (long r = 0; r < count; ++r)
     std::copy(in + r * half(), in + (r + 1) * half(), scratch + r * half());
-  for (int axis = dimension_ - 1; axis >= 1; --axis) columns(scratch, axis, false);
+  Complex* slab = scratch;
+  if (dimension_ == 3) {
+    columns(scratch, 2, false);
+    exchange_->transpose(scratch, work_.data(), false);
+    slab = work_.data();
+  }
+  columns(slab, 1, false);
 #pragma omp parallel for schedule(static)
-  for (long r = 0; r < rows; ++r)
-    fftw_execute_dft_c2r(plans_->row_backward.get(), as_fftw(scratch + r * half()), out + r * n_);
+  for (long r = 0; r < count; ++r)
+    fftw_execute_dft_c2r(plans_->row_backward.get(), as_fftw(slab + r * half()), out + r * n_);
 }
 
 }  // namespace sphles::spectral

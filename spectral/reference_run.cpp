@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <numbers>
+#include <optional>
 #include <sstream>
 
 #include "analysis/spectrum.hpp"
@@ -106,10 +107,12 @@ FlowParameters flow_of(const sim::Scene& scene) {
   return f;
 }
 
-std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene, int n) {
+std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene, int n,
+                                                         int first_plane, int planes) {
   const int dim = scene.dimension();
   const std::size_t plane = static_cast<std::size_t>(n) * n;
-  const int planes = dim == 3 ? n : 1;
+  if (dim == 2 || planes < 0) planes = dim == 2 ? 1 : n - first_plane;
+  if (dim == 2) first_plane = 0;
   const double h = scene.box_length() / n;
   std::array<std::vector<double>, 3> grid;
   for (int c = 0; c < dim; ++c) grid[c].resize(plane * planes);
@@ -119,12 +122,13 @@ std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene
   p.dimension = dim;
   p.resize(plane);
   for (int z = 0; z < planes; ++z) {
+    const int global_z = first_plane + z;
     for (int y = 0; y < n; ++y)
       for (int x = 0; x < n; ++x) {
         const std::size_t i = static_cast<std::size_t>(x) + static_cast<std::size_t>(n) * y;
         p.position[0][i] = x * h;
         p.position[1][i] = y * h;
-        if (dim == 3) p.position[2][i] = z * h;
+        if (dim == 3) p.position[2][i] = global_z * h;
       }
     switch (scene.case_type) {
       case sim::CaseType::TaylorGreen3D:
@@ -150,20 +154,25 @@ double reference_output_every(const ReferenceConfig& config, const sim::Scene& s
   return scene.end_time / kDefaultOutputsPerRun;
 }
 
-ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config) {
+ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config,
+                                     int ranks) {
   const double n = config.points_per_side, d = scene.dimension();
+  // This rank's share: the planes of the largest slab (slab_exchange.hpp).
+  const double share = d == 3 ? std::ceil(n / std::max(1, ranks)) / n : 1.0;
   const double complex_size = (n / 2 + 1) * std::pow(n, d - 1), real_size = std::pow(n, d);
   const double vorticity = d == 3 ? 3.0 : 1.0;
   const double complex_bytes = 16.0 * complex_size, real_bytes = 8.0 * real_size;
-  // NavierStokesSolver: state, N(û), stage, sum (d each), two transform scratch arrays, the
-  // integrating factors, and the grid velocity and vorticity of the nonlinear term.
-  const double solver =
-      (4.0 * d + 2.0) * complex_bytes + 8.0 * complex_size + (d + vorticity) * real_bytes;
-  // A frame's vorticity (modes, grid, scratch) or a checkpoint's copy and HDF5 image.
+  // NavierStokesSolver: state, N(û), stage, sum (d each), two transform scratch arrays and the
+  // transform's slab (3D), the integrating factors, and the grid velocity and vorticity of the
+  // nonlinear term.
+  const double solver = (4.0 * d + (d == 3 ? 3.0 : 2.0)) * complex_bytes + 8.0 * complex_size +
+                        (d + vorticity) * real_bytes;
+  // A frame's vorticity (modes, grid, scratch), or a checkpoint's gathered copy and HDF5 image
+  // (the whole state, on rank 0).
   const double frame = (vorticity + 1.0) * complex_bytes + vorticity * real_bytes;
   const double checkpoint = 2.0 * d * complex_bytes;
   ReferenceEstimate e;
-  e.memory_bytes = solver + std::max(frame, checkpoint) + kProgramFootprintBytes;
+  e.memory_bytes = share * solver + std::max(share * frame, checkpoint) + kProgramFootprintBytes;
   e.checkpoint_bytes = d * complex_bytes;
   e.max_wavenumber = dealiased_max_wavenumber(config.points_per_side);
   // The initial largest Σ|u_i|: v0 (Taylor-Green) or the laminar speed the forcing drives
@@ -199,24 +208,37 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
   frame.energy_dissipation = -b.rate;
   frame.grid_kinetic_energy = b.energy;
 
-  // The spectrum through the particle analysis' own shell sums: FFTW's unnormalised r2c
-  // output is N^d û.
+  // The spectrum through the particle analysis' own shell sums (FFTW's unnormalised r2c output
+  // is N^d û), each k_y plane's sums taken on its rank, the planes added in order.
   analysis::ShellSums sums = analysis::empty_shell_sums(dim, n);
-  const double scale = static_cast<double>(fft.real_size());
-  const std::size_t plane_values = static_cast<std::size_t>(half) * (dim == 3 ? n : 1);
-  const int planes = n;  // 3D: the z planes; 2D: the rows, each a plane of the layout
-  std::vector<double> buffer(2 * plane_values);
-  for (int c = 0; c < dim; ++c) {
-    const std::span<const Complex> m = solver.modes(c);
-    for (int p = 0; p < planes; ++p) {
-      for (std::size_t j = 0; j < plane_values; ++j) {
-        const Complex z = m[static_cast<std::size_t>(p) * plane_values + j] * scale;
-        buffer[2 * j] = z.real();
-        buffer[2 * j + 1] = z.imag();
+  const std::size_t shells = sums.modulus2.size();
+  const double scale = static_cast<double>(n) * n * (dim == 3 ? n : 1);
+  const long rows_per_plane = dim == 3 ? n : fft.rows();
+  std::vector<double> per_plane(static_cast<std::size_t>(fft.planes()) * 2 * shells, 0.0);
+#pragma omp parallel for schedule(static)
+  for (int p = 0; p < fft.planes(); ++p) {
+    double* modulus2 = per_plane.data() + static_cast<std::size_t>(p) * 2 * shells;
+    double* k2_modulus2 = modulus2 + shells;
+    for (int c = 0; c < dim; ++c) {
+      const std::span<const Complex> m = solver.modes(c);
+      for (long r = p * rows_per_plane; r < (p + 1) * rows_per_plane; ++r) {
+        const auto [my, mz] = fft.row_wavenumbers(r);
+        for (int kx = 0; kx < half; ++kx) {
+          const double weight = conjugate_weight(kx, n);
+          const double z2 = std::norm(m[static_cast<std::size_t>(r) * half + kx] * scale);
+          const int q2 = kx * kx + my * my + mz * mz;
+          const auto shell = static_cast<std::size_t>(sums.shell_of[static_cast<std::size_t>(q2)]);
+          modulus2[shell] += weight * z2;
+          k2_modulus2[shell] += weight * z2 * q2;
+        }
       }
-      analysis::add_transform_planes(sums, buffer.data(), p, 1);
     }
   }
+  const std::vector<double> total = sum_over_planes(fft, per_plane, 2 * shells);
+  std::copy(total.begin(), total.begin() + static_cast<std::ptrdiff_t>(shells),
+            sums.modulus2.begin());
+  std::copy(total.begin() + static_cast<std::ptrdiff_t>(shells), total.end(),
+            sums.k2_modulus2.begin());
   analysis::SpectrumProduct sp;
   sp.spectrum = analysis::spectrum_from_shell_sums(sums, scene.box_length());
   sp.kinetic_energy_grid = analysis::spectrum_energy(sp.spectrum);
@@ -234,14 +256,15 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
   vp.dissipation = b.dissipation;
   frame.vorticity = vp;
 
-  // ω² on the grid plane nearest the slice position (3D), or the whole grid (2D).
+  // ω² on the grid plane nearest the slice position (3D), or the whole grid (2D). Each rank
+  // fills the nodes of its z slab; the sum over ranks adds zeros to the others (exact).
   const std::vector<std::vector<double>> omega = solver.vorticity_grid();
   analysis::SliceProduct s;
   s.field = analysis::SliceField::VorticitySquared;
   s.units = std::string(analysis::slice_field_units(s.field));
   s.spacing = solver.grid_spacing();
   s.width = s.height = n;
-  s.values.resize(static_cast<std::size_t>(n) * n);
+  s.values.assign(static_cast<std::size_t>(n) * n, kSumIdentity);
   auto omega2 = [&](std::size_t node) {
     double w2 = 0.0;
     for (const auto& w : omega) w2 += w[node] * w[node];
@@ -257,13 +280,16 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
     s.axis_v = a == 2 ? 1 : 2;
     for (int v = 0; v < n; ++v)
       for (int u = 0; u < n; ++u) {
-        std::array<std::size_t, 3> ijk{};
+        std::array<int, 3> ijk{};
         ijk[a] = plane;
         ijk[s.axis_u] = u;
         ijk[s.axis_v] = v;
-        const std::size_t node = ijk[0] + n * (ijk[1] + static_cast<std::size_t>(n) * ijk[2]);
+        const int z = ijk[2] - fft.first_plane();
+        if (z < 0 || z >= fft.planes()) continue;
+        const std::size_t node = ijk[0] + static_cast<std::size_t>(n) * (ijk[1] + n * z);
         s.values[u + static_cast<std::size_t>(n) * v] = omega2(node);
       }
+    fft.exchange().sum(s.values.data(), s.values.size());
   } else {
     s.normal_axis = 2;
     s.axis_u = 0;
@@ -280,60 +306,99 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
   namespace fs = std::filesystem;
   const fs::path dir = options.directory;
   const fs::path checkpoints = dir / "checkpoints";
-  fs::create_directories(checkpoints);
-  logging::RunLog log(scene.name.empty() ? "reference" : scene.name, dir / "run.log",
-                      options.echo_progress);
+  // Under mpirun every rank steps its slab and takes part in every collective (the budget, the
+  // spectra's and slices' sums, the gathered checkpoint); rank 0 alone writes and logs, and
+  // tells the others after each step whether to go on (a stop, or a failure of its I/O).
+  const bool root = options.exchange == nullptr || options.exchange->rank() == 0;
+  const bool alone = options.exchange == nullptr || options.exchange->ranks() == 1;
+  std::optional<logging::RunLog> log;
+  if (root) {
+    fs::create_directories(checkpoints);
+    log.emplace(scene.name.empty() ? "reference" : scene.name, dir / "run.log",
+                options.echo_progress);
+  }
+  std::exception_ptr failure;  // rank 0's, until the others hear of it
+  auto on_root = [&](auto&& io) {
+    if (!root) return;
+    if (alone) return io();
+    try {
+      io();
+    } catch (...) {
+      if (!failure) failure = std::current_exception();
+    }
+  };
+  // Whether to stop, the same answer on every rank; rethrows rank 0's failure on every rank.
+  auto agree = [&](bool stop) {
+    double flags[2] = {stop ? 1.0 : 0.0, failure ? 1.0 : 0.0};
+    if (!alone) options.exchange->broadcast(flags, 2);
+    if (flags[1] != 0.0) {
+      if (failure) std::rethrow_exception(failure);
+      throw std::runtime_error("reference: rank 0 failed (its error is in its output)");
+    }
+    return flags[0] != 0.0;
+  };
 
-  NavierStokesSolver solver(flow_of(scene), config.points_per_side);
+  NavierStokesSolver solver(flow_of(scene), config.points_per_side, options.exchange);
   ReferenceRunResult result;
   if (options.restart) {
-    // The newest checkpoint that reads back valid; damaged ones are skipped with a warning.
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(checkpoints))
-      if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
-        files.push_back(e.path());
-    std::sort(files.rbegin(), files.rend());
-    bool restored = false;
-    for (const fs::path& f : files) {
-      try {
-        ReferenceState st = read_reference_checkpoint(f);
-        if (st.points_per_side != config.points_per_side || st.dimension != scene.dimension())
-          throw io::CheckpointError(
-              "'" + f.string() + "' holds a " + std::to_string(st.points_per_side) + "^" +
-              std::to_string(st.dimension) + " state, the scene asks for " +
-              std::to_string(config.points_per_side) + "^" + std::to_string(scene.dimension()));
-        if (restart_invariant(json::parse(st.scene)) != restart_invariant(scene_document))
-          throw io::CheckpointError("'" + f.string() +
-                                    "' was written for another scene (only time.end, the output "
-                                    "cadences, reference.every and reference.cfl may change)");
-        solver.set_modes(st.modes, st.time, st.step);
-        log.info("restart from {} at t = {} (step {})", f.filename().string(), st.time, st.step);
-        restored = true;
-        break;
-      } catch (const io::CheckpointError& e) {
-        if (files.size() == 1 || f == files.back()) throw;
-        log.warn("skipping checkpoint: {}", e.what());
+    ReferenceState restored_state;
+    on_root([&] {
+      // The newest checkpoint that reads back valid; damaged ones are skipped with a warning.
+      std::vector<fs::path> files;
+      for (const auto& e : fs::directory_iterator(checkpoints))
+        if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+          files.push_back(e.path());
+      std::sort(files.rbegin(), files.rend());
+      bool restored = false;
+      for (const fs::path& f : files) {
+        try {
+          ReferenceState st = read_reference_checkpoint(f);
+          if (st.points_per_side != config.points_per_side || st.dimension != scene.dimension())
+            throw io::CheckpointError(
+                "'" + f.string() + "' holds a " + std::to_string(st.points_per_side) + "^" +
+                std::to_string(st.dimension) + " state, the scene asks for " +
+                std::to_string(config.points_per_side) + "^" + std::to_string(scene.dimension()));
+          if (restart_invariant(json::parse(st.scene)) != restart_invariant(scene_document))
+            throw io::CheckpointError("'" + f.string() +
+                                      "' was written for another scene (only time.end, the output "
+                                      "cadences, reference.every and reference.cfl may change)");
+          log->info("restart from {} at t = {} (step {})", f.filename().string(), st.time, st.step);
+          restored_state = std::move(st);
+          restored = true;
+          break;
+        } catch (const io::CheckpointError& e) {
+          if (files.size() == 1 || f == files.back()) throw;
+          log->warn("skipping checkpoint: {}", e.what());
+        }
       }
-    }
-    if (!restored)
-      throw io::CheckpointError("no reference checkpoint in '" + checkpoints.string() + "'");
+      if (!restored)
+        throw io::CheckpointError("no reference checkpoint in '" + checkpoints.string() + "'");
+    });
+    agree(false);
+    solver.set_modes(restored_state.modes, restored_state.time, restored_state.step);
   } else {
-    solver.set_velocity(initial_velocity_grid(scene, config.points_per_side));
+    solver.set_velocity(initial_velocity_grid(scene, config.points_per_side,
+                                              solver.fft().first_plane(), solver.fft().planes()));
   }
-  write_json_atomically(dir / "scene.json", scene_document);
 
   const fs::path series = dir / "timeseries.csv";
-  analysis::RunDirectoryWriter writer(dir);
-  if (options.restart) {
-    truncate_rows_after(series, solver.time());
-    truncate_rows_after(dir / "spectra" / "index.csv", solver.time());
-    truncate_rows_after(dir / "slices" / "index.csv", solver.time());
-    truncate_rows_after(dir / "stats" / "snapshots.csv", solver.time());
-    truncate_rows_after(dir / "frames" / "index.csv", solver.time());
-  } else {
-    std::ofstream(series) << reference_timeseries_header() << '\n';
-  }
-  std::ofstream out(series, std::ios::app);
+  std::optional<analysis::RunDirectoryWriter> writer;
+  std::ofstream out;
+  on_root([&] {
+    write_json_atomically(dir / "scene.json", scene_document);
+    writer.emplace(dir);
+    if (options.restart) {
+      truncate_rows_after(series, solver.time());
+      truncate_rows_after(dir / "spectra" / "index.csv", solver.time());
+      truncate_rows_after(dir / "slices" / "index.csv", solver.time());
+      truncate_rows_after(dir / "stats" / "snapshots.csv", solver.time());
+      truncate_rows_after(dir / "frames" / "index.csv", solver.time());
+    } else {
+      std::ofstream(series) << reference_timeseries_header() << '\n';
+    }
+    out.open(series, std::ios::app);
+  });
+  agree(false);
 
   const double every = reference_output_every(config, scene, analysis);
   const double t_end = scene.end_time;
@@ -344,6 +409,7 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
   double last_dt = 0.0;
 
   auto status = [&](const std::string& state) {
+    if (!root || failure) return;
     write_json_atomically(dir / "run.json", {{"kind", "reference"},
                                              {"state", state},
                                              {"time", solver.time()},
@@ -361,27 +427,32 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
     st.dimension = scene.dimension();
     st.points_per_side = config.points_per_side;
     st.scene = scene_document.dump();
-    for (int c = 0; c < scene.dimension(); ++c)
-      st.modes[c].assign(solver.modes(c).begin(), solver.modes(c).end());
-    const fs::path file = checkpoints / reference_checkpoint_name(st.step);
-    write_reference_checkpoint(file, st);
-    // Keep the newest checkpoint.keep files.
-    std::vector<fs::path> files;
-    for (const auto& e : fs::directory_iterator(checkpoints))
-      if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
-        files.push_back(e.path());
-    std::sort(files.begin(), files.end());
-    const std::size_t keep = static_cast<std::size_t>(std::max(1, scene.checkpoint.keep));
-    for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
-    log.info("checkpoint {} at t = {}", file.filename().string(), st.time);
+    st.modes = solver.gathered_modes();
+    on_root([&] {
+      const fs::path file = checkpoints / reference_checkpoint_name(st.step);
+      write_reference_checkpoint(file, st);
+      // Keep the newest checkpoint.keep files.
+      std::vector<fs::path> files;
+      for (const auto& e : fs::directory_iterator(checkpoints))
+        if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+          files.push_back(e.path());
+      std::sort(files.begin(), files.end());
+      const std::size_t keep = static_cast<std::size_t>(std::max(1, scene.checkpoint.keep));
+      for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
+      log->info("checkpoint {} at t = {}", file.filename().string(), st.time);
+    });
   };
 
-  log.info("reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}",
-           config.points_per_side, scene.dimension(), solver.max_wavenumber(),
-           scene.fluid.kinematic_viscosity(), solver.time(), t_end);
-  status("running");
+  on_root([&] {
+    log->info(
+        "reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}{}", config.points_per_side,
+        scene.dimension(), solver.max_wavenumber(), scene.fluid.kinematic_viscosity(),
+        solver.time(), t_end,
+        alone ? std::string() : ", " + std::to_string(options.exchange->ranks()) + " MPI ranks");
+    status("running");
+  });
   const auto report_step = [&] {
-    if (options.on_step) options.on_step(solver.time(), solver.step());
+    if (root && options.on_step) options.on_step(solver.time(), solver.step());
   };
   report_step();
   const auto wall_start = std::chrono::steady_clock::now();
@@ -397,20 +468,26 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
   };
   auto write_row = [&] {
     const Budget& b = budget();
-    out << number(solver.time()) << ',' << solver.step() << ',' << number(last_dt) << ','
-        << number(b.energy) << ',' << number(-b.rate) << ',' << number(b.dissipation) << ','
-        << number(b.enstrophy) << ',' << number(b.injection) << ',' << number(b.film) << ','
-        << number(b.transfer) << ',' << number(b.max_speed) << '\n';
-    out.flush();
+    on_root([&] {
+      out << number(solver.time()) << ',' << solver.step() << ',' << number(last_dt) << ','
+          << number(b.energy) << ',' << number(-b.rate) << ',' << number(b.dissipation) << ','
+          << number(b.enstrophy) << ',' << number(b.injection) << ',' << number(b.film) << ','
+          << number(b.transfer) << ',' << number(b.max_speed) << '\n';
+      out.flush();
+      if (!out) throw std::runtime_error("reference: cannot write '" + series.string() + "'");
+    });
   };
   auto write_frame = [&] {
     budget();
     auto frame =
         std::make_shared<analysis::AnalysisFrame>(reference_frame(solver, scene, analysis));
-    writer.write(*frame);
-    if (!writer.last_error().empty()) throw std::runtime_error("reference: " + writer.last_error());
     ++result.frames;
-    if (options.on_frame) options.on_frame(frame);
+    on_root([&] {
+      writer->write(*frame);
+      if (!writer->last_error().empty())
+        throw std::runtime_error("reference: " + writer->last_error());
+      if (options.on_frame) options.on_frame(frame);
+    });
   };
   if (!options.restart) {
     write_row();
@@ -418,7 +495,7 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
   }
   bool row_written = true;
   while (!sim::reached_end(solver.time(), t_end)) {
-    if (options.stop_requested && options.stop_requested()) {
+    if (agree(root && options.stop_requested && options.stop_requested())) {
       result.stopped = true;
       break;
     }
@@ -445,23 +522,28 @@ ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::Analys
     }
     if (frames.take(solver.time())) write_frame();
     if (checkpoints_due.take(solver.time())) checkpoint();
+    budget();  // on every rank: the progress line below reads it on rank 0 alone
     const auto now = std::chrono::steady_clock::now();
-    if (std::chrono::duration<double>(now - last_progress).count() >=
-        scene.output.progress_every_seconds) {
+    if (root && std::chrono::duration<double>(now - last_progress).count() >=
+                    scene.output.progress_every_seconds) {
       const double wall = std::chrono::duration<double>(now - wall_start).count();
       const double steps_per_s = static_cast<double>(solver.step() - first_step) / wall;
-      log.progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s", solver.time(),
-                   t_end, solver.step(), dt, budget().energy, steps_per_s);
+      log->progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s",
+                    solver.time(), t_end, solver.step(), dt, budget().energy, steps_per_s);
       last_progress = now;
     }
   }
   if (!row_written) write_row();  // the state the run ends with
   checkpoint();
+  agree(false);
   result.time = solver.time();
   result.steps = solver.step();
-  status(result.stopped ? "stopped" : "done");
-  log.info("reference {} at t = {} after {} steps", result.stopped ? "stopped" : "done",
-           result.time, result.steps);
+  on_root([&] {
+    status(result.stopped ? "stopped" : "done");
+    log->info("reference {} at t = {} after {} steps", result.stopped ? "stopped" : "done",
+              result.time, result.steps);
+  });
+  agree(false);
   return result;
 }
 

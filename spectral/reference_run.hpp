@@ -39,8 +39,10 @@ nlohmann::json reference_config_to_json(const ReferenceConfig& config);
 FlowParameters flow_of(const sim::Scene& scene);
 
 /// The scene's initial velocity (SPEC §6: the particle run's field, from the same functions) on
-/// the n^d grid nodes (x, y, z) L/n, component c at x + n (y + n z).
-std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene, int n);
+/// the n^d grid nodes (x, y, z) L/n, component c at x + n (y + n (z - first_plane)), for the z
+/// planes [first_plane, first_plane + planes) (3D; a 2D grid is whole).
+std::array<std::vector<double>, 3> initial_velocity_grid(const sim::Scene& scene, int n,
+                                                         int first_plane = 0, int planes = -1);
 
 /// The time between spectra and slices the configuration means for the scene.
 double reference_output_every(const ReferenceConfig& config, const sim::Scene& scene,
@@ -58,15 +60,23 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
 
 /// What a reference run needs, without running it.
 struct ReferenceEstimate {
-  double memory_bytes = 0.0;      // peak resident memory, the program's own footprint included
+  /// Peak resident memory of the process that needs most (rank 0, which holds the whole state
+  /// at a checkpoint), the program's own footprint included.
+  double memory_bytes = 0.0;
   double checkpoint_bytes = 0.0;  // one checkpoint file
   double steps = 0.0;             // time steps to time.end at the initial CFL step
   int max_wavenumber = 0;         // largest |m| kept (2/3 rule)
 };
-ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config);
+/// `ranks`: the MPI ranks a 3D grid is shared among.
+ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config,
+                                     int ranks = 1);
 
 struct ReferenceRunOptions {
   std::filesystem::path directory;
+  /// The ranks a 3D reference is shared among under mpirun (RealFft), every rank calling
+  /// run_reference alike; rank 0 writes the run directory and calls the callbacks below. Null:
+  /// one process.
+  SlabExchange* exchange = nullptr;
   /// Continue from the newest valid checkpoint in directory/checkpoints (the scene must match
   /// the one it was written with, apart from time.end and the output cadences).
   bool restart = false;
