@@ -35,13 +35,30 @@ using Plan = std::unique_ptr<fftw_plan_s, PlanDeleter>;
 
 }  // namespace
 
-void OneProcess::transpose(Complex* in, Complex* out, bool) {
-  // [a][b][k_x] -> [b][a][k_x]: the same move both ways on a square.
+void OneProcess::transpose(Complex* in, Complex* out, bool forward) {
+  // [a][b][k_x] -> [b][a][k_x]: the same move both ways on a square; k_y is b going forward
+  // (z slab to k_y slab), a going back.
   const long n = n_, half = n_ / 2 + 1;
+  const long copied = kept_ < 0 ? half : std::min<long>(kept_ + 1, half);
+  auto kept_ky = [&](long i) {
+    const long k = i <= n / 2 ? i : i - n;
+    return kept_ < 0 || (k <= kept_ && -k <= kept_);
+  };
+  // In tiles of kTile × kTile elements: both sides stay within a few pages per tile.
+  constexpr long kTile = 8;
+  const long tiles = (n + kTile - 1) / kTile;
 #pragma omp parallel for schedule(static)
-  for (long b = 0; b < n; ++b)
-    for (long a = 0; a < n; ++a)
-      std::copy(in + (a * n + b) * half, in + (a * n + b + 1) * half, out + (b * n + a) * half);
+  for (long t = 0; t < tiles * tiles; ++t) {
+    const long b0 = t / tiles * kTile, a0 = t % tiles * kTile;
+    for (long b = b0; b < std::min(n, b0 + kTile); ++b)
+      for (long a = a0; a < std::min(n, a0 + kTile); ++a) {
+        Complex* to = out + (b * n + a) * half;
+        const long count = kept_ky(forward ? b : a) ? copied : 0;
+        std::copy(in + (a * n + b) * half, in + (a * n + b) * half + count, to);
+        // Going forward the transform zeroes what lies beyond the kept modes itself.
+        if (!forward || count == 0) std::fill(to + count, to + half, Complex(0.0, 0.0));
+      }
+  }
 }
 
 struct RealFft::Plans {
@@ -64,7 +81,7 @@ RealFft::RealFft(int dimension, int n, int kept, SlabExchange* exchange)
     throw std::invalid_argument("reference.points_per_side must be even and at least 4, got " +
                                 std::to_string(n));
   if (exchange_ == nullptr) {
-    own_exchange_ = std::make_unique<OneProcess>(n);
+    own_exchange_ = std::make_unique<OneProcess>(n, kept);
     exchange_ = own_exchange_.get();
   }
   if (dimension == 2 && exchange_->ranks() > 1)
@@ -116,12 +133,6 @@ RealFft::RealFft(int dimension, int n, int kept, SlabExchange* exchange)
 }
 
 RealFft::~RealFft() = default;
-
-std::array<int, 2> RealFft::row_wavenumbers(long row) const {
-  auto signed_index = [this](long i) { return static_cast<int>(i <= n_ / 2 ? i : i - n_); };
-  if (dimension_ == 2) return {signed_index(row), 0};
-  return {signed_index(first_plane() + row / n_), signed_index(row % n_)};
-}
 
 int RealFft::plane_of_row(long row) const {
   return dimension_ == 3 ? first_plane() + static_cast<int>(row / n_) : 0;

@@ -56,7 +56,12 @@ class RealFft {
   /// Rows of modes per plane: n in 3D (one per k_z), and in 2D n in the one plane.
   long rows() const { return static_cast<long>(complex_size_ / static_cast<std::size_t>(half())); }
   /// The signed integer wavenumbers (m_y, m_z) of a row of this rank's modes (m_z = 0 in 2D).
-  std::array<int, 2> row_wavenumbers(long row) const;
+  /// Inline: the solver asks for every mode.
+  std::array<int, 2> row_wavenumbers(long row) const {
+    auto signed_index = [this](long i) { return static_cast<int>(i <= n_ / 2 ? i : i - n_); };
+    if (dimension_ == 2) return {signed_index(row), 0};
+    return {signed_index(slab_.first + row / n_), signed_index(row % n_)};
+  }
   /// The global index of the plane a row belongs to (3D: its k_y index; 2D: 0).
   int plane_of_row(long row) const;
   SlabExchange& exchange() const { return *exchange_; }

@@ -47,10 +47,13 @@ struct Slab {
   }
 };
 
-/// A reference on one process: holds every plane, nothing to exchange.
+/// A reference on one process: holds every plane, nothing to exchange. With `kept` >= 0 (the
+/// 2/3 rule's |m| <= kept, RealFft) its transpose moves only the values a pruned transform
+/// reads, and writes zeros for the others (which an MPI transpose would move as zeros, or which
+/// the transform then zeroes): the same bits, a third of the copying.
 class OneProcess final : public SlabExchange {
  public:
-  explicit OneProcess(int n) : n_(n) {}
+  explicit OneProcess(int n, int kept = -1) : n_(n), kept_(kept) {}
   int ranks() const override { return 1; }
   int rank() const override { return 0; }
   void transpose(std::complex<double>* in, std::complex<double>* out, bool forward) override;
@@ -59,7 +62,7 @@ class OneProcess final : public SlabExchange {
   void broadcast(double*, std::size_t) override {}
 
  private:
-  int n_;
+  int n_, kept_;
 };
 
 }  // namespace sphles::spectral
