@@ -302,11 +302,10 @@ const Budget& NavierStokesSolver::budget() {
     partial[static_cast<std::size_t>(r)] = s;
   }
   // Per k_y plane, its rows in order; then the planes in order (sum_over_planes).
-  const long rows_per_plane = flow_.dimension == 3 ? n : rows;
   std::vector<double> per_plane(static_cast<std::size_t>(fft_.planes()) * 4, 0.0);
   for (long r = 0; r < rows; ++r)
     for (int j = 0; j < 4; ++j)
-      per_plane[static_cast<std::size_t>(r / rows_per_plane) * 4 + j] +=
+      per_plane[static_cast<std::size_t>(r / fft_.rows_per_plane()) * 4 + j] +=
           partial[static_cast<std::size_t>(r)][j];
   const std::vector<double> total = sum_over_planes(fft_, per_plane, 4);
   Budget& b = budget_;

@@ -41,8 +41,7 @@ void OneProcess::transpose(Complex* in, Complex* out, bool forward) {
   const long n = n_, half = n_ / 2 + 1;
   const long copied = kept_ < 0 ? half : std::min<long>(kept_ + 1, half);
   auto kept_ky = [&](long i) {
-    const long k = i <= n / 2 ? i : i - n;
-    return kept_ < 0 || (k <= kept_ && -k <= kept_);
+    return kept_ < 0 || std::abs(signed_wavenumber(static_cast<int>(i), n_)) <= kept_;
   };
   // In tiles of kTile × kTile elements: both sides stay within a few pages per tile.
   constexpr long kTile = 8;
@@ -121,8 +120,7 @@ RealFft::RealFft(int dimension, int n, int kept, SlabExchange* exchange)
   for (int axis = 1; axis < dimension; ++axis)
     for (long g = 0; g < groups; ++g) {
       if (axis == 2 && kept >= 0) {
-        const long ky = first_plane() + g <= n / 2 ? first_plane() + g : first_plane() + g - n;
-        if (ky > kept || -ky > kept) continue;
+        if (std::abs(signed_wavenumber(first_plane() + static_cast<int>(g), n)) > kept) continue;
       }
       for (int c = 0; c < chunk_limit; ++c) p.units[axis].emplace_back(g, c);
     }
@@ -133,10 +131,6 @@ RealFft::RealFft(int dimension, int n, int kept, SlabExchange* exchange)
 }
 
 RealFft::~RealFft() = default;
-
-int RealFft::plane_of_row(long row) const {
-  return dimension_ == 3 ? first_plane() + static_cast<int>(row / n_) : 0;
-}
 
 void RealFft::columns(Complex* data, int axis, bool forward) const {
   const Plans& p = *plans_;

@@ -19,11 +19,10 @@
 #include <memory>
 #include <vector>
 
+#include "spectral/fourier_terms.hpp"
 #include "spectral/slab_exchange.hpp"
 
 namespace sphles::spectral {
-
-using Complex = std::complex<double>;
 
 class RealFft {
  public:
@@ -58,12 +57,12 @@ class RealFft {
   /// The signed integer wavenumbers (m_y, m_z) of a row of this rank's modes (m_z = 0 in 2D).
   /// Inline: the solver asks for every mode.
   std::array<int, 2> row_wavenumbers(long row) const {
-    auto signed_index = [this](long i) { return static_cast<int>(i <= n_ / 2 ? i : i - n_); };
-    if (dimension_ == 2) return {signed_index(row), 0};
-    return {signed_index(slab_.first + row / n_), signed_index(row % n_)};
+    if (dimension_ == 2) return {signed_wavenumber(static_cast<int>(row), n_), 0};
+    return {signed_wavenumber(slab_.first + static_cast<int>(row / n_), n_),
+            signed_wavenumber(static_cast<int>(row % n_), n_)};
   }
-  /// The global index of the plane a row belongs to (3D: its k_y index; 2D: 0).
-  int plane_of_row(long row) const;
+  /// Rows of modes in one k_y plane (3D: n, one per k_z; 2D: every row, the one plane).
+  long rows_per_plane() const { return dimension_ == 3 ? n_ : rows(); }
   SlabExchange& exchange() const { return *exchange_; }
 
   /// out(k) = Σ_x in(x) e^{-i k·x} (unnormalised, FFTW's sign). `in` is left unchanged.

@@ -213,7 +213,7 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
   analysis::ShellSums sums = analysis::empty_shell_sums(dim, n);
   const std::size_t shells = sums.modulus2.size();
   const double scale = static_cast<double>(n) * n * (dim == 3 ? n : 1);
-  const long rows_per_plane = dim == 3 ? n : fft.rows();
+  const long rows_per_plane = fft.rows_per_plane();
   std::vector<double> per_plane(static_cast<std::size_t>(fft.planes()) * 2 * shells, 0.0);
 #pragma omp parallel for schedule(static)
   for (int p = 0; p < fft.planes(); ++p) {
