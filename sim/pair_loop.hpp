@@ -41,7 +41,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <span>
+#include <tuple>
 #include <type_traits>
+#include <utility>
 #include <vector>
 
 #include "sim/neighbour_search.hpp"
@@ -213,6 +215,65 @@ inline std::size_t InteractionList::num_pairs() const {
   for (const std::uint32_t c : count_) total += c;
   return total;
 }
+
+/// Several evaluators run as one pass over the same pairs: the pair geometry and the loads of
+/// the list are shared, and each part's sums are the ones its own pass would form (output k of
+/// part P is summed as part P sums it). finish calls the parts' finish in order, so a part may
+/// add to what an earlier part wrote. The parts must agree on coincident_pairs and reduce by sums.
+template <class... Parts>
+class Fused {
+ public:
+  static constexpr int outputs = (Parts::outputs + ...);
+  static constexpr bool coincident_pairs = (Parts::coincident_pairs || ...);
+  static_assert(((Parts::coincident_pairs == coincident_pairs) && ...),
+                "fused evaluators must agree on coincident pairs");
+  struct Own {
+    std::tuple<typename Parts::Own...> parts;
+  };
+
+  explicit Fused(Parts... parts) : parts_(std::move(parts)...) {}
+
+  Own own(std::size_t i) const {
+    return std::apply([i](const Parts&... p) { return Own{{p.own(i)...}}; }, parts_);
+  }
+  template <int Dim>
+  void pair(const Own& o, const Pair<Dim>& q, double (&out)[outputs]) const {
+    each([&]<std::size_t P>(const auto& part) {
+      using Part = std::tuple_element_t<P, std::tuple<Parts...>>;
+      double c[Part::outputs];
+      part.pair(std::get<P>(o.parts), q, c);
+      for (int k = 0; k < Part::outputs; ++k) out[offset<P>() + k] = c[k];
+    });
+  }
+  void finish(std::size_t i, const Own& o, const double (&sum)[outputs]) const {
+    each([&]<std::size_t P>(const auto& part) {
+      using Part = std::tuple_element_t<P, std::tuple<Parts...>>;
+      double s[Part::outputs];
+      for (int k = 0; k < Part::outputs; ++k) s[k] = sum[offset<P>() + k];
+      part.finish(i, std::get<P>(o.parts), s);
+    });
+  }
+
+ private:
+  /// The first output of part P.
+  template <std::size_t P>
+  static constexpr int offset() {
+    constexpr int sizes[] = {Parts::outputs...};
+    int first = 0;
+    for (std::size_t k = 0; k < P; ++k) first += sizes[k];
+    return first;
+  }
+  /// f.template operator()<P>(part P) for every part, in order.
+  template <class F>
+  void each(F&& f) const {
+    [&]<std::size_t... P>(std::index_sequence<P...>) {
+      (f.template operator()<P>(std::get<P>(parts_)), ...);
+    }
+    (std::index_sequence_for<Parts...>{});
+  }
+
+  std::tuple<Parts...> parts_;
+};
 
 /// How a particle's contributions are summed: in SIMD lanes (the vectorised loop) or in list
 /// order. The build's default is Lanes, or Ordered with SPHLES_SIMD=OFF (SPHLES_NO_SIMD); a

@@ -25,9 +25,11 @@
 //  - Full: both terms, (1/ρ_i) Σ_j ρ_j (v_j - v_i)(δv_j·∇W_ij) V_j = δv·∇v: Galilean invariant,
 //    but -v ∇·(ρ δv) has no antisymmetric pair form (its integral over a periodic box is not
 //    zero), so Σ M v is not conserved.
-// Pressure (A.9) and viscous term (A.14) are the thesis model's (ThesisScheme::forces). The
-// passes are evaluators of the pair loop (sim/pair_loop.hpp), in gather form, so results do not
-// depend on the thread count.
+// Pressure (A.9) and viscous term (A.14) are the thesis model's (ThesisMomentum). The ALE term
+// at x^{n+1} takes δv^n, the shift the particles drifted with, so the scheme forms the force, the
+// ALE correction and δv^{n+1} in one pass after the density (sim/scheme.hpp). The terms are
+// evaluators of the pair loop (sim/pair_loop.hpp), in gather form, so results do not depend on
+// the thread count.
 #pragma once
 
 #include <array>
@@ -137,8 +139,9 @@ void shifting_velocity_pass(const KernelT& kernel, const PeriodicBox& box, const
 }
 
 /// The ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (Conservative), or
-/// Sun et al. 2019's full form (Full), as an evaluator of the pair loop; finish adds it to the
-/// acceleration.
+/// Sun et al. 2019's full form (Full), at the given velocities and shifting velocities, as an
+/// evaluator of the pair loop; finish adds it to the acceleration (after the momentum evaluator
+/// of the same pass, Fused). Requires density_pass on the same positions.
 template <int Dim, AleCorrection Ale, class KernelT>
 struct ShiftingAle {
   static constexpr int outputs = Dim;
@@ -194,17 +197,5 @@ struct ShiftingAle {
   const double* volume_;
   const double* density_;
 };
-
-/// Adds the ALE correction (1/ρ_i) Σ_j (ρ_i v_i ⊗ δv_i + ρ_j v_j ⊗ δv_j)·∇W_ij V_j (the
-/// discrete (1/ρ) ∇·(ρ v ⊗ δv), Sun et al. 2019), with Full less (v_i/ρ_i) Σ_j (ρ_i δv_i +
-/// ρ_j δv_j)·∇W_ij V_j, at the given velocities and shifting velocities to p.acceleration.
-/// Requires density_pass on the same positions; `pairs` as for shifting_velocity_pass.
-template <int Dim, AleCorrection Ale, class KernelT, class List>
-void shifting_ale_pass(const KernelT& kernel, const PeriodicBox& box, const List& pairs,
-                       const VelocityView& velocity, const VelocityView& shift, ParticleArrays& p) {
-  pair_pass<Dim>(ShiftingAle<Dim, Ale, KernelT>(kernel, velocity, shift, p),
-                 PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
-                 pairs.num_particles());
-}
 
 }  // namespace sphles::sim

@@ -111,14 +111,21 @@ struct ThesisScheme {
   static void forces(const KernelT& kernel, const PeriodicBox& box, const FluidParameters& fluid,
                      const VelocityView& velocity, SchemeFields& fields, ParticleArrays& p,
                      const Exchange& exchange) {
-    const double* weights = nullptr;
-    if (fields.viscous_operator == ViscousOperator::Corrected) {
-      viscous_correction_pass<Dim>(kernel, box, fields.interactions, p, fields.viscous_weights);
-      std::vector<double>* written[] = {&fields.viscous_weights};  // g_j of the force pass
-      exchange.refresh(written);
-      weights = fields.viscous_weights.data();
-    }
+    const double* weights = viscous_weights<Dim>(kernel, box, fields, p, exchange);
     force_pass<Dim>(kernel, box, fields.interactions, fluid, velocity, p, weights);
+  }
+
+  /// With ViscousOperator::Corrected, the g_i of the current positions (viscous_correction_pass,
+  /// after density_pass; the halo's too); else nullptr.
+  template <int Dim, class KernelT>
+  static const double* viscous_weights(const KernelT& kernel, const PeriodicBox& box,
+                                       SchemeFields& fields, ParticleArrays& p,
+                                       const Exchange& exchange) {
+    if (fields.viscous_operator != ViscousOperator::Corrected) return nullptr;
+    viscous_correction_pass<Dim>(kernel, box, fields.interactions, p, fields.viscous_weights);
+    std::vector<double>* written[] = {&fields.viscous_weights};  // g_j of the force pass
+    exchange.refresh(written);
+    return fields.viscous_weights.data();
   }
 };
 
@@ -149,7 +156,8 @@ struct TransportVelocityScheme {
 /// Particle shifting with the consistent ALE correction of the δ⁺-SPH model (Sun et al. 2017,
 /// 2019; particle_shifting.hpp): the thesis pressure (A.9) and viscous term (A.14, or its
 /// corrected form) plus (1/ρ) ∇·(ρ v ⊗ δv); particles move with v + δv, δv the shifting
-/// velocity at the positions of the step's start.
+/// velocity at the positions of the step's start. After the density pass, one pass forms the
+/// force, the ALE correction and the shifting velocity of the next step.
 struct ParticleShiftingScheme {
   static constexpr SchemeType type = SchemeType::ParticleShifting;
   static constexpr std::string_view name = "particle_shifting";
@@ -165,17 +173,35 @@ struct ParticleShiftingScheme {
                        const Exchange& exchange) {
     density_pass<Dim>(kernel, box, neighbours, fluid, p, &fields.interactions);
     refresh_density(exchange, p);
-    const InteractionList& pairs = fields.interactions;
-    shifting_velocity_pass<Dim>(kernel, box, pairs, fields.shifting, p, fields.drift_source);
-    std::vector<double>* written[] = {&fields.drift_source[0], &fields.drift_source[1],
-                                      &fields.drift_source[2]};  // δv_j of the ALE pass
-    exchange.refresh(std::span(written, static_cast<std::size_t>(Dim)));
-    ThesisScheme::forces<Dim>(kernel, box, fluid, velocity, fields, p, exchange);
-    const VelocityView shift = view_of(fields.drift_source, Dim);
-    if (fields.shifting.ale == AleCorrection::Full)
-      shifting_ale_pass<Dim, AleCorrection::Full>(kernel, box, pairs, velocity, shift, p);
+    const double* weights = ThesisScheme::viscous_weights<Dim>(kernel, box, fields, p, exchange);
+    // The ALE correction takes the shift the particles drifted with to these positions, δv^n
+    // (transport_shift, in the halo too), as the TVF's A term does (numerics.md): the pass then
+    // needs no value of a neighbour it computes itself.
+    const VelocityView shift = view_of(fields.transport_shift, Dim);
+    const auto pass = [&](auto momentum) {
+      if (fields.shifting.ale == AleCorrection::Full)
+        fused_pass<Dim, AleCorrection::Full>(momentum, kernel, box, velocity, shift, fields, p);
+      else
+        fused_pass<Dim, AleCorrection::Conservative>(momentum, kernel, box, velocity, shift, fields,
+                                                     p);
+    };
+    if (weights)
+      pass(ThesisMomentum<Dim, KernelT, true>(kernel, fluid, velocity, p, weights));
     else
-      shifting_ale_pass<Dim, AleCorrection::Conservative>(kernel, box, pairs, velocity, shift, p);
+      pass(ThesisMomentum<Dim, KernelT, false>(kernel, fluid, velocity, p, nullptr));
+  }
+
+ private:
+  template <int Dim, AleCorrection Ale, class Momentum, class KernelT>
+  static void fused_pass(const Momentum& momentum, const KernelT& kernel, const PeriodicBox& box,
+                         const VelocityView& velocity, const VelocityView& shift,
+                         SchemeFields& fields, ParticleArrays& p) {
+    const InteractionList& pairs = fields.interactions;
+    const Fused<Momentum, ShiftingAle<Dim, Ale, KernelT>, ShiftingVelocity<Dim, KernelT>> fused(
+        momentum, ShiftingAle<Dim, Ale, KernelT>(kernel, velocity, shift, p),
+        ShiftingVelocity<Dim, KernelT>(kernel, fields.shifting, p, fields.drift_source));
+    pair_pass<Dim>(fused, PeriodicGeometry<Dim>(box, p), pairs, kernel.support_radius(), 0,
+                   pairs.num_particles());
   }
 };
 

@@ -202,6 +202,67 @@ TEST(PairLoop, LanesAndListOrderAgreeToRoundOff) {
   compare_summations<2>(40);
 }
 
+// Evaluators fused into one pass (Fused) give what their separate passes give, bit for bit: each
+// output is summed as its own pass sums it, and the parts finish in order (the ALE correction
+// adds to the acceleration the momentum part wrote). Here the particle-shifting scheme's pass:
+// pressure and viscous term, ALE correction, shifting velocity.
+template <int Dim>
+void compare_fused(int per_side) {
+  testing::RandomFlow flow = prepared_flow(Dim, per_side, 11);
+  const SolverConfig& c = flow.config;
+  ParticleArrays& p = flow.particles;
+  VerletNeighbourSearch search(c.box, c.support_radius, 0.1 * c.support_radius);
+  p.reorder(search.locality_order(view_positions(p)));
+  search.build(view_positions(p));
+  const Kernel<kernel_shape::WendlandC4, Dim> kernel(c.support_radius);
+  using KernelT = decltype(kernel);
+  const PeriodicGeometry<Dim> geometry(c.box, p);
+  InteractionList pairs;
+  density_pass<Dim>(kernel, c.box, search.list(), c.fluid, p, &pairs);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> u(-0.05, 0.05);
+  std::array<std::vector<double>, 3> drift, separate, fused;
+  for (int d = 0; d < Dim; ++d) {
+    drift[d].resize(p.size());
+    for (double& x : drift[d]) x = u(rng);
+    separate[d].assign(p.size(), 0.0);
+    fused[d].assign(p.size(), 0.0);
+  }
+  const ShiftingParameters shifting =
+      shifting_parameters(1.0, c.support_radius, kernel.value(c.particle_spacing));
+  const VelocityView v = view_velocity(p);
+  const VelocityView dv = view_of(drift, Dim);
+  using Momentum = ThesisMomentum<Dim, KernelT, false>;
+  using Ale = ShiftingAle<Dim, AleCorrection::Full, KernelT>;
+  using Shift = ShiftingVelocity<Dim, KernelT>;
+  const auto radius = c.support_radius;
+  pair_pass<Dim>(Momentum(kernel, c.fluid, v, p, nullptr), geometry, pairs, radius, 0, p.size());
+  pair_pass<Dim>(Ale(kernel, v, dv, p), geometry, pairs, radius, 0, p.size());
+  pair_pass<Dim>(Shift(kernel, shifting, p, separate), geometry, pairs, radius, 0, p.size());
+  const std::array<std::vector<double>, 3> acceleration = p.acceleration;
+  for (int d = 0; d < Dim; ++d) p.acceleration[d].assign(p.size(), 0.0);
+  static_assert(Fused<Momentum, Ale, Shift>::outputs == 3 * Dim);
+  pair_pass<Dim>(
+      Fused<Momentum, Ale, Shift>(Momentum(kernel, c.fluid, v, p, nullptr), Ale(kernel, v, dv, p),
+                                  Shift(kernel, shifting, p, fused)),
+      geometry, pairs, radius, 0, p.size());
+  std::size_t moved = 0;
+  for (int d = 0; d < Dim; ++d)
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      ASSERT_EQ(std::memcmp(&p.acceleration[d][i], &acceleration[d][i], sizeof(double)), 0)
+          << "acceleration " << d << " of particle " << i;
+      ASSERT_EQ(std::memcmp(&fused[d][i], &separate[d][i], sizeof(double)), 0)
+          << "shifting velocity " << d << " of particle " << i;
+      moved += separate[d][i] != 0.0 && acceleration[d][i] != 0.0;
+    }
+  EXPECT_GT(moved, p.size() / 2) << "nothing to compare";
+}
+
+TEST(PairLoop, FusedPassEqualsItsPartsBitForBit) {
+  compare_fused<3>(12);
+  compare_fused<2>(36);
+}
+
 // The interaction list holds, for every particle, exactly the Verlet entries with 0 < r < H, in
 // Verlet order; a pass over it summed in list order equals the same pass over the Verlet list bit
 // for bit (the same pairs, the same order; the skin's entries add +0).
