@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The analysis' periodic cell list over the grid's box, and the checks its users share
 // (nearest-particle map, Shepard and local-fit interpolation). Internal to the analysis library.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The "analysis" section of a scene: which products a run needs and how often (docs/analysis.md).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // An FFTW r2c plan with its own input and output buffers, made and destroyed under the planner
 // lock (analysis::fftw_planner_lock): the one-process spectrum's (spectrum.cpp) and par/'s
 // distributed one's (par/spectrum.cpp). Buffers come from FFTW's allocator (always SIMD-aligned,

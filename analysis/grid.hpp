@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Cartesian grid over the periodic box: nearest-particle sampling (SPEC §5, "Gridding") and
 // kernel-weighted (Shepard) interpolation with the run's kernel.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The chapter-4 statistics as plain data (SPEC §5): the bivariate histogram of (τ*, ω²*), the
 // polar histogram of the angle between t_I and the velocity, and the sfs_stats product that
 // holds them (statistics.hpp computes them; a distributed solver's ranks too, snapshot.hpp).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Local polynomial fits of particle data (weighted least squares, the moving-least-squares
 // reconstruction; docs/analysis.md, "gridding").
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Single-slot hand-over from one producer to one consumer. publish() never blocks the producer
 // on the consumer's work: it replaces a value the consumer has not taken yet and counts it as
 // dropped, so the consumer always gets the newest value (live viewers). publish_waiting() is the

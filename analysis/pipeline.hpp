@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The solver → analysis hand-over: the solver thread publishes snapshots; one analysis thread
 // takes them, computes the requested products and hands each frame to the sinks (writer,
 // renderer, server). Delivery::Lossless (what a run's saved outputs need, issue 17): publish

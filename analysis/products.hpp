@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Analysis products: plain data with a time stamp, computed from one snapshot and consumed by
 // writers, the renderer and the server. Only requested products are computed; intermediates that
 // several products share (gridded velocity, vorticity, τ_SFS) are computed once per snapshot.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reference curves a run is compared with (dashboard, accuracy benchmark): the kinetic energy
 // e_v(t) and its dissipation -de_v/dt of the 2D Taylor-Green vortex (analytic, SPEC §6.2), of
 // the 3D Taylor-Green vortex at Re = 1600 and 5000 (the DNS shipped in data/reference/) and of

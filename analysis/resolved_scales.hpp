@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Resolved-scale errors of a run against a reference (SPEC §9): what an implicit LES is judged
 // by. With the kernel wavenumber k_kern = 2π/D_K and the best resolvable scale k_SPH = k_kern/2
 // (SPEC §7, finding 4), at equal times:

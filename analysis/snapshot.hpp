@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // An immutable copy of the particle state handed from the solver to analysis (SPEC §5 inputs).
 #pragma once
 

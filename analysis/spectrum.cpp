@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Energy spectrum by FFTW r2c transforms (SPEC §5).
 //
 // FFTW usage: one plan per call, made with FFTW_ESTIMATE (no timing measurements, so the same

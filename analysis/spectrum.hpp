@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Kinetic-energy spectrum by FFTW with shell binning (SPEC §5; Durran et al. 2017).
 //
 // With û(k) = M^-n Σ_x u(x) e^{-i k·x} on an M^n grid of side L, Δk = 2π/L and shell

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Chapter-4 statistics (SPEC §5): bivariate histogram of (τ*, ω²*) and the polar histogram of
 // the angle between the major principal direction t_I and the velocity.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Implicit sub-filter stress per particle (3.27), its norm (4.7) and principal axes (4.8).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Per-step energy history: e_v (5.3) from the solver, ε = -de_v/dt from a smoothed slope, and
 // the timeseries.csv writer.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Vorticity three ways: by second-order central differences on the periodic grid (SPEC §5, the
 // thesis' estimate), per particle as the curl of the (A.20) velocity gradient (SPEC §4), and per
 // particle as the curl of a local cubic fit to the velocities (local_fit.hpp).

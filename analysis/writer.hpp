@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Writes analysis frames into a run directory (file formats in docs/analysis.md):
 //   spectra/E_t{t}.csv + spectra/index.csv      energy spectra
 //   slices/{field}_t{t}.npy + .vti + {field}.pvd  2D slices (NumPy .npy, float64, C order;

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles calibrate: secant iterations on the Kolmogorov forcing amplitude χ so that the
 // time-averaged u_rms reaches a target (SPEC §6.3: ⟨u_rms⟩ = 0.11 m/s, thesis χ = 1.8 m/s²).
 #include <omp.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles docs man|bash-completion: the manual page and the bash completion, generated from the
 // CLI11 declarations of the commands (the same ones that parse the command line), so they never
 // disagree with it. The build writes both next to the program and installs them.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Subcommands of the sphles program, declared with CLI11 (Debian libcli11-dev): each adds its
 // subcommand, options and help text to the program's command line, and a callback that runs it
 // and sets the process exit code. `sphles COMMAND --help` prints a command's own help (rc 0).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles compare RUN REF: a run's resolved scales against a reference (SPEC §9).
 #include <algorithm>
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Compiled for the baseline x86-64 instruction set whatever the build's flags (app/CMakeLists.txt),
 // since it runs before any code that may use the build's extensions.
 #include "app/cpu_check.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Whether this processor has the instruction-set extensions the build was compiled for: a
 // native build (SPHLES_NATIVE, -march=native) lists them (cmake/NativeCpuFeatures.cmake), and
 // sphles checks them before anything else runs (cpu_check.cpp), so that a binary moved to an

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles estimate: what a run would need (control/resources.hpp), without running it.
 #include <omp.h>
 

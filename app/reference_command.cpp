@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles reference SCENE|PRESET: the spectral reference of a scene's case (docs/reference.md).
 #include <omp.h>
 #include <pthread.h>

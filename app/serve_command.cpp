@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles serve: the HTTP/WebSocket service (server/) over a run manager (control/).
 #include <algorithm>
 #include <boost/asio/io_context.hpp>

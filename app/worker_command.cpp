@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles worker: one rank of a run's MPI job that the service launched (launch/job.hpp). Not for
 // people: the service starts it as `LAUNCHER sphles worker --connect HOST:PORT --token T`.
 // Rank 0 connects back to the service and drives the distributed solver (par::Driver) as the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Analysis cost (issue 3), printed as figures:
 //  1. wall time per snapshot for each product alone and for all together, TGV 3D at the given
 //     resolutions (default 48³ and 64³), analysis on 1 thread as in a run;

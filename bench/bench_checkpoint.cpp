@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Checkpoint cost (issue 5): write and read time and file size of a TGV 3D checkpoint (default
 // 64³), without and with gzip compression, printed as figures.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Two-panel 1200x600 frames from 256² slices: ms per frame split into CPU colour mapping and
 // scene update, render (vtkRenderWindow::Render), read-back (vtkWindowToImageFilter) and PNG
 // encode. Prints averages over kFrames frames after kWarmUpFrames. Then the same split for the

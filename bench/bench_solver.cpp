@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Solver throughput (issue 2): density and force passes in pair interactions per second (pairs
 // inside the kernel support, j != i; the passes as the solver runs them: the density pass over
 // the Verlet list, recording the pairs inside the support, the force pass over those) and wall

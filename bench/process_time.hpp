@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Process CPU time for the timed benchmarks (bench_server, sphles_accuracy).
 #pragma once
 

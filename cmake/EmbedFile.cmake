@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # sphles_embed_file(<output.cpp> <input file> <header> <namespace> <function>): generates a source
 # file defining `std::string_view <namespace>::<function>()` that returns the bytes of the input
 # file as it is in the tree at build time, so the binary carries exactly that file. The build

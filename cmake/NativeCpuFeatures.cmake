@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 # The instruction-set extensions `-march=native` enables on the build machine, as the names GCC's
 # __builtin_cpu_supports knows, in SPHLES_NATIVE_CPU_FEATURES (a space-separated string): what a
 # native build's sphles checks the running processor for before anything else runs

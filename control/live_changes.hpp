@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Live changes (docs/rendering.md "Live changes", docs/api.md): which fields of a run's scene
 // document may change while the run exists, and why the others may not (declared by the scene
 // schema, sim/scene.schema.json: "x-live", "x-fixed"). One rule serves live

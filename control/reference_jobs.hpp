@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Spectral references computed by the service (POST /api/references, docs/reference.md "From
 // the service"): the `sphles reference` run of a run's flow, one job each, in its own directory
 //   {data}/references/{id}/   a reference run directory (spectral/reference_run.hpp), job.json

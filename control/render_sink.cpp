@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "control/render_sink.hpp"
 
 #include <sys/resource.h>

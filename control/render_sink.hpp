@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Rendering on its own thread: renders the images the render configuration asks for, saves
 // them as an image series and hands them on. When the configuration saves images every frame is
 // rendered (post waits while an earlier frame still waits, issue 17); when images are only for

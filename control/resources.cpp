@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The resource model follows what the code allocates (sizes from the types it stores):
 //   solver        sim/solver.cpp, sim/particles.hpp, sim/neighbour_search.cpp
 //   set-up        sim/packing.cpp (lattice, relaxation with its own Verlet list)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // What a run will ask of the machine, estimated from its scene before it starts (docs/scenes.md,
 // "Resource estimate"): peak resident memory with a breakdown by component, disk per checkpoint
 // and per analysis frame, the initial time step and the number of steps. The estimate is

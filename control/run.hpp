@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Run control: the narrow interface through which the command line and the server drive a
 // simulation (docs/ARCHITECTURE.md). A Run owns the solver, its time series, checkpoints, the
 // analysis pipeline and the renderer, all in one run directory:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The files of a run directory that run control reads and writes itself (docs/analysis.md,
 // "Run directory"): atomic text writes (run.json, scene.json), the time series a restart
 // continues, the directory's identity, and the summary of what it holds.

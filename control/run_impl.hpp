@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The state of a control::Run shared by its state machine (control/run.cpp) and its solver
 // thread (control/run_loop.cpp); private to run control.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The solver thread of a run (control/run.hpp): set-up or restart, the run loop with its
 // cadences (sim::Cadence), the consumers (analysis pipeline, renderer), checkpoints, and the end.
 #include <omp.h>

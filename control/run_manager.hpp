@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The runs of one data directory: creation from presets or scenes, a bounded number running at
 // once (the rest queue), and recovery of the runs a previous process left behind; beside them
 // the spectral references computed for their flows (control/reference_jobs.hpp).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scene documents of a run: the sections of every module read into one RunSpec, validated
 // against the scene schema, and written back in full.
 #include "control/run.hpp"

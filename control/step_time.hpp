@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // How long a run's steps take on this machine, measured before the run: a short calibration run
 // of the same scene at a small size (same case, kernel and D_K/Δl, scheme and sub-filter model,
 // so the same neighbours per particle and the same work per pair), scaled by the particle count.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // HDF5 checkpoints: the complete solver state in one file, written atomically, validated on
 // read (docs/checkpoints.md).
 #pragma once

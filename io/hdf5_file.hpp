@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // HDF5 plumbing shared by the checkpoint and snapshot writers (private to io/: nothing outside
 // the module includes this header).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Gridded fields as VTK XML image data (.vti) and time series of them as ParaView collections
 // (.pvd), so ParaView, VisIt and VTK's own readers open slices and grids directly
 // (docs/analysis.md, "Slices").

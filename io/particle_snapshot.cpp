@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "io/particle_snapshot.hpp"
 
 #include <hdf5.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Particle snapshots for tools outside sphles: one HDF5 file per snapshot plus an XDMF file
 // describing the time series, so ParaView and VisIt open the series directly, and h5py reads
 // every dataset with its units (docs/checkpoints.md, "Snapshots").

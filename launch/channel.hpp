@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The channel between a run in the service and the rank 0 of the MPI job that holds its solver
 // (issue 19, "Launching"): length-prefixed binary messages over one TCP connection, and the
 // codec of the solver values that cross it. Doubles travel as their bits, so a state sent and

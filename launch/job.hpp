@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A run's solver in an MPI job of its own (issue 19, "Launching"): the service starts
 // `LAUNCHER sphles worker --connect ...` (default launcher `mpirun -n {ranks}`; `srun -n {ranks}`
 // under Slurm), the job's rank 0 connects back over TCP, and the run drives the job's distributed

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "logging/logging.hpp"
 
 #include <spdlog/pattern_formatter.h>

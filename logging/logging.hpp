@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Logging: one console on stderr for the process (the service's requests, run state changes,
 // warnings) and one run.log per run directory, both through spdlog with the same level.
 #pragma once

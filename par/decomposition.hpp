@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The Cartesian decomposition of the periodic box over MPI ranks (issue 19): a process grid
 // periodic along every axis (MPI_Cart_create), each rank owning the particles of one sub-box.
 //

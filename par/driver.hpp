@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A distributed run driven from rank 0 (issue 19: `mpirun -n N sphles run SCENE.json`).
 //
 // Rank 0 runs the program as one process would (control::Run: outputs, analysis, checkpoints)

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The solver's exchange over MPI ranks (sim::Exchange, sim/exchange.hpp): migration and a
 // Wrapped halo of width = the neighbour-list radius at each list rebuild, halo refreshes along
 // the same plan, and reductions over the ranks of a Decomposition (exact sums by

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Halo exchange and migration of particles between the ranks of a Decomposition (issue 19).
 //
 // A rank's ParticleArrays hold its owned particles at [0, owned) and, after Halo::build, the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Small pieces every MPI exchange of par/ uses: counts checked against MPI's int, and a string
 // sent from rank 0 to every rank.
 #pragma once

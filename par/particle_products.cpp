@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "par/particle_products.hpp"
 
 #include <mpi.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reductions over the ranks of a Decomposition whose results do not depend on the rank count
 // (issue 19: diagnostics the same bits for any number of ranks).
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "par/slab_exchange.hpp"
 
 #include <fftw3-mpi.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The spectral reference's exchange between MPI ranks (spectral/slab_exchange.hpp): the slabs
 // transposed by FFTW's MPI transpose (libfftw3-mpi; it moves values only, so the reference keeps
 // its bits for any rank count), and the collectives by MPI.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The kinetic-energy spectrum of SPEC §5 where the particles live (issue 19: distributed
 // analysis). Each rank grids the velocity on the nodes inside its sub-box from its own particles
 // and a halo (nearest particle, as analysis::nearest_particle_map decides it for the whole set),

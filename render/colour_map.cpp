@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Viridis colour table, robust value ranges and value → colour index.
 #include <algorithm>
 #include <cmath>

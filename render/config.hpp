@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The "render" section of a scene: which images a run produces from its analysis frames and how
 // they are colour-mapped (docs/rendering.md). Rendering is off unless the section asks for it.
 #pragma once

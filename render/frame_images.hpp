@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The images one analysis frame yields under a render configuration: one per slice field, all
 // fields side by side, and the 3D view when due. Pure: depends on its inputs only.
 #pragma once

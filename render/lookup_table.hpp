@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The VTK lookup table matching sphles::render's CPU colour mapping (used by the scalar bar).
 #pragma once
 

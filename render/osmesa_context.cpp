@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // OSMesa context creation and the two symbols that route VTK's GL loading to OSMesa.
 //
 // Debian's VTK 9.1 loads GL entry points through the system GLEW, which asks glXGetProcAddressARB.

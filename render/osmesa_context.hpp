@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // An OSMesa (software GL) context that VTK renders into, plus the GL loader workaround.
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Direct libpng encoder with a fixed row filter (an alternative to vtkPNGWriter's adaptive one).
 #pragma once
 

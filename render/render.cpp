@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Renderer: OSMesa context + vtkGenericOpenGLRenderWindow, slices drawn as 2D image actors.
 //
 // Speed (2-core llvmpipe): the scene is 2D only. Colours are mapped on the CPU straight into an

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Headless rendering of analysis slices to PNG (SPEC §5 "frames"), without an X server.
 //
 // Debian 12's VTK 9.1 is built for GLX only, so this library creates its own OSMesa context

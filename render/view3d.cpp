@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // ParticleRenderer: the particles as GL points with per-point RGB from the CPU colour mapping, the
 // box outline, a fixed parallel-projection camera, and the slices' title and colour bar style.
 //

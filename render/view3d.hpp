@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // 3D view of the particles coloured by a per-particle field (issue 6: "a scene can also request a
 // 3D view ... at a lower cadence"), headless like the slices (render/render.hpp).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Off-screen VTK window on OSMesa, read-back and PNG encoding, text actors and the colour bar.
 #include "render/vtk_window.hpp"
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Internal pieces shared by the slice renderer (render.cpp) and the 3D particle view (view3d.cpp):
 // the off-screen window on an OSMesa context with read-back and PNG encoding, the process-wide
 // VTK scene lock, text actors and the viridis colour bar. Not part of the public API.

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The omega^2 slices of several runs side by side (docs/analysis.md, "What the estimates show").
 
 usage: plot_vorticity_estimates.py OUT.png LABEL=RUN_DIR [LABEL=RUN_DIR ...] [--times 0,2,5,8,10]

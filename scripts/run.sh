@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Sets up, builds and starts the sphles service with the default case running: the 3D
 # Taylor-Green vortex of SPEC §6.1 at Re = 1600 (scenes/tgv3d-re1600.json: 32³, WC4, D_K = 8Δl,
 # t ∈ [0, 15], from a glass), shown beside its DNS and the spectral reference sphles ships, with

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The table of scene keys in docs/scenes.md, derived from the scene schema.
 
 The scene schema (sim/scene.schema.json, published with the registries' names by `sphles schema`)

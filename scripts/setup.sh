@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Installs every Debian package sphles needs (build, tests, rendering, service, browser tests).
 # Safe to re-run: does nothing when all packages are already installed.
 set -euo pipefail

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Copies what a reference run's users need from a `sphles reference` run directory into
 # data/reference/NAME: scene.json, run.json, timeseries.csv and spectra/ (E(k, t) as CSV). The
 # checkpoints, slices and frames stay behind (hundreds of MiB at 256³).

@@ -1,4 +1,5 @@
 #!/usr/bin/env bash
+# SPDX-License-Identifier: GPL-3.0-or-later
 # Sets up, builds and runs every test. Exits non-zero if any step or test fails.
 #  1. Release build (-Werror), all GoogleTest suites through CTest.
 #  2. ThreadSanitizer build of the solver/analysis hand-over tests (label "concurrency") and of

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Compares 3D Taylor-Green runs at Re = 5000 with the DNS of Dairay et al. (2017).
 
 For each run directory (its timeseries.csv: columns t and e_v), prints one Markdown table row

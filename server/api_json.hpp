@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // JSON views of run-control objects, shared by the REST routes and the WebSocket stream
 // (docs/api.md is the contract). Pure functions: no I/O, no locks beyond what Run takes.
 #pragma once

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The --token check: mutating calls carry "Authorization: Bearer TOKEN" (WebSocket: ?token=).
 #pragma once
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Bytes a response streams from disk without holding them: one file (FileSource), or a whole run
 // as a tar archive composed of open files (server/run_archive.hpp). A source has a fixed size,
 // known before the first byte is sent (the response's Content-Length), and is read at offsets.

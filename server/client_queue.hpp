@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // What one WebSocket client has waiting to be sent, and the RunObserver that fills it.
 //
 // The observer runs on the solver, analysis and render threads. It only copies (metrics

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The run's growing CSV files as JSON pages: timeseries.csv (GET /api/runs/{id}/timeseries) and
 // frames/index.csv (GET /api/runs/{id}/frames). Files are read in chunks, never whole, so any
 // length can be served; an answer is bounded in rows (`limit`, at most ResponseLimits::max_rows)

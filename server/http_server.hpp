@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The sphles service: one port, HTTP/1.1 (REST API, static web/ files) and WebSocket streams,
 // asynchronous (Boost.Beast on an io_context with a small thread pool). Request handlers that
 // call into run control run on a separate worker pool, because some of them block (stopping a run

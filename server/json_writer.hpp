@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // JSON text written straight into a string, for the server's large bodies (histograms of
 // millions of counts, time series of a million rows): no nlohmann document is built, so memory
 // is the text itself and nothing is allocated when it is released (an nlohmann array allocates a

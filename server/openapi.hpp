@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The OpenAPI document of the service (and the AsyncAPI document of its WebSocket stream):
 // server/openapi.json (embedded at build time,
 // cmake/EmbedFile.cmake) with the scene's schema as its Scene and ScenePatch components

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The serialised spectrum and statistics of analysis frames, built once per frame on first use
 // and shared read-only by every GET /spectrum, GET /statistics and every WebSocket client of the
 // run (each used to serialise the frame again, and a 10⁸-bin histogram took 3 GB each time).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The REST API of docs/api.md over run control. Request handling is independent of sockets:
 // Router::handle turns one parsed request into one response and never throws, so every route and
 // every malformed input can be exercised without a network (tests do both).

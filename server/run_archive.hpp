@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A whole run as one download: a POSIX tar archive (pax interchange format, IEEE Std 1003.1-2017,
 // "pax"), composed on the fly of the run's files held open. Each member is a header block, the
 // file's bytes as they were when opened and zero padding to 512 bytes; two zero blocks end it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The web/ directory as static files. A URL path is decoded strictly (server/url.hpp), every
 // segment is checked ('..', '.', hidden names), and the file is canonicalised and must lie inside
 // the canonical web root, so neither encoded traversal nor symbolic links leave it.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The body type of the server's HTTP responses: text the response owns, or a read-only view of
 // text shared with other responses and WebSocket messages (a serialised analysis product, built
 // once per frame by server/product_cache.hpp), or bytes streamed from disk in chunks (a ByteSource:

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Request-target parsing shared by the routes and the static files: split path and query,
 // percent-decode strictly. Every function rejects rather than guesses: a malformed escape, an
 // encoded NUL or an encoded '/' inside a path segment is an error (HTTP 400), never a file name.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // One WebSocket client of one run (/api/runs/{id}/stream), and the registry of live sessions.
 //
 // A session owns its socket and a ClientQueue (server/client_queue.hpp). The run's threads fill

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The ALE correction of the momentum equation for particles that move with v + δv instead of v
 // (the transport-velocity formulation, transport_velocity.hpp, and particle shifting,
 // particle_shifting.hpp; docs/models.md). Along the shifted path dv/dt = Dv/Dt + δv·∇v; Sun et

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Cadences in simulated time: the points k · every (k = 1, 2, ...) at which a run writes a row,
 // publishes an analysis snapshot, saves a checkpoint or samples a benchmark. The step before a
 // point is cut short to land on it; the point is due once the time reaches it. One type for the

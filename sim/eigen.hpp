@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The Eigen modules sphles uses, included once behind a warning guard.
 //
 // GCC 12 with -march=native on an AVX-512 machine reports a false -Wmaybe-uninitialized inside

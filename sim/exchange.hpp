@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The seam between the solver and the other processes of a distributed run (issue 19,
 // docs/scaling.md). sim/ knows no MPI: par/ implements this interface over MPI ranks, and a
 // one-process run uses LocalExchange, which does nothing.

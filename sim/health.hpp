@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Health of a particle state: density noise, particle pairing, non-finite values and runaway
 // kinetic energy, and the classification of a run built on them (docs/stability.md).
 //

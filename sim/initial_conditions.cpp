@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "sim/initial_conditions.hpp"
 
 #include <cmath>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Initial states of the test cases (SPEC §6) and the translation of a Scene into solver input.
 #pragma once
 

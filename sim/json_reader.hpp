@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reading validated configuration objects from JSON: every read names its dotted field and takes
 // the field's type and bounds from the scene's schema (sim/scene.schema.json, scene_schema.hpp);
 // keys the schema does not declare are reported as unknown. Used by every module that owns a

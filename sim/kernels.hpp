@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Smoothing kernels of SPEC §3 (Dehnen & Aly 2012; Morris 1996).
 //
 // Every kernel is written as W(r) = C_n / H^n * f(q), q = r / H, with H the support radius

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Periodic cell-list neighbour search producing a Verlet list with a skin.
 //
 // The search borrows positions and owns no particle data (CompactNSearch style): it returns a

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Particle packing (Colagrossi et al. 2012) and its on-disk cache.
 //
 // Particles on a lattice, optionally displaced at random by `perturbation` Δl (a counter-based

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The neighbour loop of every SPH pass, written once (docs/performance.md, "The pair loop").
 //
 // A pass is an evaluator, a small struct of pure functions over plain data (sim/physics/), run

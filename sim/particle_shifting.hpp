@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Particle shifting with the consistent ALE correction of the δ⁺-SPH model: Sun, Colagrossi,
 // Marrone & Zhang, "The δplus-SPH model", CMAME 315 (2017) 25-49 (the shifting law with its
 // anti-clustering term), and Sun, Colagrossi, Marrone, Antuono & Zhang, "A consistent approach to

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Particle state as a structure of arrays (SPEC §2 symbols in comments).
 //
 // Layout is ready for a later domain decomposition: indices [0, size()) are the particles this

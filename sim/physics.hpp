@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The discrete SPH-LES model of SPEC §2: the density and force passes of the thesis model.
 //
 // The pair formulas are small free functions (sim/physics/fluid.hpp) used by evaluators

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // How a distributed run splits its periodic box among processes (par/decomposition.hpp), as a
 // pure function, so that what a run will need per process can be estimated before MPI exists
 // (control/resources.hpp) with the very split the run will use.

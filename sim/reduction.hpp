@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reductions whose result does not depend on the number of threads: values are summed
 // sequentially in fixed-size blocks, and the block sums are added in block order.
 #pragma once

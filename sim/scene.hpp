@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scene files: one validated configuration object for a run (docs/scenes.md).
 //
 // A scene is JSON. Every key has a default (which may depend on "case"); unknown keys, wrong

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The scene's schema (sim/scene.schema.json, embedded at build time): the one declaration of the
 // scene's keys, their types, bounds, defaults, descriptions and whether a running run may change
 // them (docs/scenes.md). The readers of every section (sim::ObjectReader) take key names, types

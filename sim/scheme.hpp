@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Interchangeable SPH schemes: the discretisation of the momentum equation and of the particle
 // motion (scene key "scheme", docs/scenes.md; docs/models.md).
 //

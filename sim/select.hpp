@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Stream compaction of index lists: keep the entries a vectorised test selected, in order.
 // Used by the Verlet list build (candidates within the list radius) and by the density pass
 // (the pairs inside the kernel support, sim/pair_loop.hpp).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Run-control interface of the solver and its configuration.
 //
 // Time integration (documented in docs/numerics.md): kick-drift-kick leapfrog with a predicted

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // How a run gets its solver: one seam for every place that builds solvers, so that a run in
 // this process, a run under mpirun (par::Driver) and a run in a service's MPI job
 // (launch::job_solvers) are built and continued the same way (control::RunOptions).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A solver seen through copies of its whole state (a distributed solver gathered to rank 0,
 // par/driver.hpp; a solver in another process, launch/): the state of the current step fetched
 // once when asked for, and a Verlet list over it for the analysis, built once per step.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "sim/subfilter.hpp"
 
 #include "sim/eigen.hpp"

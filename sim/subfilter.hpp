@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Explicit sub-filter models of SPEC §4 (appendix A.1.4): SMAG, SIGMA and SMAG-MCG.
 //
 // Pointwise formulas (eddy viscosity from a velocity gradient) are small free functions; the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The transport-velocity formulation (TVF) of Adami, Hu & Adams, J. Comput. Phys. 241 (2013)
 // 292-307, as pair formulas and one neighbour pass (docs/models.md, "Transport-velocity
 // formulation"). Equation numbers are the paper's, as PySPH's implementation

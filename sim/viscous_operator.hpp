@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The discrete viscous operator of the momentum equation and its corrected form
 // (docs/models.md, "Viscous operator").
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The terms of the incompressible Navier-Stokes equations in Fourier space (SPEC §9; Canuto,
 // Hussaini, Quarteroni & Zang 2007, ch. 3), as small functions over one mode.
 //

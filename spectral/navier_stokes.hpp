@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // An incompressible pseudo-spectral (Fourier-Galerkin) Navier-Stokes solver of a periodic box:
 // the reference sphles judges its particle runs against (SPEC §9, docs/reference.md).
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 #include "spectral/real_fft.hpp"
 
 #include <fftw3.h>

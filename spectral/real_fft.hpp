@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Real multi-dimensional FFTs of a periodic N^d grid (d = 2, 3) for the pseudo-spectral
 // reference solver, bitwise the same for any number of threads and, in 3D, of MPI ranks.
 //

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Checkpoints of the spectral reference: the Fourier coefficients of the velocity, exactly, in
 // HDF5 (docs/reference.md). Written atomically; a restart continues bitwise.
 //   attributes: schema "sphles-reference-checkpoint-1", time, step, dimension, points_per_side,

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // A spectral reference run of a scene's case (`sphles reference`, docs/reference.md): the same
 // flow as the particle run (box, viscosity, initial field, Kolmogorov forcing and friction),
 // solved by NavierStokesSolver, written into a run directory like a particle run's:

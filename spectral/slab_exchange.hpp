@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // What the spectral reference needs from the processes it runs on: the transpose of its slabs
 // and a few exact collectives. One process needs nothing (OneProcess); under mpirun the ranks
 // exchange through FFTW's MPI transposes and MPI (par::MpiSlabExchange). The solver holds the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Runs a scene for a number of steps and writes the final positions and velocities (in particle
 // id order, as raw doubles) to a file: built twice, against the solver with vectorised pair sums
 // and against the solver built with SPHLES_SIMD=OFF, for test PairLoopBuilds.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scratch directories of a test program under the system's temporary directory: fresh when made,
 // removed when the program ends with every test passed, kept (for a look) when one failed.
 #pragma once

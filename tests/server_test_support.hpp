@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Shared pieces of the service's integration tests: real servers on ephemeral loopback ports
 // (TestServer), a blocking HTTP client (send, Api), raw sockets (raw_exchange) and a WebSocket
 // client (WsClient), scratch directories removed when the test program ends, and tiny scenes.

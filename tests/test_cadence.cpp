@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sim::Cadence (sim/cadence.hpp): the points k · every a run lands on, the same in a fresh and in
 // a restarted run.
 #include <gtest/gtest.h>

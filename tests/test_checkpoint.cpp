@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // HDF5 checkpoints: exact round trip, bitwise restart, rejection of damaged and implausible
 // files, failed writes (file-size limit, unwritable directory, HDF5 errors) that leave nothing
 // open and nothing half-written, and crash safety of the atomic write under SIGKILL of a real

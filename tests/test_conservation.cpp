@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Conservation and rest-state properties of the discrete model (SPEC §2).
 #include <gtest/gtest.h>
 

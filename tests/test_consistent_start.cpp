@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The consistent start (initial.mass = "summation") and the corrected viscous operator
 // (scheme.viscous_operator = "corrected") of issue 16: docs/models.md, "Accuracy options".
 #include <gtest/gtest.h>

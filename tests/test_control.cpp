@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Run control: state machine, live changes, rendering sink, checkpoint on stop and resume, and
 // the run manager's queue and recovery. Real runs (tiny 2D Taylor-Green), real files.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The start-up check of the processor's extensions (app/cpu_check.hpp): which of a build's
 // required extensions a processor lacks, and the message that names them. The refusal itself,
 // on an emulated processor without them, is tests/cli/check_cpu_check.py.

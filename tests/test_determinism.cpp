@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Bitwise-identical results for any thread count: gather-form passes and fixed-order reductions.
 #include <gtest/gtest.h>
 #include <omp.h>

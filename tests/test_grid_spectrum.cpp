@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Gridding, vorticity and energy spectra (SPEC §5) against brute force, analytic fields and
 // discrete identities (Parseval, single Fourier modes, a synthetic k^(-5/3) spectrum).
 #include <gtest/gtest.h>

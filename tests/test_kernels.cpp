@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Kernels of SPEC §3: normalisation, gradient and compact support, every kernel in 2D and 3D.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // logging/: level names, run.log lines (format, level, append, lazy creation, unwritable file)
 // and the tail the service serves. Real files.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The cell-list Verlet search equals brute force on random periodic sets (SWIFT test27cells
 // style), including particles on and near the faces and boxes of one, two and three cells.
 #include <gtest/gtest.h>

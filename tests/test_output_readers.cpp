@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Image data outputs read back with VTK's own XML readers (the VTK the build links): values,
 // shape, origin, spacing, units and time survive bit for bit; a slice written by the run
 // directory writer reads back as the slice the analysis computed; bad input is a clear error.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Lattice packing (Colagrossi et al. 2012): relaxation lowers the background-pressure residual
 // below the tolerance; the cache round-trips exactly and survives damaged files.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The pair loop and its evaluators (sim/pair_loop.hpp, issue 18): every pairwise momentum term is
 // antisymmetric bit for bit, the vectorised and the ordered summation agree to round-off, the
 // interaction list holds exactly the pairs inside the support, and a pass over it equals the same

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Solver → analysis hand-over (mailbox, pipeline), the analysis configuration, the products a
 // scene asks for, the run-directory writer and the dissipation estimator.
 #include <gtest/gtest.h>

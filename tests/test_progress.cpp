@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sim::ProgressReporter (sim/run_log.hpp): the progress line's rate and ETA, measured over the
 // last minute of wall time, so that one short step (cut to land on an output time) or one slow
 // one (a checkpoint) does not make them jump.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reductions (sim/reduction.hpp): the exact sum is independent of order and splitting, exact,
 // and rounds to nearest; deterministic_sum is independent of the thread count.
 #include <gtest/gtest.h>

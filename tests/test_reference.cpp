@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Reference curves (analysis/reference.hpp): the analytic 2D Taylor-Green decay and the DNS of
 // the 3D Taylor-Green vortex at Re = 5000 shipped in data/reference/.
 #include <gtest/gtest.h>

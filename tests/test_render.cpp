@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Headless slice rendering: colours at known pixels, log scale, determinism, no X display.
 #include <gtest/gtest.h>
 #include <unistd.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Resolved-scale measures (analysis/resolved_scales.hpp, SPEC §9) on spectra with known sums.
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The resource estimate (control/resources.hpp) against real runs: peak RSS of the sphles
 // program, checkpoint files written by io::write_checkpoint, analysis files of a run, the
 // solver's own first time step; and the machine's memory from cgroup and meminfo files.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The run archive (server/run_archive.hpp): a tar composed of open files, read back by real
 // readers (Python's tarfile, GNU tar) and compared byte for byte with the files.
 #include "server/run_archive.hpp"

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scene files: defaults, overrides and the documented errors, in-process and through the real
 // sphles program (exit code 2 and a message naming the field).
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Scene keys whose extremes only cost memory or time are bounded (docs/scenes.md, "Limits"):
 // the requests of issue 15, finding 7, are refused naming the field and the range, the bounds
 // themselves are accepted, and every preset and shipped scene still parses.

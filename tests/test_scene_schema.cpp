@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The scene schema (sim/scene.schema.json) as the one declaration of the scene: the readers,
 // valijson, the defaults, the live-change rules and the registries agree with it.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Integration tests of the sphles service (server/) against real servers on ephemeral loopback
 // ports, driving real runs (tiny 2D Taylor-Green scenes) through the REST API and WebSocket
 // streams of docs/api.md. Clients are Boost.Beast / raw sockets; nothing is mocked.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The service survives its users (issue 15, HTTP/WebSocket layer): large analysis products,
 // running out of memory, read-only clients and slowloris sockets filling the connection table,
 // histories longer than one answer, malformed WebSocket handshakes. Real servers on loopback

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Spectral references computed by the service (POST /api/references, docs/api.md): real servers
 // on loopback ports, the real spectral solver, runs of the 3D Taylor-Green vortex at a Reynolds
 // number no shipped reference covers.

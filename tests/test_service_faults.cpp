@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Faults of the run-control layer that ordinary use of the service provoked (issue 15): duplicate
 // and concurrent transitions, stops during a long set-up, finished runs restarted, changes that
 // cannot be saved, unwritable or vanishing run directories, crashes, restarts with inconsistent

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Concurrency soak of the service (issue 15): six clients send random transitions, changes,
 // deletions and reads to three run slots of one real server over real sockets, at least
 // kMinimumTransitions in all, within a wall-time bound. Every answer must be a documented one

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The spectral reference solver (spectral/): analytic solutions, the energy budget, spectral
 // accuracy, determinism over thread counts, checkpoints and the `sphles reference` command.
 #include <gtest/gtest.h>

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Health figures on constructed particle sets, blow-up detection inside the solver, and a small
 // stability regression: known-stable and known-unstable configurations classified as measured
 // by the stability sweep (docs/stability.md).

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Explicit sub-filter models (SPEC §4), the Kolmogorov flow (§6.3) and the presets (Table 5.1).
 #include <gtest/gtest.h>
 

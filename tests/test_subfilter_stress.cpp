@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Implicit sub-filter stress (3.27), its norm (4.7) and principal axes (4.8), and the chapter-4
 // statistics of SPEC §5.
 #include <gtest/gtest.h>

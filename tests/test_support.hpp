@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Shared set-up for solver tests: small random flows on perturbed lattices.
 #pragma once
 

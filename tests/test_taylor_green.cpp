@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Validation against analytic and reference behaviour (SPEC §6.1, §6.2).
 #include <gtest/gtest.h>
 

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Honest vorticity and slices (issue 16, item 4): the particle vorticity (curl of the (A.20)
 // gradient), Shepard interpolation onto the analysis grid, the "analysis.gridding" option and the
 // Taylor-Green vortex at t = 0 against its analytic vorticity, next to the thesis' grid estimate.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // @ts-check
 // REST client of the sphles server (docs/api.md). Every call goes to the origin that served the
 // page; the optional token (stored in localStorage) is sent as `Authorization: Bearer`.

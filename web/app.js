@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // sphles dashboard: run list, run creation, and for the selected run live images, plots,
 // parameter changes and run control. Talks only to the sphles server that served this page
 // (REST + one WebSocket per selected run, docs/api.md); no build step at run time.

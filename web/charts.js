@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Plots of the dashboard, drawn with uPlot (vendored into vendor/ by the build, a global from
 // uPlot.iife.min.js) and two small canvas histograms for the chapter-4 statistics.
 

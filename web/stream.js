@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The WebSocket stream of one run (/api/runs/{id}/stream, docs/api.md), reconnecting with
 // exponential backoff until closed by the page. Text messages are JSON; binary messages are
 // images: 4-byte big-endian header length L, L bytes of JSON header, then the PNG bytes.

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Run time against error (docs/accuracy.md): a matrix of small scenes, each run on the calling
 // thread's OpenMP settings with its error measured against a reference while the solver steps
 // (2D Taylor-Green: analytic solution, SPEC §6.2; 3D Taylor-Green at Re = 1600 and 5000: first

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Error against run time from the CSVs of build/bench/sphles_accuracy (docs/accuracy.md).
 
     python3 bench/accuracy/plot_accuracy.py [DIR] [--figures DIR] [--tables]

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Stability map from the CSV of build/bench/sphles_stability (docs/stability.md).
 
     python3 bench/stability/plot_stability.py [CSV] [--out-dir DIR]

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A small Python client of the sphles service (docs/api.md).
 
 Standard library only, plus NumPy for arrays and Debian's python3-websocket (``websocket``)

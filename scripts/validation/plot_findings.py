@@ -1,4 +1,5 @@
 #!/usr/bin/python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Figures and numbers of the SPEC §7 findings from the runs of run_findings.py.
 
     /usr/bin/python3 scripts/validation/plot_findings.py [--runs runs/validation] [--docs docs]

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Run the reduced-N campaign that tests the findings of SPEC §7 (docs/validation.md).
 
 Each run is `sphles run SCENE.json --out DIR --threads T`, one after the other, in the order

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The fluid of SPEC §2 and the pair coefficients of the thesis model's momentum equation: pure
 // functions over plain data, shared by the evaluators of sim/physics/.
 #pragma once

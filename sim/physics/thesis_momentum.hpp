@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // The thesis model's momentum equation as an evaluator of the pair loop (sim/pair_loop.hpp).
 #pragma once
 

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A native build of sphles on a processor without its extensions (app/cpu_check.hpp).
 
 Runs `sphles version` under QEMU's user-mode emulator as a plain x86-64 processor (`-cpu

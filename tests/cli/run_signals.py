@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """A signal stops `sphles run` with a checkpoint that continues (app/run_command.cpp).
 
 For each of SIGINT, SIGTERM and SIGUSR1, a long 2D Taylor-Green run of one process is signalled

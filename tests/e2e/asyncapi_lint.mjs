@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Lints the AsyncAPI document of the WebSocket stream as the server serves it (`sphles schema
 // asyncapi`, with the OpenAPI components it refers to) with the AsyncAPI initiative's own parser
 // (@asyncapi/parser, npm, pinned in package-lock.json): it validates the document against the

@@ -1,3 +1,4 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
 // Browser end-to-end test of the sphles dashboard (ctest: web_e2e, label e2e).
 //
 // Starts the real server (`sphles serve --port 0` on loopback, a fresh data directory), opens the

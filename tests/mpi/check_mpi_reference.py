@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """`mpirun -n N sphles reference` gives the one-process reference bit for bit (docs/reference.md).
 
 A 20^3 Taylor-Green reference (Re = 1600) computed four ways, compared byte for byte

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The service runs a run's solver as an MPI job (issue 19, docs/scaling.md "From the service").
 
 Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and real ranks:

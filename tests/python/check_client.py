@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """The Python client (clients/python/sphles_client.py) against a real `sphles serve`.
 
 Usage: check_client.py SPHLES_BINARY WORK_DIR. Exits non-zero with the failed check."""

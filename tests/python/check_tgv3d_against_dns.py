@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """scripts/tgv3d_against_dns.py on run directories with known answers: the DNS itself (no
 misfit, its peak), the DNS energy 10 % too high (a 10 % e_v misfit), a run that stopped before
 t = 12 (no misfits) and a directory without a time series (exit 1, named). Usage:

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Reads every HDF5 output of the runs made by make_runs.py back with h5py (a real reader) and
 checks it against the XDMF files that describe it and against each other.
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Opens every output kind of the runs made by make_runs.py in ParaView (pvbatch), with the
 reader ParaView picks itself, and checks what it reads:
 

@@ -1,3 +1,4 @@
+# SPDX-License-Identifier: GPL-3.0-or-later
 """What the reader checks share: a failure list, the CSV index reader, the final report."""
 import sys
 

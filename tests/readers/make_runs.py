@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Runs two small sphles scenes (3D and 2D Taylor-Green) that write every output kind a scene
 can ask for: particle snapshots with fields, slices, gridded fields (3D), checkpoints. The reader tests
 (check_h5py.py, check_paraview.py, the VTK tests) then open what they wrote.

@@ -1,4 +1,5 @@
 #!/usr/bin/env python3
+# SPDX-License-Identifier: GPL-3.0-or-later
 """Runs a small 2D Taylor-Green vortex on a sphles server and plots it against its reference:
 e_v(t) with the analytic decay, the energy spectrum E(k) with a k^(-5/3) guide, and the last
 ω² slice. Writes the figure to OUT (default tgv2d.png).
