@@ -87,6 +87,10 @@ std::string man_page(const CLI::App& app) {
        "signal); 2 bad command line or scene (the message names the field and the reason).\n";
   m += ".SH FILES\nScenes: scenes/*.json of the source tree; the packing cache "
        "~/.cache/sphles/packing ($XDG_CACHE_HOME/sphles/packing).\n";
+  m += ".SH LICENSE\nGPL\\-3.0\\-or\\-later: GNU GPL version 3 or later "
+       "<https://gnu.org/licenses/gpl.html>, the text in LICENSE of the source tree. This is free "
+       "software: you are free to change and redistribute it. There is NO WARRANTY, to the extent "
+       "permitted by law.\n";
   m += ".SH SEE ALSO\nREADME.md and docs/ of the sphles source tree: docs/scenes.md (every scene "
        "key), docs/api.md (the service), docs/scaling.md (MPI).\n";
   return m;

@@ -6,6 +6,19 @@
 
 #include "app/commands.hpp"
 
+namespace {
+
+// What `sphles --version` and `sphles version` print: the version, then the licence and the
+// absence of warranty, as GNU programs state them (GPL-3.0 section 15; LICENSE).
+constexpr const char* kVersionText =
+    "sphles " SPHLES_VERSION
+    "\n"
+    "License GPL-3.0-or-later: GNU GPL version 3 or later <https://gnu.org/licenses/gpl.html>.\n"
+    "This is free software: you are free to change and redistribute it.\n"
+    "There is NO WARRANTY, to the extent permitted by law.";
+
+}  // namespace
+
 int main(int argc, char** argv) {
   // A file-size limit (ulimit -f, prlimit --fsize) makes a write fail with EFBIG, which every
   // writer reports naming the file, instead of killing the process mid-write.
@@ -17,7 +30,7 @@ int main(int argc, char** argv) {
                "Documentation: README.md and docs/ in the source tree.",
                "sphles");
   cli.require_subcommand(1, 1);
-  cli.set_version_flag("--version", "sphles " SPHLES_VERSION);
+  cli.set_version_flag("--version", kVersionText);
   cli.footer(
       "Run 'sphles COMMAND --help' for a command's options. Exit codes: 0 success, 1 "
       "runtime failure (I/O, blow-up), 2 bad command line or scene.");
@@ -33,8 +46,8 @@ int main(int argc, char** argv) {
   app::add_calibrate_command(cli, exit_code);
   app::add_worker_command(cli, exit_code);
   app::add_docs_command(cli, exit_code);
-  cli.add_subcommand("version", "print the version")->callback([] {
-    std::puts("sphles " SPHLES_VERSION);
+  cli.add_subcommand("version", "print the version and the licence")->callback([] {
+    std::puts(kVersionText);
   });
   cli.add_subcommand("help", "print this help")->callback([&cli] {
     std::fputs(cli.help().c_str(), stdout);

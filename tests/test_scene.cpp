@@ -228,9 +228,19 @@ TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   for (const char* command : {"run", "serve", "presets", "estimate", "inspect", "calibrate"})
     EXPECT_NE(r.output.find(command), std::string::npos) << command << ": " << r.output;
   EXPECT_EQ(r.output.find("worker"), std::string::npos) << "the job's worker is not for users";
-  r = run_sphles("--version");
-  EXPECT_EQ(r.exit_code, 0);
-  EXPECT_NE(r.output.find("sphles "), std::string::npos) << r.output;
+  // --version and `version` name the program, its licence and the absence of warranty, as GNU
+  // programs do (LICENSE).
+  for (const char* version : {"--version", "version"}) {
+    r = run_sphles(version);
+    EXPECT_EQ(r.exit_code, 0) << version;
+    EXPECT_EQ(r.output.rfind("sphles " SPHLES_VERSION "\n", 0), 0u) << version << ": " << r.output;
+    EXPECT_NE(r.output.find("\nLicense GPL-3.0-or-later: GNU GPL version 3 or later "
+                            "<https://gnu.org/licenses/gpl.html>"),
+              std::string::npos)
+        << version << ": " << r.output;
+    EXPECT_NE(r.output.find("There is NO WARRANTY"), std::string::npos)
+        << version << ": " << r.output;
+  }
 }
 
 // --log-level (issue 20): validated by name; it sets what the console and run.log receive.
