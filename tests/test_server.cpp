@@ -49,6 +49,9 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
   const json doc = r.body_json();
   ASSERT_TRUE(doc.contains("openapi"));
   EXPECT_EQ(doc["openapi"].get<std::string>().substr(0, 2), "3.");
+  // The licence the API is published under (LICENSE), by its SPDX identifier (OpenAPI 3.1).
+  EXPECT_EQ(doc["info"]["license"],
+            json({{"name", "GPL-3.0-or-later"}, {"identifier", "GPL-3.0-or-later"}}));
   const json& paths = doc.at("paths");
   std::size_t operations = 0;
   for (const auto& route : sphles::server::Router::routes()) {
@@ -82,6 +85,7 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
   // validation the stream tests rely on refuses what the declarations refuse.
   const json asyncapi = stream_messages(Api{server.port()});
   EXPECT_EQ(asyncapi["asyncapi"], "3.0.0");
+  EXPECT_EQ(asyncapi["info"]["license"]["name"], "GPL-3.0-or-later");
   EXPECT_EQ(asyncapi["components"]["schemas"]["Metrics"], doc["components"]["schemas"]["Metrics"]);
   const auto violation = [&](const json& message) {
     json schema = asyncapi;
