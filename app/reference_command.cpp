@@ -68,7 +68,12 @@ int reference_command(const ReferenceOptions& options, bool mpi) {
     document = control::run_spec_to_json(spec);
     const sim::Scene& scene = spec.run.scene;
     const spectral::ReferenceConfig& config = spec.reference;
-    if (scene.dimension() == 2) ranks = 1;  // a 2D reference runs on rank 0 alone
+    // A 2D reference runs on rank 0 alone. The other ranks leave before looking at the run
+    // directory, which rank 0 may already be writing.
+    if (scene.dimension() == 2) {
+      if (!root) return kExitOk;
+      ranks = 1;
+    }
     const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config, ranks);
     // Every rank of this machine's job together (mpirun on one node).
     const double machine = static_cast<double>(control::machine_memory_bytes());
@@ -113,7 +118,6 @@ int reference_command(const ReferenceOptions& options, bool mpi) {
     return kExitUsage;
   }
   if (mpi && spec.run.scene.dimension() == 2) {
-    if (!root) return kExitOk;
     std::fprintf(stderr, "sphles reference: a 2D reference runs on rank 0 alone\n");
     mpi = false;
   }
