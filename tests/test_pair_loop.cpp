@@ -156,14 +156,19 @@ testing::RandomFlow prepared_flow(int dim, int per_side, std::uint64_t seed) {
   return flow;
 }
 
+/// Sorts the particles into the search's locality order and builds its lists.
+void list_in_locality_order(VerletNeighbourSearch& search, ParticleArrays& p) {
+  p.reorder(search.locality_order(view_positions(p)));
+  search.build(view_positions(p));
+}
+
 template <int Dim>
 void compare_summations(int per_side) {
   testing::RandomFlow flow = prepared_flow(Dim, per_side, 4);
   const SolverConfig& c = flow.config;
   ParticleArrays& p = flow.particles;
   VerletNeighbourSearch search(c.box, c.support_radius, 0.1 * c.support_radius);
-  p.reorder(search.locality_order(view_positions(p)));
-  search.build(view_positions(p));
+  list_in_locality_order(search, p);
   const Kernel<kernel_shape::WendlandC4, Dim> kernel(c.support_radius);
   const PeriodicGeometry<Dim> geometry(c.box, p);
   InteractionList pairs;
@@ -213,8 +218,7 @@ void compare_fused(int per_side) {
   const SolverConfig& c = flow.config;
   ParticleArrays& p = flow.particles;
   VerletNeighbourSearch search(c.box, c.support_radius, 0.1 * c.support_radius);
-  p.reorder(search.locality_order(view_positions(p)));
-  search.build(view_positions(p));
+  list_in_locality_order(search, p);
   const Kernel<kernel_shape::WendlandC4, Dim> kernel(c.support_radius);
   using KernelT = decltype(kernel);
   const PeriodicGeometry<Dim> geometry(c.box, p);
@@ -401,8 +405,7 @@ void check_interior_shortcut(int per_side) {
       std::nextafter(length, 0.0)};
   for (std::size_t k = 0; k < std::size(at); ++k) p.position[k % Dim][k] = at[k];
   VerletNeighbourSearch search(c.box, h, 0.15 * h);
-  p.reorder(search.locality_order(view_positions(p)));
-  search.build(view_positions(p));
+  list_in_locality_order(search, p);
   const Kernel<kernel_shape::WendlandC4, Dim> kernel(h);
   const PeriodicGeometry<Dim> shortcut(c.box, p);
   const MinimumImageEverywhere<Dim> everywhere(shortcut);
