@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The solver → analysis hand-over: the solver thread publishes snapshots; one analysis thread
 // takes them, computes the requested products and hands each frame to the sinks (writer,
-// renderer, server). Delivery::Lossless (what a run's saved outputs need, issue 17): publish
-// waits while an earlier snapshot still waits, so every snapshot is analysed and the solver is
-// held only when analysis falls more than one snapshot behind. Delivery::LatestOnly (live
-// viewing only): a snapshot published while an older one still waits replaces it and is counted
-// as dropped; the solver never waits.
+// renderer, server). Delivery::Lossless (what a run's saved outputs need: no analysis time may
+// be missing, docs/analysis.md): publish waits while an earlier snapshot still waits, so every
+// snapshot is analysed and the solver is held only when analysis falls more than one snapshot
+// behind. Delivery::LatestOnly (live viewing only): a snapshot published while an older one
+// still waits replaces it and is counted as dropped; the solver never waits.
 #pragma once
 
 #include <atomic>

@@ -187,7 +187,7 @@ struct Snapshot {
 using SnapshotPtr = std::shared_ptr<const Snapshot>;
 
 /// What a solver spread over MPI ranks computes where its particles live, so that analysis need
-/// not gather them to one process (issue 19). A sim::Simulation that also derives from this
+/// not gather them to one process (docs/scaling.md). A sim::Simulation that also derives from this
 /// (par's distributed solver, launch's job solver) is asked by make_snapshot.
 class DistributedProducts {
  public:

@@ -1,13 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Analysis cost (issue 3), printed as figures:
+// Analysis cost (docs/performance.md), printed as figures:
 //  1. wall time per snapshot for each product alone and for all together, TGV 3D at the given
 //     resolutions (default 48³ and 64³), analysis on 1 thread as in a run;
 //  2. solver slowdown: steps/s of a TGV run over [0, T] without analysis and with every product
 //     every 0.5 time units on the analysis thread (2 solver threads, default 32³, T = 2);
-//  3. what lossless delivery costs (issue 17): every product at a cadence the analysis cannot
-//     keep up with (--dense_every, default 0.05), once with Delivery::Lossless (the solver
-//     waits, every snapshot is analysed) and once with Delivery::LatestOnly (snapshots dropped),
-//     runs interleaved, medians of --repeats.
+//  3. what lossless delivery costs: every product at a cadence the analysis cannot keep up with
+//     (--dense_every, default 0.05), once with Delivery::Lossless (the solver waits, every
+//     snapshot is analysed) and once with Delivery::LatestOnly (snapshots dropped), runs
+//     interleaved, medians of --repeats.
 //
 // --vorticity=mls,particle,grid repeats figure 1 for each vorticity estimate (default: the
 // scene default); --costs_only stops after figure 1.

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Checkpoint cost (issue 5): write and read time and file size of a TGV 3D checkpoint (default
-// 64³), without and with gzip compression, printed as figures.
+// Checkpoint cost (docs/checkpoints.md, "Cost"): write and read time and file size of a TGV 3D
+// checkpoint (default 64³), without and with gzip compression, printed as figures.
 //
 //   build/bench/bench_checkpoint [--per_side=64] [--repeats=3] [--dir=/tmp]
 #include <chrono>

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Steps of a distributed run (issue 19, docs/scaling.md): the 3D TGV of bench_solver (WC4 8Δl,
+// Steps of a distributed run (docs/scaling.md): the 3D TGV of bench_solver (WC4 8Δl,
 // lattice displaced at random by 0.05 Δl, packing skipped) over the MPI ranks it is started on,
 // each rank with the OpenMP threads OMP_NUM_THREADS gives it. Prints, on rank 0, the median wall
 // time per step (the slowest rank's), the share of it the exchange took on the rank where it

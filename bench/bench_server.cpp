@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Service benchmark (issue 7): latency from an image's creation (ImageEvent::created, when its PNG
-// encoding finished) to its arrival at a WebSocket client, and the solver's step rate with
-// 0, 1, 4, 16, 64 clients streaming one run at ~2 frames per second.
+// Service benchmark (docs/performance.md, "Server"): latency from an image's creation
+// (ImageEvent::created, when its PNG encoding finished) to its arrival at a WebSocket client, and
+// the solver's step rate with 0, 1, 4, 16, 64 clients streaming one run at ~2 frames per second.
 //
 //   build/bench/bench_server [--size N] [--seconds S] [--threads T] [--fps F]
 //                            [--clients 1,4,16,64] [--repeat R] [--image W]

@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Solver throughput (issue 2): density and force passes in pair interactions per second (pairs
-// inside the kernel support, j != i; the passes as the solver runs them: the density pass over
-// the Verlet list, recording the pairs inside the support, the force pass over those) and wall
-// time per full step, for the 3D Taylor-Green vortex
+// Solver throughput (docs/performance.md): density and force passes in pair interactions per
+// second (pairs inside the kernel support, j != i; the passes as the solver runs them: the density
+// pass over the Verlet list, recording the pairs inside the support, the force pass over those)
+// and wall time per full step, for the 3D Taylor-Green vortex
 // at 48³ with Wendland C4, D_K = 8Δl (N_ngb ≈ 250), on 1 and 2 threads.
 //
 //   build/bench/bench_solver [--benchmark_filter=...] [--per_side=48] [--skin=0.15]

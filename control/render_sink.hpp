@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Rendering on its own thread: renders the images the render configuration asks for, saves
 // them as an image series and hands them on. When the configuration saves images every frame is
-// rendered (post waits while an earlier frame still waits, issue 17); when images are only for
-// live viewers it takes the newest frame (older ones still waiting are dropped and counted, so
-// the solver and the analysis never wait for it).
+// rendered (post waits while an earlier frame still waits, so that the series misses no
+// analysis time); when images are only for live viewers it takes the newest frame (older ones
+// still waiting are dropped and counted, so the solver and the analysis never wait for it).
 //   frames/{field}_t{time}.png   frames/index.csv (time,step,field,file)
 #pragma once
 

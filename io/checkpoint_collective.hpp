@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// A checkpoint written by every process of a distributed run into one file (issue 19), through
-// MPI-IO (HDF5 built for MPI). No process holds more than its own particles.
+// A checkpoint written by every process of a distributed run into one file (docs/checkpoints.md),
+// through MPI-IO (HDF5 built for MPI). No process holds more than its own particles.
 #pragma once
 
 #include <mpi.h>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// What every file written by all processes of a distributed run through MPI-IO shares (issue 19:
-// checkpoints, particle snapshots): failures agreed across the processes, the room checked and
-// reserved before HDF5 touches the disk, the file made under a temporary name and renamed.
+// What every file written by all processes of a distributed run through MPI-IO shares (checkpoints,
+// particle snapshots): failures agreed across the processes, the room checked and reserved before
+// HDF5 touches the disk, the file made under a temporary name and renamed.
 #pragma once
 
 #include <hdf5.h>

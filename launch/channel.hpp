@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The channel between a run in the service and the rank 0 of the MPI job that holds its solver
-// (issue 19, "Launching"): length-prefixed binary messages over one TCP connection, and the
-// codec of the solver values that cross it. Doubles travel as their bits, so a state sent and
-// received is bitwise the state that was sent (restarts and live changes stay exact).
+// (docs/scaling.md, "From the service"): length-prefixed binary messages over one TCP connection,
+// and the codec of the solver values that cross it. Doubles travel as their bits, so a state sent
+// and received is bitwise the state that was sent (restarts and live changes stay exact).
 //
 // Message: u32 kind, u64 body length, body. Bodies are built by Encoder and read by Decoder;
 // every value is little-endian as on the machines sphles runs on (x86-64, aarch64).

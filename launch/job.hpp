@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// A run's solver in an MPI job of its own (issue 19, "Launching"): the service starts
+// A run's solver in an MPI job of its own (docs/scaling.md, "From the service"): the service starts
 // `LAUNCHER sphles worker --connect ...` (default launcher `mpirun -n {ranks}`; `srun -n {ranks}`
 // under Slurm), the job's rank 0 connects back over TCP, and the run drives the job's distributed
 // solver (par::Driver) through a sim::Simulation like any other. Everything else of the run

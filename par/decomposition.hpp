@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The Cartesian decomposition of the periodic box over MPI ranks (issue 19): a process grid
+// The Cartesian decomposition of the periodic box over MPI ranks (docs/scaling.md): a process grid
 // periodic along every axis (MPI_Cart_create), each rank owning the particles of one sub-box.
 //
 // Sub-box bounds are L c / n along an axis split n ways (c = 0 .. n), computed by one expression

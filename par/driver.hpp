@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// A distributed run driven from rank 0 (issue 19: `mpirun -n N sphles run SCENE.json`).
+// A distributed run driven from rank 0 (`mpirun -n N sphles run SCENE.json`, docs/scaling.md).
 //
 // Rank 0 runs the program as one process would (control::Run: outputs, analysis, checkpoints)
 // with a sim::Simulation that is the distributed solver seen whole: each step() is one step of

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Halo exchange and migration of particles between the ranks of a Decomposition (issue 19).
+// Halo exchange and migration of particles between the ranks of a Decomposition.
 //
 // A rank's ParticleArrays hold its owned particles at [0, owned) and, after Halo::build, the
 // halo behind them: copies of every particle (of other ranks, or this rank's own periodic

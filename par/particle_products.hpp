@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The analysis' particle products where the particles live (issue 19: distributed analysis):
+// The analysis' particle products where the particles live, so that no rank gathers them all:
 // the "mls" vorticity (analysis/vorticity.hpp, local_fit.hpp), τ_SFS (3.27) and the chapter-4
 // statistics, and the ω² and |τ_SFS| slices. Each rank computes them for its own particles
 // from them and a halo (refreshed with ω and |τ_SFS| where a slice node needs a halo

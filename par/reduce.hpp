@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Reductions over the ranks of a Decomposition whose results do not depend on the rank count
-// (issue 19: diagnostics the same bits for any number of ranks).
+// Reductions over the ranks of a Decomposition whose results do not depend on the rank count, so
+// that diagnostics are the same bits for any number of ranks.
 #pragma once
 
 #include <cstdint>

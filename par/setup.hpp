@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// A new run's particles made where they will live (issue 19): no rank holds more than its share
-// while the initial state is made, packed and set up, as a run of 512³ particles needs.
+// A new run's particles made where they will live: no rank holds more than its share while the
+// initial state is made, packed and set up, as a run of 512³ particles needs.
 #pragma once
 
 #include "par/decomposition.hpp"

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Distributed energy spectrum (issue 19): gridding where the particles live, FFTW's MPI r2c
-// transform, shell sums added in rank order (par/spectrum.hpp).
+// Distributed energy spectrum: gridding where the particles live, FFTW's MPI r2c transform, shell
+// sums added in rank order (par/spectrum.hpp).
 #include "par/spectrum.hpp"
 
 #include <fftw3-mpi.h>

@@ -1,11 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The kinetic-energy spectrum of SPEC §5 where the particles live (issue 19: distributed
-// analysis). Each rank grids the velocity on the nodes inside its sub-box from its own particles
-// and a halo (nearest particle, as analysis::nearest_particle_map decides it for the whole set),
-// the nodes go to the slabs of FFTW's MPI r2c transform (libfftw3-mpi), each rank bins its slab's
-// modes into shells (analysis::ShellSums, the binning of the one-process spectrum), and the
-// ranks' shell sums are added in rank order. No rank holds more than its particles, its halo,
-// its nodes and its slab: the grid and the particles are never gathered.
+// The kinetic-energy spectrum of SPEC §5 where the particles live (docs/scaling.md). Each rank
+// grids the velocity on the nodes inside its sub-box from its own particles and a halo (nearest
+// particle, as analysis::nearest_particle_map decides it for the whole set), the nodes go to the
+// slabs of FFTW's MPI r2c transform (libfftw3-mpi), each rank bins its slab's modes into shells
+// (analysis::ShellSums, the binning of the one-process spectrum), and the ranks' shell sums are
+// added in rank order. No rank holds more than its particles, its halo, its nodes and its slab: the
+// grid and the particles are never gathered.
 //
 // The answer equals analysis::energy_spectrum(sample_velocity(nearest_particle_map(...), ...,
 // true)) of all particles to round-off (the distributed transform adds in another order; the

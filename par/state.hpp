@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // A distributed run's solver state as one state in particle-id order, and one rank's share of
-// such a state (issue 19): what a checkpoint of N ranks holds and how M ranks restart from it.
+// such a state: what a checkpoint of N ranks holds and how M ranks restart from it.
 #pragma once
 
 #include <cstdint>

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// 3D view of the particles coloured by a per-particle field (issue 6: "a scene can also request a
-// 3D view ... at a lower cadence"), headless like the slices (render/render.hpp).
+// 3D view of the particles coloured by a per-particle field, at its own cadence
+// `render.view3d.every` (docs/rendering.md), headless like the slices (render/render.hpp).
 //
 // Colours come from the same CPU mapping as the slices (colour_range, colour_indices,
 // viridis_table, NaN grey) and are given to VTK as per-point RGB, so a value has the same colour

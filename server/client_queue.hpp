@@ -106,9 +106,9 @@ class ClientQueue {
 /// The one RunObserver the server registers with a run: fans each product out to the queues of
 /// that run's WebSocket clients. Clients join and leave here, under this object's own lock, so
 /// the run's observer list changes once per run rather than with every connect and disconnect
-/// (adding or removing a run observer while the run's threads call observers is not safe in
-/// control/ as of 65d0327; see the report of issue 7). A fan-out outlives the server harmlessly:
-/// it holds only queues, which are closed when their sessions end.
+/// (control::Run copies the whole list on each change), and the run makes one call per product
+/// however many clients watch. A fan-out outlives the server harmlessly: it holds only queues,
+/// which are closed when their sessions end.
 class RunFanout final : public control::RunObserver {
  public:
   void add(std::shared_ptr<ClientQueue> queue);

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The seam between the solver and the other processes of a distributed run (issue 19,
-// docs/scaling.md). sim/ knows no MPI: par/ implements this interface over MPI ranks, and a
-// one-process run uses LocalExchange, which does nothing.
+// The seam between the solver and the other processes of a distributed run (docs/scaling.md).
+// sim/ knows no MPI: par/ implements this interface over MPI ranks, and a one-process run uses
+// LocalExchange, which does nothing.
 //
 // In a distributed run the solver's ParticleArrays hold the particles this process owns at
 // [0, owned) and, behind them, halo copies of the particles other processes own within the

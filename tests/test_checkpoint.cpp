@@ -540,10 +540,10 @@ ProcessEnd in_child(const std::filesystem::path& report_file,
   return wait_for(pid);
 }
 
-/// Finding 5 (issue 15): under a file-size limit a checkpoint or snapshot write fails. The
-/// error names the file and the reason, no HDF5 identifier outlives the write, the temporary is
-/// gone, the previous file still reads, and the process exits normally afterwards (HDF5 1.10
-/// used to keep the id of a file whose close had failed and crash on it at exit).
+/// Under a file-size limit a checkpoint or snapshot write fails. The error names the file and the
+/// reason, no HDF5 identifier outlives the write, the temporary is gone, the previous file still
+/// reads, and the process exits normally afterwards (HDF5 1.10 used to keep the id of a file whose
+/// close had failed and crash on it at exit).
 TEST_F(CheckpointTest, WritesOverAFileSizeLimitFailCleanlyAndKeepThePreviousFiles) {
   TinyRun run = tiny_run(3);
   const sim::SolverState previous = run.simulation->state();
@@ -665,8 +665,8 @@ TEST_F(CheckpointTest, FailuresAtEveryStepOfAWriteLeaveNoHdf5IdentifierOpen) {
   EXPECT_TRUE(temporaries(dir_).empty());
 }
 
-/// Finding 5 end to end: `sphles run` whose checkpoint writes fail (file-size limit) ends with
-/// exit code 1 and a message naming the file and the reason, not by a signal at exit.
+/// `sphles run` whose checkpoint writes fail (file-size limit) ends with exit code 1 and a message
+/// naming the file and the reason, not by a signal at exit.
 TEST_F(CheckpointTest, RunWhoseCheckpointWritesFailExitsWithCodeOne) {
   const auto scene = dir_ / "scene.json";
   std::ofstream(scene) << tiny_run_scene(/*checkpoints=*/true).dump();
@@ -682,9 +682,8 @@ TEST_F(CheckpointTest, RunWhoseCheckpointWritesFailExitsWithCodeOne) {
   EXPECT_TRUE(temporaries(run / "checkpoints").empty());
 }
 
-/// Finding 5 in the service: a run of `sphles serve` fails on a checkpoint write; SIGTERM then
-/// stops the server, which exits normally (it used to print "stopped" and crash in HDF5's
-/// clean-up at exit).
+/// A run of `sphles serve` fails on a checkpoint write (file-size limit); SIGTERM then stops the
+/// server, which exits normally (it used to print "stopped" and crash in HDF5's clean-up at exit).
 TEST_F(CheckpointTest, ServeExitsCleanlyOnSigtermAfterAFailedCheckpointWrite) {
   const ProcessOptions options{dir_ / "serve.out", dir_ / "serve.err", kFileSizeLimit};
   Reaper server{spawn_sphles({"serve", "--port", "0", "--bind", "127.0.0.1", "--data",
@@ -765,9 +764,9 @@ void overwrite_element(const std::filesystem::path& file, const std::string& dat
   H5Fclose(h5);
 }
 
-/// Finding 14 (issue 15): files whose structure is sound but whose content is not are rejected,
-/// by read_checkpoint (restart) and by `sphles inspect` (exit code 2), naming the file, the
-/// attribute or dataset and the reason.
+/// Files whose structure is sound but whose content is not are rejected, by read_checkpoint
+/// (restart) and by `sphles inspect` (exit code 2), naming the file, the attribute or dataset and
+/// the reason.
 TEST_F(CheckpointTest, ImplausibleContentIsRejectedNamingTheField) {
   TinyRun run = tiny_run(5);
   const sim::SolverState state = run.simulation->state();

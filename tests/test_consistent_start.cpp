@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The consistent start (initial.mass = "summation") and the corrected viscous operator
-// (scheme.viscous_operator = "corrected") of issue 16: docs/models.md, "Accuracy options".
+// (scheme.viscous_operator = "corrected"), docs/models.md.
 #include <gtest/gtest.h>
 #include <omp.h>
 

@@ -124,7 +124,7 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   EXPECT_THROW(run.start(), StateError);
   EXPECT_THROW(run.pause(), StateError);
   // The wall time spent stepping is recorded and survives reopening (a server restart), and a
-  // continuation adds to it instead of starting from zero (issue 20).
+  // continuation adds to it instead of starting from zero.
   EXPECT_GT(s.wall_seconds, 0.0);
   EXPECT_EQ(run_file.at("wall_seconds").get<double>(), s.wall_seconds);
   std::unique_ptr<control::Run> reopened = control::Run::open("r1", dir);
@@ -132,7 +132,7 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
   reopened->apply_changes({{"time", {{"end", 0.2}}}});
   EXPECT_EQ(reopened->run_here(), RunState::Finished);
   EXPECT_GT(reopened->status().wall_seconds, s.wall_seconds);
-  // run.log (issue 20): one UTC-stamped line per event, appended over both starts.
+  // run.log: one UTC-stamped line per event, appended over both starts.
   const std::vector<std::string> log = lines_of(dir / "run.log");
   const std::regex line(R"(\d{4}-\d\d-\d\dT\d\d:\d\d:\d\d\.\d{3}Z (info |warn |error) .+)");
   for (const std::string& l : log) EXPECT_TRUE(std::regex_match(l, line)) << l;
@@ -192,8 +192,8 @@ TEST(RunControl, SnapshotStatisticsCarryTheTimeSeriesDissipation) {
   EXPECT_EQ(split(stats.back())[0], split(series.back())[0]) << "the last snapshot is analysed";
 }
 
-// What a running run is doing (issue 20: the dashboard's "packing…"): packing its lattice (into a
-// fresh cache, so that it really packs), then stepping; nothing once it has ended.
+// What a running run is doing (the dashboard's "packing…"): packing its lattice (into a fresh
+// cache, so that it really packs), then stepping; nothing once it has ended.
 TEST(RunControl, ReportsItsPhaseFromPackingToStepping) {
   const auto dir = fresh_directory("phase");
   json scene = tiny_scene(1000.0);
@@ -390,7 +390,7 @@ TEST(RunControl, RendersAndSavesTheImageSeriesWithAnIndex) {
     EXPECT_TRUE(is_png(std::vector<unsigned char>(std::istreambuf_iterator<char>(in), {})));
   }
   EXPECT_EQ(fields, (std::set<std::string>{"combined", "omega2", "tau_sfs"}));
-  // Saved frames are never dropped (issue 17): every analysis time t = 0, 0.05, 0.1, each field.
+  // Saved frames are never dropped: every analysis time t = 0, 0.05, 0.1, each field.
   EXPECT_EQ(index.size(), 1u + 3u * 3u);
   for (const char* time : {"0.0000", "0.0500", "0.1000"})
     for (const char* field : {"combined", "omega2", "tau_sfs"})

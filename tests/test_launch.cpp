@@ -1,8 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The channel to a run's MPI job and the job's solver (launch/, issue 19 "Launching"): values
-// cross a real TCP connection bit for bit, malformed messages and a vanished peer are refused
-// with clear errors, a launcher that fails is diagnosed from its exit status and log, and a
-// solver in a real 2-rank job (mpirun, `sphles worker`) steps bitwise like one process.
+// The channel to a run's MPI job and the job's solver (launch/, docs/scaling.md "From the
+// service"): values cross a real TCP connection bit for bit, malformed messages and a vanished peer
+// are refused with clear errors, a launcher that fails is diagnosed from its exit status and log,
+// and a solver in a real 2-rank job (mpirun, `sphles worker`) steps bitwise like one process.
 #include <gtest/gtest.h>
 
 #include <cmath>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Local polynomial fits (analysis/local_fit.hpp), the "mls" vorticity estimate (issue 16, item 4):
-// exact reproduction of polynomials up to the fit's degree, the fallback to lower degrees, the
-// order of convergence for a smooth periodic field, thread-count independence and error paths.
+// Local polynomial fits (analysis/local_fit.hpp), the "mls" vorticity estimate: exact reproduction
+// of polynomials up to the fit's degree, the fallback to lower degrees, the order of convergence
+// for a smooth periodic field, thread-count independence and error paths.
 #include <gtest/gtest.h>
 #include <omp.h>
 

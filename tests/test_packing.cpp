@@ -114,8 +114,8 @@ TEST_F(PackingTest, DisabledPackingGivesTheLattice) {
   EXPECT_FALSE(std::filesystem::exists(cache_));
 }
 
-// A stop request or a signal must not wait for a packing that may run for minutes (issue 15,
-// finding 4): the set-up polls `cancelled` every iteration and leaves no cache file behind.
+// A stop request or a signal must not wait for a packing that may run for minutes: the set-up polls
+// `cancelled` every iteration and leaves no cache file behind.
 TEST_F(PackingTest, CancelledPackingStopsWithinAnIterationAndCachesNothing) {
   Scene s = scene(2, 32);
   s.packing.tolerance = 1e-300;  // never converges: only the cancellation can end it
@@ -130,7 +130,7 @@ TEST_F(PackingTest, CancelledPackingStopsWithinAnIterationAndCachesNothing) {
   EXPECT_THROW(setup_run(s, o), SetupCancelled);
 }
 
-// A scene sent to the server must not choose where the server writes (issue 15, finding 13).
+// A scene sent to the server must not choose where the server writes.
 TEST(PackingCacheDirectory, IsAProgramSettingNotASceneKey) {
   try {
     parse_scene({{"case", "tgv2d"}, {"packing", {{"cache_dir", "/etc/sphles"}}}});

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The pair loop and its evaluators (sim/pair_loop.hpp, issue 18): every pairwise momentum term is
+// The pair loop and its evaluators (sim/pair_loop.hpp): every pairwise momentum term is
 // antisymmetric bit for bit, the vectorised and the ordered summation agree to round-off, the
 // interaction list holds exactly the pairs inside the support, and a pass over it equals the same
-// pass over the Verlet list, and the shortcut for particles far from the box's faces is the
-// minimum image bit for bit.
+// pass over the Verlet list, and the shortcut for particles far from the box's faces is the minimum
+// image bit for bit.
 #include <gtest/gtest.h>
 
 #include <algorithm>

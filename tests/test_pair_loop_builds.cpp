@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The solver built with vectorised pair sums (SIMD lanes) and the one built with SPHLES_SIMD=OFF
 // (every particle's pairs summed in list order) give the same 2D and 3D Taylor-Green flows after
-// 100 steps to 1e-12 relative (issue 18): the two builds differ only in the order of additions.
+// 100 steps to 1e-12 relative: the two builds differ only in the order of additions.
 #include <gtest/gtest.h>
 
 #include <algorithm>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Decomposition, halo exchange and migration over real MPI ranks (par/, issue 19). Run by CTest
-// under mpiexec with 1, 2, 3, 4 and 8 ranks (oversubscribed on small machines); every rank runs
-// every test and the process fails when a test fails on any rank.
+// Decomposition, halo exchange and migration over real MPI ranks (par/, docs/scaling.md). Run by
+// CTest under mpiexec with 1, 2, 3, 4 and 8 ranks (oversubscribed on small machines); every rank
+// runs every test and the process fails when a test fails on any rank.
 #include <gtest/gtest.h>
 #include <mpi.h>
 

@@ -181,10 +181,10 @@ TEST(ResourceEstimate, PartsSumToTheTotalAndGrowWithTheRun) {
   EXPECT_DOUBLE_EQ(analysed.analysis_frames, 31.0);                    // t = 0, 0.5, ..., 15
 }
 
-// What each rank of a distributed run holds (issue 19): the split par::Decomposition uses, the
-// largest sub-box and its halo, the solver's parts scaled to them; a split the run would refuse
-// is named. The 48³ halo is the one bench_distributed measures (0.38-0.39 copies per owned
-// particle on 2 ranks, docs/scaling.md).
+// What each rank of a distributed run holds: the split par::Decomposition uses, the largest sub-box
+// and its halo, the solver's parts scaled to them; a split the run would refuse is named. The 48³
+// halo is the one bench_distributed measures (0.38-0.39 copies per owned particle on 2 ranks,
+// docs/scaling.md).
 TEST(ResourceEstimate, PerRankIsTheRanksShareOfTheSolver) {
   const json scene = {{"preset", "tgv3d"}, {"particles_per_side", 48}};
   const ResourceEstimate one = estimate_resources(spec_of(scene));
@@ -225,8 +225,8 @@ TEST(ResourceEstimate, PerRankIsTheRanksShareOfTheSolver) {
       << refused.per_rank->refusal;
 }
 
-// Finding 7: 4096³ used to be accepted and failed later with std::bad_alloc. The estimate is
-// finite, cheap (no allocation of the particle set) and far above any machine.
+// A 4096³ run used to be accepted and failed later with std::bad_alloc. The estimate is finite,
+// cheap (no allocation of the particle set) and far above any machine.
 TEST(ResourceEstimate, HugeRunsAreEstimatedWithoutOverflowOrAllocation) {
   rusage before{};
   ::getrusage(RUSAGE_SELF, &before);

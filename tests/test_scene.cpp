@@ -213,7 +213,7 @@ TEST_F(CliTest, InvalidJsonMissingFileAndBadOptions) {
   EXPECT_NE(r.output.find("--no-such-option"), std::string::npos) << r.output;
 }
 
-// Every command prints its own help with exit code 0 (issue 20), naming its options.
+// Every command prints its own help with exit code 0, naming its options.
 TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   const std::pair<const char*, const char*> commands[] = {
       {"run", "--restart"},         {"serve", "--launcher"},        {"estimate", "--json"},
@@ -243,7 +243,7 @@ TEST_F(CliTest, EveryCommandHasItsOwnHelp) {
   }
 }
 
-// --log-level (issue 20): validated by name; it sets what the console and run.log receive.
+// --log-level: validated by name; it sets what the console and run.log receive.
 TEST_F(CliTest, LogLevelIsValidatedAndSetsWhatIsLogged) {
   ProcessResult r = run_sphles("serve --log-level loud");
   EXPECT_EQ(r.exit_code, 2) << r.output;
@@ -268,8 +268,8 @@ TEST_F(CliTest, LogLevelIsValidatedAndSetsWhatIsLogged) {
       << "the run's record keeps info: " << quiet;
 }
 
-// run --dry-run (issue 20): particles, neighbours, memory and the measured time per step and to
-// the end, nothing written; a run that cannot fit in this machine's memory is refused, dry or not.
+// run --dry-run: particles, neighbours, memory and the measured time per step and to the end,
+// nothing written; a run that cannot fit in this machine's memory is refused, dry or not.
 TEST_F(CliTest, DryRunEstimatesAndWritesNothing) {
   const auto tiny = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 16,
       "packing": {"enabled": false}, "time": {"end": 0.5}})");
@@ -425,7 +425,7 @@ TEST_F(CliTest, RunWithAnalysisWritesProductsAtTheCadence) {
   const ProcessResult r = run_sphles("run " + scene + " --out " + out.string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   // Snapshots at t = 0, 0.05, 0.1. This tiny run outpaces analysis, and still every requested
-  // time is written: the delivery is lossless (issue 17).
+  // time is written: the delivery is lossless.
   unsigned published = 0, analysed = 0, dropped = 0;
   const auto line = r.output.find("analysis: ");
   ASSERT_NE(line, std::string::npos) << r.output;

@@ -1,7 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Scene keys whose extremes only cost memory or time are bounded (docs/scenes.md, "Limits"):
-// the requests of issue 15, finding 7, are refused naming the field and the range, the bounds
-// themselves are accepted, and every preset and shipped scene still parses.
+// extreme requests (tiny kernels, huge histograms, cadences far below a time step, ...) are
+// refused naming the field and the range, the bounds themselves are accepted, and every preset
+// and shipped scene still parses.
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
@@ -52,9 +53,9 @@ struct Refused {
   std::string expected;
 };
 
-// The requests of the report, each of which used to be accepted (and failed later, stalled, or
-// filled the disk).
-TEST(SceneLimits, ReportedRequestsAreRefusedNamingTheField) {
+// Extreme requests, each of which used to be accepted (and failed later, stalled, or filled the
+// disk).
+TEST(SceneLimits, ExtremeRequestsAreRefusedNamingTheField) {
   const json tgv3d = {{"preset", "tgv3d"}};
   const std::vector<Refused> cases{
       {"tiny kernel",

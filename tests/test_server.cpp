@@ -186,8 +186,8 @@ TEST(Server, CreateRejectsBadRequestsNamingTheField) {
   EXPECT_TRUE(fs::is_empty(server.data_directory / "runs"));
 }
 
-// POST /api/estimate (issue 20, the dashboard's Estimate button): what a create request would need
-// and take, measured on the server, and whether create would accept it; nothing is created.
+// POST /api/estimate (the dashboard's Estimate button): what a create request would need and take,
+// measured on the server, and whether create would accept it; nothing is created.
 TEST(Server, EstimateMeasuresARunWithoutCreatingIt) {
   TestServer server(scratch("estimate") / "data");
   const Api api{server.port()};
@@ -513,9 +513,9 @@ TEST(Server, ResolvedScalesAgainstTheReferenceRunOfTheFlow) {
   EXPECT_NE(none.body.find("sphles reference"), std::string::npos) << none.body;
 }
 
-// The analysis history (issue 20): one row per analysis frame from stats/snapshots.csv, so that a
-// page loaded late (or after a restart) plots the dissipation estimates and |τ_SFS| of every
-// frame, not only those streamed since it connected.
+// The analysis history: one row per analysis frame from stats/snapshots.csv, so that a page loaded
+// late (or after a restart) plots the dissipation estimates and |τ_SFS| of every frame, not only
+// those streamed since it connected.
 TEST(Server, AnalysisHistoryHasEveryFrame) {
   TestServer server(scratch("analysis_history") / "data");
   const Api api{server.port()};
@@ -577,8 +577,8 @@ TEST(Server, AnalysisHistoryHasEveryFrame) {
   EXPECT_NE(none.body.find("Re = 5000"), std::string::npos) << none.body;
 }
 
-// Downloads (issue 20): every file of a run is listed with its size and served whole, byte for
-// byte, streamed from disk: also a file larger than one response may be in memory.
+// Downloads: every file of a run is listed with its size and served whole, byte for byte, streamed
+// from disk: also a file larger than one response may be in memory.
 TEST(Server, RunFilesAreListedAndDownloadedWhole) {
   constexpr std::size_t kAnswerLimit = 2048;  // bytes of one in-memory answer (507 beyond)
   TestServer server(scratch("files") / "data", "", 2,

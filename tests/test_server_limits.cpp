@@ -1,9 +1,8 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The service survives its users (issue 15, HTTP/WebSocket layer): large analysis products,
-// running out of memory, read-only clients and slowloris sockets filling the connection table,
-// histories longer than one answer, malformed WebSocket handshakes. Real servers on loopback
-// ports, real runs, real sockets; limits are lowered through ServerOptions so that each test
-// takes seconds.
+// The service survives its users (the HTTP/WebSocket layer): large analysis products, running out
+// of memory, read-only clients and slowloris sockets filling the connection table, histories longer
+// than one answer, malformed WebSocket handshakes. Real servers on loopback ports, real runs, real
+// sockets; limits are lowered through ServerOptions so that each test takes seconds.
 #include <sys/resource.h>
 
 #include <atomic>
@@ -134,7 +133,7 @@ void expect_raw_error(const std::string& raw, int status, const std::string& fie
 }
 
 // =============================================================================================
-// Finding 3: products larger than a response may be, and running out of memory.
+// Products larger than a response may be, and running out of memory.
 
 TEST(ServerLimits, LargeProductsAnswer507AndSmallOnesAreSharedByAllReaders) {
   // A 256² histogram (the largest a scene may ask for) needs at least 128 KiB of JSON.
@@ -249,7 +248,7 @@ TEST(ServerLimits, OutOfMemoryAnswers503AndNeverTerminates) {
 }
 
 // =============================================================================================
-// Finding 6: unauthenticated clients cannot lock the token holder (or anyone) out.
+// Unauthenticated clients cannot lock the token holder (or anyone) out.
 
 TEST(ServerLimits, PublicStreamsCannotLockOutTheTokenHolder) {
   const std::string token = "the-token";
@@ -440,7 +439,7 @@ TEST(ServerLimits, AHeaderMustArriveWithinItsDeadline) {
 }
 
 // =============================================================================================
-// Finding 10: histories longer than one answer are paged or decimated, never an empty 200.
+// Histories longer than one answer are paged or decimated, never an empty 200.
 
 TEST(ServerLimits, LongTimeSeriesArePagedAndDecimatedNeverEmpty) {
   constexpr std::uint64_t kRows = 30000;
@@ -569,7 +568,7 @@ TEST(ServerLimits, LongFramesIndexIsPagedBetweenSteps) {
 }
 
 // =============================================================================================
-// Finding 14: malformed WebSocket handshakes get the documented JSON error.
+// Malformed WebSocket handshakes get the documented JSON error.
 
 TEST(ServerLimits, MalformedWebSocketUpgradesAnswerJsonErrors) {
   TestServer server(scratch("handshake") / "data");

@@ -1,9 +1,9 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Faults of the run-control layer that ordinary use of the service provoked (issue 15): duplicate
-// and concurrent transitions, stops during a long set-up, finished runs restarted, changes that
-// cannot be saved, unwritable or vanishing run directories, crashes, restarts with inconsistent
-// overrides and paths chosen by clients. Each test drives a real server (or the real binary)
-// over real sockets and reproduces the finding first.
+// Faults of the run-control layer that ordinary use of the service provoked: duplicate and
+// concurrent transitions, stops during a long set-up, finished runs restarted, changes that cannot
+// be saved, unwritable or vanishing run directories, crashes, restarts with inconsistent overrides
+// and paths chosen by clients. Each test drives a real server (or the real binary) over real
+// sockets and reproduces the fault first.
 #include <atomic>
 #include <future>
 #include <latch>
@@ -62,8 +62,8 @@ std::vector<std::string> csv_lines(const fs::path& file) {
   return lines;
 }
 
-// Finding 1: two or more POST /stop on one run hung the API for good (each duplicate joined the
-// same solver thread, blocking one I/O worker forever; SIGTERM then never exited).
+// Two or more POST /stop on one run hung the API for good (each duplicate joined the same solver
+// thread, blocking one I/O worker forever; SIGTERM then never exited).
 TEST(ServiceFaults, DuplicateStopsOfOneRunAllAnswer) {
   TestServer server(scratch("double-stop") / "data");
   const Api api{server.port()};
@@ -81,8 +81,8 @@ TEST(ServiceFaults, DuplicateStopsOfOneRunAllAnswer) {
             (std::vector<int>{200, 409, 409, 409}));
 }
 
-// Finding 2: two concurrent starts of a finished run (time.end raised) answered 500 "No such
-// process" or killed the server with std::system_error from a noexcept path.
+// Two concurrent starts of a finished run (time.end raised) answered 500 "No such process" or
+// killed the server with std::system_error from a noexcept path.
 TEST(ServiceFaults, ConcurrentStartsOfAFinishedRunStartItOnce) {
   TestServer server(scratch("double-start") / "data");
   const Api api{server.port()};
@@ -107,9 +107,9 @@ TEST(ServiceFaults, ConcurrentStartsOfAFinishedRunStartItOnce) {
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
 
-// Finding 2, without sockets in between: eight threads released at once on a run that has just
-// finished (its solver thread ended by itself, not reaped by a stop), many times. Exactly one
-// start wins; the others are refused with StateError, never another error.
+// The same, without sockets in between: eight threads released at once on a run that has just
+// finished (its solver thread ended by itself, not reaped by a stop), many times. Exactly one start
+// wins; the others are refused with StateError, never another error.
 TEST(ServiceFaults, StartsReleasedAtOnceStartTheRunExactlyOnce) {
   TestServer server(scratch("start-latch") / "data");
   constexpr double kSegment = 0.01;  // simulated time per round: a few steps
@@ -151,8 +151,8 @@ TEST(ServiceFaults, StartsReleasedAtOnceStartTheRunExactlyOnce) {
   }
 }
 
-// Finding 2 (second part): stop and pause did not check that DELETE had retired the run, and
-// wrote run.json into a directory being deleted. A deleted run accepts nothing.
+// Stop and pause did not check that DELETE had retired the run, and wrote run.json into a directory
+// being deleted. A deleted run accepts nothing.
 TEST(ServiceFaults, NothingReachesARunOnceItIsDeleted) {
   TestServer server(scratch("retired") / "data");
   sphles::control::CreateRequest request;
@@ -172,8 +172,8 @@ TEST(ServiceFaults, NothingReachesARunOnceItIsDeleted) {
   EXPECT_NO_THROW(run->stop());
 }
 
-// Finding 4: stop and SIGTERM could not interrupt a run's set-up; three stops during packing
-// blocked every worker (even /api/health timed out) and SIGTERM did not exit within 20 s.
+// Stop and SIGTERM could not interrupt a run's set-up; three stops during packing blocked every
+// worker (even /api/health timed out) and SIGTERM did not exit within 20 s.
 TEST(ServiceFaults, StopsDuringPackingAnswerAndTheRunCanStartAgain) {
   TestServer server(scratch("packing-stop") / "data");
   const Api api{server.port()};
@@ -208,8 +208,8 @@ TEST(ServiceFaults, SigtermDuringPackingExitsPromptly) {
   EXPECT_EQ(json::parse(record)["state"], "stopped");
 }
 
-// Finding 8: start on a finished run while the slot was busy answered "queued"; when the slot
-// freed, a run without checkpoints restarted from t = 0 and overwrote its time series.
+// Start on a finished run while the slot was busy answered "queued"; when the slot freed, a run
+// without checkpoints restarted from t = 0 and overwrote its time series.
 TEST(ServiceFaults, AFinishedRunQueuedBehindABusySlotContinuesWhereItEnded) {
   TestServer server(scratch("queued-finished") / "data", "", /*max_running=*/1);
   const Api api{server.port()};
@@ -241,9 +241,8 @@ TEST(ServiceFaults, AFinishedRunQueuedBehindABusySlotContinuesWhereItEnded) {
   EXPECT_GT(std::stoull(next.substr(next.find(',') + 1)), last_step) << next;
 }
 
-// Finding 8 (the refusal): a run that stepped but has no checkpoint (every run ends with one;
-// here it was deleted) cannot continue; it says so at once instead of starting again at t = 0
-// when a slot frees.
+// A run that stepped but has no checkpoint (every run ends with one; here it was deleted) cannot
+// continue; it says so at once instead of starting again at t = 0 when a slot frees.
 TEST(ServiceFaults, ARunWithoutACheckpointRefusesToContinue) {
   const fs::path dir = scratch("no-checkpoint") / "run";
   sphles::control::Run run("r", sphles::control::parse_run_spec(tiny_scene(0.05)), dir);
@@ -262,9 +261,9 @@ TEST(ServiceFaults, ARunWithoutACheckpointRefusesToContinue) {
   EXPECT_EQ(run.status().state, sphles::control::RunState::Finished);
 }
 
-// Finding 9: a PATCH whose scene.json write failed answered 500 but kept the change in memory,
-// to be lost at the next restart. Writes fail here because a directory sits where the temporary
-// file goes (as root, permissions do not stop writes).
+// A PATCH whose scene.json write failed answered 500 but kept the change in memory, to be lost at
+// the next restart. Writes fail here because a directory sits where the temporary file goes (as
+// root, permissions do not stop writes).
 TEST(ServiceFaults, AChangeThatCannotBeSavedIsNotMade) {
   const fs::path data = scratch("unsaved-change") / "data";
   std::string idle, live;
@@ -295,8 +294,7 @@ TEST(ServiceFaults, AChangeThatCannotBeSavedIsNotMade) {
   EXPECT_DOUBLE_EQ(api.run(live)["end_time"], 1e6);
 }
 
-// Finding 11: opening a run rewrote its files, so a data directory that could not be written
-// listed no runs.
+// Opening a run rewrote its files, so a data directory that could not be written listed no runs.
 TEST(ServiceFaults, RunsThatCannotBeWrittenAreStillListed) {
   const fs::path data = scratch("unwritable") / "data";
   std::string stopped, crashed;
@@ -333,8 +331,8 @@ TEST(ServiceFaults, RunsThatCannotBeWrittenAreStillListed) {
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
 
-// Finding 11: deleting the run directory during a run went unnoticed (the time series went on
-// into an unlinked file).
+// Deleting the run directory during a run went unnoticed (the time series went on into an unlinked
+// file).
 TEST(ServiceFaults, DeletingTheRunDirectoryFailsTheRunSayingWhy) {
   TestServer server(scratch("vanished") / "data");
   const Api api{server.port()};
@@ -354,8 +352,8 @@ TEST(ServiceFaults, DeletingTheRunDirectoryFailsTheRunSayingWhy) {
   EXPECT_EQ(api.get("/api/health").status, 200);
 }
 
-// Finding 11: after a crash runs were listed at time 0 although checkpoints existed at later
-// times. run.json now follows the checkpoints.
+// After a crash runs were listed at time 0 although checkpoints existed at later times. run.json
+// now follows the checkpoints.
 TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
   const fs::path base = scratch("crash");
   const fs::path data = base / "data";
@@ -387,9 +385,9 @@ TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
   ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > c.state.time; }));
 }
 
-// Finding 12: `sphles run --restart CKPT --set particles_per_side=48` exited 0 and continued the
-// stored particles under an inconsistent scene. A restart accepts what a live change accepts and
-// refuses the rest with the same message.
+// `sphles run --restart CKPT --set particles_per_side=48` exited 0 and continued the stored
+// particles under an inconsistent scene. A restart accepts what a live change accepts and refuses
+// the rest with the same message.
 TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
   const fs::path base = scratch("restart-set");
   json scene = tiny_scene(0.05, "restartable");
@@ -428,11 +426,10 @@ TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
   EXPECT_DOUBLE_EQ(json::parse(record)["time"].get<double>(), 0.1);
 }
 
-// Finding 13: a scene's packing.cache_dir made the server create directories and write files
-// wherever it could; in the command line a scene name of ../../x wrote outside runs/.
 // `sphles serve --start-run SCENE` run again continues the run it started before and that was
-// stopped, from its newest checkpoint, instead of starting the scene again at t = 0 (issue 20:
-// ./scripts/run.sh twice); a different scene starts a new run.
+// stopped, from its newest checkpoint, instead of starting the scene again at t = 0 (so that
+// ./scripts/run.sh, run again, picks up where Ctrl-C stopped it); a different scene starts a new
+// run.
 TEST(ServiceFaults, StartRunAgainContinuesTheStoppedRun) {
   const fs::path base = scratch("start_run_again");
   const fs::path data = base / "data";
@@ -488,6 +485,8 @@ TEST(ServiceFaults, StartRunAgainContinuesTheStoppedRun) {
   EXPECT_EQ(serve.wait_exit(60s), 0);
 }
 
+// A scene's packing.cache_dir made the server create directories and write files wherever it
+// could; in the command line a scene name of ../../x wrote outside runs/.
 TEST(ServiceFaults, ClientsChooseNoPaths) {
   TestServer server(scratch("paths") / "data");
   const Api api{server.port()};
@@ -513,7 +512,7 @@ TEST(ServiceFaults, ClientsChooseNoPaths) {
   EXPECT_EQ(inside, 1u);
 }
 
-// Finding 13: the packing cache is the program's setting.
+// The packing cache is the program's setting, not a scene's.
 TEST(ServiceFaults, ThePackingCacheIsTheServersSetting) {
   const fs::path base = scratch("packing-cache");
   const fs::path cache = base / "cache";
@@ -531,10 +530,10 @@ TEST(ServiceFaults, ThePackingCacheIsTheServersSetting) {
   EXPECT_EQ(serve.wait_exit(20s), std::optional<int>(0));
 }
 
-// Finding 7: a run could ask for anything (3D 512³ failed later with a bare std::bad_alloc; tiny
-// kernels, huge histograms, cadences far below a time step, a thousand checkpoints, a
-// nanometre Kolmogorov box) and unlimited runs and queue length got 201. Each is refused before
-// anything is created, naming the field; what does not fit in memory says the estimate.
+// A run could ask for anything (3D 512³ failed later with a bare std::bad_alloc; tiny kernels, huge
+// histograms, cadences far below a time step, a thousand checkpoints, a nanometre Kolmogorov box)
+// and unlimited runs and queue length got 201. Each is refused before anything is created, naming
+// the field; what does not fit in memory says the estimate.
 TEST(ServiceFaults, WhatARunMayAskForIsBounded) {
   TestServer server(scratch("limits") / "data");
   const Api api{server.port()};

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Concurrency soak of the service (issue 15): six clients send random transitions, changes,
-// deletions and reads to three run slots of one real server over real sockets, at least
-// kMinimumTransitions in all, within a wall-time bound. Every answer must be a documented one
-// (never a 5xx, never no answer), and at the end the runs must be in consistent states, on disk
-// as in the API, with the server answering and shutting down. Built with ThreadSanitizer in CI
-// (scripts/test.sh), where it checks run control, the run manager and the server together.
+// Concurrency soak of the service: six clients send random transitions, changes, deletions and
+// reads to three run slots of one real server over real sockets, at least kMinimumTransitions in
+// all, within a wall-time bound. Every answer must be a documented one (never a 5xx, never no
+// answer), and at the end the runs must be in consistent states, on disk as in the API, with the
+// server answering and shutting down. Built with ThreadSanitizer in CI (scripts/test.sh), where it
+// checks run control, the run manager and the server together.
 #include <atomic>
 #include <future>
 #include <mutex>

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Honest vorticity and slices (issue 16, item 4): the particle vorticity (curl of the (A.20)
-// gradient), Shepard interpolation onto the analysis grid, the "analysis.gridding" option and the
-// Taylor-Green vortex at t = 0 against its analytic vorticity, next to the thesis' grid estimate.
+// Honest vorticity and slices: the particle vorticity (curl of the (A.20) gradient), Shepard
+// interpolation onto the analysis grid, the "analysis.gridding" option and the Taylor-Green vortex
+// at t = 0 against its analytic vorticity, next to the thesis' grid estimate.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -400,8 +400,8 @@ void report_fitted(const VorticityNumbers& fitted, const Expected& e) {
       100.0 * (fitted.slice_max / e.point_max - 1.0), fitted.seconds);
 }
 
-/// Tolerances of the smooth estimate against the filtered analytic values (issue 16: 2 % on the
-/// mean, 5 % on the slice maximum).
+/// Tolerances of the smooth estimate against the filtered analytic values: 2 % on the mean, 5 % on
+/// the slice maximum.
 constexpr double kMeanTolerance = 0.02;
 constexpr double kSliceMaxTolerance = 0.05;
 

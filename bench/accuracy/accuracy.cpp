@@ -391,9 +391,9 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
         runs.push_back(make_spec("peers", c.name, scene, 0.1));
       }
   } else if (study == "start") {
-    // The start-up error of issue 16: the 2D TGV at Re = 100 (WC4 8Δl) to t = 0.3, sampled every
-    // 0.05, at c_s = 10, 20, 40, with the thesis' lattice masses and the consistent start, for
-    // the thesis model and the TVF (p_b = ρ c_s²). The velocity error at t = 0.05 is the floor
+    // The start-up error (docs/accuracy.md): the 2D TGV at Re = 100 (WC4 8Δl) to t = 0.3, sampled
+    // every 0.05, at c_s = 10, 20, 40, with the thesis' lattice masses and the consistent start,
+    // for the thesis model and the TVF (p_b = ρ c_s²). The velocity error at t = 0.05 is the floor
     // that acoustic waves from an inconsistent start leave. Quick: 32² and c_s = 10, 40.
     const json tvf = {{"type", "transport_velocity"}};
     for (const double sound_speed : {10.0, 20.0, 40.0})
@@ -427,7 +427,7 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
                                    scene, kStartStudySample));
         }
   } else if (study == "schemes") {
-    // The head-to-head of issue 16: every scheme on the same cases and resolutions, the thesis
+    // The schemes head-to-head: every scheme on the same cases and resolutions, the thesis
     // model with its own start first (the baseline rows). The TVF's background pressure is
     // p_b = ρ_ref c_s² (Adami et al. 2013; PySPH's choice); the other schemes keep each case's
     // p_ref (particle shifting: its default Ma and the conservative ALE form). The 3D case at 32³

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// sphles_accuracy: run time against error (issue 8, docs/accuracy.md).
+// sphles_accuracy: run time against error (docs/accuracy.md).
 //
 //   build/bench/sphles_accuracy [--quick] [--only 2d|3d|peers|start|schemes|kolmogorov[,...]]
 //   [--out DIR]

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// sphles_stability: the stability sweep of issue 8 (docs/stability.md).
+// sphles_stability: the stability sweep (docs/stability.md).
 //
 //   build/bench/sphles_stability [--quick] [--group NAME[,NAME...]] [--match TEXT]
 //                                [--out FILE.csv] [--jobs J] [--check-every STEPS]

@@ -1,6 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Stability sweep (issue 8): small scenes built in code, each run to a time budget with health
-// checks at a step cadence and classified stable / noisy / paired / blown_up (sim/health.hpp).
+// Stability sweep (docs/stability.md): small scenes built in code, each run to a time budget with
+// health checks at a step cadence and classified stable / noisy / paired / blown_up
+// (sim/health.hpp).
 #pragma once
 
 #include <cstdint>

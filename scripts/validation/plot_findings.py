@@ -45,7 +45,7 @@ TGV_RUNS = {
     "case19_n32": ("SMAG 0.3 (case 19)", 32, "WC4", 8),
     "case20_n32": ("p_ref 68 (case 20)", 32, "WC4", 8),
     "case21_n32": ("p_ref 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
-    # The transport-velocity scheme (issue 16) on the same cases: run_findings.py, TVF.
+    # The transport-velocity scheme on the same cases (docs/validation.md): run_findings.py, TVF.
     "tvf_case8_n32": ("TVF: WC4 8Δl 32³ (case 8)", 32, "WC4", 8),
     "tvf_case1_n32": ("TVF: QS 6Δl 32³ (case 1)", 32, "QS", 6),
     "tvf_case5_n32": ("TVF: WC4 4Δl 32³ (case 5)", 32, "WC4", 4),

@@ -82,9 +82,9 @@ RUNS = [
     tgv("case21_n32", "tgv3d-case21", 32),    # Galilean test, c_s = 16.5: 3.3x the steps
 ]
 
-# Findings 1, 2, 6 and 7 again with the transport-velocity scheme (issue 16), beside the thesis
-# model's runs above: the consistent start, and the background pressure only in the transport
-# velocity, p_b = ρ c_s² = 25 (case 20 and 21: the cases' p_ref = 68).
+# Findings 1, 2, 6 and 7 again with the transport-velocity scheme (docs/validation.md), beside the
+# thesis model's runs above: the consistent start, and the background pressure only in the
+# transport velocity, p_b = ρ c_s² = 25 (case 20 and 21: the cases' p_ref = 68).
 TVF = {"scheme": {"type": "transport_velocity"}, "initial": {"mass": "summation"}}
 RUNS += [
     tgv("tvf_case8_n32", "tgv3d-case8", 32, fluid={"reference_pressure": 25.0}, **TVF),

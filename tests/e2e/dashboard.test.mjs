@@ -198,8 +198,8 @@ async function run() {
     const all = await page.locator('#create-preset option').allTextContents();
     return all.length ? all : null;
   }, 10_000);
-  // The form's choices and bounds are the scene schema's (GET /api/schema/scene, issue 20): the
-  // kernel select offers exactly the schema's kernel names, and a number field its bounds.
+  // The form's choices and bounds are the scene schema's (GET /api/schema/scene): the kernel
+  // select offers exactly the schema's kernel names, and a number field its bounds.
   const schema = await (await fetch(`${base}/api/schema/scene`)).json();
   const kernelNames = schema.properties.kernel.properties.type.enum;
   await waitFor('the kernel choices of the scene schema', async () => {
@@ -232,16 +232,16 @@ async function run() {
   await page.fill('#create-end', String(END_TIME));
   await page.check('#create-live');
   await page.fill('#create-every', String(ANALYSIS_EVERY));
-  // A scheme and its options from the form (issue 16): the transport-velocity formulation with
-  // the Galilean-invariant ALE form of its extra stress; checked in the run's scene below.
+  // A scheme and its options from the form: the transport-velocity formulation with the
+  // Galilean-invariant ALE form of its extra stress; checked in the run's scene below.
   await page.selectOption('#create-scheme', 'transport_velocity');
   await page.selectOption('#create-ale', 'full');
-  // The particle snapshot product (issue 20), chosen beside the live ones.
+  // The particle snapshot product, chosen beside the live ones.
   await page.check('#create-products input[data-product="particles"]');
   await page.fill('#create-name', 'e2e-tgv2d');
   await page.fill('#create-ranks', '2');  // the solver in a 2-rank MPI job (the server's --launcher)
   await page.check('#create-start');
-  // The estimate before Create (issue 20): memory and the time per step measured on the server.
+  // The estimate before Create: memory and the time per step measured on the server.
   const runsBefore = (await (await fetch(`${base}/api/runs`)).json()).length;
   await page.click('#create-estimate');
   const perStep = await waitFor('the estimate with a time per step', async () => {
@@ -285,7 +285,7 @@ async function run() {
     return n > points ? n : 0;
   }, 15_000);
   pass(`e_v plot has data and grows (${points} → ${morePoints} samples)`);
-  // The reference (issue 20): the 2D TGV's analytic decay, dashed under the run's e_v.
+  // The reference: the 2D TGV's analytic decay, dashed under the run's e_v.
   const referencePoints = await waitFor('the analytic reference in the e_v plot', async () =>
     Number(await page.locator('#chart-energy').getAttribute('data-reference-points')), 10_000);
   if (!/analytic decay/.test(await text(page, '#cap-energy'))) fail(`the e_v caption does not name the reference: ${await text(page, '#cap-energy')}`);
@@ -316,7 +316,7 @@ async function run() {
   }, 15_000);
   pass(`ETA shown while running: ${eta}`);
 
-  // The run's log (issue 20): run.log's lines, the start among them, and new lines while it runs.
+  // The run's log: run.log's lines, the start among them, and new lines while it runs.
   const logLines = await waitFor('the run log with its start', async () => {
     const log = await text(page, '#run-log');
     return /state: (created|queued) -> running/.test(log)
@@ -338,8 +338,8 @@ async function run() {
   }, 30_000);
   pass(`ω² image updated: step ${first.step} → ${second.step} (${second.width} px wide)`);
 
-  // Plots show only the selected run (issue 20): another run without products empties the
-  // spectrum and the joint histogram; selecting this run again refills them.
+  // Plots show only the selected run: another run without products empties the spectrum and the
+  // joint histogram; selecting this run again refills them.
   currentStep = 'switching runs';
   const productsShown = async () => ({
     spectrum: Number(await page.locator('#chart-spectrum').getAttribute('data-points')),
@@ -405,8 +405,8 @@ async function run() {
     fail('while paused, Resume should be enabled and Pause disabled');
   pass(`paused: step stays at ${pausedStep} for 2 s, Resume enabled`);
 
-  // Full history after a reload (issue 20): while paused nothing new arrives, so whatever the
-  // plots show after the reload came from the server's histories (timeseries, analysis).
+  // Full history after a reload: while paused nothing new arrives, so whatever the plots show
+  // after the reload came from the server's histories (timeseries, analysis).
   currentStep = 'reloading while paused';
   const statsBefore = Number(await page.locator('#chart-stats').getAttribute('data-points'));
   if (!(statsBefore > 1)) fail(`the sub-filter stress plot has ${statsBefore} points before the reload`);
@@ -435,8 +435,8 @@ async function run() {
   await waitFor('state "stopped"', async () => (await text(page, '#run-state')) === 'stopped', 20_000);
   pass('stopped');
 
-  // The end time and the viscosity are in the parameter form (issue 20): a stopped (or
-  // finished) run can be given a later end and another viscosity before it is resumed.
+  // The end time and the viscosity are in the parameter form: a stopped (or finished) run can be
+  // given a later end and another viscosity before it is resumed.
   currentStep = 'changing time.end and the viscosity of the stopped run';
   await page.fill('#p-end', String(2 * END_TIME));
   await page.fill('#p-eta', '0.02');
@@ -451,9 +451,9 @@ async function run() {
   }
   pass('time.end and η changed from the parameter form');
 
-  // Run comparison (issue 20): a second, finished run ticked "compare" overlays its e_v(t),
-  // ε(t) and E(k) on the selected run's plots; unticked, the overlay goes. (Created now that the
-  // first run is stopped: the test server runs one run at a time.)
+  // Run comparison: a second, finished run ticked "compare" overlays its e_v(t), ε(t) and E(k) on
+  // the selected run's plots; unticked, the overlay goes. (Created now that the first run is
+  // stopped: the test server runs one run at a time.)
   currentStep = 'comparing runs';
   const other = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },
@@ -521,8 +521,8 @@ async function run() {
   await page.locator('#run-list li button', { hasText: 'e2e-tgv2d' }).click();
   await waitFor('the first run selected again', async () => (await text(page, '#run-title')) === 'e2e-tgv2d', 10_000);
 
-  // Downloads (issue 20): the stopped run's files, its final checkpoint among them, as links
-  // that fetch the files themselves.
+  // Downloads: the stopped run's files, its final checkpoint among them, as links that fetch the
+  // files themselves.
   currentStep = 'files';
   const fileCount = await waitFor('the run\'s files listed', async () => {
     const n = Number(await page.locator('#run-files').getAttribute('data-count'));
@@ -574,8 +574,8 @@ async function run() {
   if (!(await text(page, '#run-case')).includes('2 MPI ranks')) fail('the run detail does not show its 2 MPI ranks');
   pass('the run was created with the form\'s 2 MPI ranks and shows them');
 
-  // Clone with edits (issue 20): the form takes the run's whole scene; an edited end time goes
-  // as a patch over it, and everything else (scheme, the live-changed η, ranks) is the run's.
+  // Clone with edits: the form takes the run's whole scene; an edited end time goes as a patch
+  // over it, and everything else (scheme, the live-changed η, ranks) is the run's.
   currentStep = 'cloning';
   await page.click('#btn-clone');
   await waitFor('the form to take the run\'s scene', async () =>
@@ -621,8 +621,8 @@ async function run() {
   if (after.some((r) => r.id === created.id)) fail(`run ${created.id} is still listed after delete`);
   pass(`deleted run ${created.id}: gone from the dashboard and GET /api/runs`);
 
-  // A failed run shows its diagnosis as an error (issue 20): 3 MPI ranks cannot split a 12²
-  // box with a halo as wide as the kernel's list radius, which the job refuses, naming why.
+  // A failed run shows its diagnosis as an error: 3 MPI ranks cannot split a 12² box with a halo
+  // as wide as the kernel's list radius, which the job refuses, naming why.
   currentStep = 'a failing run';
   const failing = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },

@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""`mpirun -n N sphles run` gives the one-process run bit for bit (issue 19, docs/scaling.md).
+"""`mpirun -n N sphles run` gives the one-process run bit for bit (docs/scaling.md).
 
 Runs a small 2D Taylor-Green scene three ways and compares, with h5py, every particle array of
 the final checkpoints (sorted by particle id: one process writes its own order, a distributed

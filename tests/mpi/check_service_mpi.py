@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""The service runs a run's solver as an MPI job (issue 19, docs/scaling.md "From the service").
+"""The service runs a run's solver as an MPI job (docs/scaling.md, "From the service").
 
 Against a real `sphles serve` on a real port, with a real launcher (mpiexec) and real ranks:
   1. a run created with "ranks": 2, its particles made and packed by the job's ranks, finishes
@@ -84,8 +84,8 @@ def newest_checkpoint(run_dir):
 
 
 def compare_products(one, two):
-    """The analysis products of a 2-rank run against one rank's (issue 19: spectra to 1e-12
-    relative). Everything is computed on the job's ranks: the spectra by FFTW's MPI transform
+    """The analysis products of a 2-rank run against one rank's (spectra to 1e-12 relative).
+    Everything is computed on the job's ranks: the spectra by FFTW's MPI transform
     over 1 or 2 slabs, so they agree to round-off (and so do the spectral columns of
     snapshots.csv); the particle products (fitted vorticity, tau_SFS, their slices and
     histograms) gather their particles in an order set by positions and ids alone, so they are

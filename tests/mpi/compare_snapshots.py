@@ -1,7 +1,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Particle snapshots and grid fields of two runs compared (issue 19: the files a distributed
-run's ranks write, each its block of the particles, and the grid fields they compute equal one
-process's bit for bit)."""
+"""Particle snapshots and grid fields of two runs compared: the files a distributed run's ranks
+write, each its block of the particles, and the grid fields they compute must equal one process's
+bit for bit."""
 import os
 import sys
 

@@ -1,6 +1,6 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
-"""Spectra of two runs' spectra/ directories compared shell by shell (issue 19: a distributed
-run's spectra equal one process's to 1e-12 relative). Shells below 1e-6 of a spectrum's largest
+"""Spectra of two runs' spectra/ directories compared shell by shell (a distributed run's
+spectra must equal one process's to 1e-12 relative). Shells below 1e-6 of a spectrum's largest
 are compared against 1e-6 of it: the mean-removed k = 0 shell is round-off of both runs."""
 import csv
 import os
