@@ -53,6 +53,12 @@ class RunDirectoryWriter {
 
  private:
   void write_or_throw(const AnalysisFrame& frame);
+  void write_spectrum(const AnalysisFrame& frame, const SpectrumProduct& spectrum);
+  void write_slice(const AnalysisFrame& frame, const SliceProduct& slice);
+  void write_statistics(const AnalysisFrame& frame, const SubfilterStatisticsProduct& statistics);
+  void write_particles(const AnalysisFrame& frame, const ParticlesProduct& particles);
+  void write_fields(const AnalysisFrame& frame, const GridFieldsProduct& fields);
+  void write_summary(const AnalysisFrame& frame);
   std::filesystem::path directory_;
   io::SnapshotMetadata metadata_;
   mutable std::mutex mutex_;
