@@ -26,9 +26,6 @@ using nlohmann::json;
 
 namespace {
 
-// The program's own resident memory (code, VTK and OSMesa for the frames, the MPI and HDF5
-// libraries): the peak RSS of an 8³ reference run, 148 MB.
-constexpr double kProgramFootprintBytes = 150e6;
 // Outputs per run when neither reference.every nor analysis.every sets the cadence.
 constexpr double kDefaultOutputsPerRun = 80.0;
 
@@ -155,43 +152,6 @@ double reference_output_every(const ReferenceConfig& config, const sim::Scene& s
   return scene.end_time / kDefaultOutputsPerRun;
 }
 
-ReferenceEstimate estimate_reference(const sim::Scene& scene, const ReferenceConfig& config,
-                                     int ranks) {
-  const double n = config.points_per_side, d = scene.dimension();
-  // This rank's share: the planes of the largest slab (slab_exchange.hpp).
-  const double share = d == 3 ? std::ceil(n / std::max(1, ranks)) / n : 1.0;
-  const double complex_size = (n / 2 + 1) * std::pow(n, d - 1), real_size = std::pow(n, d);
-  const double vorticity = d == 3 ? 3.0 : 1.0;
-  const double complex_bytes = 16.0 * complex_size, real_bytes = 8.0 * real_size;
-  // NavierStokesSolver: state, N(û), stage, sum (d each), two transform scratch arrays and the
-  // transform's slab (3D), the integrating factors, and the grid velocity and vorticity of the
-  // nonlinear term.
-  const double solver = (4.0 * d + (d == 3 ? 3.0 : 2.0)) * complex_bytes + 8.0 * complex_size +
-                        (d + vorticity) * real_bytes;
-  // A frame's vorticity (modes, grid, scratch), or a checkpoint's gathered copy and HDF5 image
-  // (the whole state, on rank 0).
-  const double frame = (vorticity + 1.0) * complex_bytes + vorticity * real_bytes;
-  const double checkpoint = 2.0 * d * complex_bytes;
-  ReferenceEstimate e;
-  e.memory_bytes = share * solver + std::max(share * frame, checkpoint) + kProgramFootprintBytes;
-  e.checkpoint_bytes = d * complex_bytes;
-  e.max_wavenumber = dealiased_max_wavenumber(config.points_per_side);
-  // The initial largest Σ|u_i|: v0 (Taylor-Green) or the laminar speed the forcing drives
-  // (Kolmogorov flow), plus the uniform velocity.
-  double speed = std::abs(scene.uniform_velocity[0]) + std::abs(scene.uniform_velocity[1]) +
-                 std::abs(scene.uniform_velocity[2]);
-  if (scene.case_type == sim::CaseType::Kolmogorov2D) {
-    const double k = scene.forcing_wavenumber();
-    speed += scene.forcing.amplitude /
-             (scene.fluid.kinematic_viscosity() * k * k + scene.forcing.friction);
-  } else {
-    speed += std::abs(scene.velocity_amplitude);
-  }
-  const double dt = config.cfl * scene.box_length() / n / std::max(speed, 1e-300);
-  e.steps = std::ceil(scene.end_time / dt);
-  return e;
-}
-
 std::string reference_timeseries_header() {
   return "t,step,dt,E,minus_dE_dt,epsilon,Z,injection,film_dissipation,transfer,max_speed";
 }
@@ -301,251 +261,311 @@ analysis::AnalysisFrame reference_frame(NavierStokesSolver& solver, const sim::S
   return frame;
 }
 
-ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
-                                 const ReferenceConfig& config, const json& scene_document,
-                                 const ReferenceRunOptions& options) {
-  namespace fs = std::filesystem;
-  const fs::path dir = options.directory;
-  const fs::path checkpoints = dir / "checkpoints";
-  // Under mpirun every rank steps its slab and takes part in every collective (the budget, the
-  // spectra's and slices' sums, the gathered checkpoint); rank 0 alone writes and logs, and
-  // tells the others after each step whether to go on (a stop, or a failure of its I/O).
-  const bool root = options.exchange == nullptr || options.exchange->rank() == 0;
-  const bool alone = options.exchange == nullptr || options.exchange->ranks() == 1;
-  std::optional<logging::RunLog> log;
-  if (root) {
-    fs::create_directories(checkpoints);
-    log.emplace(scene.name.empty() ? "reference" : scene.name, dir / "run.log",
-                options.echo_progress);
+namespace {
+
+namespace fs = std::filesystem;
+
+/// The newest reference checkpoint of `checkpoints` that reads back valid and belongs to this
+/// scene and resolution; damaged ones are skipped with a warning.
+ReferenceState newest_valid_checkpoint(const fs::path& checkpoints, const sim::Scene& scene,
+                                       const ReferenceConfig& config, const json& scene_document,
+                                       logging::RunLog& log) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(checkpoints))
+    if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+      files.push_back(e.path());
+  std::sort(files.rbegin(), files.rend());
+  for (const fs::path& f : files) {
+    try {
+      ReferenceState st = read_reference_checkpoint(f);
+      if (st.points_per_side != config.points_per_side || st.dimension != scene.dimension())
+        throw io::CheckpointError(
+            "'" + f.string() + "' holds a " + std::to_string(st.points_per_side) + "^" +
+            std::to_string(st.dimension) + " state, the scene asks for " +
+            std::to_string(config.points_per_side) + "^" + std::to_string(scene.dimension()));
+      if (restart_invariant(json::parse(st.scene)) != restart_invariant(scene_document))
+        throw io::CheckpointError("'" + f.string() +
+                                  "' was written for another scene (only time.end, the output "
+                                  "cadences, reference.every and reference.cfl may change)");
+      log.info("restart from {} at t = {} (step {})", f.filename().string(), st.time, st.step);
+      return st;
+    } catch (const io::CheckpointError& e) {
+      if (files.size() == 1 || f == files.back()) throw;
+      log.warn("skipping checkpoint: {}", e.what());
+    }
   }
-  std::exception_ptr failure;  // rank 0's, until the others hear of it
-  auto on_root = [&](auto&& io) {
-    if (!root) return;
-    if (alone) return io();
+  throw io::CheckpointError("no reference checkpoint in '" + checkpoints.string() + "'");
+}
+
+/// One reference run: the solver, its run directory and, under mpirun, the agreement of the
+/// ranks. Every rank steps its slab and takes part in every collective (the budget, the
+/// spectra's and slices' sums, the gathered checkpoint); rank 0 alone writes and logs, and tells
+/// the others after each step whether to go on (a stop, or a failure of its I/O).
+class ReferenceRun {
+ public:
+  ReferenceRun(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
+               const ReferenceConfig& config, const json& scene_document,
+               const ReferenceRunOptions& options)
+      : scene_(scene),
+        analysis_(analysis),
+        config_(config),
+        scene_document_(scene_document),
+        options_(options),
+        dir_(options.directory),
+        checkpoints_(dir_ / "checkpoints"),
+        series_(dir_ / "timeseries.csv"),
+        root_(options.exchange == nullptr || options.exchange->rank() == 0),
+        alone_(options.exchange == nullptr || options.exchange->ranks() == 1),
+        solver_(flow_of(scene), config.points_per_side, options.exchange) {
+    if (root_) {
+      fs::create_directories(checkpoints_);
+      log_.emplace(scene.name.empty() ? "reference" : scene.name, dir_ / "run.log",
+                   options.echo_progress);
+    }
+  }
+
+  ReferenceRunResult run() {
+    start();
+    open_outputs();
+    every_ = reference_output_every(config_, scene_, analysis_);
+    t_end_ = scene_.end_time;
+    // The points k · every the loop lands on, the same in a fresh and a restarted run; a fresh
+    // run also writes its row and frame at t = 0.
+    sim::Cadence frames(every_, solver_.time()),
+        rows(scene_.output.timeseries_every, solver_.time()),
+        checkpoints_due(scene_.checkpoint.every, solver_.time());
+    on_root([&] {
+      log_->info("reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}{}",
+                 config_.points_per_side, scene_.dimension(), solver_.max_wavenumber(),
+                 scene_.fluid.kinematic_viscosity(), solver_.time(), t_end_,
+                 alone_ ? std::string()
+                        : ", " + std::to_string(options_.exchange->ranks()) + " MPI ranks");
+      status("running");
+    });
+    report_step();
+    wall_start_ = last_progress_ = std::chrono::steady_clock::now();
+    first_step_ = solver_.step();
+    if (!options_.restart) {
+      write_row();
+      write_frame();
+    }
+    bool row_written = true;
+    while (!sim::reached_end(solver_.time(), t_end_)) {
+      if (agree(root_ && options_.stop_requested && options_.stop_requested())) {
+        result_.stopped = true;
+        break;
+      }
+      const double t = solver_.time();
+      budget();
+      // The CFL step, cut to land on the end and the next output points; a step that would
+      // leave a sliver before a point is split into two equal ones.
+      const double target = std::min({t_end_, frames.next(), rows.next(), checkpoints_due.next()});
+      const double limit = target - t;
+      double dt = solver_.stable_step(config_.cfl);
+      const bool lands = dt >= limit;
+      if (lands)
+        dt = limit;
+      else if (2.0 * dt > limit)
+        dt = 0.5 * limit;
+      solver_.advance(dt);
+      if (lands) solver_.set_time(target);
+      last_dt_ = dt;
+      report_step();
+      row_written = false;
+      if (!rows.active() || rows.take(solver_.time())) {
+        write_row();
+        row_written = true;
+      }
+      if (frames.take(solver_.time())) write_frame();
+      if (checkpoints_due.take(solver_.time())) checkpoint();
+      budget();  // on every rank: the progress line below reads it on rank 0 alone
+      progress(dt);
+    }
+    if (!row_written) write_row();  // the state the run ends with
+    checkpoint();
+    agree(false);
+    result_.time = solver_.time();
+    result_.steps = solver_.step();
+    on_root([&] {
+      status(result_.stopped ? "stopped" : "done");
+      log_->info("reference {} at t = {} after {} steps", result_.stopped ? "stopped" : "done",
+                 result_.time, result_.steps);
+    });
+    agree(false);
+    return result_;
+  }
+
+ private:
+  /// Runs rank 0's I/O; under mpirun its failure waits for the next agree, so that every rank
+  /// hears of it there.
+  template <class F>
+  void on_root(F&& io) {
+    if (!root_) return;
+    if (alone_) return io();
     try {
       io();
     } catch (...) {
-      if (!failure) failure = std::current_exception();
+      if (!failure_) failure_ = std::current_exception();
     }
-  };
-  // Whether to stop, the same answer on every rank; rethrows rank 0's failure on every rank.
-  auto agree = [&](bool stop) {
-    double flags[2] = {stop ? 1.0 : 0.0, failure ? 1.0 : 0.0};
-    if (!alone) options.exchange->broadcast(flags, 2);
+  }
+
+  /// Whether to stop, the same answer on every rank; rethrows rank 0's failure on every rank.
+  bool agree(bool stop) {
+    double flags[2] = {stop ? 1.0 : 0.0, failure_ ? 1.0 : 0.0};
+    if (!alone_) options_.exchange->broadcast(flags, 2);
     if (flags[1] != 0.0) {
-      if (failure) std::rethrow_exception(failure);
+      if (failure_) std::rethrow_exception(failure_);
       throw std::runtime_error("reference: rank 0 failed (its error is in its output)");
     }
     return flags[0] != 0.0;
-  };
-
-  NavierStokesSolver solver(flow_of(scene), config.points_per_side, options.exchange);
-  ReferenceRunResult result;
-  if (options.restart) {
-    ReferenceState restored_state;
-    on_root([&] {
-      // The newest checkpoint that reads back valid; damaged ones are skipped with a warning.
-      std::vector<fs::path> files;
-      for (const auto& e : fs::directory_iterator(checkpoints))
-        if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
-          files.push_back(e.path());
-      std::sort(files.rbegin(), files.rend());
-      bool restored = false;
-      for (const fs::path& f : files) {
-        try {
-          ReferenceState st = read_reference_checkpoint(f);
-          if (st.points_per_side != config.points_per_side || st.dimension != scene.dimension())
-            throw io::CheckpointError(
-                "'" + f.string() + "' holds a " + std::to_string(st.points_per_side) + "^" +
-                std::to_string(st.dimension) + " state, the scene asks for " +
-                std::to_string(config.points_per_side) + "^" + std::to_string(scene.dimension()));
-          if (restart_invariant(json::parse(st.scene)) != restart_invariant(scene_document))
-            throw io::CheckpointError("'" + f.string() +
-                                      "' was written for another scene (only time.end, the output "
-                                      "cadences, reference.every and reference.cfl may change)");
-          log->info("restart from {} at t = {} (step {})", f.filename().string(), st.time, st.step);
-          restored_state = std::move(st);
-          restored = true;
-          break;
-        } catch (const io::CheckpointError& e) {
-          if (files.size() == 1 || f == files.back()) throw;
-          log->warn("skipping checkpoint: {}", e.what());
-        }
-      }
-      if (!restored)
-        throw io::CheckpointError("no reference checkpoint in '" + checkpoints.string() + "'");
-    });
-    agree(false);
-    solver.set_modes(restored_state.modes, restored_state.time, restored_state.step);
-  } else {
-    solver.set_velocity(initial_velocity_grid(scene, config.points_per_side,
-                                              solver.fft().first_plane(), solver.fft().planes()));
   }
 
-  const fs::path series = dir / "timeseries.csv";
-  std::optional<analysis::RunDirectoryWriter> writer;
-  std::ofstream out;
-  on_root([&] {
-    write_json_atomically(dir / "scene.json", scene_document);
-    writer.emplace(dir);
-    if (options.restart) {
-      truncate_rows_after(series, solver.time());
-      truncate_rows_after(dir / "spectra" / "index.csv", solver.time());
-      truncate_rows_after(dir / "slices" / "index.csv", solver.time());
-      truncate_rows_after(dir / "stats" / "snapshots.csv", solver.time());
-      truncate_rows_after(dir / "frames" / "index.csv", solver.time());
-    } else {
-      std::ofstream(series) << reference_timeseries_header() << '\n';
+  /// The initial field, or the state of the newest valid checkpoint for a restart.
+  void start() {
+    if (!options_.restart) {
+      solver_.set_velocity(initial_velocity_grid(
+          scene_, config_.points_per_side, solver_.fft().first_plane(), solver_.fft().planes()));
+      return;
     }
-    out.open(series, std::ios::app);
-  });
-  agree(false);
-
-  const double every = reference_output_every(config, scene, analysis);
-  const double t_end = scene.end_time;
-  // The points k · every the loop lands on, the same in a fresh and a restarted run; a fresh
-  // run also writes its row and frame at t = 0.
-  sim::Cadence frames(every, solver.time()), rows(scene.output.timeseries_every, solver.time()),
-      checkpoints_due(scene.checkpoint.every, solver.time());
-  double last_dt = 0.0;
-
-  auto status = [&](const std::string& state) {
-    if (!root || failure) return;
-    write_json_atomically(dir / "run.json", {{"kind", "reference"},
-                                             {"state", state},
-                                             {"time", solver.time()},
-                                             {"step", solver.step()},
-                                             {"end_time", t_end},
-                                             {"points_per_side", config.points_per_side},
-                                             {"max_wavenumber", solver.max_wavenumber()},
-                                             {"spectra_every", every},
-                                             {"frames", result.frames}});
-  };
-  auto checkpoint = [&] {
-    ReferenceState st;
-    st.time = solver.time();
-    st.step = solver.step();
-    st.dimension = scene.dimension();
-    st.points_per_side = config.points_per_side;
-    st.scene = scene_document.dump();
-    st.modes = solver.gathered_modes();
+    ReferenceState restored;
     on_root([&] {
-      const fs::path file = checkpoints / reference_checkpoint_name(st.step);
+      restored = newest_valid_checkpoint(checkpoints_, scene_, config_, scene_document_, *log_);
+    });
+    agree(false);
+    solver_.set_modes(restored.modes, restored.time, restored.step);
+  }
+
+  /// scene.json, the writer of the analysis products and the time series; a restart drops the
+  /// rows after its checkpoint's time (they are written again).
+  void open_outputs() {
+    on_root([&] {
+      write_json_atomically(dir_ / "scene.json", scene_document_);
+      writer_.emplace(dir_);
+      if (options_.restart) {
+        truncate_rows_after(series_, solver_.time());
+        truncate_rows_after(dir_ / "spectra" / "index.csv", solver_.time());
+        truncate_rows_after(dir_ / "slices" / "index.csv", solver_.time());
+        truncate_rows_after(dir_ / "stats" / "snapshots.csv", solver_.time());
+        truncate_rows_after(dir_ / "frames" / "index.csv", solver_.time());
+      } else {
+        std::ofstream(series_) << reference_timeseries_header() << '\n';
+      }
+      out_.open(series_, std::ios::app);
+    });
+    agree(false);
+  }
+
+  void status(const std::string& state) {
+    if (!root_ || failure_) return;
+    write_json_atomically(dir_ / "run.json", {{"kind", "reference"},
+                                              {"state", state},
+                                              {"time", solver_.time()},
+                                              {"step", solver_.step()},
+                                              {"end_time", t_end_},
+                                              {"points_per_side", config_.points_per_side},
+                                              {"max_wavenumber", solver_.max_wavenumber()},
+                                              {"spectra_every", every_},
+                                              {"frames", result_.frames}});
+  }
+
+  /// A checkpoint of the gathered modes; the newest checkpoint.keep files are kept.
+  void checkpoint() {
+    ReferenceState st;
+    st.time = solver_.time();
+    st.step = solver_.step();
+    st.dimension = scene_.dimension();
+    st.points_per_side = config_.points_per_side;
+    st.scene = scene_document_.dump();
+    st.modes = solver_.gathered_modes();
+    on_root([&] {
+      const fs::path file = checkpoints_ / reference_checkpoint_name(st.step);
       write_reference_checkpoint(file, st);
-      // Keep the newest checkpoint.keep files.
       std::vector<fs::path> files;
-      for (const auto& e : fs::directory_iterator(checkpoints))
+      for (const auto& e : fs::directory_iterator(checkpoints_))
         if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
           files.push_back(e.path());
       std::sort(files.begin(), files.end());
-      const std::size_t keep = static_cast<std::size_t>(std::max(1, scene.checkpoint.keep));
+      const std::size_t keep = static_cast<std::size_t>(std::max(1, scene_.checkpoint.keep));
       for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
-      log->info("checkpoint {} at t = {}", file.filename().string(), st.time);
+      log_->info("checkpoint {} at t = {}", file.filename().string(), st.time);
     });
-  };
+  }
 
-  on_root([&] {
-    log->info(
-        "reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}{}", config.points_per_side,
-        scene.dimension(), solver.max_wavenumber(), scene.fluid.kinematic_viscosity(),
-        solver.time(), t_end,
-        alone ? std::string() : ", " + std::to_string(options.exchange->ranks()) + " MPI ranks");
-    status("running");
-  });
-  const auto report_step = [&] {
-    if (root && options.on_step) options.on_step(solver.time(), solver.step());
-  };
-  report_step();
-  const auto wall_start = std::chrono::steady_clock::now();
-  auto last_progress = wall_start;
-  const std::uint64_t first_step = solver.step();
-  auto budget = [&]() -> const Budget& {
-    const Budget& b = solver.budget();
+  void report_step() {
+    if (root_ && options_.on_step) options_.on_step(solver_.time(), solver_.step());
+  }
+
+  /// The energy budget (a collective); a non-finite energy ends the run with what to change.
+  const Budget& budget() {
+    const Budget& b = solver_.budget();
     if (!std::isfinite(b.energy))
       throw std::runtime_error("reference: the energy is not finite at t = " +
-                               number(solver.time()) + " (step " + std::to_string(solver.step()) +
+                               number(solver_.time()) + " (step " + std::to_string(solver_.step()) +
                                "); lower reference.cfl or raise reference.points_per_side");
     return b;
-  };
-  auto write_row = [&] {
+  }
+
+  void write_row() {
     const Budget& b = budget();
     on_root([&] {
-      out << number(solver.time()) << ',' << solver.step() << ',' << number(last_dt) << ','
-          << number(b.energy) << ',' << number(-b.rate) << ',' << number(b.dissipation) << ','
-          << number(b.enstrophy) << ',' << number(b.injection) << ',' << number(b.film) << ','
-          << number(b.transfer) << ',' << number(b.max_speed) << '\n';
-      out.flush();
-      if (!out) throw std::runtime_error("reference: cannot write '" + series.string() + "'");
+      out_ << number(solver_.time()) << ',' << solver_.step() << ',' << number(last_dt_) << ','
+           << number(b.energy) << ',' << number(-b.rate) << ',' << number(b.dissipation) << ','
+           << number(b.enstrophy) << ',' << number(b.injection) << ',' << number(b.film) << ','
+           << number(b.transfer) << ',' << number(b.max_speed) << '\n';
+      out_.flush();
+      if (!out_) throw std::runtime_error("reference: cannot write '" + series_.string() + "'");
     });
-  };
-  auto write_frame = [&] {
+  }
+
+  void write_frame() {
     budget();
     auto frame =
-        std::make_shared<analysis::AnalysisFrame>(reference_frame(solver, scene, analysis));
-    ++result.frames;
+        std::make_shared<analysis::AnalysisFrame>(reference_frame(solver_, scene_, analysis_));
+    ++result_.frames;
     on_root([&] {
-      writer->write(*frame);
-      if (!writer->last_error().empty())
-        throw std::runtime_error("reference: " + writer->last_error());
-      if (options.on_frame) options.on_frame(frame);
+      writer_->write(*frame);
+      if (!writer_->last_error().empty())
+        throw std::runtime_error("reference: " + writer_->last_error());
+      if (options_.on_frame) options_.on_frame(frame);
     });
-  };
-  if (!options.restart) {
-    write_row();
-    write_frame();
   }
-  bool row_written = true;
-  while (!sim::reached_end(solver.time(), t_end)) {
-    if (agree(root && options.stop_requested && options.stop_requested())) {
-      result.stopped = true;
-      break;
-    }
-    const double t = solver.time();
-    budget();
-    // The CFL step, cut to land on the end and the next output points; a step that would leave
-    // a sliver before a point is split into two equal ones.
-    const double target = std::min({t_end, frames.next(), rows.next(), checkpoints_due.next()});
-    const double limit = target - t;
-    double dt = solver.stable_step(config.cfl);
-    const bool lands = dt >= limit;
-    if (lands)
-      dt = limit;
-    else if (2.0 * dt > limit)
-      dt = 0.5 * limit;
-    solver.advance(dt);
-    if (lands) solver.set_time(target);
-    last_dt = dt;
-    report_step();
-    row_written = false;
-    if (!rows.active() || rows.take(solver.time())) {
-      write_row();
-      row_written = true;
-    }
-    if (frames.take(solver.time())) write_frame();
-    if (checkpoints_due.take(solver.time())) checkpoint();
-    budget();  // on every rank: the progress line below reads it on rank 0 alone
+
+  void progress(double dt) {
     const auto now = std::chrono::steady_clock::now();
-    if (root && std::chrono::duration<double>(now - last_progress).count() >=
-                    scene.output.progress_every_seconds) {
-      const double wall = std::chrono::duration<double>(now - wall_start).count();
-      const double steps_per_s = static_cast<double>(solver.step() - first_step) / wall;
-      log->progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s",
-                    solver.time(), t_end, solver.step(), dt, budget().energy, steps_per_s);
-      last_progress = now;
-    }
+    if (!root_ || std::chrono::duration<double>(now - last_progress_).count() <
+                      scene_.output.progress_every_seconds)
+      return;
+    const double wall = std::chrono::duration<double>(now - wall_start_).count();
+    const double steps_per_s = static_cast<double>(solver_.step() - first_step_) / wall;
+    log_->progress("t = {:.4f} / {:g}  step {}  dt {:.3e}  E {:.6e}  {:.2f} steps/s",
+                   solver_.time(), t_end_, solver_.step(), dt, budget().energy, steps_per_s);
+    last_progress_ = now;
   }
-  if (!row_written) write_row();  // the state the run ends with
-  checkpoint();
-  agree(false);
-  result.time = solver.time();
-  result.steps = solver.step();
-  on_root([&] {
-    status(result.stopped ? "stopped" : "done");
-    log->info("reference {} at t = {} after {} steps", result.stopped ? "stopped" : "done",
-              result.time, result.steps);
-  });
-  agree(false);
-  return result;
+
+  const sim::Scene& scene_;
+  const analysis::AnalysisConfig& analysis_;
+  const ReferenceConfig& config_;
+  const json& scene_document_;
+  const ReferenceRunOptions& options_;
+  const fs::path dir_, checkpoints_, series_;
+  const bool root_, alone_;
+  NavierStokesSolver solver_;
+  std::optional<logging::RunLog> log_;
+  std::exception_ptr failure_;  // rank 0's, until the others hear of it
+  std::optional<analysis::RunDirectoryWriter> writer_;
+  std::ofstream out_;
+  ReferenceRunResult result_;
+  double every_ = 0.0, t_end_ = 0.0, last_dt_ = 0.0;
+  std::chrono::steady_clock::time_point wall_start_, last_progress_;
+  std::uint64_t first_step_ = 0;
+};
+
+}  // namespace
+
+ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
+                                 const ReferenceConfig& config, const json& scene_document,
+                                 const ReferenceRunOptions& options) {
+  return ReferenceRun(scene, analysis, config, scene_document, options).run();
 }
 
 }  // namespace sphles::spectral
