@@ -103,14 +103,6 @@ std::optional<std::string> violated_bounds(const json& node, double x) {
          format_bound(upper);
 }
 
-double scene_schema_bound(std::string_view dotted, std::string_view keyword) {
-  const json* node = scene_schema_node(dotted);
-  if (!node || !node->contains(keyword))
-    throw std::logic_error("scene schema: '" + std::string(dotted) + "' has no " +
-                           std::string(keyword));
-  return node->at(keyword).get<double>();
-}
-
 std::vector<std::string> scene_schema_fields() {
   std::vector<std::string> fields;
   collect_fields(scene_schema_document(), "", fields);

@@ -41,10 +41,6 @@ const nlohmann::json* scene_schema_property(const nlohmann::json& object, const 
 /// nullopt when it does not.
 std::optional<std::string> violated_bounds(const nlohmann::json& node, double x);
 
-/// The number a bound keyword of the field's schema holds (for limits used in tests and
-/// messages); throws std::logic_error when it has none.
-double scene_schema_bound(std::string_view dotted, std::string_view keyword);
-
 /// Every dotted field the schema declares, depth first in declaration order (objects included;
 /// the additional properties of render.colour are not enumerated).
 std::vector<std::string> scene_schema_fields();

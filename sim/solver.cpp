@@ -490,7 +490,6 @@ class SphSolver final : public Simulation {
   bool transport_velocity_ = false;         // particles drift with v + δv (SchemeFields)
   std::vector<double> scratch_;             // reorder buffer of the scheme's fields
   std::vector<VelocityGradient> gradient_;  // scratch of the explicit sub-filter model
-  std::vector<double> viscous_weights_;     // g_i of ViscousOperator::Corrected (scratch)
   double time_;
   std::uint64_t step_;
   double max_acceleration_ = 0.0;

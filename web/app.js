@@ -29,22 +29,6 @@ const ALLOWED = {
   finished: ['delete'],
   failed: ['delete'],
 };
-// Documented defaults of the 2D Taylor-Green scene (docs/scenes.md), offered when the server
-// has no 2D Taylor-Green preset.
-const TGV2D_SCENE_OPTION = {
-  name: 'tgv2d',
-  case: 'tgv2d',
-  dimension: 2,
-  description: 'Decaying 2D Taylor-Green vortex (SPEC §6.2, scene "case": "tgv2d"), Re = 100',
-  scene: { case: 'tgv2d' },
-  // Shown in the form only; the server fills in the same defaults.
-  defaults: {
-    particles_per_side: 128, kernel: { type: 'wendland_c4' },
-    subfilter: { model: 'implicit', smagorinsky_constant: 0.15 }, scheme: { type: 'thesis' },
-    fluid: { sound_speed: 10, reference_pressure: 1 }, time: { end: 2 },
-  },
-  builtinScene: true,
-};
 // What a running run is doing before its first step (RunSummary.phase); nothing once it steps.
 const PHASE_TEXT = {
   packing: 'packing the initial lattice…',
@@ -227,13 +211,12 @@ async function loadPresets() {
     showStatus('create-status', `Could not load presets: ${errorText(e)}`, 'error');
   }
   app.presets = Array.isArray(presets) ? presets.slice() : [];
-  if (!app.presets.some((p) => p.case === 'tgv2d')) app.presets.unshift(TGV2D_SCENE_OPTION);
   renderPresetOptions();
   // The first choice is a flow sphles has references for from its first plot (the DNS' e_v,
   // the spectral reference's E(k) and resolved scales): the 3D vortex at Re = 1600; else the 2D
   // vortex (its analytic decay).
   const first = ['tgv3d-re1600', 'tgv2d'].map((name) => app.presets.findIndex((p) => p.name === name))
-    .find((i) => i >= 0) ?? app.presets.findIndex((p) => p.case === 'tgv2d');
+    .find((i) => i >= 0) ?? 0;
   $('create-preset').value = String(Math.max(0, first));
   fillCreateForm();
 }

@@ -193,7 +193,7 @@ async function run() {
   if (await page.locator('#page-error').isVisible()) fail(`page shows an error: ${await text(page, '#page-error')}`);
   pass('dashboard loads, REST API reachable, plotting library present');
 
-  // The run form: a 2D Taylor-Green vortex (a server preset, or the dashboard's tgv2d scene).
+  // The run form: a 2D Taylor-Green vortex (the server's preset tgv2d).
   const labels = await waitFor('presets in the form', async () => {
     const all = await page.locator('#create-preset option').allTextContents();
     return all.length ? all : null;
