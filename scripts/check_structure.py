@@ -161,7 +161,7 @@ def unit_graph(graph):
 
 def functions(root, paths):
     """(path, name, lines) of every C++ function definition universal-ctags finds."""
-    ctags = shutil.which("ctags")
+    ctags = shutil.which("ctags-universal") or shutil.which("ctags")
     if ctags is None:
         raise SystemExit("check_structure: 'ctags' (universal-ctags) not found; "
                          "scripts/setup.sh installs it")

@@ -6,7 +6,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(
-  build-essential cmake ninja-build pkg-config clang-format
+  build-essential cmake ninja-build pkg-config clang-format universal-ctags
   libeigen3-dev librandom123-dev libhdf5-dev libhdf5-openmpi-dev hdf5-tools libfftw3-dev libfftw3-mpi-dev
   libvtk9-dev libosmesa6-dev libopenmpi-dev openmpi-bin libpng-dev
   libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libvalijson-dev
