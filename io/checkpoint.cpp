@@ -520,11 +520,6 @@ Checkpoint read_and_validate(const std::filesystem::path& path, SceneGeometry* g
 
 DistributedCheckpoints::~DistributedCheckpoints() = default;
 
-std::mutex& hdf5_library_mutex() {
-  static std::mutex m;
-  return m;
-}
-
 std::string checkpoint_file_name(std::uint64_t step) {
   char name[64];
   std::snprintf(name, sizeof name, "ckpt_%010llu.h5", static_cast<unsigned long long>(step));

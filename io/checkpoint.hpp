@@ -11,15 +11,11 @@
 #include <string>
 #include <vector>
 
+#include "io/checkpoint_error.hpp"
+#include "io/hdf5_library.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::io {
-
-/// Raised for every unreadable or invalid checkpoint; the message names the file and the reason.
-class CheckpointError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
 
 inline constexpr const char* kCheckpointSchema = "sphles-checkpoint";
 inline constexpr int kCheckpointSchemaVersion = 1;
@@ -118,10 +114,6 @@ std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& direc
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);
-
-/// Debian's HDF5 is built without thread safety: every HDF5 call in sphles (checkpoints on the
-/// solver thread, snapshots on the analysis thread) holds this one mutex.
-std::mutex& hdf5_library_mutex();
 
 /// File name for a step: ckpt_0000001234.h5.
 std::string checkpoint_file_name(std::uint64_t step);

@@ -5,8 +5,9 @@
 #include <mutex>
 #include <system_error>
 
-#include "io/checkpoint.hpp"
+#include "io/checkpoint_error.hpp"
 #include "io/hdf5_file.hpp"
+#include "io/hdf5_library.hpp"
 
 namespace sphles::io::detail {
 

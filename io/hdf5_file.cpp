@@ -12,7 +12,17 @@
 #include <cstring>
 #include <mutex>
 
-#include "io/checkpoint.hpp"
+#include "io/checkpoint_error.hpp"
+#include "io/hdf5_library.hpp"
+
+namespace sphles::io {
+
+std::mutex& hdf5_library_mutex() {
+  static std::mutex m;
+  return m;
+}
+
+}  // namespace sphles::io
 
 namespace sphles::io::detail {
 

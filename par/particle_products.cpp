@@ -21,6 +21,7 @@
 #include "analysis/subfilter_stress.hpp"
 #include "analysis/vorticity.hpp"
 #include "io/particle_snapshot_collective.hpp"
+#include "par/grid_share.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
 #include "par/state.hpp"

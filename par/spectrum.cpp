@@ -20,6 +20,7 @@
 
 #include "analysis/fftw_r2c.hpp"
 #include "analysis/grid.hpp"
+#include "par/grid_share.hpp"
 #include "par/halo.hpp"
 #include "par/reduce.hpp"
 #include "sim/reduction.hpp"
