@@ -1,12 +1,13 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Viridis colour table, robust value ranges and value → colour index.
+#include "render/colour_map.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 #include <vector>
 
 #include "render/lookup_table.hpp"
-#include "render/render.hpp"
 
 namespace sphles::render {
 namespace {

@@ -22,49 +22,17 @@
 #include <vector>
 
 #include "analysis/products.hpp"
+#include "render/colour_map.hpp"
+#include "render/frame_timings.hpp"
 #include "render/png_encode.hpp"
 
 namespace sphles::render {
-
-/// How slice values become colours. With min and max both given the range is fixed; a missing
-/// bound is taken from the percentile of the finite values (for log scale: finite and > 0).
-struct ColourMapping {
-  bool log_scale = false;
-  std::optional<double> min, max;
-  double lower_percentile = 0.01;  // fraction in [0, 1]
-  double upper_percentile = 0.99;  // fraction in [0, 1]
-};
 
 struct FrameLabels {
   std::string case_name;
   double time = 0.0;  // simulated time [s]
   std::uint64_t step = 0;
 };
-
-/// Number of entries of the colour map (viridis).
-inline constexpr int kColourCount = 256;
-using Rgb = std::array<unsigned char, 3>;
-
-/// The 256-entry viridis table, linearly interpolated from 17 control points of the published
-/// definition (matplotlib _viridis_data, every 16th entry); 8-bit RGB.
-const std::array<Rgb, kColourCount>& viridis_table();
-
-/// Value range [min, max] the mapping uses for these values (see ColourMapping). For log scale
-/// both bounds are > 0. min < max always (a degenerate range is widened).
-/// Throws std::invalid_argument for a log scale with a given bound <= 0.
-std::array<double, 2> colour_range(std::span<const double> values, const ColourMapping& mapping);
-
-/// Lookup-table index of a value: floor(256 t) clamped to [0, 255], t = (v - min) / (max - min),
-/// or for log scale t = (log10 v - log10 min) / (log10 max - log10 min), so each decade gets
-/// the same number of entries. The transform is done here (on the CPU); the vtkLookupTable the
-/// scalar bar uses is set to the same range with SetScaleToLog10 and maps values identically.
-/// Values below the range (and for log scale values <= 0) get index 0; NaN gets -1.
-int colour_index(double value, const std::array<double, 2>& range, bool log_scale);
-
-/// colour_index of every value (indices.size() == values.size()), with the range transform
-/// hoisted out of the loop.
-void colour_indices(std::span<const double> values, const std::array<double, 2>& range,
-                    bool log_scale, std::span<int> indices);
 
 /// Rectangle of a panel's image in pixels, origin at the bottom-left of the panel (VTK display
 /// convention; a PNG decoded with vtkPNGReader uses the same orientation).
@@ -76,26 +44,14 @@ struct ImageRect {
 /// iu = floor((px - x + 0.5) * slice.width / width), likewise for rows.
 ImageRect image_rect(int panel_width, int panel_height, const analysis::SliceProduct& slice);
 
-/// Wall time of the stages of the last frame [ms].
-struct FrameTimings {
-  double prepare_ms = 0.0;    // colour mapping on the CPU and scene update
-  double render_ms = 0.0;     // vtkRenderWindow::Render
-  double read_back_ms = 0.0;  // vtkWindowToImageFilter::Update
-  double encode_ms = 0.0;     // vtkPNGWriter to memory
-};
-
 /// An off-screen OSMesa context with a VTK render window of fixed size, reused across frames.
 /// Not thread-safe: use one Renderer per thread (the OSMesa context is made current on the
 /// calling thread at the start of every frame).
 class Renderer {
  public:
-  /// PNG zlib level used by default: 1 (Z_BEST_SPEED); several times faster than the default
-  /// level 6 for these frames.
-  static constexpr int kDefaultCompressionLevel = 1;
-  /// PNG row filter used by default: none. The frames are nearest-neighbour upscaled colour
-  /// fields with flat margins, so unfiltered rows compress better (long LZ77 matches) and faster
-  /// than libpng's adaptive choice, which vtkPNGWriter always uses.
-  static constexpr PngFilter kDefaultPngFilter = PngFilter::None;
+  /// PNG zlib level and row filter used by default (png_encode.hpp).
+  static constexpr int kDefaultCompressionLevel = kDefaultPngCompressionLevel;
+  static constexpr PngFilter kDefaultPngFilter = render::kDefaultPngFilter;
 
   Renderer(int width, int height);
   ~Renderer();

@@ -21,8 +21,10 @@
 #include <string>
 #include <vector>
 
+#include "render/colour_map.hpp"
+#include "render/frame_timings.hpp"
 #include "render/osmesa_context.hpp"
-#include "render/render.hpp"
+#include "render/png_encode.hpp"
 
 namespace sphles::render::detail {
 
@@ -97,8 +99,8 @@ class OffscreenWindow {
   vtkSmartPointer<vtkWindowToImageFilter> read_back_ =
       vtkSmartPointer<vtkWindowToImageFilter>::New();
   vtkSmartPointer<vtkPNGWriter> writer_ = vtkSmartPointer<vtkPNGWriter>::New();
-  int compression_level_ = Renderer::kDefaultCompressionLevel;
-  std::optional<PngFilter> png_filter_ = Renderer::kDefaultPngFilter;
+  int compression_level_ = kDefaultPngCompressionLevel;
+  std::optional<PngFilter> png_filter_ = kDefaultPngFilter;
 };
 
 /// The calling thread's renderer (Renderer, ParticleRenderer) of this frame size, created on
