@@ -14,10 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
-#include <fstream>
-#include <limits>
 #include <numbers>
-#include <sstream>
 
 #include "analysis/config.hpp"
 #include "analysis/snapshot.hpp"
@@ -386,6 +383,80 @@ RankEstimate rank_split(const sim::Scene& s, int ranks) {
 
 }  // namespace
 
+namespace {
+
+double total(const std::vector<MemoryPart>& parts) {
+  double sum = 0.0;
+  for (const MemoryPart& p : parts) sum += p.bytes;
+  return sum;
+}
+
+/// The analysis thread's snapshots and working set (memory parts "snapshots" and "analysis"),
+/// and the analysis' grid, frame and disk figures in `e`.
+std::vector<MemoryPart> analysis_parts(const sim::Scene& s, const analysis::AnalysisConfig& a,
+                                       bool rendering, double per_particle, const ListModel& list,
+                                       ResourceEstimate& e) {
+  const double n = e.particles;
+  const std::string n_text = count_text(n) + " particles";
+  const AnalysisModel am = analysis_model(s, a);
+  e.analysis_grid_points = am.grid_points;
+  const double retained = rendering ? kFramesRetainedWhileRendering : kFramesRetained;
+  // A snapshot copies the particle arrays and, for the "particle" vorticity estimate only,
+  // shares the solver's list, which becomes its own once the solver rebuilds; the
+  // "particles" product keeps a snapshot in every frame.
+  const double count = kSnapshotsInPipeline + (a.wants(Product::Particles) ? retained : 0.0);
+  const bool with_list = a.gridding.vorticity == analysis::VorticityEstimate::Particle;
+  const double snapshots = count * (n * per_particle + (with_list ? list.list_bytes : 0.0));
+  const std::string snapshot_text = count_text(count) + " x (" + n_text + " x " +
+                                    count_text(per_particle) + " B" +
+                                    (with_list ? " + a neighbour list)" : ")");
+  const double computing = am.work_bytes + retained * am.frame_bytes;
+  const double sinking = (retained + kFramesInSink) * am.frame_bytes + am.writer_bytes;
+  const double analysis_bytes = kAnalysisThreadBytes + std::max(computing, sinking);
+  const std::string analysis_text = "grid " + count_text(am.grid_points) + " nodes; working set " +
+                                    format_bytes(am.work_bytes) + ", frame " +
+                                    format_bytes(am.frame_bytes);
+  e.analysis_frame_bytes = am.file_bytes;
+  e.analysis_frames = std::floor(s.end_time / a.every) + 1.0;
+  e.analysis_disk_bytes = e.analysis_frame_bytes * e.analysis_frames;
+  return {{"snapshots", snapshots, snapshot_text, PartScope::Gathered},
+          {"analysis", analysis_bytes, analysis_text, PartScope::Service}};
+}
+
+/// One rank of `ranks`: the solver's parts scaled to its sub-box, and what the service holds.
+RankEstimate rank_estimate(const sim::Scene& s, const analysis::AnalysisConfig& a, int ranks,
+                           const std::vector<MemoryPart>& run_parts,
+                           const std::vector<MemoryPart>& setup_parts) {
+  const double n = std::pow(static_cast<double>(s.particles_per_side), s.dimension());
+  // One rank: the solver's parts scaled to its sub-box, arrays over its owned particles and
+  // halo copies, lists over its owned particles (par/, docs/scaling.md).
+  RankEstimate r = rank_split(s, ranks);
+  const double held = (r.owned * (1.0 + r.halo_per_owned)) / n, listed = r.owned / n;
+  const auto scaled = [&](const std::vector<MemoryPart>& parts) {
+    std::vector<MemoryPart> out;
+    for (const MemoryPart& p : parts) {
+      if (p.scope == PartScope::Owned)
+        out.push_back({p.name, p.bytes * listed, "of the owned particles", p.scope});
+      else if (p.scope == PartScope::OwnedAndHalo)
+        out.push_back({p.name, p.bytes * held, "of the owned particles and halo copies", p.scope});
+    }
+    return out;
+  };
+  const std::vector<MemoryPart> run_rank = scaled(run_parts), setup_rank = scaled(setup_parts);
+  r.memory = total(setup_rank) > total(run_rank) ? setup_rank : run_rank;
+  r.memory_bytes = total(r.memory);
+  // The ranks write the particle file into the run directory (control's run loop).
+  const bool gathers = std::ranges::any_of(
+      a.products, [&](Product p) { return !analysis::served_by_ranks(a, p, true); });
+  for (const MemoryPart& p : run_parts)
+    if (p.scope == PartScope::Service || (p.scope == PartScope::Gathered && gathers))
+      r.service.push_back(p);
+  r.service_bytes = total(r.service);
+  return r;
+}
+
+}  // namespace
+
 ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   const sim::Scene& s = spec.run.scene;
   const analysis::AnalysisConfig& a = spec.run.analysis;
@@ -422,30 +493,10 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   const bool build_larger = list.build_bytes >= state_copy;
 
   // Analysis on its own thread, concurrent with the solver.
-  double snapshots = 0.0, analysis_bytes = 0.0;
-  std::string snapshot_text, analysis_text;
   const bool rendering = spec.render.enabled();
-  if (a.enabled()) {
-    const AnalysisModel am = analysis_model(s, a);
-    e.analysis_grid_points = am.grid_points;
-    const double retained = rendering ? kFramesRetainedWhileRendering : kFramesRetained;
-    // A snapshot copies the particle arrays and, for the "particle" vorticity estimate only,
-    // shares the solver's list, which becomes its own once the solver rebuilds; the
-    // "particles" product keeps a snapshot in every frame.
-    const double count = kSnapshotsInPipeline + (a.wants(Product::Particles) ? retained : 0.0);
-    const bool with_list = a.gridding.vorticity == analysis::VorticityEstimate::Particle;
-    snapshots = count * (n * per_particle + (with_list ? list.list_bytes : 0.0));
-    snapshot_text = count_text(count) + " x (" + n_text + " x " + count_text(per_particle) + " B" +
-                    (with_list ? " + a neighbour list)" : ")");
-    const double computing = am.work_bytes + retained * am.frame_bytes;
-    const double sinking = (retained + kFramesInSink) * am.frame_bytes + am.writer_bytes;
-    analysis_bytes = kAnalysisThreadBytes + std::max(computing, sinking);
-    analysis_text = "grid " + count_text(am.grid_points) + " nodes; working set " +
-                    format_bytes(am.work_bytes) + ", frame " + format_bytes(am.frame_bytes);
-    e.analysis_frame_bytes = am.file_bytes;
-    e.analysis_frames = std::floor(s.end_time / a.every) + 1.0;
-    e.analysis_disk_bytes = e.analysis_frame_bytes * e.analysis_frames;
-  }
+  const std::vector<MemoryPart> analysis_memory =
+      a.enabled() ? analysis_parts(s, a, rendering, per_particle, list, e)
+                  : std::vector<MemoryPart>{};
   double render_bytes = 0.0;
   if (rendering) {
     render_bytes = kRenderSetupBytes + kRenderBytesPerPixel * render_pixels(spec.render) +
@@ -469,10 +520,8 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
                        "solver state copied to write, and the file assembled in memory twice",
                        PartScope::Owned},
   };
-  if (snapshots > 0.0)
-    run_parts.push_back({"snapshots", snapshots, snapshot_text, PartScope::Gathered});
-  if (analysis_bytes > 0.0)
-    run_parts.push_back({"analysis", analysis_bytes, analysis_text, PartScope::Service});
+  for (const MemoryPart& p : analysis_memory)
+    if (p.bytes > 0.0) run_parts.push_back(p);
   if (render_bytes > 0.0)
     run_parts.push_back({"rendering", render_bytes,
                          count_text(render_pixels(spec.render)) + " px and the renderer set-up",
@@ -487,42 +536,9 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
         {"packing_list", packing.list_bytes, "packing Verlet list", PartScope::Owned},
         {"packing_build", packing.build_bytes, "packing list rebuild", PartScope::OwnedAndHalo}};
   }
-  const auto total = [](const std::vector<MemoryPart>& parts) {
-    double sum = 0.0;
-    for (const MemoryPart& p : parts) sum += p.bytes;
-    return sum;
-  };
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
-  if (ranks > 1) {
-    // One rank: the solver's parts scaled to its sub-box, arrays over its owned particles and
-    // halo copies, lists over its owned particles (par/, docs/scaling.md).
-    RankEstimate r = rank_split(s, ranks);
-    const double held = (r.owned * (1.0 + r.halo_per_owned)) / n, listed = r.owned / n;
-    const auto scaled = [&](const std::vector<MemoryPart>& parts) {
-      std::vector<MemoryPart> out;
-      for (const MemoryPart& p : parts) {
-        if (p.scope == PartScope::Owned)
-          out.push_back({p.name, p.bytes * listed, "of the owned particles", p.scope});
-        else if (p.scope == PartScope::OwnedAndHalo)
-          out.push_back(
-              {p.name, p.bytes * held, "of the owned particles and halo copies", p.scope});
-      }
-      return out;
-    };
-    const std::vector<MemoryPart> run_rank = scaled(run_parts), setup_rank = scaled(setup_parts);
-    r.memory = total(setup_rank) > total(run_rank) ? setup_rank : run_rank;
-    r.memory_bytes = total(r.memory);
-    // The ranks write the particle file into the run directory (control's run loop).
-    const bool gathers = std::ranges::any_of(
-        a.products, [&](Product p) { return !analysis::served_by_ranks(a, p, true); });
-    for (const MemoryPart& p : run_parts)
-      if (p.scope == PartScope::Service || (p.scope == PartScope::Gathered && gathers))
-        r.service.push_back(p);
-    r.service_bytes = total(r.service);
-    e.per_rank = std::move(r);
-  }
-
+  if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, run_parts, setup_parts);
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
 
@@ -614,94 +630,6 @@ std::optional<std::string> check_memory(const ResourceEstimate& e, double limit_
   if (e.memory_bytes <= limit_bytes) return std::nullopt;
   return "the run needs " + describe_memory(e) + " of memory, more than the " +
          format_bytes(limit_bytes) + " " + limit_name;
-}
-
-namespace {
-
-/// Reads the first number of a file; nothing for "max", a missing file or other text.
-std::optional<std::uint64_t> read_limit(const std::filesystem::path& file) {
-  std::ifstream in(file);
-  std::string word;
-  if (!(in >> word) || word.empty() || word.find_first_not_of("0123456789") != std::string::npos)
-    return std::nullopt;
-  try {
-    return std::stoull(word);
-  } catch (const std::exception&) {
-    return std::nullopt;
-  }
-}
-
-/// cgroup v1 reports "no limit" as a huge number (LONG_MAX rounded down to a page).
-constexpr std::uint64_t kUnlimitedAbove = std::uint64_t{1} << 62;
-
-/// Smallest limit in `file_name` from `directory` up to `root` (a parent's limit applies to its
-/// children); also the file directly in `root` when the path is not visible (a namespaced
-/// cgroup mount shows the process's own cgroup at the root).
-std::optional<std::uint64_t> smallest_limit(const std::filesystem::path& root,
-                                            const std::string& cgroup_path,
-                                            const std::string& file_name) {
-  std::optional<std::uint64_t> best;
-  const auto consider = [&](const std::filesystem::path& file) {
-    const auto value = read_limit(file);
-    if (value && *value < kUnlimitedAbove && (!best || *value < *best)) best = value;
-  };
-  std::filesystem::path relative = std::filesystem::path(cgroup_path).relative_path();
-  while (true) {
-    consider(root / relative / file_name);
-    if (relative.empty()) break;
-    relative = relative.parent_path();
-  }
-  return best;
-}
-
-}  // namespace
-
-std::uint64_t machine_memory_bytes(const std::filesystem::path& self_cgroup,
-                                   const std::filesystem::path& cgroup_root,
-                                   const std::filesystem::path& meminfo) {
-  std::optional<std::uint64_t> limit;
-  const auto take = [&](std::optional<std::uint64_t> value) {
-    if (value && (!limit || *value < *limit)) limit = value;
-  };
-  std::ifstream cgroups(self_cgroup);
-  for (std::string line; std::getline(cgroups, line);) {
-    // "hierarchy-id:controllers:path"; v2 is "0::path".
-    const auto first = line.find(':');
-    const auto second = first == std::string::npos ? first : line.find(':', first + 1);
-    if (second == std::string::npos) continue;
-    const std::string controllers = line.substr(first + 1, second - first - 1);
-    const std::string path = line.substr(second + 1);
-    if (line.substr(0, first) == "0" && controllers.empty()) {
-      take(smallest_limit(cgroup_root, path, "memory.max"));
-    } else {
-      std::stringstream list(controllers);
-      for (std::string c; std::getline(list, c, ',');)
-        if (c == "memory")
-          take(smallest_limit(cgroup_root / "memory", path, "memory.limit_in_bytes"));
-    }
-  }
-  std::optional<std::uint64_t> total;
-  std::ifstream info(meminfo);
-  for (std::string key; info >> key;) {
-    if (key == "MemTotal:") {
-      std::uint64_t kib = 0;
-      if (info >> kib) total = kib * 1024;
-      break;
-    }
-    info.ignore(std::numeric_limits<std::streamsize>::max(), '\n');
-  }
-  if (limit && total) return std::min(*limit, *total);
-  if (limit) return *limit;
-  return total.value_or(0);
-}
-
-std::uint64_t machine_memory_bytes() {
-  return machine_memory_bytes("/proc/self/cgroup", "/sys/fs/cgroup", "/proc/meminfo");
-}
-
-std::uint64_t default_memory_limit_bytes() {
-  return static_cast<std::uint64_t>(kDefaultMemoryFraction *
-                                    static_cast<double>(machine_memory_bytes()));
 }
 
 }  // namespace sphles::control
