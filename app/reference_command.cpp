@@ -35,94 +35,75 @@ struct ReferenceOptions {
 
 std::atomic<bool> g_stop{false};
 
-/// The reference on this process; under mpirun (`mpi`) on every rank of MPI_COMM_WORLD, a 3D
-/// grid shared among them (par::MpiSlabExchange), rank 0 printing and writing.
-int reference_command(const ReferenceOptions& options, bool mpi) {
+/// The scene of the run to start, or of the run `--restart DIR` continues, with the overrides.
+nlohmann::json reference_scene_document(const ReferenceOptions& options) {
   namespace fs = std::filesystem;
-  int rank = 0, ranks = 1;
-  if (mpi) {
-    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  if (options.restart.empty()) {
+    if (options.scene.empty()) throw sim::SceneError("SCENE or --restart DIR is required");
+    return load_scene_document(options.scene, options.overrides);
   }
-  const bool root = rank == 0;
-  logging::configure(logging::ConsoleStyle::plain,
-                     root ? logging::parse_level(options.log_level) : logging::Level::off);
-  if (options.threads > 0) omp_set_num_threads(options.threads);
-  nlohmann::json document;
-  fs::path dir;
-  control::RunSpec spec;
-  try {
-    if (!options.restart.empty()) {
-      if (!options.scene.empty())
-        throw sim::SceneError("give either SCENE or --restart DIR, not both");
-      dir = options.restart;
-      if (!fs::exists(dir / "scene.json"))
-        throw sim::SceneError("'" + dir.string() + "' holds no reference run (no scene.json)");
-      document = sim::read_scene_file(dir / "scene.json");
-      for (const std::string& a : options.overrides) sim::apply_override(document, a);
-    } else {
-      if (options.scene.empty()) throw sim::SceneError("SCENE or --restart DIR is required");
-      document = load_scene_document(options.scene, options.overrides);
-    }
-    spec = control::parse_run_spec(document);
-    document = control::run_spec_to_json(spec);
-    const sim::Scene& scene = spec.run.scene;
-    const spectral::ReferenceConfig& config = spec.reference;
-    // A 2D reference runs on rank 0 alone. The other ranks leave before looking at the run
-    // directory, which rank 0 may already be writing.
-    if (scene.dimension() == 2) {
-      if (!root) return kExitOk;
-      ranks = 1;
-    }
-    const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config, ranks);
-    // Every rank of this machine's job together (mpirun on one node).
-    const double machine = static_cast<double>(control::machine_memory_bytes());
-    const bool fits = machine <= 0.0 || e.memory_bytes * ranks <= machine;
-    if (root && (options.dry_run || !fits))
-      std::printf(
-          "reference grid       %d^%d points, modes |m| <= %d per axis\n"
-          "memory at the peak   %s%s (machine %s)%s\n"
-          "checkpoint           %s each\n"
-          "time steps           about %.0f to t = %g (CFL %g at the initial speed)\n",
-          config.points_per_side, scene.dimension(), e.max_wavenumber,
-          control::format_bytes(e.memory_bytes).c_str(),
-          ranks > 1 ? (" per rank, " + std::to_string(ranks) + " ranks").c_str() : "",
-          control::format_bytes(machine).c_str(), fits ? "" : ": does NOT fit",
-          control::format_bytes(e.checkpoint_bytes).c_str(), e.steps, scene.end_time, config.cfl);
-    if (options.dry_run || !fits) {
-      if (!fits)
-        throw sim::SceneError(
-            "'reference.points_per_side' = " + std::to_string(config.points_per_side) +
-            " needs about " + control::format_bytes(e.memory_bytes) +
-            ", more than this machine's " + control::format_bytes(machine));
-      if (options.dry_run) return kExitOk;
-    }
-    if (options.restart.empty()) {
-      dir = options.out.empty()
-                ? fs::path("reference-" + (scene.name.empty() ? std::string("run") : scene.name))
-                : fs::path(options.out);
-      if ((fs::exists(dir / "run.json") || fs::exists(dir / "checkpoints")) && !options.overwrite)
-        throw sim::SceneError("'" + dir.string() +
-                              "' already holds a run: continue it with --restart " + dir.string() +
-                              ", choose another --out, or pass --overwrite");
-      if (options.overwrite && root) {
-        fs::remove_all(dir / "checkpoints");
-        fs::remove_all(dir / "spectra");
-        fs::remove_all(dir / "slices");
-        fs::remove_all(dir / "stats");
-        fs::remove_all(dir / "frames");
-      }
-    }
-  } catch (const std::exception& e) {
-    if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
-    return kExitUsage;
-  }
-  if (mpi && spec.run.scene.dimension() == 2) {
-    std::fprintf(stderr, "sphles reference: a 2D reference runs on rank 0 alone\n");
-    mpi = false;
-  }
+  if (!options.scene.empty()) throw sim::SceneError("give either SCENE or --restart DIR, not both");
+  const fs::path dir = options.restart;
+  if (!fs::exists(dir / "scene.json"))
+    throw sim::SceneError("'" + dir.string() + "' holds no reference run (no scene.json)");
+  nlohmann::json document = sim::read_scene_file(dir / "scene.json");
+  for (const std::string& a : options.overrides) sim::apply_override(document, a);
+  return document;
+}
 
-  // SIGINT, SIGTERM, SIGUSR1: stop after the step with a checkpoint (as `sphles run`).
+/// What the run needs (printed on rank 0 for --dry-run or when it does not fit); throws when it
+/// needs more memory than this machine has. True when the run is to go ahead.
+bool reference_fits(const ReferenceOptions& options, const control::RunSpec& spec, int ranks,
+                    bool root) {
+  const sim::Scene& scene = spec.run.scene;
+  const spectral::ReferenceConfig& config = spec.reference;
+  const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config, ranks);
+  // Every rank of this machine's job together (mpirun on one node).
+  const double machine = static_cast<double>(control::machine_memory_bytes());
+  const bool fits = machine <= 0.0 || e.memory_bytes * ranks <= machine;
+  if (root && (options.dry_run || !fits))
+    std::printf(
+        "reference grid       %d^%d points, modes |m| <= %d per axis\n"
+        "memory at the peak   %s%s (machine %s)%s\n"
+        "checkpoint           %s each\n"
+        "time steps           about %.0f to t = %g (CFL %g at the initial speed)\n",
+        config.points_per_side, scene.dimension(), e.max_wavenumber,
+        control::format_bytes(e.memory_bytes).c_str(),
+        ranks > 1 ? (" per rank, " + std::to_string(ranks) + " ranks").c_str() : "",
+        control::format_bytes(machine).c_str(), fits ? "" : ": does NOT fit",
+        control::format_bytes(e.checkpoint_bytes).c_str(), e.steps, scene.end_time, config.cfl);
+  if (!fits)
+    throw sim::SceneError(
+        "'reference.points_per_side' = " + std::to_string(config.points_per_side) +
+        " needs about " + control::format_bytes(e.memory_bytes) + ", more than this machine's " +
+        control::format_bytes(machine));
+  return !options.dry_run;
+}
+
+/// The directory of a new run (--out, or reference-NAME), refused when it holds a run unless
+/// --overwrite, which empties it of the earlier run's outputs (on rank 0).
+std::filesystem::path new_reference_directory(const ReferenceOptions& options,
+                                              const sim::Scene& scene, bool root) {
+  namespace fs = std::filesystem;
+  const fs::path dir =
+      options.out.empty()
+          ? fs::path("reference-" + (scene.name.empty() ? std::string("run") : scene.name))
+          : fs::path(options.out);
+  if ((fs::exists(dir / "run.json") || fs::exists(dir / "checkpoints")) && !options.overwrite)
+    throw sim::SceneError("'" + dir.string() +
+                          "' already holds a run: continue it with --restart " + dir.string() +
+                          ", choose another --out, or pass --overwrite");
+  if (options.overwrite && root)
+    for (const char* outputs : {"checkpoints", "spectra", "slices", "stats", "frames"})
+      fs::remove_all(dir / outputs);
+  return dir;
+}
+
+/// Runs the reference in `dir`; SIGINT, SIGTERM, SIGUSR1 stop it after the step with a
+/// checkpoint (as `sphles run`). The exit code.
+int run_reference_until_stopped(const control::RunSpec& spec, const nlohmann::json& document,
+                                const std::filesystem::path& dir, bool restart, bool mpi, int ranks,
+                                bool root) {
   const sigset_t signals = stop_signals();
   pthread_sigmask(SIG_BLOCK, &signals, nullptr);
   std::atomic<bool> done{false};
@@ -137,7 +118,7 @@ int reference_command(const ReferenceOptions& options, bool mpi) {
   try {
     spectral::ReferenceRunOptions run_options;
     run_options.directory = dir;
-    run_options.restart = !options.restart.empty();
+    run_options.restart = restart;
     run_options.stop_requested = [] { return g_stop.load(); };
     run_options.echo_progress = root;
     std::unique_ptr<par::MpiSlabExchange> exchange;
@@ -172,6 +153,44 @@ int reference_command(const ReferenceOptions& options, bool mpi) {
   pthread_kill(waiter.native_handle(), SIGINT);
   waiter.join();
   return rc;
+}
+
+/// The reference on this process; under mpirun (`mpi`) on every rank of MPI_COMM_WORLD, a 3D
+/// grid shared among them (par::MpiSlabExchange), rank 0 printing and writing.
+int reference_command(const ReferenceOptions& options, bool mpi) {
+  int rank = 0, ranks = 1;
+  if (mpi) {
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &ranks);
+  }
+  const bool root = rank == 0;
+  logging::configure(logging::ConsoleStyle::plain,
+                     root ? logging::parse_level(options.log_level) : logging::Level::off);
+  if (options.threads > 0) omp_set_num_threads(options.threads);
+  nlohmann::json document;
+  std::filesystem::path dir = options.restart;
+  control::RunSpec spec;
+  try {
+    spec = control::parse_run_spec(reference_scene_document(options));
+    document = control::run_spec_to_json(spec);
+    // A 2D reference runs on rank 0 alone. The other ranks leave before looking at the run
+    // directory, which rank 0 may already be writing.
+    if (spec.run.scene.dimension() == 2) {
+      if (!root) return kExitOk;
+      ranks = 1;
+    }
+    if (!reference_fits(options, spec, ranks, root)) return kExitOk;  // --dry-run
+    if (options.restart.empty()) dir = new_reference_directory(options, spec.run.scene, root);
+  } catch (const std::exception& e) {
+    if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
+    return kExitUsage;
+  }
+  if (mpi && spec.run.scene.dimension() == 2) {
+    std::fprintf(stderr, "sphles reference: a 2D reference runs on rank 0 alone\n");
+    mpi = false;
+  }
+  return run_reference_until_stopped(spec, document, dir, !options.restart.empty(), mpi, ranks,
+                                     root);
 }
 
 }  // namespace
