@@ -14,6 +14,9 @@ namespace sphles::analysis {
 
 namespace {
 
+/// What a CSV cell holds for a value the frame does not have (numpy and pandas read it as NaN).
+const std::string kNan = "nan";
+
 void replace_atomically(const std::filesystem::path& path, const std::string& content) {
   const std::filesystem::path temporary = path.string() + ".tmp";
   {
@@ -130,14 +133,13 @@ void RunDirectoryWriter::write_or_throw(const AnalysisFrame& frame) {
 
 /// spectra/E_t{t}.csv and its line in spectra/index.csv.
 void RunDirectoryWriter::write_spectrum(const AnalysisFrame& frame, const SpectrumProduct& s) {
-  const std::string nan = "nan";
   std::ostringstream csv;
   csv << "k,E,k_Lc,E_over_ev_Lc\n";
   const double e_v = s.kinetic_energy_grid;
   for (std::size_t p = 0; p < s.spectrum.wavenumber.size(); ++p) {
     const double k = s.spectrum.wavenumber[p], e = s.spectrum.energy[p];
     csv << number(k) << ',' << number(e) << ',' << number(k * s.length_scale) << ','
-        << (e_v > 0.0 ? number(e / (e_v * s.length_scale)) : nan) << '\n';
+        << (e_v > 0.0 ? number(e / (e_v * s.length_scale)) : kNan) << '\n';
   }
   const std::string file = timed_file_name("E", frame.time, ".csv");
   replace_atomically(directory_ / "spectra" / file, csv.str());
@@ -195,7 +197,6 @@ void RunDirectoryWriter::write_slice(const AnalysisFrame& frame, const SliceProd
 /// stats/joint_tau_omega2_t{t}.csv and, in 2D, stats/alignment_t{t}.csv.
 void RunDirectoryWriter::write_statistics(const AnalysisFrame& frame,
                                           const SubfilterStatisticsProduct& s) {
-  const std::string nan = "nan";
   std::ostringstream joint;
   joint << "tau_lo,tau_hi,omega2_lo,omega2_hi,count\n";
   const Histogram2D& h = s.joint;
@@ -218,7 +219,7 @@ void RunDirectoryWriter::write_statistics(const AnalysisFrame& frame,
     for (int b = 0; b < a.bins; ++b) {
       const std::uint64_t c = a.counts[static_cast<std::size_t>(b)];
       polar << number(b * width) << ',' << number((b + 1) * width) << ',' << c << ','
-            << (a.total ? number(static_cast<double>(c) / a.total) : nan) << '\n';
+            << (a.total ? number(static_cast<double>(c) / a.total) : kNan) << '\n';
     }
     replace_atomically(directory_ / "stats" / timed_file_name("alignment", frame.time, ".csv"),
                        polar.str());
@@ -300,7 +301,6 @@ void RunDirectoryWriter::write_fields(const AnalysisFrame& frame, const GridFiel
 
 /// One line of stats/snapshots.csv per analysed snapshot, whatever its products.
 void RunDirectoryWriter::write_summary(const AnalysisFrame& frame) {
-  const std::string nan = "nan";
   append_line(directory_ / "stats" / "snapshots.csv",
               "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"
               "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots,"
@@ -309,14 +309,14 @@ void RunDirectoryWriter::write_summary(const AnalysisFrame& frame) {
                   number(frame.kinetic_energy) + ',' +
                   (frame.grid_kinetic_energy ? number(*frame.grid_kinetic_energy)
                    : frame.spectrum          ? number(frame.spectrum->kinetic_energy_grid)
-                                             : nan) +
-                  ',' + (frame.vorticity ? number(frame.vorticity->mean_vorticity_squared) : nan) +
-                  ',' + (frame.vorticity ? number(frame.vorticity->dissipation) : nan) + ',' +
-                  (frame.spectrum ? number(frame.spectrum->dissipation) : nan) + ',' +
-                  (frame.subfilter ? number(frame.subfilter->max_norm) : nan) + ',' +
-                  (frame.subfilter ? number(frame.subfilter->mean_norm) : nan) + ',' +
+                                             : kNan) +
+                  ',' + (frame.vorticity ? number(frame.vorticity->mean_vorticity_squared) : kNan) +
+                  ',' + (frame.vorticity ? number(frame.vorticity->dissipation) : kNan) + ',' +
+                  (frame.spectrum ? number(frame.spectrum->dissipation) : kNan) + ',' +
+                  (frame.subfilter ? number(frame.subfilter->max_norm) : kNan) + ',' +
+                  (frame.subfilter ? number(frame.subfilter->mean_norm) : kNan) + ',' +
                   number(frame.total_seconds) + ',' + std::to_string(frame.dropped_snapshots) +
-                  ',' + (frame.spectrum ? number(frame.spectrum->dissipation_resolved) : nan) +
+                  ',' + (frame.spectrum ? number(frame.spectrum->dissipation_resolved) : kNan) +
                   ',' + number(frame.energy_dissipation));
 }
 

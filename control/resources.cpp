@@ -423,11 +423,11 @@ std::vector<MemoryPart> analysis_parts(const sim::Scene& s, const analysis::Anal
           {"analysis", analysis_bytes, analysis_text, PartScope::Service}};
 }
 
-/// One rank of `ranks`: the solver's parts scaled to its sub-box, and what the service holds.
+/// One rank of `ranks` (of `n` particles in all): the solver's parts scaled to its sub-box, and
+/// what the service holds.
 RankEstimate rank_estimate(const sim::Scene& s, const analysis::AnalysisConfig& a, int ranks,
-                           const std::vector<MemoryPart>& run_parts,
+                           double n, const std::vector<MemoryPart>& run_parts,
                            const std::vector<MemoryPart>& setup_parts) {
-  const double n = std::pow(static_cast<double>(s.particles_per_side), s.dimension());
   // One rank: the solver's parts scaled to its sub-box, arrays over its owned particles and
   // halo copies, lists over its owned particles (par/, docs/scaling.md).
   RankEstimate r = rank_split(s, ranks);
@@ -538,7 +538,7 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   }
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
-  if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, run_parts, setup_parts);
+  if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, n, run_parts, setup_parts);
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
 

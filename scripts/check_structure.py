@@ -29,6 +29,8 @@ import subprocess
 import sys
 import tempfile
 
+from check_spdx import tracked_files  # the tracked files, as the licence check lists them
+
 # Bottom up. A module may include itself and the modules listed before it, never one after it
 # or beside it. tests/, bench/ and app/ are the top: they may include any module.
 MODULES = ["logging", "net", "sim", "io", "analysis", "spectral", "render", "par", "launch",
@@ -267,12 +269,13 @@ def run(root, texts, checks):
 
 
 def tracked(root):
-    out = subprocess.run(["git", "ls-files", "-z"], cwd=root, capture_output=True)
-    if out.returncode != 0:
+    """{path: text} of every tracked text file; None outside a git checkout."""
+    files = tracked_files(root)
+    if files is None:
         return None
     texts = {}
-    for path in out.stdout.decode().split("\0"):
-        if not path or not os.path.isfile(os.path.join(root, path)):
+    for path, _ in files:
+        if not os.path.isfile(os.path.join(root, path)):
             continue
         try:
             with open(os.path.join(root, path), encoding="utf-8") as f:

@@ -265,16 +265,24 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/// The reference checkpoints (ref_*.h5) of `checkpoints`, oldest first (the names hold the
+/// step, zero-padded).
+std::vector<fs::path> reference_checkpoint_files(const fs::path& checkpoints) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(checkpoints))
+    if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
+      files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
 /// The newest reference checkpoint of `checkpoints` that reads back valid and belongs to this
 /// scene and resolution; damaged ones are skipped with a warning.
 ReferenceState newest_valid_checkpoint(const fs::path& checkpoints, const sim::Scene& scene,
                                        const ReferenceConfig& config, const json& scene_document,
                                        logging::RunLog& log) {
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(checkpoints))
-    if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
-      files.push_back(e.path());
-  std::sort(files.rbegin(), files.rend());
+  std::vector<fs::path> files = reference_checkpoint_files(checkpoints);
+  std::reverse(files.begin(), files.end());
   for (const fs::path& f : files) {
     try {
       ReferenceState st = read_reference_checkpoint(f);
@@ -480,11 +488,7 @@ class ReferenceRun {
     on_root([&] {
       const fs::path file = checkpoints_ / reference_checkpoint_name(st.step);
       write_reference_checkpoint(file, st);
-      std::vector<fs::path> files;
-      for (const auto& e : fs::directory_iterator(checkpoints_))
-        if (e.path().extension() == ".h5" && e.path().filename().string().starts_with("ref_"))
-          files.push_back(e.path());
-      std::sort(files.begin(), files.end());
+      const std::vector<fs::path> files = reference_checkpoint_files(checkpoints_);
       const std::size_t keep = static_cast<std::size_t>(std::max(1, scene_.checkpoint.keep));
       for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
       log_->info("checkpoint {} at t = {}", file.filename().string(), st.time);
