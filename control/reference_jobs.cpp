@@ -32,6 +32,11 @@ JobState parse_job_state(const std::string& name) {
   throw std::runtime_error("job.json: unknown state '" + name + "'");
 }
 
+bool allows(JobState state, std::string_view verb) {
+  const std::vector<std::string_view> verbs = job_actions(state);
+  return std::ranges::find(verbs, verb) != verbs.end();
+}
+
 std::shared_ptr<spdlog::logger> references_log() {
   return logging::console("references");
 }
@@ -107,6 +112,15 @@ spectral::ReferenceRunResult run_rendered_reference(const RunSpec& spec, const j
   sink.close(true);
   if (!sink.error().empty()) throw std::runtime_error("rendering: " + sink.error());
   return result;
+}
+
+std::vector<std::string_view> job_actions(JobState state) {
+  const bool active = state == JobState::Queued || state == JobState::Running;
+  std::vector<std::string_view> verbs;
+  if (active) verbs.push_back("stop");
+  if (state == JobState::Stopped || state == JobState::Failed) verbs.push_back("resume");
+  if (!active) verbs.push_back("delete");
+  return verbs;
 }
 
 std::string_view job_state_name(JobState state) {
@@ -314,7 +328,7 @@ void ReferenceJobs::resume(const std::string& id) {
   std::unique_lock lock(mutex_);
   const std::shared_ptr<Job> job = find(id);
   if (shut_down_) throw StateError("the server is shutting down");
-  if (job->state != JobState::Stopped && job->state != JobState::Failed)
+  if (!allows(job->state, "resume"))
     throw StateError("reference job " + id + " is " + std::string(job_state_name(job->state)) +
                      ": only a stopped or failed job resumes");
   job->state = JobState::Queued;
@@ -332,7 +346,7 @@ void ReferenceJobs::remove(const std::string& id) {
   {
     std::lock_guard lock(mutex_);
     const std::shared_ptr<Job> job = find(id);
-    if (job->state == JobState::Queued || job->state == JobState::Running)
+    if (!allows(job->state, "delete"))
       throw StateError("reference job " + id + " is " + std::string(job_state_name(job->state)) +
                        ": stop it first");
     fs::create_directories(trash.parent_path());

@@ -36,6 +36,9 @@ spectral::ReferenceRunResult run_rendered_reference(const RunSpec& spec,
 /// queued → running → done | stopped | failed; stopped or failed → queued again (resume).
 enum class JobState { Queued, Running, Done, Stopped, Failed };
 std::string_view job_state_name(JobState state);
+/// What a job in `state` accepts: "stop" (queued or running), "resume" (stopped or failed) and
+/// "delete" (neither queued nor running). ReferenceJobs refuses the others by the same rule.
+std::vector<std::string_view> job_actions(JobState state);
 
 /// What a client asks for: the reference of run `run`'s flow, its grid and CFL number (the
 /// run's scene's reference section when not given), or only its estimate (`dry_run`).

@@ -216,35 +216,53 @@ void Run::Impl::join_solver() {
   if (thread.joinable() && thread.get_id() != std::this_thread::get_id()) thread.join();
 }
 
-void Run::Impl::prepare_start_locked() {
-  refuse_if_retired();
+std::optional<std::string> Run::Impl::start_refusal(bool* continues) const {
+  if (retired) return "run " + id + " has been deleted";
   switch (state) {
     case RunState::Running:
     case RunState::Paused:
     case RunState::Queued:
-      throw StateError("run " + id + " is already " + std::string(run_state_name(state)));
+      return "run " + id + " is already " + std::string(run_state_name(state));
     case RunState::Stopped:
     case RunState::Failed:
     case RunState::Finished: {
       if (time >= spec.run.scene.end_time * (1.0 - 1e-12))
-        throw StateError("run " + id +
-                         " has reached time.end = " + sim::format_number(spec.run.scene.end_time) +
-                         "; raise 'time.end' to continue it");
+        return "run " + id +
+               " has reached time.end = " + sim::format_number(spec.run.scene.end_time) +
+               "; raise 'time.end' to continue it";
       // A run that has stepped continues from a checkpoint and never silently starts again at
       // t = 0 (that would overwrite its time series and frames); one that never stepped (stopped
       // while created, queued or packing) starts afresh.
       const bool has_checkpoint =
           start_checkpoint || !io::list_checkpoints(directory / "checkpoints").empty();
       if (step > 0 && !has_checkpoint)
-        throw StateError("run " + id + " stepped to t = " + sim::format_number(time) +
-                         " but has no checkpoint to continue from (its scene writes none); "
-                         "create a new run");
-      continue_from_checkpoint = step > 0 || has_checkpoint;
-      break;
+        return "run " + id + " stepped to t = " + sim::format_number(time) +
+               " but has no checkpoint to continue from (its scene writes none); create a new run";
+      if (continues) *continues = step > 0 || has_checkpoint;
+      return std::nullopt;
     }
     case RunState::Created:
       break;
   }
+  return std::nullopt;
+}
+
+void Run::Impl::prepare_start_locked() {
+  refuse_if_retired();
+  bool continues = continue_from_checkpoint;
+  if (auto refusal = start_refusal(&continues)) throw StateError(*refusal);
+  continue_from_checkpoint = continues;
+}
+
+std::vector<std::string_view> Run::Impl::actions_locked() const {
+  std::vector<std::string_view> verbs;
+  if (retired) return verbs;
+  if (!start_refusal(nullptr)) verbs.push_back("start");
+  if (state == RunState::Running) verbs.push_back("pause");
+  if (state == RunState::Paused) verbs.push_back("resume");
+  if (!is_terminal(state)) verbs.push_back("stop");
+  if (state == RunState::Created || is_terminal(state)) verbs.push_back("delete");
+  return verbs;
 }
 
 void Run::Impl::start_locked() {
@@ -428,6 +446,7 @@ RunStatus Run::status() const {
   s.analysis_dropped = r.analysis_dropped;
   s.frames_rendered = r.frames_rendered;
   s.frames_skipped = r.frames_skipped;
+  s.actions = r.actions_locked();
   return s;
 }
 

@@ -20,6 +20,7 @@
 #include <span>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -124,6 +125,10 @@ struct RunStatus {
   std::optional<MetricsSample> latest;
   std::uint64_t analysis_published = 0, analysis_dropped = 0, frames_rendered = 0;
   std::uint64_t frames_skipped = 0;  // analysis frames nobody needed an image of
+  /// The transitions the run accepts now, by the same rules that refuse the others: a subset
+  /// of "start", "pause", "resume", "stop", "delete" (resuming a stopped run is a start and is
+  /// listed as "start"), so that a client offers exactly these.
+  std::vector<std::string_view> actions;
 };
 
 /// Receives a run's products. Called from the solver, analysis or render thread, and on_state

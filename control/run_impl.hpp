@@ -148,6 +148,11 @@ struct Run::Impl {
 
   // Transitions; the caller holds transition_mutex (and not `mutex`).
   void prepare_start_locked();  // checks a start or queueing is allowed; caller holds `mutex`
+  /// Why a start (or queueing) is refused now, nullopt if it is allowed; sets *continues to
+  /// whether it would continue from a checkpoint. Caller holds `mutex`.
+  std::optional<std::string> start_refusal(bool* continues) const;
+  /// The transitions the run accepts now (RunStatus::actions); caller holds `mutex`.
+  std::vector<std::string_view> actions_locked() const;
   void start_locked();
   void stop_locked(const std::string& why);
   void join_solver();

@@ -55,6 +55,7 @@ nlohmann::json reference_job_json(const control::ReferenceJobStatus& job) {
   return {{"id", job.id},
           {"run", job.run},
           {"state", control::job_state_name(job.state)},
+          {"actions", control::job_actions(job.state)},
           {"error", job.error},
           {"time", job.time},
           {"end_time", job.end_time},
@@ -88,6 +89,7 @@ nlohmann::json run_summary_json(const control::Run& run, const control::RunStatu
           {"steps_per_second", status.steps_per_second},
           {"wall_seconds", status.wall_seconds},
           {"phase", status.phase},
+          {"actions", status.actions},
           {"ranks", run.ranks()}};
 }
 

@@ -237,12 +237,17 @@ TEST(RunControl, RefusesADirectoryThatHoldsARun) {
 TEST(RunControl, PauseHoldsTheStepAndResumeContinues) {
   const auto dir = fresh_directory("pause");
   control::Run run("r", parse_run_spec(tiny_scene(50.0)), dir);
+  using Verbs = std::vector<std::string_view>;
+  // The actions a client is offered are exactly the transitions that do not throw.
+  EXPECT_EQ(run.status().actions, (Verbs{"start", "stop", "delete"}));
   EXPECT_THROW(run.pause(), StateError);  // created
   run.start();
+  EXPECT_EQ(run.status().actions, (Verbs{"pause", "stop"}));
   EXPECT_THROW(run.start(), StateError);
   ASSERT_TRUE(eventually([&] { return run.status().step > 5; }));
   run.pause();
   EXPECT_EQ(run.status().state, RunState::Paused);
+  EXPECT_EQ(run.status().actions, (Verbs{"resume", "stop"}));
   EXPECT_THROW(run.pause(), StateError);
   ASSERT_TRUE(eventually([&] { return run.status().holding; }));  // the step in flight ended
   const std::uint64_t held = run.status().step;
@@ -253,7 +258,10 @@ TEST(RunControl, PauseHoldsTheStepAndResumeContinues) {
   ASSERT_TRUE(eventually([&] { return run.status().step > held + 5; }));
   run.stop();
   EXPECT_EQ(run.status().state, RunState::Stopped);
+  EXPECT_EQ(run.status().actions, (Verbs{"start", "delete"}));
   EXPECT_THROW(run.stop(), StateError);
+  run.retire();
+  EXPECT_TRUE(run.status().actions.empty());
   // The stop wrote a checkpoint of the state it stopped at.
   const auto files = io::list_checkpoints(dir / "checkpoints");
   ASSERT_FALSE(files.empty());
@@ -558,6 +566,15 @@ TEST(RunManager, CreateRequestsAreValidatedBeforeAnythingIsCreated) {
 
 // The spectral references a service computes (ReferenceJobs): one worker, jobs in order, stop
 // with a checkpoint and resume from it, admission by memory, requests refused naming the key.
+TEST(ReferenceJobs, OfferTheActionsTheirStateAccepts) {
+  using Verbs = std::vector<std::string_view>;
+  EXPECT_EQ(control::job_actions(control::JobState::Queued), (Verbs{"stop"}));
+  EXPECT_EQ(control::job_actions(control::JobState::Running), (Verbs{"stop"}));
+  EXPECT_EQ(control::job_actions(control::JobState::Stopped), (Verbs{"resume", "delete"}));
+  EXPECT_EQ(control::job_actions(control::JobState::Failed), (Verbs{"resume", "delete"}));
+  EXPECT_EQ(control::job_actions(control::JobState::Done), (Verbs{"delete"}));
+}
+
 TEST(ReferenceJobs, ComputesStopsResumesAndAdmitsJobs) {
   const auto data = fresh_directory("reference_jobs");
   ReferenceRequest grid;

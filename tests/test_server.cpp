@@ -125,6 +125,7 @@ TEST(Server, CreateListGetRun) {
   const std::string id = summary["id"];
   EXPECT_EQ(created.header("location"), "/api/runs/" + id);
   EXPECT_EQ(summary["state"], "created");
+  EXPECT_EQ(summary["actions"], json({"start", "stop", "delete"}));
   EXPECT_EQ(summary["name"], "first");
   EXPECT_EQ(summary["case"], "tgv2d");
   EXPECT_EQ(summary["dimension"], 2);
@@ -253,6 +254,7 @@ TEST(Server, EveryStateTransitionAndItsIllegalVariants) {
   r = action(id, "pause");
   ASSERT_EQ(r.status, 200) << r.body;
   EXPECT_EQ(r.body_json()["state"], "paused");
+  EXPECT_EQ(r.body_json()["actions"], json({"resume", "stop"}));
   expect_error(action(id, "pause"), 409);
   expect_error(action(id, "start"), 409);
   std::this_thread::sleep_for(100ms);

@@ -248,8 +248,12 @@ TEST(ServiceFaults, ARunWithoutACheckpointRefusesToContinue) {
   sphles::control::Run run("r", sphles::control::parse_run_spec(tiny_scene(0.05)), dir);
   ASSERT_EQ(run.run_here(), sphles::control::RunState::Finished);
   ASSERT_EQ(sphles::io::list_checkpoints(dir / "checkpoints").size(), 1u);
-  fs::remove_all(dir / "checkpoints");
+  using Verbs = std::vector<std::string_view>;
+  EXPECT_EQ(run.status().actions, Verbs{"delete"});  // time.end reached
   run.apply_changes({{"time", {{"end", 1.0}}}});
+  EXPECT_EQ(run.status().actions, (Verbs{"start", "delete"}));
+  fs::remove_all(dir / "checkpoints");
+  EXPECT_EQ(run.status().actions, Verbs{"delete"});  // no checkpoint to continue from
   try {
     run.start();
     FAIL() << "a run without checkpoints started again";
