@@ -165,6 +165,20 @@ async function pollRuns() {
   }
 }
 
+/** Calls `select(id)` when a run's item is clicked and `compare(id, on)` when its compare box is
+ *  ticked or cleared: one listener each on the list, whose items renderRunList keeps or adds. */
+function listenToRunList(select, compare) {
+  const list = $('run-list');
+  list.addEventListener('click', (e) => {
+    const button = /** @type {Element} */ (e.target).closest('button.run-item');
+    if (button) select(button.closest('li').dataset.id);
+  });
+  list.addEventListener('change', (e) => {
+    const box = /** @type {HTMLInputElement} */ (e.target);
+    if (box.matches('.compare input')) compare(box.closest('li').dataset.id, box.checked);
+  });
+}
+
 function renderRunList() {
   const list = $('run-list');
   $('run-list-empty').hidden = app.runs.length > 0;
@@ -179,8 +193,6 @@ function renderRunList() {
           <progress max="1" value="0"></progress>
           <span class="run-meta muted small"></span></button>
         <label class="compare small muted" title="overlay this run's eᵥ(t), ε(t) and E(k) on the selected run's plots"><input type="checkbox"> compare</label>`;
-      li.querySelector('button').addEventListener('click', () => selectRun(run.id));
-      li.querySelector('.compare input').addEventListener('change', (e) => toggleCompared(run.id, e.target.checked));
     }
     li.querySelector('.compare input').checked = app.compared.has(run.id);
     const button = li.querySelector('button');
@@ -1607,6 +1619,7 @@ function main() {
   }
   $('token').value = getToken();
   $('token-form').addEventListener('submit', onTokenSave);
+  listenToRunList(selectRun, toggleCompared);
   $('create-form').addEventListener('submit', onCreate);
   $('create-estimate').addEventListener('click', onEstimate);
   $('btn-clone').addEventListener('click', cloneSelectedRun);
