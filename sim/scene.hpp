@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -20,10 +21,25 @@
 
 namespace sphles::sim {
 
+/// A scene (or request) that does not describe a valid run. `field` is the dotted key at fault
+/// ("time.end"; "(top level)" or "(body)" for the document as a whole), what() the whole message,
+/// which names it too, so that a caller reports the field without reading the text.
 class SceneError : public std::runtime_error {
  public:
-  using std::runtime_error::runtime_error;
+  SceneError(std::string field, const std::string& message)
+      : std::runtime_error(message), field_(std::move(field)) {}
+  /// The field is unknown to the thrower. Being replaced by the form above at every site.
+  explicit SceneError(const std::string& message) : std::runtime_error(message) {}
+  const std::string& field() const noexcept { return field_; }
+
+ private:
+  std::string field_;
 };
+
+/// Throws SceneError for `field` with the message "scene: 'field' <reason>".
+[[noreturn]] inline void throw_scene_error(const std::string& field, const std::string& reason) {
+  throw SceneError(field, "scene: '" + field + "' " + reason);
+}
 
 enum class CaseType { TaylorGreen3D, TaylorGreen2D, Kolmogorov2D };
 
