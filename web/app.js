@@ -7,7 +7,7 @@
 
 import { api, getToken, setToken } from './api.js';
 import { plottingAvailable } from './charts.js';
-import { ACTIVE, $, app, showStatus } from './state.js';
+import { $, app, showStatus, isActive } from './state.js';
 import { toggleCompared } from './plots.js';
 import { onScrub, goLive } from './frames.js';
 import { onApplyParameters, resetParamForm } from './live_parameters.js';
@@ -63,7 +63,7 @@ function main() {
   loadPresets();
   pollRuns();
   setInterval(() => {
-    if (!document.hidden && app.summary && ACTIVE.has(app.summary.state)) refreshLog();
+    if (!document.hidden && isActive(app.summary)) refreshLog();
   }, LOG_POLL_MS);
 }
 

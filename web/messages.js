@@ -20,12 +20,16 @@ export function onStreamMessage(id, m) {
       // failed meanwhile sends no 'state' message to it) are read now.
       refreshLog();
       break;
-    case 'state':
-      mergeSummary({ id, state: m.state, reason: m.reason ?? '' });
+    case 'state': {
+      // The message lists no actions: those of the state before are void until the summary of
+      // the new one arrives with the run list asked for now (pollSoon).
+      const actions = m.state === app.summary?.state ? {} : { actions: [] };
+      mergeSummary({ id, state: m.state, reason: m.reason ?? '', ...actions });
       pollSoon();
       refreshLog();
       refreshFiles();
       break;
+    }
     case 'metrics':
       addSamples(Array.isArray(m.samples) ? m.samples : []);
       break;
@@ -38,6 +42,7 @@ export function onStreamMessage(id, m) {
     case 'changed':
       showStatus('param-status', `Changed: ${(m.changed ?? []).join(', ') || 'nothing'}.`, 'ok');
       refreshLog();
+      pollSoon();  // the actions may change with it (a run at its time.end starts once it is later)
       break;
     case 'error':
       showStatus('param-status', errorText(new ApiError(m.error?.status ?? 0, m.error?.message ?? 'error', m.error?.field)), 'error');

@@ -4,11 +4,10 @@
 
 import { api } from './api.js';
 import { formatNumber } from './charts.js';
-import { $, app, setText, showStatus, errorText, getPath, fmtBytes } from './state.js';
+import { $, app, setText, showStatus, errorText, getPath, fmtBytes, allows, isActive } from './state.js';
 import { scheduleRedraw } from './plots.js';
 
 const REFERENCE_POLL_MS = 2000;  // a reference job's progress while it is queued or running
-const REFERENCE_ACTIVE = new Set(['queued', 'running']);
 
 /** The resolved scales against the reference run of the flow, at most every 2 s of wall time. */
 export async function loadResolved(id) {
@@ -134,11 +133,11 @@ export async function onComputeReference(event) {
   } catch (e) {
     showStatus('reference-status', errorText(e), 'error');
   } finally {
-    button.disabled = REFERENCE_ACTIVE.has(app.referenceJob?.state);  // one job of a run at a time
+    button.disabled = isActive(app.referenceJob);  // one job of a run at a time
   }
 }
 
-/** Stop a queued or running job (it writes a checkpoint), resume a stopped or failed one. */
+/** Stops the job (it writes a checkpoint) or resumes it, whichever the server accepts now. */
 export async function onToggleReference() {
   const id = app.selectedId;
   const job = app.referenceJob;
@@ -146,7 +145,7 @@ export async function onToggleReference() {
   const button = $('reference-toggle');
   button.disabled = true;
   try {
-    const next = await api.referenceAction(job.id, REFERENCE_ACTIVE.has(job.state) ? 'stop' : 'resume');
+    const next = await api.referenceAction(job.id, allows(job, 'stop') ? 'stop' : 'resume');
     if (id === app.selectedId) followReferenceJob(id, next);
   } catch (e) {
     showStatus('reference-status', errorText(e), 'error');
@@ -155,13 +154,13 @@ export async function onToggleReference() {
   }
 }
 
-/** Shows a job of the selected run's flow, polls it while it is queued or running, and shows the
- *  resolved scales once it is done. */
+/** Shows a job of the selected run's flow, polls it while it is under way (queued or running),
+ *  and shows the resolved scales once it is done. */
 function followReferenceJob(id, job) {
   clearTimeout(app.referenceJobTimer);
   app.referenceJob = job;
   showReferenceJob(job);
-  if (REFERENCE_ACTIVE.has(job.state)) {
+  if (isActive(job)) {
     app.referenceJobTimer = setTimeout(async () => {
       const next = await api.referenceJob(job.id).catch((e) => {
         showStatus('reference-status', errorText(e), 'error');
@@ -176,13 +175,14 @@ function followReferenceJob(id, job) {
 
 function showReferenceJob(job) {
   $('reference-form').dataset.state = job.state;
-  $('reference-compute').disabled = REFERENCE_ACTIVE.has(job.state);
+  $('reference-compute').disabled = isActive(job);
   const progress = $('reference-progress');
   progress.hidden = job.state !== 'running';
   progress.value = job.progress;
   const toggle = $('reference-toggle');
-  toggle.hidden = job.state === 'done';
-  toggle.textContent = REFERENCE_ACTIVE.has(job.state) ? 'Stop' : 'Resume';
+  // Stop or Resume, as the server accepts them now (ReferenceJob.actions).
+  toggle.hidden = !allows(job, 'stop') && !allows(job, 'resume');
+  toggle.textContent = allows(job, 'stop') ? 'Stop' : 'Resume';
   const at = `t = ${formatNumber(job.time)} / ${formatNumber(job.end_time)} s, step ${job.step}`;
   const texts = {
     queued: [`Reference ${job.id} waits for the job before it.`, ''],

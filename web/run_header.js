@@ -1,22 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The selected run's header: its name, state, progress, timings and which control buttons its
-// state allows; its summary merged from the list, the stream and the answers to actions.
+// The selected run's header: its name, state, progress, timings and the control buttons the
+// server accepts now; its summary merged from the list, the stream and the answers to actions.
 
 import { formatNumber } from './charts.js';
-import { IMAGE_FIELDS, $, app, setText, fmtSeconds, finite } from './state.js';
+import { IMAGE_FIELDS, $, app, setText, fmtSeconds, allows, finite } from './state.js';
 import { fillParamForm } from './live_parameters.js';
 
-// Which buttons each state allows (control/run.hpp: created/stopped → start, running → pause,
-// paused → resume, anything not terminal → stop; a run that is not active can be deleted).
-const ALLOWED = {
-  created: ['start', 'stop', 'delete'],
-  queued: ['stop'],
-  running: ['pause', 'stop'],
-  paused: ['resume', 'stop'],
-  stopped: ['start', 'delete'],
-  finished: ['delete'],
-  failed: ['delete'],
-};
 // What a running run is doing before its first step (RunSummary.phase); nothing once it steps.
 const PHASE_TEXT = {
   packing: 'packing the initial lattice…',
@@ -73,9 +62,9 @@ export function renderHeader() {
   setText('run-eta', s.state === 'running' ? fmtSeconds(estimateRemaining(s)) : '–');
   setText('run-case', `${s.case ?? '–'}${s.dimension ? ` ${s.dimension}D` : ''}${s.particles_per_side ? `, N = ${s.particles_per_side}${s.dimension === 2 ? '²' : '³'}` : ''}${s.ranks > 1 ? `, ${s.ranks} MPI ranks` : ''}`);
   $('btn-clone').disabled = !app.detail;
-  const allowed = ALLOWED[s.state] ?? [];
+  // The buttons the server would accept now (RunSummary.actions).
   for (const b of document.querySelectorAll('.controls button[data-action]'))
-    b.disabled = app.busy || !allowed.includes(b.dataset.action);
+    b.disabled = app.busy || !allows(s, b.dataset.action);
 }
 
 /** Wall seconds to the end time at the rate of the last minute of stepping (simulated time per

@@ -4,7 +4,7 @@
 
 import { api, cancelRunRequests, getToken } from './api.js';
 import { RunStream } from './stream.js';
-import { IMAGE_FIELDS, ACTIVE, $, app, setText, showStatus, isCancelled, errorText } from './state.js';
+import { IMAGE_FIELDS, $, app, setText, showStatus, isCancelled, errorText, isActive } from './state.js';
 import { ensureCharts, scheduleRedraw, loadReference } from './plots.js';
 import { onImage, addFrames, renderFrames, showLatestSavedFrames } from './frames.js';
 import { renderRunList } from './runs.js';
@@ -36,7 +36,7 @@ export async function pollRuns() {
       // On opening the page only: the run the address names, else the newest active one.
       const fromHash = new URLSearchParams(location.hash.slice(1)).get('run');
       const pick = app.runs.find((r) => r.id === fromHash) ??
-        [...app.runs].reverse().find((r) => ACTIVE.has(r.state)) ?? app.runs[app.runs.length - 1];
+        [...app.runs].reverse().find(isActive) ?? app.runs[app.runs.length - 1];
       selectRun(pick.id);
     }
   } catch (e) {

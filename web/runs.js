@@ -6,6 +6,7 @@
 import { api } from './api.js';
 import { formatNumber } from './charts.js';
 import { $, app } from './state.js';
+import { mergeSummary } from './run_header.js';
 
 /** Calls `select(id)` when a run's item is clicked and `compare(id, on)` when its compare box is
  *  ticked or cleared: one listener each on the list, whose items renderRunList keeps or adds. */
@@ -57,13 +58,16 @@ export function renderRunList() {
 
 let pollSoonTimer = null;
 export function pollSoon() {
-  // A state change also changes the run list; refresh it without waiting for the next poll.
+  // A state change also changes the run list, and the selected run's actions; refresh them
+  // without waiting for the next poll.
   if (pollSoonTimer) return;
   pollSoonTimer = setTimeout(async () => {
     pollSoonTimer = null;
     try {
       app.runs = await api.runs();
       renderRunList();
+      const selected = app.runs.find((r) => r.id === app.selectedId);
+      if (selected) mergeSummary(selected);
     } catch {
       // the regular poll reports the connection state
     }

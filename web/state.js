@@ -6,7 +6,6 @@
 import { ApiError } from './api.js';
 
 export const IMAGE_FIELDS = ['omega2', 'tau_sfs'];  // the live images the page shows
-export const ACTIVE = new Set(['created', 'queued', 'running', 'paused']);
 
 export const $ = (id) => document.getElementById(id);
 
@@ -85,6 +84,17 @@ export function fmtSeconds(s) {
   if (s < 120) return `${s.toFixed(1)} s`;
   if (s < 7200) return `${(s / 60).toFixed(1)} min`;
   return `${(s / 3600).toFixed(2)} h`;
+}
+
+/** Whether the server accepts `verb` for a run or a reference job now: its `actions`
+ *  (RunSummary.actions, ReferenceJob.actions), listed by the rules that refuse the others. */
+export function allows(item, verb) {
+  return Array.isArray(item?.actions) && item.actions.includes(verb);
+}
+
+/** A run or reference job under way, which the page polls: one the server would stop. */
+export function isActive(item) {
+  return allows(item, 'stop');
 }
 
 export function finite(v) {
