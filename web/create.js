@@ -5,12 +5,11 @@
 import { api } from './api.js';
 import { formatNumber } from './charts.js';
 import {
-  IMAGE_FIELDS, $, app, showStatus, errorText, getPath, setPath, fmtDuration, fmtBytes, readInput,
+  $, app, showStatus, errorText, getPath, setPath, fmtDuration, fmtBytes, readInput,
 } from './state.js';
 import { renderRunList } from './runs.js';
 import { selectRun } from './run_view.js';
 
-const LIVE_PRODUCTS = ['energy', 'spectrum', 'vorticity', 'slices', 'sfs_stats'];
 /** Labels of the analysis products the form offers (the names come from the scene schema). */
 const PRODUCT_LABELS = {
   energy: 'energy, dissipation',
@@ -134,10 +133,12 @@ function buildCreateRequest() {
     if (!products.length) throw new Error("'analysis.products': choose at least one product for live analysis");
     patch.analysis = { every, products };
     if (products.includes('slices')) {
-      // The live images are the slices rendered: ω² and |τ_SFS| beside what the preset slices.
-      const sliceFields = new Set([...(getPath(preset.scene, 'analysis.slice.fields') ?? []), ...IMAGE_FIELDS]);
-      patch.analysis.slice = { fields: [...sliceFields] };
-      patch.render = { fields: IMAGE_FIELDS, combined: false };
+      // The live images are the slices rendered: the fields the server renders live, sliced
+      // beside what the preset slices.
+      const rendered = liveDefault(preset, 'render.fields');
+      const sliced = getPath(preset.scene, 'analysis.slice.fields') ?? [];
+      patch.analysis.slice = { fields: [...new Set([...sliced, ...rendered])] };
+      patch.render = { fields: rendered, combined: false };
     }
   }
   const invalid = sceneSchemaError(mergePatch(preset.scene ?? {}, patch));
@@ -242,9 +243,20 @@ export async function onEstimate() {
 
 // ---------------------------------------------------------------- scene schema
 
-/** The products a preset's live analysis starts with: the live ones and the preset's own. */
+/**
+ * The server's live defaults at `path` of a preset's scene (control/run_manager.cpp,
+ * with_live_defaults): GET /api/presets gives each preset's whole scene with them. A clone has
+ * its run's scene, which may have none (a run made without live analysis): then the presets'.
+ */
+function liveDefault(preset, path) {
+  const own = getPath(preset?.scene, path);
+  if (Array.isArray(own) && own.length) return own;
+  return getPath(app.presets.find((p) => !p.clone)?.scene, path) ?? [];
+}
+
+/** The products a preset's live analysis starts with: the server's live ones with the preset's. */
 function defaultProducts(preset) {
-  return new Set([...(getPath(preset?.scene, 'analysis.products') ?? []), ...LIVE_PRODUCTS]);
+  return new Set(liveDefault(preset, 'analysis.products'));
 }
 
 /** The live-analysis fields of the form follow its *Live analysis* check box. */

@@ -5,7 +5,9 @@
 
 import { ApiError } from './api.js';
 
-export const IMAGE_FIELDS = ['omega2', 'tau_sfs'];  // the live images the page shows
+// The page's image panels (index.html: img-FIELD, cap-FIELD); the create form takes the fields
+// the server renders live from its presets.
+export const IMAGE_FIELDS = ['omega2', 'tau_sfs'];
 
 export const $ = (id) => document.getElementById(id);
 
