@@ -12,136 +12,18 @@
 #include <stdexcept>
 
 #include "io/checkpoint.hpp"
-#include "io/collective_file.hpp"
 #include "io/hdf5_file.hpp"
-#include "io/particle_snapshot_collective.hpp"
+#include "io/particle_snapshot_format.hpp"
 
 namespace sphles::io {
 
 namespace {
 
 using detail::Handle;
-using detail::write_scalar_attribute;
-using detail::write_string_attribute;
-
-/// Rows [first, first + count) of a snapshot's datasets of `total` rows, in id order, and the
-/// data transfer properties they are written with (collective for MPI-IO).
-struct Rows {
-  int dimension = 3;
-  hsize_t first = 0;
-  hsize_t total = 0;
-  hid_t transfer = H5P_DEFAULT;
-  std::vector<std::uint64_t> id;
-  std::vector<double> position, velocity;  // count x 3 (z = 0 in 2D)
-  std::vector<double> mass, density, pressure;
-  std::vector<ParticleField> extra;
-  hsize_t count() const { return id.size(); }
-};
-
-/// The rows of the particles p[row_of[k]], k = 0, 1, ..., with ids first, first + 1, ...
-Rows rows_of(const sim::ParticleArrays& p, const std::vector<std::size_t>& row_of,
-             std::uint64_t first, std::uint64_t total, const std::vector<ParticleField>& extra) {
-  const std::size_t n = row_of.size();
-  Rows rows;
-  rows.dimension = p.dimension;
-  rows.first = first;
-  rows.total = total;
-  const auto reordered = [&](const std::vector<double>& values) {
-    std::vector<double> out(n);
-    for (std::size_t k = 0; k < n; ++k) out[k] = values[row_of[k]];
-    return out;
-  };
-  rows.id.resize(n);
-  std::iota(rows.id.begin(), rows.id.end(), first);
-  rows.position.assign(3 * n, 0.0);
-  rows.velocity.assign(3 * n, 0.0);
-  for (std::size_t k = 0; k < n; ++k)
-    for (int d = 0; d < p.dimension; ++d) {
-      rows.position[3 * k + static_cast<std::size_t>(d)] = p.position[d][row_of[k]];
-      rows.velocity[3 * k + static_cast<std::size_t>(d)] = p.velocity[d][row_of[k]];
-    }
-  rows.mass = reordered(p.mass);
-  rows.density = reordered(p.density);
-  rows.pressure = reordered(p.pressure);
-  for (const ParticleField& f : extra) rows.extra.push_back({f.name, f.units, reordered(f.values)});
-  return rows;
-}
-
-/// The dataset `name` of rows.total x `columns` entries (one column: a 1D dataset), this
-/// process' rows written; a process with none still takes part in a collective write.
-template <class T>
-void dataset(hid_t file, const std::string& name, hid_t type, const std::vector<T>& data,
-             hsize_t columns, const std::string& units, const std::string& label,
-             const Rows& rows) {
-  const int rank = columns == 1 ? 1 : 2;
-  const hsize_t dims[2] = {rows.total, columns};
-  const Handle space(H5Screate_simple(rank, dims, nullptr), H5Sclose);
-  // Every entry is written, so no fill value: through MPI-IO, HDF5 would write fill values
-  // when it allocates the dataset, and those writes are not ordered before the other
-  // processes' writes of their rows (a process' rows could be overwritten by fill values).
-  const Handle properties(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  const bool created = space.valid() && properties.valid() &&
-                       H5Pset_fill_time(properties.get(), H5D_FILL_TIME_NEVER) >= 0;
-  const Handle set(created ? H5Dcreate2(file, name.c_str(), type, space.get(), H5P_DEFAULT,
-                                        properties.get(), H5P_DEFAULT)
-                           : -1,
-                   H5Dclose);
-  const auto failed = [&] {
-    return CheckpointError(label + ": cannot write dataset '" + name + "'");
-  };
-  if (!set.valid()) throw failed();
-  if (rows.total > 0) {
-    const hsize_t start[2] = {rows.first, 0};
-    const hsize_t count[2] = {rows.count(), columns};
-    const hsize_t one[2] = {1, columns};
-    const Handle memory(H5Screate_simple(rank, rows.count() > 0 ? count : one, nullptr), H5Sclose);
-    const herr_t selected =
-        rows.count() > 0
-            ? H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, count, nullptr)
-            : std::min(H5Sselect_none(space.get()), H5Sselect_none(memory.get()));
-    if (!memory.valid() || selected < 0 ||
-        H5Dwrite(set.get(), type, memory.get(), space.get(), rows.transfer, data.data()) < 0)
-      throw failed();
-  }
-  write_string_attribute(set.get(), "units", units, label);
-}
-
-/// The whole snapshot under `root`: its attributes, then the datasets with `rows`. Every
-/// process of a collective write makes the same calls with the same attribute values.
-void write_contents(hid_t root, const Rows& rows, double time, std::uint64_t step,
-                    const SnapshotMetadata& metadata, const std::string& label) {
-  const bool three = rows.dimension == 3;
-  write_string_attribute(root, "schema", kParticleSnapshotSchema, label);
-  write_scalar_attribute(root, "schema_version", H5T_NATIVE_INT, kParticleSnapshotSchemaVersion,
-                         label);
-  write_string_attribute(root, "code_version", metadata.code_version, label);
-  write_scalar_attribute(root, "time", H5T_NATIVE_DOUBLE, time, label);
-  write_string_attribute(root, "time_units", "s", label);
-  write_scalar_attribute(root, "step", H5T_NATIVE_UINT64, step, label);
-  write_scalar_attribute(root, "dimension", H5T_NATIVE_INT, rows.dimension, label);
-  write_scalar_attribute(root, "num_particles", H5T_NATIVE_UINT64,
-                         static_cast<std::uint64_t>(rows.total), label);
-  write_string_attribute(root, "scene", metadata.scene_json, label);
-  dataset(root, "id", H5T_NATIVE_UINT64, rows.id, 1, "1", label, rows);
-  dataset(root, "position", H5T_NATIVE_DOUBLE, rows.position, 3, "m", label, rows);
-  dataset(root, "velocity", H5T_NATIVE_DOUBLE, rows.velocity, 3, "m/s", label, rows);
-  dataset(root, "mass", H5T_NATIVE_DOUBLE, rows.mass, 1, three ? "kg" : "kg/m", label, rows);
-  dataset(root, "density", H5T_NATIVE_DOUBLE, rows.density, 1, three ? "kg/m^3" : "kg/m^2", label,
-          rows);
-  dataset(root, "pressure", H5T_NATIVE_DOUBLE, rows.pressure, 1, "Pa", label, rows);
-  for (const ParticleField& f : rows.extra)
-    dataset(root, f.name, H5T_NATIVE_DOUBLE, f.values, 1, f.units, label, rows);
-}
-
-/// Throws unless every extra field has a value per particle.
-void check_fields(const std::vector<ParticleField>& extra, std::size_t n,
-                  const std::string& label) {
-  for (const ParticleField& f : extra)
-    if (f.values.size() != n)
-      throw CheckpointError(label + ": field '" + f.name + "' has " +
-                            std::to_string(f.values.size()) + " values for " + std::to_string(n) +
-                            " particles");
-}
+using particle_snapshot_format::check_fields;
+using particle_snapshot_format::Rows;
+using particle_snapshot_format::rows_of;
+using particle_snapshot_format::write_contents;
 
 /// row_of[k] = the array index of the particle with id k. Throws unless the ids are a
 /// permutation of 0..N-1.
@@ -238,55 +120,6 @@ void write_particle_snapshot(const std::filesystem::path& path, const sim::Parti
     image = file.finish();
   }
   detail::write_file_atomically(path, image, label);
-}
-
-std::uint64_t particle_snapshot_size_bound(std::uint64_t particles, std::size_t fields,
-                                           std::size_t metadata_bytes) {
-  // id, position and velocity (3 each), mass, density, pressure and the fields: 8 bytes each per
-  // particle, contiguous; a dataset's header and attributes < 4 kB; 1 % and 1 MiB of margin.
-  const std::uint64_t columns = 9 + fields;
-  const std::uint64_t raw = 8 * columns * particles + 4096 * (6 + fields) + 2 * metadata_bytes;
-  return raw + raw / 100 + (std::uint64_t{1} << 20);
-}
-
-void write_particle_snapshot_collective(MPI_Comm comm, const std::filesystem::path& path,
-                                        const sim::ParticleArrays& block, std::uint64_t first,
-                                        std::uint64_t total, double time, std::uint64_t step,
-                                        const std::vector<ParticleField>& extra,
-                                        const SnapshotMetadata& metadata) {
-  const std::string label = "snapshot '" + path.string() + "'";
-  int rank = 0;
-  MPI_Comm_rank(comm, &rank);
-  const auto fail = [&](const std::optional<std::string>& failure) {
-    detail::fail_agreed(comm, path, failure);
-  };
-  // The blocks must tile [0, total), each in id order.
-  const unsigned long long count = block.size();
-  unsigned long long held = 0;
-  MPI_Allreduce(&count, &held, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, comm);
-  fail(detail::agree(
-      comm, detail::attempt([&] {
-        check_fields(extra, block.size(), label);
-        if (held != total || first + count > total)
-          throw CheckpointError(label + ": the processes hold " + std::to_string(held) +
-                                " particles for " + std::to_string(total) + " (rank " +
-                                std::to_string(rank) + " holds [" + std::to_string(first) + ", " +
-                                std::to_string(first + count) + "))");
-        for (std::size_t k = 0; k < block.size(); ++k)
-          if (block.id[k] != first + k)
-            throw CheckpointError(label + ": rank " + std::to_string(rank) + " holds id " +
-                                  std::to_string(block.id[k]) + " at row " +
-                                  std::to_string(first + k) + " (its block is not in id order)");
-      })));
-  std::vector<std::size_t> identity(block.size());
-  std::iota(identity.begin(), identity.end(), std::size_t{0});
-  Rows rows = rows_of(block, identity, first, total, extra);
-  const std::uint64_t bound = particle_snapshot_size_bound(
-      total, extra.size(), metadata.scene_json.size() + metadata.code_version.size());
-  detail::write_collectively(comm, path, label, bound, [&](hid_t file, hid_t transfer) {
-    rows.transfer = transfer;
-    write_contents(file, rows, time, step, metadata, label);
-  });
 }
 
 void write_xdmf_series(const std::filesystem::path& path,
