@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "analysis/grid.hpp"
+#include "analysis/grid_shape.hpp"
 #include "sim/kernels.hpp"
 #include "sim/particles.hpp"
 

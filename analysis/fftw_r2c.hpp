@@ -11,9 +11,11 @@
 #include <mutex>
 #include <new>
 
-#include "analysis/spectrum.hpp"
-
 namespace sphles::analysis {
+
+/// FFTW's planner is not thread-safe: every plan made or destroyed in the program (here, in
+/// spectral/ and in par/) is made under this lock.
+std::unique_lock<std::mutex> fftw_planner_lock();
 
 class R2cPlan {
  public:

@@ -13,28 +13,11 @@
 #include <span>
 #include <vector>
 
+#include "analysis/grid_shape.hpp"
 #include "sim/kernels.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::analysis {
-
-struct Grid {
-  int dimension = 3;
-  int points_per_side = 0;  // M
-  double length = 0.0;      // L [m]
-
-  double spacing() const { return length / points_per_side; }
-  std::size_t size() const {
-    std::size_t n = 1;
-    for (int d = 0; d < dimension; ++d) n *= static_cast<std::size_t>(points_per_side);
-    return n;
-  }
-  std::size_t index(int i, int j, int k = 0) const {
-    const auto m = static_cast<std::size_t>(points_per_side);
-    return static_cast<std::size_t>(i) +
-           m * (static_cast<std::size_t>(j) + m * static_cast<std::size_t>(k));
-  }
-};
 
 /// Three components (2D fields use components 0 and 1) of a vector field on a grid.
 struct VectorField {

@@ -91,15 +91,6 @@ std::vector<std::size_t> slice_nodes(const Grid& grid, const SliceConfig& config
   return nodes;
 }
 
-Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config) {
-  Grid grid;
-  grid.dimension = snapshot.dimension();
-  grid.length = snapshot.box.length[0];
-  const long per_side = std::lround(grid.length / snapshot.particle_spacing);
-  grid.points_per_side = static_cast<int>(per_side) * config.grid_points_per_spacing;
-  return grid;
-}
-
 AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config) {
   return analyse(SnapshotPtr(std::shared_ptr<const Snapshot>(), &snapshot), config);
 }

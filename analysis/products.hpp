@@ -108,9 +108,6 @@ AnalysisFrame analyse(const Snapshot& snapshot, const AnalysisConfig& config);
 /// above refers to its argument without owning it: the frame must not outlive it).
 AnalysisFrame analyse(const SnapshotPtr& snapshot, const AnalysisConfig& config);
 
-/// Grid of the snapshot: M = grid_points_per_spacing * round(L / Δl) points per side.
-Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config);
-
 /// The grid node of every value of a slice (SliceProduct::values' order, u fastest): the plane
 /// of `config` nearest its position (3D), the whole grid (2D).
 std::vector<std::size_t> slice_nodes(const Grid& grid, const SliceConfig& config);

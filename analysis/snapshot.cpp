@@ -2,11 +2,11 @@
 #include "analysis/snapshot.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 #include <set>
 #include <stdexcept>
 
-#include "analysis/products.hpp"
-#include "analysis/writer.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::analysis {
@@ -80,6 +80,21 @@ ViewPoints view_points_at(const sim::ParticleArrays& p, std::span<const std::siz
   v.values.reserve(chosen.size());
   for (const std::size_t i : chosen) v.values.push_back(values[i]);
   return v;
+}
+
+Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config) {
+  Grid grid;
+  grid.dimension = snapshot.dimension();
+  grid.length = snapshot.box.length[0];
+  const long per_side = std::lround(grid.length / snapshot.particle_spacing);
+  grid.points_per_side = static_cast<int>(per_side) * config.grid_points_per_spacing;
+  return grid;
+}
+
+std::string timed_file_name(const std::string& prefix, double time, const std::string& extension) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "_t%.4f", time);
+  return prefix + buffer + extension;
 }
 
 bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file) {

@@ -213,6 +213,13 @@ class DistributedProducts {
 /// "mls" estimate's. A snapshot for products all served needs no particles.
 bool served_by_ranks(const AnalysisConfig& config, Product p, bool particle_file = false);
 
+/// Grid of the snapshot: M = grid_points_per_spacing * round(L / Δl) points per side.
+Grid analysis_grid(const Snapshot& snapshot, const AnalysisConfig& config);
+
+/// "{prefix}_t{time with 4 decimals}{extension}", e.g. E_t14.0000.csv: the name of a product's
+/// file of one analysis time in a run directory.
+std::string timed_file_name(const std::string& prefix, double time, const std::string& extension);
+
 /// Where the ranks write a snapshot's particle file (product "particles"): a run directory's
 /// snapshots/ and the metadata the file carries (RunDirectoryWriter::particle_target).
 struct ParticleFileTarget {

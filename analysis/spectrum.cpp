@@ -24,11 +24,6 @@ namespace sphles::analysis {
 
 namespace {
 
-std::mutex& fftw_planner_mutex() {
-  static std::mutex mutex;
-  return mutex;
-}
-
 int signed_wavenumber(int q, int m) {
   return 2 * q <= m ? q : q - m;
 }
@@ -57,10 +52,6 @@ void check_velocity(const VectorField& velocity) {
 }
 
 }  // namespace
-
-std::unique_lock<std::mutex> fftw_planner_lock() {
-  return std::unique_lock<std::mutex>(fftw_planner_mutex());
-}
 
 ShellSums empty_shell_sums(int dimension, int points_per_side) {
   if (dimension != 2 && dimension != 3)

@@ -56,10 +56,6 @@ void add_transform_planes(ShellSums& sums, const double* interleaved, int first_
 /// velocity components on a grid of side `length` (û = M^-n FFTW output, SPEC §5).
 EnergySpectrum spectrum_from_shell_sums(const ShellSums& sums, double length);
 
-/// FFTW's planner is not thread-safe: every plan made or destroyed in the program (here and in
-/// par/) is made under this lock.
-std::unique_lock<std::mutex> fftw_planner_lock();
-
 /// Σ_p E(k_p) Δk.
 double spectrum_energy(const EnergySpectrum& spectrum);
 

@@ -68,12 +68,6 @@ std::vector<std::map<std::string, std::string>> read_index(const std::filesystem
   return rows;
 }
 
-std::string timed_file_name(const std::string& prefix, double time, const std::string& extension) {
-  char buffer[64];
-  std::snprintf(buffer, sizeof buffer, "_t%.4f", time);
-  return prefix + buffer + extension;
-}
-
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
                std::size_t columns) {
   if (values.size() != rows * columns) throw std::invalid_argument("write_npy: shape mismatch");

@@ -24,9 +24,6 @@
 
 namespace sphles::analysis {
 
-/// "{prefix}_t{time with 4 decimals}{extension}", e.g. E_t14.0000.csv.
-std::string timed_file_name(const std::string& prefix, double time, const std::string& extension);
-
 /// The rows of a CSV index (header name → cell; sphles' indexes quote nothing). A missing file
 /// has no rows; a row shorter than the header (being appended) lacks the missing cells.
 std::vector<std::map<std::string, std::string>> read_index(const std::filesystem::path& path);

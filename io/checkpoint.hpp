@@ -11,29 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "io/checkpoint_data.hpp"
 #include "io/checkpoint_error.hpp"
 #include "io/hdf5_library.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::io {
-
-inline constexpr const char* kCheckpointSchema = "sphles-checkpoint";
-inline constexpr int kCheckpointSchemaVersion = 1;
-
-struct CheckpointMetadata {
-  std::string scene_json;  // the complete run configuration (scene + analysis), JSON text
-  std::string code_version;
-  std::string packing;  // provenance of the initial positions, free text
-};
-
-struct Checkpoint {
-  sim::SolverState state;
-  CheckpointMetadata metadata;
-};
-
-struct CheckpointWriteOptions {
-  int gzip_level = 0;  // 0 = no compression; 1-9 = gzip with byte shuffle
-};
 
 /// Writes `path` atomically: the file is assembled in memory, written to a temporary file in the
 /// same directory, fsync'ed, then renamed over `path`. A crash at any point leaves either the old

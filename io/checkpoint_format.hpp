@@ -11,7 +11,8 @@
 #include <string>
 #include <vector>
 
-#include "io/checkpoint.hpp"
+#include "io/checkpoint_data.hpp"
+#include "io/checkpoint_error.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::io::checkpoint_format {

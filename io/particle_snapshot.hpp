@@ -10,26 +10,10 @@
 #include <string>
 #include <vector>
 
+#include "io/particle_snapshot_data.hpp"
 #include "sim/particles.hpp"
 
 namespace sphles::io {
-
-inline constexpr const char* kParticleSnapshotSchema = "sphles-particles";
-/// Version 2: rows in id order with an `id` dataset, schema and code version attributes.
-inline constexpr int kParticleSnapshotSchemaVersion = 2;
-
-/// An extra per-particle scalar (τ_SFS norm, ν_t, ω², ...).
-struct ParticleField {
-  std::string name;
-  std::string units;
-  std::vector<double> values;  // in the particle arrays' order
-};
-
-struct SnapshotMetadata {
-  std::string scene_json = "{}";  // the run configuration, JSON text
-  std::string code_version = "unknown";
-  bool operator==(const SnapshotMetadata&) const = default;
-};
 
 /// Writes `path` atomically. Rows are in id order (row k holds the particle with id k, so the
 /// same row is the same particle in every snapshot of a run); the ids must be a permutation of

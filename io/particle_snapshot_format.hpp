@@ -10,7 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "io/particle_snapshot.hpp"
+#include "io/particle_snapshot_data.hpp"
+#include "sim/particles.hpp"
 
 namespace sphles::io::particle_snapshot_format {
 

@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "analysis/fftw_r2c.hpp"
 #include "analysis/spectrum.hpp"
 
 namespace sphles::spectral {
