@@ -9,7 +9,7 @@
 namespace sphles::analysis {
 
 using nlohmann::json;
-using sim::SceneError;
+using sim::throw_scene_error;
 
 namespace {
 
@@ -54,7 +54,7 @@ Enum parse_name(const std::array<std::pair<Enum, std::string_view>, N>& table,
     if (n == name) return value;
     valid += (valid.empty() ? "" : ", ") + std::string(n);
   }
-  throw SceneError("scene: '" + field + "' must be one of " + valid + ", got '" + name + "'");
+  throw_scene_error(field, "must be one of " + valid + ", got '" + name + "'");
 }
 
 }  // namespace
@@ -116,7 +116,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
         found = true;
       }
     if (!found)
-      throw SceneError("scene: 'analysis.slice.axis' must be one of x, y, z, got '" + axis + "'");
+      throw_scene_error("analysis.slice.axis", "must be one of x, y, z, got '" + axis + "'");
     s.number("position", c.slice.position);
     std::vector<std::string> fields;
     s.strings("fields", fields);
@@ -147,10 +147,10 @@ AnalysisConfig parse_analysis_config(const json* section) {
       for (std::size_t k = 0; k < fields.size(); ++k) {
         const std::string field = "analysis.grid_fields[" + std::to_string(k) + "]";
         if (fields[k] == "velocity") {
-          if (c.grid_velocity) throw SceneError("scene: '" + field + "' repeats 'velocity'");
+          if (c.grid_velocity) throw_scene_error(field, "repeats 'velocity'");
           c.grid_velocity = true;
         } else if (!c.grid_fields.insert(parse_name(kSliceFieldNames, fields[k], field)).second) {
-          throw SceneError("scene: '" + field + "' repeats '" + fields[k] + "'");
+          throw_scene_error(field, "repeats '" + fields[k] + "'");
         }
       }
     }
@@ -176,8 +176,8 @@ AnalysisConfig parse_analysis_config(const json* section) {
   r.number("spectrum_length_scale", c.spectrum_length_scale);
   r.reject_unknown();
   if (!c.products.empty() && !(c.every > 0.0))
-    throw SceneError("scene: 'analysis.every' must be > 0 when products are requested, got " +
-                     sim::format_number(c.every));
+    throw_scene_error("analysis.every", "must be > 0 when products are requested, got " +
+                                            sim::format_number(c.every));
   return c;
 }
 
@@ -221,7 +221,7 @@ json analysis_config_to_json(const AnalysisConfig& c) {
 
 RunConfig parse_run_config(const json& document) {
   if (!document.is_object())
-    throw SceneError("scene: '(top level)' must be an object, got " + sim::describe_type(document));
+    throw_scene_error("(top level)", "must be an object, got " + sim::describe_type(document));
   json solver_part = document;
   const json* analysis = nullptr;
   json analysis_section;
@@ -239,35 +239,33 @@ RunConfig parse_run_config(const json& document) {
   const bool implicit = config.scene.subfilter.model == sim::SubfilterModel::Implicit;
   if (implicit && config.analysis.wants(Product::Slices) &&
       config.analysis.slice.fields.contains(SliceField::EddyViscosity))
-    throw SceneError(
-        "scene: 'analysis.slice.fields' asks for nu_t, but 'subfilter.model' is implicit (no "
-        "eddy viscosity)");
+    throw_scene_error("analysis.slice.fields",
+                      "asks for nu_t, but 'subfilter.model' is implicit (no eddy viscosity)");
   if (implicit && config.analysis.wants(Product::Particles) &&
       config.analysis.particle_fields.contains(SliceField::EddyViscosity))
-    throw SceneError(
-        "scene: 'analysis.particle_fields' asks for nu_t, but 'subfilter.model' is implicit (no "
-        "eddy viscosity)");
+    throw_scene_error("analysis.particle_fields",
+                      "asks for nu_t, but 'subfilter.model' is implicit (no eddy viscosity)");
   if (implicit && config.analysis.wants(Product::Fields) &&
       config.analysis.grid_fields.contains(SliceField::EddyViscosity))
-    throw SceneError(
-        "scene: 'analysis.grid_fields' asks for nu_t, but 'subfilter.model' is implicit (no "
-        "eddy viscosity)");
+    throw_scene_error("analysis.grid_fields",
+                      "asks for nu_t, but 'subfilter.model' is implicit (no eddy viscosity)");
   if (config.analysis.wants(Product::Fields) && !config.analysis.grid_velocity &&
       config.analysis.grid_fields.empty())
-    throw SceneError("scene: 'analysis.grid_fields' is empty, but the product 'fields' is on");
+    throw_scene_error("analysis.grid_fields", "is empty, but the product 'fields' is on");
   // The local fits of the mls estimate reach R = fit_radius H around a point; the periodic box
   // must hold the fit's ball once: 2 R <= L, i.e. fit_radius D_K <= particles_per_side.
   const AnalysisConfig& a = config.analysis;
   if (a.enabled() && a.gridding.vorticity == VorticityEstimate::Mls &&
       a.gridding.fit_radius * config.scene.kernel_diameter_over_spacing >
           config.scene.particles_per_side)
-    throw SceneError(
-        "scene: 'analysis.gridding.fit_radius' must be at most 'particles_per_side' / "
+    throw_scene_error(
+        "analysis.gridding.fit_radius",
+        "must be at most 'particles_per_side' / "
         "'kernel.diameter_over_spacing' (" +
-        sim::format_number(config.scene.particles_per_side /
-                           config.scene.kernel_diameter_over_spacing) +
-        ") for the mls vorticity, so that the fit fits in the periodic box, got " +
-        sim::format_number(a.gridding.fit_radius));
+            sim::format_number(config.scene.particles_per_side /
+                               config.scene.kernel_diameter_over_spacing) +
+            ") for the mls vorticity, so that the fit fits in the periodic box, got " +
+            sim::format_number(a.gridding.fit_radius));
   return config;
 }
 

@@ -39,13 +39,15 @@ std::atomic<bool> g_stop{false};
 nlohmann::json reference_scene_document(const ReferenceOptions& options) {
   namespace fs = std::filesystem;
   if (options.restart.empty()) {
-    if (options.scene.empty()) throw sim::SceneError("SCENE or --restart DIR is required");
+    if (options.scene.empty()) throw sim::SceneError("", "SCENE or --restart DIR is required");
     return load_scene_document(options.scene, options.overrides);
   }
-  if (!options.scene.empty()) throw sim::SceneError("give either SCENE or --restart DIR, not both");
+  if (!options.scene.empty())
+    throw sim::SceneError("", "give either SCENE or --restart DIR, not both");
   const fs::path dir = options.restart;
   if (!fs::exists(dir / "scene.json"))
-    throw sim::SceneError("'" + dir.string() + "' holds no reference run (no scene.json)");
+    throw sim::SceneError(dir.string(),
+                          "'" + dir.string() + "' holds no reference run (no scene.json)");
   nlohmann::json document = sim::read_scene_file(dir / "scene.json");
   for (const std::string& a : options.overrides) sim::apply_override(document, a);
   return document;
@@ -74,9 +76,10 @@ bool reference_fits(const ReferenceOptions& options, const control::RunSpec& spe
         control::format_bytes(e.checkpoint_bytes).c_str(), e.steps, scene.end_time, config.cfl);
   if (!fits)
     throw sim::SceneError(
+        "reference.points_per_side",
         "'reference.points_per_side' = " + std::to_string(config.points_per_side) +
-        " needs about " + control::format_bytes(e.memory_bytes) + ", more than this machine's " +
-        control::format_bytes(machine));
+            " needs about " + control::format_bytes(e.memory_bytes) +
+            ", more than this machine's " + control::format_bytes(machine));
   return !options.dry_run;
 }
 
@@ -90,9 +93,9 @@ std::filesystem::path new_reference_directory(const ReferenceOptions& options,
           ? fs::path("reference-" + (scene.name.empty() ? std::string("run") : scene.name))
           : fs::path(options.out);
   if ((fs::exists(dir / "run.json") || fs::exists(dir / "checkpoints")) && !options.overwrite)
-    throw sim::SceneError("'" + dir.string() +
-                          "' already holds a run: continue it with --restart " + dir.string() +
-                          ", choose another --out, or pass --overwrite");
+    throw sim::SceneError(
+        dir.string(), "'" + dir.string() + "' already holds a run: continue it with --restart " +
+                          dir.string() + ", choose another --out, or pass --overwrite");
   if (options.overwrite && root)
     for (const char* outputs : {"checkpoints", "spectra", "slices", "stats", "frames"})
       fs::remove_all(dir / outputs);

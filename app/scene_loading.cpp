@@ -30,9 +30,10 @@ nlohmann::json load_scene_document(const std::string& scene_or_preset,
     // Neither a file nor a preset: say so, and which preset it may be a typo of.
     const std::optional<std::string> near =
         sim::closest_key(scene_or_preset, std::set<std::string>(presets.begin(), presets.end()));
-    throw sim::SceneError("'" + scene_or_preset + "' is neither a scene file nor a preset" +
-                          (near ? "; did you mean '" + *near + "'?" : std::string()) +
-                          " (see 'sphles presets')");
+    throw sim::SceneError(scene_or_preset,
+                          "'" + scene_or_preset + "' is neither a scene file nor a preset" +
+                              (near ? "; did you mean '" + *near + "'?" : std::string()) +
+                              " (see 'sphles presets')");
   } else {
     document = sim::read_scene_file(scene_or_preset);
   }

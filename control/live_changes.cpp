@@ -81,12 +81,9 @@ CheckedChange check_change(const json& before, const json& after) {
   try {
     change.spec = parse_run_spec(after);
   } catch (const sim::SceneError& e) {
-    // "scene: 'a.b' must ..." → field a.b.
-    std::string message = e.what();
-    std::string field = "(body)";
-    if (const auto open = message.find('\''); open != std::string::npos)
-      if (const auto close = message.find('\'', open + 1); close != std::string::npos)
-        field = message.substr(open + 1, close - open - 1);
+    // "scene: 'a.b' must ..." → field a.b, reason "must ...".
+    const std::string message = e.what();
+    const std::string field = e.field().empty() ? "(body)" : e.field();
     const std::string prefix = "scene: '" + field + "' ";
     throw ChangeError(field,
                       message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message);

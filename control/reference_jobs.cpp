@@ -60,8 +60,8 @@ void check_reference_key(const std::string& key, const json& value) {
   try {
     spectral::parse_reference_config(json{{"reference", {{key, value}}}});
   } catch (const SceneError&) {
-    throw SceneError("request: '" + key + "' must be " + schema_rule(key) + " (reference." + key +
-                     " in the scene schema), got " + value.dump());
+    throw SceneError(key, "request: '" + key + "' must be " + schema_rule(key) + " (reference." +
+                              key + " in the scene schema), got " + value.dump());
   }
 }
 
@@ -141,13 +141,14 @@ std::string_view job_state_name(JobState state) {
 
 ReferenceRequest parse_reference_request(const json& body) {
   if (!body.is_object())
-    throw SceneError("request: '(body)' must be a JSON object, got " + sim::describe_type(body));
+    throw SceneError("(body)",
+                     "request: '(body)' must be a JSON object, got " + sim::describe_type(body));
   ReferenceRequest request;
   for (const auto& [key, value] : body.items()) {
     if (key == "run") {
       if (!value.is_string() || value.get<std::string>().empty())
-        throw SceneError("request: 'run' must be a run id (a non-empty string), got " +
-                         value.dump());
+        throw SceneError(
+            "run", "request: 'run' must be a run id (a non-empty string), got " + value.dump());
       request.run = value.get<std::string>();
     } else if (key == "points_per_side") {
       check_reference_key(key, value);
@@ -157,16 +158,16 @@ ReferenceRequest parse_reference_request(const json& body) {
       request.cfl = value.get<double>();
     } else if (key == "dry_run") {
       if (!value.is_boolean())
-        throw SceneError("request: 'dry_run' must be true or false, got " +
-                         sim::describe_type(value));
+        throw SceneError("dry_run", "request: 'dry_run' must be true or false, got " +
+                                        sim::describe_type(value));
       request.dry_run = value.get<bool>();
     } else {
-      throw SceneError("request: unknown key '" + key +
-                       "' (valid: run, points_per_side, cfl, dry_run)");
+      throw SceneError(
+          key, "request: unknown key '" + key + "' (valid: run, points_per_side, cfl, dry_run)");
     }
   }
   if (request.run.empty())
-    throw SceneError("request: 'run' is required: the id of the run whose flow to compute");
+    throw SceneError("run", "request: 'run' is required: the id of the run whose flow to compute");
   return request;
 }
 
@@ -239,10 +240,11 @@ ReferencePlan ReferenceJobs::plan(json scene_document, const ReferenceRequest& r
     int enough = p.spec.reference.points_per_side;
     while (spectral::dealiased_max_wavenumber(enough) < forcing) enough += 2;
     throw SceneError(
+        "points_per_side",
         "request: 'points_per_side' = " + std::to_string(p.spec.reference.points_per_side) +
-        " keeps modes up to |m| = " + std::to_string(p.estimate.max_wavenumber) +
-        ", below the Kolmogorov forcing's wavenumber " + std::to_string(forcing) +
-        " (forcing.periods): take at least " + std::to_string(enough));
+            " keeps modes up to |m| = " + std::to_string(p.estimate.max_wavenumber) +
+            ", below the Kolmogorov forcing's wavenumber " + std::to_string(forcing) +
+            " (forcing.periods): take at least " + std::to_string(enough));
   }
   return p;
 }

@@ -97,6 +97,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   auto impl = std::make_unique<Impl>();
   json document;
   std::string source;  // where the stored document came from, for error messages
+  std::string file;    // the file `source` quotes, the field of a SceneError in the document
   if (checkpoint) {
     // A solver that reads its checkpoint on its ranks needs only the attributes here (no
     // process reads the whole file); one process validates all of it before it starts.
@@ -108,7 +109,8 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
       header = {c.metadata, io::CheckpointShape::of(c.state), c.state.step,
                 c.state.neighbour_builds};
     }
-    source = "checkpoint '" + checkpoint->string() + "'";
+    file = checkpoint->string();
+    source = "checkpoint '" + file + "'";
     try {
       document = json::parse(header.metadata.scene_json);
     } catch (const json::exception& e) {
@@ -122,7 +124,8 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     if (!std::filesystem::exists(scene))
       throw std::runtime_error("'" + directory.string() +
                                "' is not a run directory (no scene.json)");
-    source = "'" + scene.string() + "'";
+    file = scene.string();
+    source = "'" + file + "'";
     document = sim::read_scene_file(scene.string());
   }
   // Documents written before the packing cache became a program setting name it; it applied to
@@ -133,7 +136,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   try {
     stored = parse_run_spec(document);
   } catch (const sim::SceneError& e) {
-    throw sim::SceneError(source + ": " + e.what());
+    throw sim::SceneError(file, source + ": " + e.what());
   }
   if (overrides.empty()) {
     impl->spec = std::move(stored);

@@ -93,56 +93,61 @@ json with_live_defaults(json document) {
 
 CreateRequest parse_create_request(const json& body) {
   if (!body.is_object())
-    throw SceneError("request: '(body)' must be a JSON object, got " + sim::describe_type(body));
+    throw SceneError("(body)",
+                     "request: '(body)' must be a JSON object, got " + sim::describe_type(body));
   CreateRequest request;
   for (const auto& [key, value] : body.items()) {
     if (key == "preset") {
       if (!value.is_string())
-        throw SceneError("request: 'preset' must be a string, got " + sim::describe_type(value));
+        throw SceneError("preset",
+                         "request: 'preset' must be a string, got " + sim::describe_type(value));
       request.preset = value.get<std::string>();
     } else if (key == "scene") {
       if (!value.is_object())
-        throw SceneError("request: 'scene' must be an object, got " + sim::describe_type(value));
+        throw SceneError("scene",
+                         "request: 'scene' must be an object, got " + sim::describe_type(value));
       request.scene = value;
     } else if (key == "patch") {
       if (!value.is_object())
-        throw SceneError("request: 'patch' must be an object (a JSON merge patch), got " +
-                         sim::describe_type(value));
+        throw SceneError("patch", "request: 'patch' must be an object (a JSON merge patch), got " +
+                                      sim::describe_type(value));
       request.patch = value;
     } else if (key == "overrides") {
       if (!value.is_array())
-        throw SceneError("request: 'overrides' must be an array of \"key=value\" strings, got " +
-                         sim::describe_type(value));
+        throw SceneError("overrides",
+                         "request: 'overrides' must be an array of \"key=value\" strings, got " +
+                             sim::describe_type(value));
       for (std::size_t k = 0; k < value.size(); ++k) {
         if (!value[k].is_string())
-          throw SceneError("request: 'overrides[" + std::to_string(k) +
-                           "]' must be a string, got " + sim::describe_type(value[k]));
+          throw SceneError("overrides[" + std::to_string(k) + "]",
+                           "request: 'overrides[" + std::to_string(k) +
+                               "]' must be a string, got " + sim::describe_type(value[k]));
         request.overrides.push_back(value[k].get<std::string>());
       }
     } else if (key == "name") {
       if (!value.is_string() || value.get<std::string>().empty())
-        throw SceneError("request: 'name' must be a non-empty string");
+        throw SceneError("name", "request: 'name' must be a non-empty string");
       request.name = value.get<std::string>();
     } else if (key == "ranks") {
       if (!value.is_number_integer() || value.get<long long>() < 1 ||
           value.get<long long>() > std::numeric_limits<int>::max())
-        throw SceneError(
-            "request: 'ranks' must be an integer >= 1 (MPI ranks of the solver), "
-            "got " +
-            value.dump());
+        throw SceneError("ranks",
+                         "request: 'ranks' must be an integer >= 1 (MPI ranks of the solver), "
+                         "got " +
+                             value.dump());
       request.ranks = value.get<int>();
     } else if (key == "start") {
       if (!value.is_boolean())
-        throw SceneError("request: 'start' must be true or false, got " +
-                         sim::describe_type(value));
+        throw SceneError(
+            "start", "request: 'start' must be true or false, got " + sim::describe_type(value));
       request.start = value.get<bool>();
     } else {
-      throw SceneError("request: unknown key '" + key +
-                       "' (valid: preset, scene, patch, overrides, name, start, ranks)");
+      throw SceneError(key, "request: unknown key '" + key +
+                                "' (valid: preset, scene, patch, overrides, name, start, ranks)");
     }
   }
   if (request.preset.has_value() == request.scene.has_value())
-    throw SceneError("request: give exactly one of 'preset' and 'scene'");
+    throw SceneError("preset", "request: give exactly one of 'preset' and 'scene'");
   return request;
 }
 
@@ -340,8 +345,8 @@ RunSpec RunManager::spec_of(const CreateRequest& request) {
     if (std::find(names.begin(), names.end(), *request.preset) == names.end()) {
       std::string valid;
       for (const auto& n : names) valid += (valid.empty() ? "" : ", ") + n;
-      throw SceneError("request: 'preset' must be one of " + valid + ", got '" + *request.preset +
-                       "'");
+      throw SceneError("preset", "request: 'preset' must be one of " + valid + ", got '" +
+                                     *request.preset + "'");
     }
     document = {{"preset", *request.preset}};
   } else {
@@ -381,7 +386,8 @@ std::optional<std::string> RunManager::ranks_refusal(const CreateRequest& reques
 }
 
 std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
-  if (const std::optional<std::string> refusal = ranks_refusal(request)) throw SceneError(*refusal);
+  if (const std::optional<std::string> refusal = ranks_refusal(request))
+    throw SceneError("ranks", *refusal);
   RunSpec spec = spec_of(request);                   // throws naming the field; nothing created yet
   const double memory = admit(spec, request.ranks);  // throws AdmissionError with the estimate
 

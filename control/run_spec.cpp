@@ -12,8 +12,7 @@ using nlohmann::json;
 
 RunSpec parse_run_spec(const json& document) {
   if (!document.is_object())
-    throw sim::SceneError("scene: '(top level)' must be an object, got " +
-                          sim::describe_type(document));
+    sim::throw_scene_error("(top level)", "must be an object, got " + sim::describe_type(document));
   json rest = document;
   json render_section;
   const bool has_render = document.contains("render");
@@ -29,8 +28,8 @@ RunSpec parse_run_spec(const json& document) {
   spec.reference = spectral::parse_reference_config(document);
   // The readers apply the schema's keys, types and bounds with their own messages; the whole
   // schema (every keyword, by valijson) is the last word.
-  if (const std::optional<std::string> violation = schema_violation(document))
-    throw sim::SceneError("scene: " + *violation);
+  if (const std::optional<SchemaViolation> violation = first_schema_violation(document))
+    sim::throw_scene_error(violation->field, violation->reason);
   return spec;
 }
 

@@ -120,6 +120,12 @@ std::string dotted_context(const std::vector<std::string>& context) {
   return field.empty() ? "(top level)" : field;
 }
 
+/// "'dotted.field' reason".
+std::optional<std::string> text_of(const std::optional<SchemaViolation>& violation) {
+  if (!violation) return std::nullopt;
+  return "'" + violation->field + "' " + violation->reason;
+}
+
 /// A parsed draft-07 schema and the first violation of it by a document.
 class Validator {
  public:
@@ -128,7 +134,7 @@ class Validator {
     valijson::adapters::NlohmannJsonAdapter adapter(schema);
     parser.populateSchema(adapter, schema_);
   }
-  std::optional<std::string> violation(const json& document) const {
+  std::optional<SchemaViolation> violation(const json& document) const {
     valijson::Validator check;
     valijson::ValidationResults results;
     valijson::adapters::NlohmannJsonAdapter adapter(document);
@@ -137,7 +143,7 @@ class Validator {
     valijson::ValidationResults::Error error, deepest;
     while (results.popError(error))
       if (error.context.size() > deepest.context.size()) deepest = error;
-    return "'" + dotted_context(deepest.context) + "' " + deepest.description;
+    return SchemaViolation{dotted_context(deepest.context), deepest.description};
   }
 
  private:
@@ -161,13 +167,17 @@ json scene_patch_schema() {
   return patch;
 }
 
-std::optional<std::string> schema_violation(const json& document) {
+std::optional<SchemaViolation> first_schema_violation(const json& document) {
   static const Validator validator(scene_schema());
   return validator.violation(document);
 }
 
+std::optional<std::string> schema_violation(const json& document) {
+  return text_of(first_schema_violation(document));
+}
+
 std::optional<std::string> json_schema_violation(const json& schema, const json& document) {
-  return Validator(schema).violation(document);
+  return text_of(Validator(schema).violation(document));
 }
 
 LiveRule live_rule(const std::string& dotted) {

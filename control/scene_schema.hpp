@@ -20,8 +20,17 @@ const nlohmann::json& scene_schema();
 /// also be null (a removal).
 nlohmann::json scene_patch_schema();
 
-/// The first violation of scene_schema() by `document` (valijson), as "'dotted.field' reason";
-/// nullopt when it conforms.
+/// A violation of a schema: the dotted field valijson names ("(top level)" for the document)
+/// and what is wrong with it.
+struct SchemaViolation {
+  std::string field;
+  std::string reason;
+};
+
+/// The first violation of scene_schema() by `document` (valijson); nullopt when it conforms.
+std::optional<SchemaViolation> first_schema_violation(const nlohmann::json& document);
+
+/// The same as "'dotted.field' reason".
 std::optional<std::string> schema_violation(const nlohmann::json& document);
 
 /// The first violation of the JSON Schema (draft-07) `schema` by `document`, as "'dotted.field'

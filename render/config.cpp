@@ -6,7 +6,7 @@
 namespace sphles::render {
 
 using nlohmann::json;
-using sim::SceneError;
+using sim::throw_scene_error;
 
 namespace {
 
@@ -14,8 +14,7 @@ ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
   std::string scale = mapping.log_scale ? "log" : "linear";
   r.string("scale", scale);
   if (scale != "log" && scale != "linear")
-    throw SceneError("scene: '" + r.field("scale") + "' must be one of log, linear, got '" + scale +
-                     "'");
+    throw_scene_error(r.field("scale"), "must be one of log, linear, got '" + scale + "'");
   mapping.log_scale = scale == "log";
   // null clears a fixed bound (back to the percentile), as a JSON merge patch would.
   for (const char* key : {"min", "max"}) {
@@ -27,8 +26,8 @@ ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
       double x = 0.0;
       r.number(key, x);
       if (mapping.log_scale && x <= 0.0)
-        throw SceneError("scene: '" + r.field(key) + "' must be > 0 for a log scale, got " +
-                         sim::format_number(x));
+        throw_scene_error(r.field(key),
+                          "must be > 0 for a log scale, got " + sim::format_number(x));
       bound = x;
     }
   }
@@ -36,11 +35,11 @@ ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
   r.number("upper_percentile", mapping.upper_percentile);
   r.reject_unknown();
   if (mapping.lower_percentile >= mapping.upper_percentile)
-    throw SceneError("scene: '" + r.field("lower_percentile") +
-                     "' must be below 'upper_percentile'");
+    throw_scene_error(r.field("lower_percentile"), "must be below 'upper_percentile'");
   if (mapping.min && mapping.max && *mapping.min >= *mapping.max)
-    throw SceneError("scene: '" + r.field("min") + "' must be below 'max', got " +
-                     sim::format_number(*mapping.min) + " >= " + sim::format_number(*mapping.max));
+    throw_scene_error(r.field("min"), "must be below 'max', got " +
+                                          sim::format_number(*mapping.min) +
+                                          " >= " + sim::format_number(*mapping.max));
   return mapping;
 }
 
@@ -80,10 +79,10 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     const std::string field = "render.fields[" + std::to_string(k) + "]";
     const analysis::SliceField f = analysis::slice_field_from_name(fields[k], field);
     if (!analysis.wants(analysis::Product::Slices) || !analysis.slice.fields.contains(f))
-      throw SceneError("scene: '" + field + "' is " + fields[k] +
-                       ", which the analysis does not compute: add \"slices\" to "
-                       "'analysis.products' and " +
-                       fields[k] + " to 'analysis.slice.fields'");
+      throw_scene_error(field, "is " + fields[k] +
+                                   ", which the analysis does not compute: add \"slices\" to "
+                                   "'analysis.products' and " +
+                                   fields[k] + " to 'analysis.slice.fields'");
     c.fields.insert(f);
   }
   r.boolean("single", c.single);
@@ -115,15 +114,15 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     v.reject_unknown();
     if (view.enabled && (!analysis.wants(analysis::Product::Particles) ||
                          !analysis.particle_fields.contains(view.field)))
-      throw SceneError("scene: 'render.view3d' shows " + field +
-                       " per particle, which the analysis does not compute: add \"particles\" to "
-                       "'analysis.products' and " +
-                       field + " to 'analysis.particle_fields'");
+      throw_scene_error("render.view3d",
+                        "shows " + field +
+                            " per particle, which the analysis does not compute: add "
+                            "\"particles\" to 'analysis.products' and " +
+                            field + " to 'analysis.particle_fields'");
   }
   r.reject_unknown();
   if (!c.single && !c.combined && !c.fields.empty())
-    throw SceneError(
-        "scene: 'render.single' and 'render.combined' are both false: no frame to draw");
+    throw_scene_error("render.single", "and 'render.combined' are both false: no frame to draw");
   return c;
 }
 

@@ -138,14 +138,6 @@ nlohmann::json error_json(const ApiError& error) {
             {"field", error.field() ? nlohmann::json(*error.field()) : nlohmann::json(nullptr)}}}};
 }
 
-std::optional<std::string> field_in_message(std::string_view message) {
-  const std::size_t open = message.find('\'');
-  if (open == std::string_view::npos) return std::nullopt;
-  const std::size_t close = message.find('\'', open + 1);
-  if (close == std::string_view::npos || close == open + 1) return std::nullopt;
-  return std::string(message.substr(open + 1, close - open - 1));
-}
-
 ApiError to_api_error(const std::exception& error) {
   if (const auto* e = dynamic_cast<const ApiError*>(&error)) return *e;
   if (dynamic_cast<const control::UnknownRunError*>(&error))
@@ -156,8 +148,9 @@ ApiError to_api_error(const std::exception& error) {
     return ApiError(422, e->what(), e->field());
   if (const auto* e = dynamic_cast<const control::ChangeError*>(&error))
     return ApiError(400, e->what(), e->field());
-  if (dynamic_cast<const sim::SceneError*>(&error))
-    return ApiError(400, error.what(), field_in_message(error.what()));
+  if (const auto* e = dynamic_cast<const sim::SceneError*>(&error))
+    return ApiError(400, e->what(),
+                    e->field().empty() ? std::nullopt : std::optional<std::string>(e->field()));
   if (dynamic_cast<const std::bad_alloc*>(&error))
     return ApiError(503, "out of memory while answering; try again later");
   return ApiError(500, std::string("internal error: ") + error.what());

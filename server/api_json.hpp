@@ -64,9 +64,6 @@ nlohmann::json error_json(const ApiError& error);
 /// memory: try again), anything else 500.
 ApiError to_api_error(const std::exception& error);
 
-/// The dotted field a scene error message names ("scene: 'a.b[2]' must be ..." → "a.b[2]").
-std::optional<std::string> field_in_message(std::string_view message);
-
 /// Deepest nesting of arrays and objects accepted in client JSON (the library's merge patch
 /// and serialisation recurse).
 inline constexpr int kMaxJsonDepth = 64;

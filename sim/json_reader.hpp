@@ -84,7 +84,7 @@ class ObjectReader {
       : object_(object), path_(std::move(path)), schema_(scene_schema_node(path_)) {
     if (!schema_) throw std::logic_error("scene schema declares no '" + label() + "'");
     if (!object_.is_object())
-      throw SceneError("scene: '" + label() + "' must be an object, got " + describe_type(object_));
+      throw_scene_error(label(), "must be an object, got " + describe_type(object_));
   }
 
   std::string field(const std::string& key) const {
@@ -113,15 +113,14 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_number())
-      throw SceneError("scene: '" + field(key) + "' must be a number, got " +
-                       describe_type(*value));
+      throw_scene_error(field(key), "must be a number, got " + describe_type(*value));
     const double x = value->get<double>();
-    if (!std::isfinite(x)) throw SceneError("scene: '" + field(key) + "' must be finite");
+    if (!std::isfinite(x)) throw_scene_error(field(key), "must be finite");
     if (auto reason = violated_bounds(schema_of(key), x))
-      throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + format_number(x));
+      throw_scene_error(field(key), *reason + ", got " + format_number(x));
     if (check)
       if (auto reason = check(x))
-        throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + format_number(x));
+        throw_scene_error(field(key), *reason + ", got " + format_number(x));
     target = x;
   }
 
@@ -131,14 +130,14 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_number_integer())
-      throw SceneError("scene: '" + field(key) + "' must be an integer, got " +
-                       (value->is_number() ? "a fractional number" : describe_type(*value)));
+      throw_scene_error(field(key),
+                        "must be an integer, got " +
+                            (value->is_number() ? "a fractional number" : describe_type(*value)));
     if (value->is_number_unsigned() && value->get<unsigned long long>() > kMaxLongLong)
-      throw SceneError("scene: '" + field(key) + "' must be at most " +
-                       std::to_string(kMaxLongLong));
+      throw_scene_error(field(key), "must be at most " + std::to_string(kMaxLongLong));
     const long long x = value->get<long long>();
     if (auto reason = violated_bounds(schema_of(key), static_cast<double>(x)))
-      throw SceneError("scene: '" + field(key) + "' " + *reason + ", got " + std::to_string(x));
+      throw_scene_error(field(key), *reason + ", got " + std::to_string(x));
     target = static_cast<Int>(x);
   }
 
@@ -146,8 +145,7 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_boolean())
-      throw SceneError("scene: '" + field(key) + "' must be true or false, got " +
-                       describe_type(*value));
+      throw_scene_error(field(key), "must be true or false, got " + describe_type(*value));
     target = value->get<bool>();
   }
 
@@ -155,8 +153,7 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_string())
-      throw SceneError("scene: '" + field(key) + "' must be a string, got " +
-                       describe_type(*value));
+      throw_scene_error(field(key), "must be a string, got " + describe_type(*value));
     target = value->get<std::string>();
   }
 
@@ -164,12 +161,10 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_array() || value->size() != size)
-      throw SceneError("scene: '" + field(key) + "' must be an array of " + std::to_string(size) +
-                       " numbers");
+      throw_scene_error(field(key), "must be an array of " + std::to_string(size) + " numbers");
     for (std::size_t k = 0; k < size; ++k) {
       if (!(*value)[k].is_number() || !std::isfinite((*value)[k].get<double>()))
-        throw SceneError("scene: '" + field(key) + "[" + std::to_string(k) +
-                         "]' must be a finite number");
+        throw_scene_error(field(key) + "[" + std::to_string(k) + "]", "must be a finite number");
       target[k] = (*value)[k].get<double>();
     }
   }
@@ -179,13 +174,12 @@ class ObjectReader {
     const json* value = find(key);
     if (!value) return;
     if (!value->is_array())
-      throw SceneError("scene: '" + field(key) + "' must be an array of strings, got " +
-                       describe_type(*value));
+      throw_scene_error(field(key), "must be an array of strings, got " + describe_type(*value));
     std::vector<std::string> result;
     for (std::size_t k = 0; k < value->size(); ++k) {
       if (!(*value)[k].is_string())
-        throw SceneError("scene: '" + field(key) + "[" + std::to_string(k) +
-                         "]' must be a string, got " + describe_type((*value)[k]));
+        throw_scene_error(field(key) + "[" + std::to_string(k) + "]",
+                          "must be a string, got " + describe_type((*value)[k]));
       result.push_back((*value)[k].get<std::string>());
     }
     target = std::move(result);
@@ -203,8 +197,9 @@ class ObjectReader {
       if (declared.contains(key))
         throw std::logic_error("scene schema declares '" + field(key) + "', which no reader reads");
       const std::optional<std::string> near = closest_key(key, declared);
-      throw SceneError("scene: unknown key '" + field(key) + "'" +
-                       (near ? "; did you mean '" + field(*near) + "'?" : std::string()));
+      throw SceneError(field(key),
+                       "scene: unknown key '" + field(key) + "'" +
+                           (near ? "; did you mean '" + field(*near) + "'?" : std::string()));
     }
   }
 

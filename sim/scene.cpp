@@ -76,8 +76,8 @@ Scene case_defaults(CaseType type) {
 const double kTaylorGreen3dPressureGradient = std::sqrt(18.0) / 8.0;
 const double kTaylorGreen2dPressureGradient = std::sqrt(2.0) / 2.0;
 
-/// The keys a time-step limit depends on, for messages: "'a', 'b' and 'c'".
-std::string limit_keys(const Scene& s, std::string_view limit) {
+/// The keys a time-step limit depends on.
+std::vector<std::string> limit_keys(const Scene& s, std::string_view limit) {
   std::vector<std::string> keys;
   if (limit == "fixed") {
     keys = {"time.fixed_step"};
@@ -96,26 +96,27 @@ std::string limit_keys(const Scene& s, std::string_view limit) {
       keys.insert(keys.end(), {"flow.velocity_amplitude", "time.cfl_force"});
     }
   }
-  std::string text;
-  for (std::size_t k = 0; k < keys.size(); ++k)
-    text += (k == 0 ? "" : k + 1 == keys.size() ? " and " : ", ") + ("'" + keys[k] + "'");
-  return text;
+  return keys;
 }
 
 /// A step below kMinTimeStepOverEndTime x time.end cannot advance the time meaningfully. The
-/// message starts with the keys that set the step (a live change reports the first as its
-/// field).
+/// message starts with the keys that set the step; the error's field is the first of them.
 void check_time_resolution(const Scene& s) {
   const TimeStepEstimate e = estimate_initial_time_step(s);
   const double minimum = kMinTimeStepOverEndTime * s.end_time;
   if (e.step() >= minimum) return;
   const std::string_view limit = e.limits.binding();
-  throw SceneError("scene: " + limit_keys(s, limit) + " give an estimated initial time step of " +
-                   format_number(e.step()) + " s (" + std::string(limit) + " limit, spacing " +
-                   format_number(s.particle_spacing()) + " m), below 'time.end' x " +
-                   format_number(kMinTimeStepOverEndTime) + " = " + format_number(minimum) +
-                   " s: t + dt would not advance meaningfully, and the run would need over " +
-                   format_number(1.0 / kMinTimeStepOverEndTime) + " steps");
+  const std::vector<std::string> keys = limit_keys(s, limit);
+  std::string names;  // "'a', 'b' and 'c'"
+  for (std::size_t k = 0; k < keys.size(); ++k)
+    names += (k == 0 ? "" : k + 1 == keys.size() ? " and " : ", ") + ("'" + keys[k] + "'");
+  throw SceneError(keys.front(),
+                   "scene: " + names + " give an estimated initial time step of " +
+                       format_number(e.step()) + " s (" + std::string(limit) + " limit, spacing " +
+                       format_number(s.particle_spacing()) + " m), below 'time.end' x " +
+                       format_number(kMinTimeStepOverEndTime) + " = " + format_number(minimum) +
+                       " s: t + dt would not advance meaningfully, and the run would need over " +
+                       format_number(1.0 / kMinTimeStepOverEndTime) + " steps");
 }
 
 }  // namespace
@@ -153,13 +154,13 @@ std::size_t Scene::num_particles() const {
 
 Scene parse_scene(const json& input) {
   if (!input.is_object())
-    throw SceneError("scene: '(top level)' must be an object, got " + describe_type(input));
+    throw_scene_error("(top level)", "must be an object, got " + describe_type(input));
   // A preset is the base document; the scene's own keys patch it.
   json document = input;
   std::string preset;
   if (const auto it = input.find("preset"); it != input.end()) {
     if (!it->is_string())
-      throw SceneError("scene: 'preset' must be a string, got " + describe_type(*it));
+      throw_scene_error("preset", "must be a string, got " + describe_type(*it));
     preset = it->get<std::string>();
     document = preset_document(preset);
     json patch = input;
@@ -173,8 +174,8 @@ Scene parse_scene(const json& input) {
   for (const auto& [t, name] : kCaseNames)
     if (name == case_string) type = t;
   if (!type)
-    throw SceneError("scene: 'case' must be one of tgv3d, tgv2d, kolmogorov2d, got '" +
-                     case_string + "'");
+    throw_scene_error("case",
+                      "must be one of tgv3d, tgv2d, kolmogorov2d, got '" + case_string + "'");
   Scene s = case_defaults(*type);
   s.preset = preset;
   if (!preset.empty()) s.name = preset;
@@ -185,7 +186,7 @@ Scene parse_scene(const json& input) {
   if (s.case_type == CaseType::Kolmogorov2D) {
     top.number("box_length", s.box_length_);
   } else if (top.find("box_length")) {
-    throw SceneError("scene: 'box_length' is fixed at 2π for the Taylor-Green cases");
+    throw_scene_error("box_length", "is fixed at 2π for the Taylor-Green cases");
   }
   {
     ObjectReader k = top.object("kernel");
@@ -194,7 +195,7 @@ Scene parse_scene(const json& input) {
     try {
       s.kernel = kernel_from_name(kernel);
     } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'kernel.type': " + std::string(e.what()));
+      throw SceneError("kernel.type", "scene: 'kernel.type': " + std::string(e.what()));
     }
     k.number("diameter_over_spacing", s.kernel_diameter_over_spacing);
     k.reject_unknown();
@@ -237,38 +238,36 @@ Scene parse_scene(const json& input) {
     try {
       s.scheme.type = scheme_from_name(type);
     } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'scheme.type': " + std::string(e.what()));
+      throw SceneError("scheme.type", "scene: 'scheme.type': " + std::string(e.what()));
     }
     std::string op = std::string(viscous_operator_name(s.scheme.viscous_operator));
     sc.string("viscous_operator", op);
     try {
       s.scheme.viscous_operator = viscous_operator_from_name(op);
     } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'scheme.viscous_operator' " + std::string(e.what()));
+      throw_scene_error("scheme.viscous_operator", e.what());
     }
     if (s.scheme.viscous_operator != ViscousOperator::Thesis &&
         s.scheme.type == SchemeType::TransportVelocity)
-      throw SceneError("scene: 'scheme.viscous_operator' = '" + op +
-                       "' applies to scheme.type thesis and particle_shifting only (the "
-                       "transport-velocity scheme has its own viscous term)");
+      throw_scene_error("scheme.viscous_operator",
+                        "= '" + op +
+                            "' applies to scheme.type thesis and particle_shifting only (the "
+                            "transport-velocity scheme has its own viscous term)");
     const double default_mach = SchemeConfig{}.shifting_mach;
     sc.number("shifting_mach", s.scheme.shifting_mach);
     if (s.scheme.shifting_mach != default_mach && s.scheme.type != SchemeType::ParticleShifting)
-      throw SceneError(
-          "scene: 'scheme.shifting_mach' applies to scheme.type particle_shifting "
-          "only");
+      throw_scene_error("scheme.shifting_mach", "applies to scheme.type particle_shifting only");
     std::string ale = std::string(ale_correction_name(s.scheme.ale_correction));
     sc.string("ale_correction", ale);
     try {
       s.scheme.ale_correction = ale_correction_from_name(ale);
     } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'scheme.ale_correction' " + std::string(e.what()));
+      throw_scene_error("scheme.ale_correction", e.what());
     }
     if (s.scheme.ale_correction != SchemeConfig{}.ale_correction &&
         !scheme_uses_transport_velocity(s.scheme.type))
-      throw SceneError(
-          "scene: 'scheme.ale_correction' applies to scheme.type transport_velocity and "
-          "particle_shifting only");
+      throw_scene_error("scheme.ale_correction",
+                        "applies to scheme.type transport_velocity and particle_shifting only");
     sc.reject_unknown();
   }
   {
@@ -278,7 +277,7 @@ Scene parse_scene(const json& input) {
     try {
       s.subfilter.model = subfilter_model_from_name(model);
     } catch (const std::invalid_argument& e) {
-      throw SceneError("scene: 'subfilter.model': " + std::string(e.what()));
+      throw SceneError("subfilter.model", "scene: 'subfilter.model': " + std::string(e.what()));
     }
     m.number("smagorinsky_constant", s.subfilter.smagorinsky_constant);
     m.number("sigma_constant", s.subfilter.sigma_constant);
@@ -292,7 +291,7 @@ Scene parse_scene(const json& input) {
     f.number("friction", s.forcing.friction);
     f.reject_unknown();
   } else if (top.find("forcing")) {
-    throw SceneError("scene: 'forcing' applies to case kolmogorov2d only");
+    throw_scene_error("forcing", "applies to case kolmogorov2d only");
   }
   {
     ObjectReader nb = top.object("neighbours");
@@ -309,9 +308,9 @@ Scene parse_scene(const json& input) {
     std::string cache_dir;
     p.string("cache_dir", cache_dir);
     if (!cache_dir.empty())
-      throw SceneError(
-          "scene: 'packing.cache_dir' is not a scene key: the packing cache directory is a "
-          "setting of the program (sphles run/serve --packing-cache DIR)");
+      throw_scene_error("packing.cache_dir",
+                        "is not a scene key: the packing cache directory is a setting of the "
+                        "program (sphles run/serve --packing-cache DIR)");
     p.number("perturbation", s.packing.perturbation);
     p.integer("max_iterations", s.packing.max_iterations);
     p.number("tolerance", s.packing.tolerance);
@@ -326,8 +325,7 @@ Scene parse_scene(const json& input) {
     for (const auto& [m, name] : kInitialMassNames)
       if (name == mass) parsed = m;
     if (!parsed)
-      throw SceneError("scene: 'initial.mass' must be one of summation, lattice, got '" + mass +
-                       "'");
+      throw_scene_error("initial.mass", "must be one of summation, lattice, got '" + mass + "'");
     s.initial.mass = *parsed;
     in.reject_unknown();
   }
@@ -349,11 +347,13 @@ Scene parse_scene(const json& input) {
 
   if (s.kernel_diameter() > s.box_length()) {
     throw SceneError(
+        "kernel.diameter_over_spacing",
         "scene: box length " + format_number(s.box_length()) +
-        " m is smaller than the kernel diameter D_K = " + format_number(s.kernel_diameter()) +
-        " m ('kernel.diameter_over_spacing' = " + format_number(s.kernel_diameter_over_spacing) +
-        " x spacing " + format_number(s.particle_spacing()) +
-        " m with 'particles_per_side' = " + std::to_string(s.particles_per_side) + ")");
+            " m is smaller than the kernel diameter D_K = " + format_number(s.kernel_diameter()) +
+            " m ('kernel.diameter_over_spacing' = " +
+            format_number(s.kernel_diameter_over_spacing) + " x spacing " +
+            format_number(s.particle_spacing()) +
+            " m with 'particles_per_side' = " + std::to_string(s.particles_per_side) + ")");
   }
   check_time_resolution(s);
   check_cadence(s, "output.timeseries_every", s.output.timeseries_every);
@@ -398,31 +398,31 @@ void check_cadence(const Scene& s, const std::string& field, double every) {
   const double minimum = min_cadence(s);
   if (every >= minimum) return;
   const TimeStepEstimate e = estimate_initial_time_step(s);
-  throw SceneError("scene: '" + field + "' = " + format_number(every) +
-                   " s is below the smallest accepted cadence " + format_number(minimum) +
-                   " s, the smaller of " + format_number(kMinCadenceOverTimeStep) +
-                   " x the estimated initial time step " + format_number(e.step()) + " s (" +
-                   std::string(e.limits.binding()) + " limit) and 'time.end' / " +
-                   format_number(kMaxShortCadencePoints) +
-                   ": every step would be cut short to land on the next of its " +
-                   format_number(std::floor(s.end_time / every)) +
-                   " points; use 0 (every step) or at least " + format_number(minimum) + " s");
+  throw_scene_error(
+      field, "= " + format_number(every) + " s is below the smallest accepted cadence " +
+                 format_number(minimum) + " s, the smaller of " +
+                 format_number(kMinCadenceOverTimeStep) + " x the estimated initial time step " +
+                 format_number(e.step()) + " s (" + std::string(e.limits.binding()) +
+                 " limit) and 'time.end' / " + format_number(kMaxShortCadencePoints) +
+                 ": every step would be cut short to land on the next of its " +
+                 format_number(std::floor(s.end_time / every)) +
+                 " points; use 0 (every step) or at least " + format_number(minimum) + " s");
 }
 
 json read_scene_file(const std::filesystem::path& path) {
   std::ifstream in(path);
-  if (!in) throw SceneError("scene: cannot open file '" + path.string() + "'");
+  if (!in) throw SceneError(path.string(), "scene: cannot open file '" + path.string() + "'");
   try {
     return json::parse(in);
   } catch (const json::parse_error& e) {
-    throw SceneError("scene: '" + path.string() + "' is not valid JSON: " + e.what());
+    throw_scene_error(path.string(), std::string("is not valid JSON: ") + e.what());
   }
 }
 
 void apply_override(json& document, const std::string& assignment) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw SceneError("--set: expected key=value, got '" + assignment + "'");
+    throw SceneError(assignment, "--set: expected key=value, got '" + assignment + "'");
   const std::string key = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
   json value = json::parse(text, nullptr, /*allow_exceptions=*/false);
@@ -432,8 +432,8 @@ void apply_override(json& document, const std::string& assignment) {
   std::string walked;  // the key up to `node`
   for (std::size_t k = 0; k < parts.size(); ++k) {
     const std::string& part = parts[k];
-    if (part.empty()) throw SceneError("--set: empty component in key '" + key + "'");
-    if (!node->is_object()) throw SceneError("--set: '" + walked + "' is not an object");
+    if (part.empty()) throw SceneError(key, "--set: empty component in key '" + key + "'");
+    if (!node->is_object()) throw SceneError(walked, "--set: '" + walked + "' is not an object");
     if (k + 1 == parts.size()) {
       (*node)[part] = value;
       return;
@@ -609,7 +609,7 @@ json preset_document(const std::string& name) {
   }
   std::string valid;
   for (const std::string& n : preset_names()) valid += (valid.empty() ? "" : ", ") + n;
-  throw SceneError("scene: unknown preset '" + name + "' (valid: " + valid + ")");
+  throw SceneError(name, "scene: unknown preset '" + name + "' (valid: " + valid + ")");
 }
 
 }  // namespace sphles::sim

@@ -23,13 +23,13 @@ namespace sphles::sim {
 
 /// A scene (or request) that does not describe a valid run. `field` is the dotted key at fault
 /// ("time.end"; "(top level)" or "(body)" for the document as a whole), what() the whole message,
-/// which names it too, so that a caller reports the field without reading the text.
+/// which names it too, so that a caller reports the field without reading the text. An empty
+/// field means the error names none (a command line missing its scene).
 class SceneError : public std::runtime_error {
  public:
   SceneError(std::string field, const std::string& message)
       : std::runtime_error(message), field_(std::move(field)) {}
-  /// The field is unknown to the thrower. Being replaced by the form above at every site.
-  explicit SceneError(const std::string& message) : std::runtime_error(message) {}
+  /// Empty when the error names no field.
   const std::string& field() const noexcept { return field_; }
 
  private:

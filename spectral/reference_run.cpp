@@ -83,8 +83,8 @@ ReferenceConfig parse_reference_config(const json& document) {
   r.number("every", c.every);
   r.reject_unknown();
   if (c.points_per_side % 2 != 0)
-    throw sim::SceneError("scene: 'reference.points_per_side' must be even, got " +
-                          std::to_string(c.points_per_side));
+    sim::throw_scene_error("reference.points_per_side",
+                           "must be even, got " + std::to_string(c.points_per_side));
   return c;
 }
 
