@@ -11,72 +11,22 @@ namespace sphles::analysis {
 using nlohmann::json;
 using sim::throw_scene_error;
 
-namespace {
-
-constexpr std::array<std::pair<Product, std::string_view>, 7> kProductNames{{
-    {Product::Energy, "energy"},
-    {Product::Spectrum, "spectrum"},
-    {Product::Vorticity, "vorticity"},
-    {Product::Slices, "slices"},
-    {Product::SubfilterStatistics, "sfs_stats"},
-    {Product::Particles, "particles"},
-    {Product::Fields, "fields"},
-}};
-constexpr std::array<std::pair<SliceField, std::string_view>, 3> kSliceFieldNames{{
-    {SliceField::VorticitySquared, "omega2"},
-    {SliceField::SubfilterStressNorm, "tau_sfs"},
-    {SliceField::EddyViscosity, "nu_t"},
-}};
-constexpr std::array<std::pair<VelocityGridding, std::string_view>, 2> kVelocityGriddingNames{{
-    {VelocityGridding::Nearest, "nearest"},
-    {VelocityGridding::Shepard, "shepard"},
-}};
-constexpr std::array<std::pair<VorticityEstimate, std::string_view>, 3> kVorticityEstimateNames{{
-    {VorticityEstimate::Particle, "particle"},
-    {VorticityEstimate::Grid, "grid"},
-    {VorticityEstimate::Mls, "mls"},
-}};
-constexpr std::array<std::string_view, 3> kAxisNames{"x", "y", "z"};
-
-template <class Enum, std::size_t N>
-std::string_view name_of(const std::array<std::pair<Enum, std::string_view>, N>& table,
-                         Enum value) {
-  for (const auto& [v, name] : table)
-    if (v == value) return name;
-  return "unknown";
-}
-
-template <class Enum, std::size_t N>
-Enum parse_name(const std::array<std::pair<Enum, std::string_view>, N>& table,
-                const std::string& name, const std::string& field) {
-  std::string valid;
-  for (const auto& [value, n] : table) {
-    if (n == name) return value;
-    valid += (valid.empty() ? "" : ", ") + std::string(n);
-  }
-  throw_scene_error(field, "must be one of " + valid + ", got '" + name + "'");
-}
-
-}  // namespace
+using sim::parse_name;
 
 std::string_view velocity_gridding_name(VelocityGridding gridding) {
-  return name_of(kVelocityGriddingNames, gridding);
+  return kVelocityGriddingNames.name(gridding);
 }
 
 std::string_view vorticity_estimate_name(VorticityEstimate estimate) {
-  return name_of(kVorticityEstimateNames, estimate);
+  return kVorticityEstimateNames.name(estimate);
 }
 
 std::string_view product_name(Product product) {
-  for (const auto& [p, name] : kProductNames)
-    if (p == product) return name;
-  return "unknown";
+  return kProductNames.name(product);
 }
 
 std::string_view slice_field_name(SliceField field) {
-  for (const auto& [f, name] : kSliceFieldNames)
-    if (f == field) return name;
-  return "unknown";
+  return kSliceFieldNames.name(field);
 }
 
 std::string_view slice_field_units(SliceField field) {
@@ -91,10 +41,6 @@ std::string_view slice_field_units(SliceField field) {
   return "";
 }
 
-SliceField slice_field_from_name(const std::string& name, const std::string& field) {
-  return parse_name(kSliceFieldNames, name, field);
-}
-
 AnalysisConfig parse_analysis_config(const json* section) {
   AnalysisConfig c;
   if (!section) return c;
@@ -107,16 +53,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
         parse_name(kProductNames, products[k], "analysis.products[" + std::to_string(k) + "]"));
   {
     sim::ObjectReader s = r.object("slice");
-    std::string axis = std::string(kAxisNames[static_cast<std::size_t>(c.slice.axis)]);
-    s.string("axis", axis);
-    bool found = false;
-    for (std::size_t a = 0; a < kAxisNames.size(); ++a)
-      if (kAxisNames[a] == axis) {
-        c.slice.axis = static_cast<int>(a);
-        found = true;
-      }
-    if (!found)
-      throw_scene_error("analysis.slice.axis", "must be one of x, y, z, got '" + axis + "'");
+    s.choice("axis", kAxisNames, c.slice.axis);
     s.number("position", c.slice.position);
     std::vector<std::string> fields;
     s.strings("fields", fields);
@@ -157,14 +94,8 @@ AnalysisConfig parse_analysis_config(const json* section) {
   }
   {
     sim::ObjectReader g = r.object("gridding");
-    std::string velocity(velocity_gridding_name(c.gridding.velocity));
-    g.string("velocity", velocity);
-    c.gridding.velocity =
-        parse_name(kVelocityGriddingNames, velocity, "analysis.gridding.velocity");
-    std::string vorticity(vorticity_estimate_name(c.gridding.vorticity));
-    g.string("vorticity", vorticity);
-    c.gridding.vorticity =
-        parse_name(kVorticityEstimateNames, vorticity, "analysis.gridding.vorticity");
+    g.choice("velocity", kVelocityGriddingNames, c.gridding.velocity);
+    g.choice("vorticity", kVorticityEstimateNames, c.gridding.vorticity);
     g.number("fit_radius", c.gridding.fit_radius);
     g.reject_unknown();
   }
@@ -189,7 +120,7 @@ json analysis_config_to_json(const AnalysisConfig& c) {
   return {{"every", c.every},
           {"products", products},
           {"slice",
-           {{"axis", std::string(kAxisNames[static_cast<std::size_t>(c.slice.axis)])},
+           {{"axis", std::string(kAxisNames.name(c.slice.axis))},
             {"position", c.slice.position},
             {"fields", fields}}},
           {"particle_fields",

@@ -6,6 +6,7 @@
 #include <set>
 #include <string>
 
+#include "sim/name_table.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::analysis {
@@ -15,14 +16,26 @@ enum class Product { Energy, Spectrum, Vorticity, Slices, SubfilterStatistics, P
 /// Scene names: "energy", "spectrum", "vorticity", "slices", "sfs_stats", "particles",
 /// "fields" (the whole analysis grid as VTK image data).
 std::string_view product_name(Product product);
+inline constexpr sim::NameTable<Product, 7> kProductNames{{{
+    {Product::Energy, "energy"},
+    {Product::Spectrum, "spectrum"},
+    {Product::Vorticity, "vorticity"},
+    {Product::Slices, "slices"},
+    {Product::SubfilterStatistics, "sfs_stats"},
+    {Product::Particles, "particles"},
+    {Product::Fields, "fields"},
+}}};
 
 enum class SliceField { VorticitySquared, SubfilterStressNorm, EddyViscosity };
 /// "omega2", "tau_sfs", "nu_t" (ν_t of an explicit sub-filter model).
 std::string_view slice_field_name(SliceField field);
+inline constexpr sim::NameTable<SliceField, 3> kSliceFieldNames{{{
+    {SliceField::VorticitySquared, "omega2"},
+    {SliceField::SubfilterStressNorm, "tau_sfs"},
+    {SliceField::EddyViscosity, "nu_t"},
+}}};
 /// The field's SI units: "1/s^2", "Pa", "m^2/s".
 std::string_view slice_field_units(SliceField field);
-/// Inverse of slice_field_name; throws sim::SceneError naming `field` (the dotted scene key).
-SliceField slice_field_from_name(const std::string& name, const std::string& field);
 
 /// How the velocity reaches the grid (products "energy" and "spectrum", and the grid vorticity):
 /// "nearest" (SPEC §5, the thesis: every node takes the velocity of the nearest particle) or
@@ -39,6 +52,17 @@ enum class VelocityGridding { Nearest, Shepard };
 enum class VorticityEstimate { Particle, Grid, Mls };
 std::string_view velocity_gridding_name(VelocityGridding gridding);
 std::string_view vorticity_estimate_name(VorticityEstimate estimate);
+inline constexpr sim::NameTable<VelocityGridding, 2> kVelocityGriddingNames{{{
+    {VelocityGridding::Nearest, "nearest"},
+    {VelocityGridding::Shepard, "shepard"},
+}}};
+inline constexpr sim::NameTable<VorticityEstimate, 3> kVorticityEstimateNames{{{
+    {VorticityEstimate::Particle, "particle"},
+    {VorticityEstimate::Grid, "grid"},
+    {VorticityEstimate::Mls, "mls"},
+}}};
+/// The slice's normal axis (AnalysisConfig::slice.axis) by name.
+inline constexpr sim::NameTable<int, 3> kAxisNames{{{{0, "x"}, {1, "y"}, {2, "z"}}}};
 
 struct GriddingConfig {
   VelocityGridding velocity = VelocityGridding::Nearest;

@@ -23,12 +23,16 @@ using sim::SceneError;
 
 namespace {
 
-constexpr std::array<JobState, 5> kJobStates = {JobState::Queued, JobState::Running, JobState::Done,
-                                                JobState::Stopped, JobState::Failed};
+constexpr sim::NameTable<JobState, 5> kJobStateNames{{{
+    {JobState::Queued, "queued"},
+    {JobState::Running, "running"},
+    {JobState::Done, "done"},
+    {JobState::Stopped, "stopped"},
+    {JobState::Failed, "failed"},
+}}};
 
 JobState parse_job_state(const std::string& name) {
-  for (const JobState s : kJobStates)
-    if (job_state_name(s) == name) return s;
+  if (const std::optional<JobState> state = kJobStateNames.find(name)) return *state;
   throw std::runtime_error("job.json: unknown state '" + name + "'");
 }
 
@@ -124,19 +128,7 @@ std::vector<std::string_view> job_actions(JobState state) {
 }
 
 std::string_view job_state_name(JobState state) {
-  switch (state) {
-    case JobState::Queued:
-      return "queued";
-    case JobState::Running:
-      return "running";
-    case JobState::Done:
-      return "done";
-    case JobState::Stopped:
-      return "stopped";
-    case JobState::Failed:
-      return "failed";
-  }
-  return "unknown";
+  return kJobStateNames.name(state);
 }
 
 ReferenceRequest parse_reference_request(const json& body) {

@@ -14,24 +14,22 @@ namespace sphles::control {
 
 using nlohmann::json;
 
+namespace {
+
+constexpr sim::NameTable<RunState, 7> kRunStateNames{{{
+    {RunState::Created, "created"},
+    {RunState::Queued, "queued"},
+    {RunState::Running, "running"},
+    {RunState::Paused, "paused"},
+    {RunState::Finished, "finished"},
+    {RunState::Stopped, "stopped"},
+    {RunState::Failed, "failed"},
+}}};
+
+}  // namespace
+
 std::string_view run_state_name(RunState state) {
-  switch (state) {
-    case RunState::Created:
-      return "created";
-    case RunState::Queued:
-      return "queued";
-    case RunState::Running:
-      return "running";
-    case RunState::Paused:
-      return "paused";
-    case RunState::Finished:
-      return "finished";
-    case RunState::Stopped:
-      return "stopped";
-    case RunState::Failed:
-      return "failed";
-  }
-  return "unknown";
+  return kRunStateNames.name(state);
 }
 
 bool is_terminal(RunState state) {
@@ -41,9 +39,7 @@ bool is_terminal(RunState state) {
 namespace {
 
 RunState run_state_from_name(const std::string& name) {
-  for (RunState s : {RunState::Created, RunState::Queued, RunState::Running, RunState::Paused,
-                     RunState::Finished, RunState::Stopped, RunState::Failed})
-    if (run_state_name(s) == name) return s;
+  if (const std::optional<RunState> state = kRunStateNames.find(name)) return *state;
   throw std::runtime_error("run.json: unknown state '" + name + "'");
 }
 
@@ -97,7 +93,6 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   auto impl = std::make_unique<Impl>();
   json document;
   std::string source;  // where the stored document came from, for error messages
-  std::string file;    // the file `source` quotes, the field of a SceneError in the document
   if (checkpoint) {
     // A solver that reads its checkpoint on its ranks needs only the attributes here (no
     // process reads the whole file); one process validates all of it before it starts.
@@ -109,8 +104,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
       header = {c.metadata, io::CheckpointShape::of(c.state), c.state.step,
                 c.state.neighbour_builds};
     }
-    file = checkpoint->string();
-    source = "checkpoint '" + file + "'";
+    source = "checkpoint '" + checkpoint->string() + "'";
     try {
       document = json::parse(header.metadata.scene_json);
     } catch (const json::exception& e) {
@@ -124,8 +118,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     if (!std::filesystem::exists(scene))
       throw std::runtime_error("'" + directory.string() +
                                "' is not a run directory (no scene.json)");
-    file = scene.string();
-    source = "'" + file + "'";
+    source = "'" + scene.string() + "'";
     document = sim::read_scene_file(scene.string());
   }
   // Documents written before the packing cache became a program setting name it; it applied to
@@ -136,7 +129,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   try {
     stored = parse_run_spec(document);
   } catch (const sim::SceneError& e) {
-    throw sim::SceneError(file, source + ": " + e.what());
+    throw sim::SceneError(e.field(), source + ": " + e.what());
   }
   if (overrides.empty()) {
     impl->spec = std::move(stored);

@@ -50,15 +50,10 @@ json& node_at(json& schema, std::string_view dotted) {
   return *node;
 }
 
-template <class Enum>
-std::vector<std::string> names(std::string_view (*name_of)(Enum)) {
-  return sim::registered_names<Enum>(name_of);
-}
-
 json build_schema() {
   const json& document = sim::scene_schema_document();
   json schema = inline_refs(document, document);
-  const std::vector<std::string> slice_fields = names(analysis::slice_field_name);
+  const std::vector<std::string> slice_fields = analysis::kSliceFieldNames.names();
   std::vector<std::string> grid_fields = {"velocity"};
   grid_fields.insert(grid_fields.end(), slice_fields.begin(), slice_fields.end());
   const auto set_enum = [&](std::string_view field, const std::vector<std::string>& values) {
@@ -68,19 +63,19 @@ json build_schema() {
     node_at(schema, field)["items"]["enum"] = values;
   };
   set_enum("preset", sim::preset_names());
-  set_enum("case", names(sim::case_name));
-  set_enum("kernel.type", names(sim::kernel_name));
-  set_enum("scheme.type", names(sim::scheme_name));
-  set_enum("scheme.viscous_operator", names(sim::viscous_operator_name));
-  set_enum("scheme.ale_correction", names(sim::ale_correction_name));
-  set_enum("subfilter.model", names(sim::subfilter_model_name));
-  set_enum("initial.mass", names(sim::initial_mass_name));
-  set_item_enum("analysis.products", names(analysis::product_name));
+  set_enum("case", sim::kCaseNames.names());
+  set_enum("kernel.type", sim::kKernelNames.names());
+  set_enum("scheme.type", sim::kSchemeNames.names());
+  set_enum("scheme.viscous_operator", sim::kViscousOperatorNames.names());
+  set_enum("scheme.ale_correction", sim::kAleCorrectionNames.names());
+  set_enum("subfilter.model", sim::kSubfilterModelNames.names());
+  set_enum("initial.mass", sim::kInitialMassNames.names());
+  set_item_enum("analysis.products", analysis::kProductNames.names());
   set_item_enum("analysis.slice.fields", slice_fields);
   set_item_enum("analysis.particle_fields", slice_fields);
   set_item_enum("analysis.grid_fields", grid_fields);
-  set_enum("analysis.gridding.velocity", names(analysis::velocity_gridding_name));
-  set_enum("analysis.gridding.vorticity", names(analysis::vorticity_estimate_name));
+  set_enum("analysis.gridding.velocity", analysis::kVelocityGriddingNames.names());
+  set_enum("analysis.gridding.vorticity", analysis::kVorticityEstimateNames.names());
   set_item_enum("render.fields", slice_fields);
   set_enum("render.view3d.field", slice_fields);
   node_at(schema, "render.colour")["propertyNames"] = {{"enum", slice_fields}};

@@ -77,7 +77,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
   r.strings("fields", fields);
   for (std::size_t k = 0; k < fields.size(); ++k) {
     const std::string field = "render.fields[" + std::to_string(k) + "]";
-    const analysis::SliceField f = analysis::slice_field_from_name(fields[k], field);
+    const analysis::SliceField f = sim::parse_name(analysis::kSliceFieldNames, fields[k], field);
     if (!analysis.wants(analysis::Product::Slices) || !analysis.slice.fields.contains(f))
       throw_scene_error(field, "is " + fields[k] +
                                    ", which the analysis does not compute: add \"slices\" to "
@@ -95,7 +95,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     if (colours)
       for (const auto& [name, value] : colours->items()) {
         const analysis::SliceField f =
-            analysis::slice_field_from_name(name, "render.colour." + name);
+            sim::parse_name(analysis::kSliceFieldNames, name, "render.colour." + name);
         c.colour[f] = parse_mapping(colour.object(name), default_mapping(f));
       }
     colour.reject_unknown();
@@ -106,7 +106,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     v.boolean("enabled", view.enabled);
     std::string field(analysis::slice_field_name(view.field));
     v.string("field", field);
-    view.field = analysis::slice_field_from_name(field, "render.view3d.field");
+    view.field = sim::parse_name(analysis::kSliceFieldNames, field, "render.view3d.field");
     v.number("every", view.every);
     read_size(v, view.width, view.height);
     v.integer("max_points", view.max_points);

@@ -13,17 +13,7 @@
 namespace sphles::sim {
 
 std::string_view classification_name(Classification c) {
-  switch (c) {
-    case Classification::Stable:
-      return "stable";
-    case Classification::Noisy:
-      return "noisy";
-    case Classification::Paired:
-      return "paired";
-    case Classification::BlownUp:
-      return "blown_up";
-  }
-  return "unknown";
+  return kClassificationNames.name(c);
 }
 
 Classification worst(Classification a, Classification b) {

@@ -14,6 +14,7 @@
 #include <string>
 #include <string_view>
 
+#include "sim/name_table.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
 
@@ -71,7 +72,12 @@ struct HealthThresholds {
 /// Ordered from best to worst: a run's classification is the worst seen over its checks.
 enum class Classification { Stable, Noisy, Paired, BlownUp };
 
-/// "stable", "noisy", "paired", "blown_up".
+inline constexpr NameTable<Classification, 4> kClassificationNames{{{
+    {Classification::Stable, "stable"},
+    {Classification::Noisy, "noisy"},
+    {Classification::Paired, "paired"},
+    {Classification::BlownUp, "blown_up"},
+}}};
 std::string_view classification_name(Classification c);
 
 /// The worse of two classifications.

@@ -18,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "sim/name_table.hpp"
 #include "sim/scene.hpp"
 #include "sim/scene_schema.hpp"
 
@@ -72,6 +73,14 @@ inline std::optional<std::string> closest_key(const std::string& key,
     }
   }
   return best;
+}
+
+/// The value `name` names in `table`; SceneError for `field` otherwise, listing the names.
+template <class Enum, std::size_t N>
+Enum parse_name(const NameTable<Enum, N>& table, const std::string& name,
+                const std::string& field) {
+  if (const std::optional<Enum> value = table.find(name)) return *value;
+  throw_scene_error(field, "must be one of " + table.list() + ", got '" + name + "'");
 }
 
 /// Reads keys of one JSON object, remembering which were used so that the rest can be reported
@@ -155,6 +164,14 @@ class ObjectReader {
     if (!value->is_string())
       throw_scene_error(field(key), "must be a string, got " + describe_type(*value));
     target = value->get<std::string>();
+  }
+
+  /// A name of `table` (target keeps its value when the key is absent).
+  template <class Enum, std::size_t N>
+  void choice(const std::string& key, const NameTable<Enum, N>& table, Enum& target) {
+    std::string name(table.name(target));
+    string(key, name);
+    target = parse_name(table, name, field(key));
   }
 
   void vector(const std::string& key, std::array<double, 3>& target, std::size_t size) {

@@ -14,14 +14,14 @@
 #include <string_view>
 #include <utility>
 
+#include "sim/name_table.hpp"
+
 namespace sphles::sim {
 
 enum class KernelType { WendlandC2, WendlandC4, WendlandC6, QuinticSpline };
 
 /// Canonical scene-file names: "wendland_c2", "wendland_c4", "wendland_c6", "quintic_spline".
 std::string_view kernel_name(KernelType type);
-/// Inverse of kernel_name; throws std::invalid_argument listing the valid names.
-KernelType kernel_from_name(std::string_view name);
 
 namespace kernel_shape {
 
@@ -124,6 +124,9 @@ struct KernelShapeList {};
 /// entry here; names, parsing and with_kernel follow from this list.
 using KernelRegistry = KernelShapeList<kernel_shape::WendlandC2, kernel_shape::WendlandC4,
                                        kernel_shape::WendlandC6, kernel_shape::QuinticSpline>;
+
+/// The kernels' scene names, from the registry.
+inline constexpr auto kKernelNames = registry_names<KernelType>(KernelRegistry{});
 
 /// Calls for_shape.template operator()<Shape>() for the registered shape of the given type.
 template <class F, class First, class... Rest>

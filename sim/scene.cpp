@@ -19,17 +19,6 @@ using nlohmann::json;
 
 namespace {
 
-constexpr std::array<std::pair<CaseType, std::string_view>, 3> kCaseNames{{
-    {CaseType::TaylorGreen3D, "tgv3d"},
-    {CaseType::TaylorGreen2D, "tgv2d"},
-    {CaseType::Kolmogorov2D, "kolmogorov2d"},
-}};
-
-constexpr std::array<std::pair<InitialMass, std::string_view>, 2> kInitialMassNames{{
-    {InitialMass::Summation, "summation"},
-    {InitialMass::Lattice, "lattice"},
-}};
-
 /// Defaults that depend on the case (SPEC §6.1 for tgv3d; tgv2d at Re = 100, Ma = 0.1).
 Scene case_defaults(CaseType type) {
   Scene s;
@@ -122,15 +111,11 @@ void check_time_resolution(const Scene& s) {
 }  // namespace
 
 std::string_view case_name(CaseType type) {
-  for (const auto& [t, name] : kCaseNames)
-    if (t == type) return name;
-  return "unknown";
+  return kCaseNames.name(type);
 }
 
 std::string_view initial_mass_name(InitialMass mass) {
-  for (const auto& [m, name] : kInitialMassNames)
-    if (m == mass) return name;
-  return "unknown";
+  return kInitialMassNames.name(mass);
 }
 
 int case_dimension(CaseType type) {
@@ -168,15 +153,9 @@ Scene parse_scene(const json& input) {
     document.merge_patch(patch);
   }
   ObjectReader top(document, "");
-  std::string case_string = "tgv3d";
-  top.string("case", case_string);
-  std::optional<CaseType> type;
-  for (const auto& [t, name] : kCaseNames)
-    if (name == case_string) type = t;
-  if (!type)
-    throw_scene_error("case",
-                      "must be one of tgv3d, tgv2d, kolmogorov2d, got '" + case_string + "'");
-  Scene s = case_defaults(*type);
+  CaseType type = CaseType::TaylorGreen3D;
+  top.choice("case", kCaseNames, type);
+  Scene s = case_defaults(type);
   s.preset = preset;
   if (!preset.empty()) s.name = preset;
   top.find("preset");
@@ -190,13 +169,7 @@ Scene parse_scene(const json& input) {
   }
   {
     ObjectReader k = top.object("kernel");
-    std::string kernel = std::string(kernel_name(s.kernel));
-    k.string("type", kernel);
-    try {
-      s.kernel = kernel_from_name(kernel);
-    } catch (const std::invalid_argument& e) {
-      throw SceneError("kernel.type", "scene: 'kernel.type': " + std::string(e.what()));
-    }
+    k.choice("type", kKernelNames, s.kernel);
     k.number("diameter_over_spacing", s.kernel_diameter_over_spacing);
     k.reject_unknown();
   }
@@ -233,37 +206,19 @@ Scene parse_scene(const json& input) {
   {
     // An object, so that further keys of the scheme can join "type".
     ObjectReader sc = top.object("scheme");
-    std::string type = std::string(scheme_name(s.scheme.type));
-    sc.string("type", type);
-    try {
-      s.scheme.type = scheme_from_name(type);
-    } catch (const std::invalid_argument& e) {
-      throw SceneError("scheme.type", "scene: 'scheme.type': " + std::string(e.what()));
-    }
-    std::string op = std::string(viscous_operator_name(s.scheme.viscous_operator));
-    sc.string("viscous_operator", op);
-    try {
-      s.scheme.viscous_operator = viscous_operator_from_name(op);
-    } catch (const std::invalid_argument& e) {
-      throw_scene_error("scheme.viscous_operator", e.what());
-    }
+    sc.choice("type", kSchemeNames, s.scheme.type);
+    sc.choice("viscous_operator", kViscousOperatorNames, s.scheme.viscous_operator);
     if (s.scheme.viscous_operator != ViscousOperator::Thesis &&
         s.scheme.type == SchemeType::TransportVelocity)
       throw_scene_error("scheme.viscous_operator",
-                        "= '" + op +
+                        "= '" + std::string(viscous_operator_name(s.scheme.viscous_operator)) +
                             "' applies to scheme.type thesis and particle_shifting only (the "
                             "transport-velocity scheme has its own viscous term)");
     const double default_mach = SchemeConfig{}.shifting_mach;
     sc.number("shifting_mach", s.scheme.shifting_mach);
     if (s.scheme.shifting_mach != default_mach && s.scheme.type != SchemeType::ParticleShifting)
       throw_scene_error("scheme.shifting_mach", "applies to scheme.type particle_shifting only");
-    std::string ale = std::string(ale_correction_name(s.scheme.ale_correction));
-    sc.string("ale_correction", ale);
-    try {
-      s.scheme.ale_correction = ale_correction_from_name(ale);
-    } catch (const std::invalid_argument& e) {
-      throw_scene_error("scheme.ale_correction", e.what());
-    }
+    sc.choice("ale_correction", kAleCorrectionNames, s.scheme.ale_correction);
     if (s.scheme.ale_correction != SchemeConfig{}.ale_correction &&
         !scheme_uses_transport_velocity(s.scheme.type))
       throw_scene_error("scheme.ale_correction",
@@ -272,13 +227,7 @@ Scene parse_scene(const json& input) {
   }
   {
     ObjectReader m = top.object("subfilter");
-    std::string model = std::string(subfilter_model_name(s.subfilter.model));
-    m.string("model", model);
-    try {
-      s.subfilter.model = subfilter_model_from_name(model);
-    } catch (const std::invalid_argument& e) {
-      throw SceneError("subfilter.model", "scene: 'subfilter.model': " + std::string(e.what()));
-    }
+    m.choice("model", kSubfilterModelNames, s.subfilter.model);
     m.number("smagorinsky_constant", s.subfilter.smagorinsky_constant);
     m.number("sigma_constant", s.subfilter.sigma_constant);
     m.number("filter_width", s.subfilter.filter_width);
@@ -319,14 +268,7 @@ Scene parse_scene(const json& input) {
   }
   {
     ObjectReader in = top.object("initial");
-    std::string mass = std::string(initial_mass_name(s.initial.mass));
-    in.string("mass", mass);
-    std::optional<InitialMass> parsed;
-    for (const auto& [m, name] : kInitialMassNames)
-      if (name == mass) parsed = m;
-    if (!parsed)
-      throw_scene_error("initial.mass", "must be one of summation, lattice, got '" + mass + "'");
-    s.initial.mass = *parsed;
+    in.choice("mass", kInitialMassNames, s.initial.mass);
     in.reject_unknown();
   }
   {
@@ -609,7 +551,7 @@ json preset_document(const std::string& name) {
   }
   std::string valid;
   for (const std::string& n : preset_names()) valid += (valid.empty() ? "" : ", ") + n;
-  throw SceneError(name, "scene: unknown preset '" + name + "' (valid: " + valid + ")");
+  throw SceneError("preset", "scene: unknown preset '" + name + "' (valid: " + valid + ")");
 }
 
 }  // namespace sphles::sim

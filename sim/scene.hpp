@@ -16,6 +16,7 @@
 #include <nlohmann/json.hpp>
 
 #include "sim/kernels.hpp"
+#include "sim/name_table.hpp"
 #include "sim/physics.hpp"
 #include "sim/solver.hpp"
 
@@ -43,6 +44,11 @@ class SceneError : public std::runtime_error {
 
 enum class CaseType { TaylorGreen3D, TaylorGreen2D, Kolmogorov2D };
 
+inline constexpr NameTable<CaseType, 3> kCaseNames{{{
+    {CaseType::TaylorGreen3D, "tgv3d"},
+    {CaseType::TaylorGreen2D, "tgv2d"},
+    {CaseType::Kolmogorov2D, "kolmogorov2d"},
+}}};
 std::string_view case_name(CaseType type);
 int case_dimension(CaseType type);
 
@@ -65,6 +71,10 @@ struct PackingConfig {
 enum class InitialMass { Summation, Lattice };
 
 /// Scene names: "summation", "lattice".
+inline constexpr NameTable<InitialMass, 2> kInitialMassNames{{{
+    {InitialMass::Summation, "summation"},
+    {InitialMass::Lattice, "lattice"},
+}}};
 std::string_view initial_mass_name(InitialMass mass);
 
 struct InitialConfig {

@@ -45,22 +45,4 @@ std::optional<std::string> violated_bounds(const nlohmann::json& node, double x)
 /// the additional properties of render.colour are not enumerated).
 std::vector<std::string> scene_schema_fields();
 
-/// The names of a registry whose name function maps each value 0, 1, ... of Enum to its name
-/// and the first value past the last to "unknown" (or throws std::invalid_argument).
-template <class Enum, class NameOf>
-std::vector<std::string> registered_names(NameOf name_of) {
-  std::vector<std::string> names;
-  for (int k = 0;; ++k) {
-    std::string name;
-    try {
-      name = std::string(name_of(static_cast<Enum>(k)));
-    } catch (const std::invalid_argument&) {
-      break;
-    }
-    if (name.empty() || name == "unknown") break;
-    names.push_back(std::move(name));
-  }
-  return names;
-}
-
 }  // namespace sphles::sim

@@ -27,6 +27,7 @@
 #include <vector>
 
 #include "sim/exchange.hpp"
+#include "sim/name_table.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particle_shifting.hpp"
@@ -212,6 +213,14 @@ struct SchemeList {};
 /// The registry: every scheme the scene may name, the default first.
 using SchemeRegistry = SchemeList<ThesisScheme, TransportVelocityScheme, ParticleShiftingScheme>;
 
+/// The schemes' scene names, from the registry.
+inline constexpr auto kSchemeNames = registry_names<SchemeType>(SchemeRegistry{});
+/// Scene names of scheme.ale_correction.
+inline constexpr NameTable<AleCorrection, 2> kAleCorrectionNames{{{
+    {AleCorrection::Conservative, "conservative"},
+    {AleCorrection::Full, "full"},
+}}};
+
 /// Calls f(S{}) with the registered scheme S of the given type.
 template <class F, class... Schemes>
 void visit_scheme(SchemeType type, SchemeList<Schemes...>, F&& f) {
@@ -225,11 +234,9 @@ void visit_scheme(SchemeType type, F&& f) {
 
 /// Scene names: "thesis", "transport_velocity", "particle_shifting".
 std::string_view scheme_name(SchemeType type);
-SchemeType scheme_from_name(std::string_view name);  // throws invalid_argument listing the names
 bool scheme_uses_transport_velocity(SchemeType type);
 
 /// Scene names of scheme.ale_correction: "conservative", "full".
 std::string_view ale_correction_name(AleCorrection ale);
-AleCorrection ale_correction_from_name(std::string_view name);  // throws invalid_argument
 
 }  // namespace sphles::sim

@@ -14,11 +14,6 @@ namespace sphles::sim {
 
 namespace {
 
-constexpr std::array<std::pair<ViscousOperator, std::string_view>, 2> kViscousOperatorNames{{
-    {ViscousOperator::Thesis, "thesis"},
-    {ViscousOperator::Corrected, "corrected"},
-}};
-
 void validate(const SolverConfig& c, const ParticleArrays& p, const Exchange& exchange) {
   if (c.box.dimension != 2 && c.box.dimension != 3)
     throw std::invalid_argument("solver: dimension must be 2 or 3");
@@ -502,15 +497,7 @@ class SphSolver final : public Simulation {
 }  // namespace
 
 std::string_view viscous_operator_name(ViscousOperator op) {
-  for (const auto& [o, name] : kViscousOperatorNames)
-    if (o == op) return name;
-  return "unknown";
-}
-
-ViscousOperator viscous_operator_from_name(std::string_view name) {
-  for (const auto& [o, n] : kViscousOperatorNames)
-    if (n == name) return o;
-  throw std::invalid_argument("must be one of thesis, corrected, got '" + std::string(name) + "'");
+  return kViscousOperatorNames.name(op);
 }
 
 TimeStepLimits time_step_limits(const TimeStepConfig& ts, double spacing,

@@ -10,31 +10,8 @@
 
 namespace sphles::sim {
 
-namespace {
-
-template <class... Models>
-std::string all_names(SubfilterModelList<Models...>) {
-  std::string valid;
-  ((valid += (valid.empty() ? "" : ", ") + std::string(Models::name)), ...);
-  return valid;
-}
-
-template <class... Models>
-bool type_of(std::string_view name, SubfilterModel& type, SubfilterModelList<Models...>) {
-  return ((Models::name == name ? (type = Models::type, true) : false) || ...);
-}
-
-}  // namespace
-
 std::string_view subfilter_model_name(SubfilterModel model) {
-  return visit_subfilter_model(model, [](auto m) { return decltype(m)::name; });
-}
-
-SubfilterModel subfilter_model_from_name(std::string_view name) {
-  SubfilterModel model{};
-  if (type_of(name, model, SubfilterRegistry{})) return model;
-  throw std::invalid_argument("unknown sub-filter model '" + std::string(name) +
-                              "' (valid: " + all_names(SubfilterRegistry{}) + ")");
+  return kSubfilterModelNames.name(model);
 }
 
 double smagorinsky_viscosity(const VelocityGradient& j, double scale) {

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "sim/name_table.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
@@ -26,7 +27,6 @@ enum class SubfilterModel { Implicit, Smagorinsky, Sigma, SmagorinskyMcg };
 /// Scene names and parsing come from SubfilterRegistry below ("implicit", "smag", "sigma",
 /// "smag_mcg").
 std::string_view subfilter_model_name(SubfilterModel model);
-SubfilterModel subfilter_model_from_name(std::string_view name);  // throws invalid_argument
 
 struct SubfilterConfig {
   SubfilterModel model = SubfilterModel::Implicit;
@@ -117,6 +117,8 @@ constexpr std::array<SubfilterModel, sizeof...(Models)> subfilter_model_types(
   return {Models::type...};
 }
 inline constexpr auto kSubfilterModels = subfilter_model_types(SubfilterRegistry{});
+/// The models' scene names, from the registry.
+inline constexpr auto kSubfilterModelNames = registry_names<SubfilterModel>(SubfilterRegistry{});
 
 /// Calls f(Model{}) with the registered model of the given type.
 template <class F, class First, class... Rest>

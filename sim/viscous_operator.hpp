@@ -30,6 +30,7 @@
 #include <vector>
 
 #include "sim/eigen.hpp"
+#include "sim/name_table.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
@@ -40,7 +41,10 @@ enum class ViscousOperator { Thesis, Corrected };
 
 /// Scene names: "thesis", "corrected".
 std::string_view viscous_operator_name(ViscousOperator op);
-ViscousOperator viscous_operator_from_name(std::string_view name);  // throws invalid_argument
+inline constexpr NameTable<ViscousOperator, 2> kViscousOperatorNames{{{
+    {ViscousOperator::Thesis, "thesis"},
+    {ViscousOperator::Corrected, "corrected"},
+}}};
 
 /// The monomials e_x^a e_y^b (e_z^c) of degree 4 in the direction e.
 template <int Dim>

@@ -7,6 +7,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "sim/json_reader.hpp"
 #include "sim/kernels.hpp"
 
 namespace sphles::sim {
@@ -31,7 +32,7 @@ TYPED_TEST_SUITE(KernelTest, AllKernels);
 // Names round-trip for every registered kernel, and an unknown name lists the valid ones.
 template <class Shape>
 void check_name() {
-  EXPECT_EQ(kernel_from_name(Shape::name), Shape::type);
+  EXPECT_EQ(kKernelNames.find(Shape::name), Shape::type);
   EXPECT_EQ(kernel_name(Shape::type), Shape::name);
 }
 template <class... Shapes>
@@ -41,12 +42,12 @@ void check_names(KernelShapeList<Shapes...>) {
 TEST(KernelRegistry, NamesRoundTripAndUnknownNamesListTheValidOnes) {
   check_names(KernelRegistry{});
   try {
-    kernel_from_name("gaussian");
+    parse_name(kKernelNames, "gaussian", "kernel.type");
     FAIL() << "an unknown kernel was accepted";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find(
-                  "unknown kernel 'gaussian' (valid: wendland_c2, wendland_c4, wendland_c6, "
-                  "quintic_spline)"),
+  } catch (const SceneError& e) {
+    EXPECT_EQ(e.field(), "kernel.type");
+    EXPECT_NE(std::string(e.what()).find("must be one of wendland_c2, wendland_c4, wendland_c6, "
+                                         "quintic_spline, got 'gaussian'"),
               std::string::npos)
         << e.what();
   }
@@ -117,12 +118,13 @@ TYPED_TEST(KernelTest, CompactSupportAndShape) {
 TEST(KernelNames, RoundTripAndError) {
   for (const auto type : {KernelType::WendlandC2, KernelType::WendlandC4, KernelType::WendlandC6,
                           KernelType::QuinticSpline})
-    EXPECT_EQ(kernel_from_name(kernel_name(type)), type);
+    EXPECT_EQ(kKernelNames.find(kernel_name(type)), type);
+  EXPECT_EQ(kKernelNames.find("cubic"), std::nullopt);
   try {
-    kernel_from_name("cubic");
+    parse_name(kKernelNames, "cubic", "kernel.type");
     FAIL() << "expected an exception";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("unknown kernel 'cubic'"), std::string::npos);
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("got 'cubic'"), std::string::npos);
     EXPECT_NE(std::string(e.what()).find("wendland_c4"), std::string::npos);
   }
 }

@@ -11,6 +11,7 @@
 #include <cstring>
 
 #include "sim/initial_conditions.hpp"
+#include "sim/json_reader.hpp"
 #include "sim/packing.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -53,13 +54,13 @@ std::array<std::vector<double>, 3> shifting_velocity_of(const SolverConfig& conf
 
 TEST(ParticleShiftingNames, RegisteredWithTransportVelocityAndListedWhenUnknown) {
   EXPECT_EQ(scheme_name(SchemeType::ParticleShifting), "particle_shifting");
-  EXPECT_EQ(scheme_from_name("particle_shifting"), SchemeType::ParticleShifting);
+  EXPECT_EQ(kSchemeNames.find("particle_shifting"), SchemeType::ParticleShifting);
   EXPECT_TRUE(scheme_uses_transport_velocity(SchemeType::ParticleShifting));
   try {
-    scheme_from_name("shifting");
-    FAIL() << "expected invalid_argument";
-  } catch (const std::invalid_argument& e) {
-    EXPECT_NE(std::string(e.what()).find("valid: thesis, transport_velocity, particle_shifting"),
+    parse_name(kSchemeNames, "shifting", "scheme.type");
+    FAIL() << "expected SceneError";
+  } catch (const SceneError& e) {
+    EXPECT_NE(std::string(e.what()).find("one of thesis, transport_velocity, particle_shifting"),
               std::string::npos)
         << e.what();
   }

@@ -121,7 +121,9 @@ INSTANTIATE_TEST_SUITE_P(
         BadScene{{{"fluid", {{"dynamic_viscosity", "x"}}}},
                  "'fluid.dynamic_viscosity' must be a number, got string"},
         BadScene{{{"fluid", 3}}, "'fluid' must be an object, got number"},
-        BadScene{{{"kernel", {{"type", "gauss"}}}}, "'kernel.type': unknown kernel 'gauss'"},
+        BadScene{{{"kernel", {{"type", "gauss"}}}},
+                 "'kernel.type' must be one of wendland_c2, wendland_c4, wendland_c6, "
+                 "quintic_spline, got 'gauss'"},
         BadScene{{{"case", "channel"}},
                  "'case' must be one of tgv3d, tgv2d, kolmogorov2d, got 'channel'"},
         BadScene{{{"time", {{"cfl_acoustic", 3}}}}, "'time.cfl_acoustic' must be in (0, 2], got 3"},

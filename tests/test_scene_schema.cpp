@@ -173,8 +173,7 @@ TEST(SceneSchema, ReadersAndValidatorRefuseTheSameDocumentsNamingTheField) {
 TEST(SceneSchema, RegistryNamesArePublishedAsEnumsAndEachIsAccepted) {
   const json& schema = control::scene_schema();
   const json& kernels = schema["properties"]["kernel"]["properties"]["type"]["enum"];
-  const std::vector<std::string> kernel_names =
-      sim::registered_names<sim::KernelType>(sim::kernel_name);
+  const std::vector<std::string> kernel_names = sim::kKernelNames.names();
   ASSERT_EQ(kernels.size(), kernel_names.size());
   for (const std::string& name : kernel_names) {
     EXPECT_NE(std::find(kernels.begin(), kernels.end(), name), kernels.end()) << name;

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "sim/initial_conditions.hpp"
+#include "sim/json_reader.hpp"
 #include "sim/packing.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -78,11 +79,11 @@ TEST(EddyViscosity, SigmaVanishesForRotationShearAndUniformFlowButNotIn3DStrain)
 TEST(EddyViscosity, ModelNames) {
   ASSERT_EQ(kSubfilterModels.size(), 4u);
   for (const auto m : kSubfilterModels)
-    EXPECT_EQ(subfilter_model_from_name(subfilter_model_name(m)), m);
+    EXPECT_EQ(kSubfilterModelNames.find(subfilter_model_name(m)), m);
   try {
-    subfilter_model_from_name("wale");
+    parse_name(kSubfilterModelNames, "wale", "subfilter.model");
     ADD_FAILURE() << "an unknown model was accepted";
-  } catch (const std::invalid_argument& e) {
+  } catch (const SceneError& e) {
     const std::string message = e.what();
     EXPECT_NE(message.find("'wale'"), std::string::npos) << message;
     for (const auto m : kSubfilterModels)
