@@ -141,7 +141,9 @@ class RunObserver {
   virtual void on_metrics(std::span<const MetricsSample> /*batch*/) {}
   virtual void on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& /*frame*/) {}
   virtual void on_image(const ImageEvent& /*image*/) {}
-  virtual void on_state(RunState /*state*/, const std::string& /*reason*/) {}
+  /// `actions`: what the run accepts in its new state (RunStatus::actions).
+  virtual void on_state(RunState /*state*/, const std::string& /*reason*/,
+                        std::span<const std::string_view> /*actions*/) {}
   /// True if this observer wants images: a run renders frames its scene does not save only
   /// while some observer wants them.
   virtual bool wants_images() const { return false; }

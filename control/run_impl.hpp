@@ -140,9 +140,10 @@ struct Run::Impl {
       log->info("state: {} -> {} ({})", run_state_name(before), run_state_name(s), reason);
     try_write_run_file_locked();
     const std::string r = reason;
+    const std::vector<std::string_view> verbs = actions_locked();
     changed.notify_all();
     lock.unlock();
-    for_each_observer([&](RunObserver& o) { o.on_state(s, r); });
+    for_each_observer([&](RunObserver& o) { o.on_state(s, r, verbs); });
     lock.lock();
   }
 

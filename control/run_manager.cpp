@@ -155,7 +155,7 @@ CreateRequest parse_create_request(const json& body) {
 class RunManager::SlotObserver : public RunObserver {
  public:
   explicit SlotObserver(std::shared_ptr<Wakeup> wakeup) : wakeup_(std::move(wakeup)) {}
-  void on_state(RunState state, const std::string&) override {
+  void on_state(RunState state, const std::string&, std::span<const std::string_view>) override {
     if (!occupies_slot(state) && state != RunState::Queued) wakeup_->notify();
   }
 

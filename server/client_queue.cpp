@@ -164,10 +164,14 @@ void RunFanout::on_image(const control::ImageEvent& image) {
   each([&](ClientQueue& q) { q.push_image(image); });
 }
 
-void RunFanout::on_state(control::RunState state, const std::string& reason) {
+void RunFanout::on_state(control::RunState state, const std::string& reason,
+                         std::span<const std::string_view> actions) {
   std::string text;
   try {
-    text = dump({{"type", "state"}, {"state", control::run_state_name(state)}, {"reason", reason}});
+    text = dump({{"type", "state"},
+                 {"state", control::run_state_name(state)},
+                 {"reason", reason},
+                 {"actions", std::vector<std::string_view>(actions.begin(), actions.end())}});
   } catch (...) {
     return;
   }

@@ -118,7 +118,8 @@ class RunFanout final : public control::RunObserver {
   void on_metrics(std::span<const control::MetricsSample> batch) override;
   void on_analysis(const std::shared_ptr<const analysis::AnalysisFrame>& frame) override;
   void on_image(const control::ImageEvent& image) override;
-  void on_state(control::RunState state, const std::string& reason) override;
+  void on_state(control::RunState state, const std::string& reason,
+                std::span<const std::string_view> actions) override;
   bool wants_images() const override;
 
  private:

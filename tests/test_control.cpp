@@ -85,14 +85,17 @@ class Recorder : public RunObserver {
     std::lock_guard lock(mutex);
     images.push_back(image);
   }
-  void on_state(RunState state, const std::string&) override {
+  void on_state(RunState state, const std::string&,
+                std::span<const std::string_view> verbs) override {
     std::lock_guard lock(mutex);
     states.push_back(state);
+    actions.emplace_back(verbs.begin(), verbs.end());
   }
   bool wants_images() const override { return want_images_; }
   std::mutex mutex;
   std::vector<MetricsSample> metrics;
   std::vector<ImageEvent> images;
+  std::vector<std::vector<std::string_view>> actions;  // with each state
   std::vector<RunState> states;
 
  private:
@@ -118,6 +121,8 @@ TEST(RunControl, RunsToTheEndAndRecordsItsState) {
     std::lock_guard lock(recorder->mutex);
     EXPECT_EQ(recorder->metrics.size(), s.step + 1);
     EXPECT_EQ(recorder->states.back(), RunState::Finished);
+    // At its time.end a finished run accepts only its deletion.
+    EXPECT_EQ(recorder->actions.back(), std::vector<std::string_view>{"delete"});
   }
   // A finished run cannot start again until time.end is raised. (Not while holding the
   // observer's lock: a transition may notify observers while it holds the run's own.)

@@ -92,8 +92,16 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
     schema["$ref"] = "#/components/messages/" + message["type"].get<std::string>() + "/payload";
     return sphles::control::json_schema_violation(schema, message);
   };
-  EXPECT_EQ(violation({{"type", "state"}, {"state", "paused"}, {"reason", ""}}), std::nullopt);
-  EXPECT_NE(violation({{"type", "state"}, {"state", "dancing"}, {"reason", ""}}), std::nullopt);
+  EXPECT_EQ(violation({{"type", "state"},
+                       {"state", "paused"},
+                       {"reason", ""},
+                       {"actions", {"resume", "stop"}}}),
+            std::nullopt);
+  EXPECT_NE(violation({{"type", "state"}, {"state", "paused"}, {"reason", ""}}), std::nullopt);
+  EXPECT_NE(
+      violation(
+          {{"type", "state"}, {"state", "dancing"}, {"reason", ""}, {"actions", json::array()}}),
+      std::nullopt);
   EXPECT_NE(violation({{"type", "metrics"}, {"samples", json::array()}}), std::nullopt);
   EXPECT_NE(violation({{"type", "images"}, {"enabled", "no"}}), std::nullopt);
   EXPECT_NE(violation({{"type", "parameters"}, {"patch", {{"kernel", {{"type", "gauss"}}}}}}),
@@ -790,6 +798,7 @@ TEST(Server, WebSocketStreamsMetricsSpectraAndFrames) {
   ASSERT_EQ(api.post("/api/runs/" + id + "/pause").status, 200);
   const json state = ws.read_type("state").text();
   EXPECT_EQ(state["state"], "paused");
+  EXPECT_EQ(state["actions"], json({"resume", "stop"}));  // those of the new state
   expect_declared(asyncapi, state);
 
   // Unknown run or path: the upgrade is declined with 404.

@@ -21,10 +21,10 @@ export function onStreamMessage(id, m) {
       refreshLog();
       break;
     case 'state': {
-      // The message lists no actions: those of the state before are void until the summary of
-      // the new one arrives with the run list asked for now (pollSoon).
-      const actions = m.state === app.summary?.state ? {} : { actions: [] };
-      mergeSummary({ id, state: m.state, reason: m.reason ?? '', ...actions });
+      // The message carries the new state's actions (the server's rules); the run list asked
+      // for now (pollSoon) brings the rest of the summary.
+      const actions = Array.isArray(m.actions) ? m.actions : [];
+      mergeSummary({ id, state: m.state, reason: m.reason ?? '', actions });
       pollSoon();
       refreshLog();
       refreshFiles();
