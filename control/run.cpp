@@ -346,6 +346,8 @@ void Run::stop(const std::string& reason) {
 void Run::retire() {
   std::lock_guard transition(impl_->transition_mutex);
   {
+    // A change being written finishes first; none starts after (refuse_if_retired).
+    std::lock_guard serial(impl_->change_mutex);
     std::lock_guard lock(impl_->mutex);
     Impl& r = *impl_;
     r.refuse_if_retired();
@@ -390,22 +392,43 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
   if (!patch.is_object())
     throw ChangeError("(body)", "must be a JSON object (a merge patch of the scene), got " +
                                     std::string(patch.type_name()));
-  std::unique_lock lock(impl_->mutex);
   Impl& r = *impl_;
-  r.refuse_if_retired();
-  const json before = run_spec_to_json(r.pending ? *r.pending : r.spec);
+  // Parsing, validation, admission and the file write run outside the state lock, which the
+  // solver thread takes every step; change_mutex keeps concurrent changes in order.
+  std::lock_guard serial(r.change_mutex);
+  json before;
+  {
+    std::lock_guard lock(r.mutex);
+    r.refuse_if_retired();
+    before = run_spec_to_json(r.pending ? *r.pending : r.spec);
+  }
   json after = before;
   after.merge_patch(patch);
   CheckedChange change = check_change(before, after);
   if (change.fields.empty()) return {};
   if (r.options.admit) r.options.admit(change.spec, r.options.ranks);  // throws AdmissionError
-  if (std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end() &&
-      change.spec.run.scene.end_time <= r.time)
-    throw ChangeError("time.end", "must be after the current time " + sim::format_number(r.time));
+  const bool end_changes =
+      std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end();
+  const auto refuse_past_end = [&] {
+    if (end_changes && change.spec.run.scene.end_time <= r.time)
+      throw ChangeError("time.end", "must be after the current time " + sim::format_number(r.time));
+  };
+  {
+    std::lock_guard lock(r.mutex);
+    refuse_past_end();
+  }
   // Persist first: a change that cannot be written would be lost at a restart, so it is not made
   // (the write error is thrown and nothing changes). scene.json shows the document the solver
   // thread applies at its next step.
   write_text_atomically(r.directory / "scene.json", run_spec_to_json(change.spec).dump(2) + "\n");
+  std::unique_lock lock(r.mutex);
+  try {
+    refuse_past_end();  // the run went on while the document was written
+  } catch (const ChangeError&) {
+    lock.unlock();
+    write_text_atomically(r.directory / "scene.json", before.dump(2) + "\n");
+    throw;
+  }
   const bool active = r.state == RunState::Running || r.state == RunState::Paused;
   if (active) {
     r.pending = std::move(change.spec);

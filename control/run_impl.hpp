@@ -38,6 +38,11 @@ struct Run::Impl {
   // the state the first one left. Taken before `mutex`, never by the solver thread.
   std::mutex transition_mutex;
 
+  // Serialises live changes (Run::apply_changes) and retire: held while a change is parsed,
+  // validated, admitted and written to scene.json, so that `mutex` is held only to swap it in.
+  // Taken after transition_mutex and before `mutex`, never by the solver thread.
+  std::mutex change_mutex;
+
   mutable std::mutex mutex;  // guards everything below up to "solver thread only"
   std::condition_variable changed;
   RunSpec spec;

@@ -6,7 +6,9 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <condition_variable>
 #include <fstream>
+#include <mutex>
 #include <regex>
 #include <sstream>
 #include <thread>
@@ -376,6 +378,41 @@ TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {
   run.wait();
   EXPECT_EQ(run.status().state, RunState::Finished);
   EXPECT_NEAR(run.status().time, end + 0.02, 1e-9);
+}
+
+TEST(RunControl, ALiveChangeBeingCheckedDoesNotHoldTheRunUp) {
+  // Parsing, validation, admission and the scene.json write of a change run outside the state
+  // lock the solver thread takes every step: the run steps on and answers while a change waits.
+  const auto dir = fresh_directory("change_lock");
+  std::mutex gate_mutex;
+  std::condition_variable gate;
+  bool admitting = false, release = false;
+  RunOptions options;
+  options.admit = [&](const RunSpec&, int) {
+    std::unique_lock lock(gate_mutex);
+    admitting = true;
+    gate.notify_all();
+    gate.wait(lock, [&] { return release; });
+  };
+  control::Run run("r", parse_run_spec(tiny_scene(50.0)), dir, options);
+  run.start();
+  ASSERT_TRUE(eventually([&] { return run.status().step > 3; }));
+  std::thread changer([&] { run.apply_changes({{"fluid", {{"reference_pressure", 4.0}}}}); });
+  {
+    std::unique_lock lock(gate_mutex);
+    gate.wait(lock, [&] { return admitting; });
+  }
+  const std::uint64_t step = run.status().step;  // answers while the change is admitted
+  const bool stepped = eventually([&] { return run.status().step > step + 2; });
+  {
+    std::lock_guard lock(gate_mutex);
+    release = true;
+  }
+  gate.notify_all();
+  changer.join();
+  EXPECT_TRUE(stepped) << "the solver waited for a change being admitted";
+  EXPECT_EQ(run.document().at("fluid").at("reference_pressure"), 4.0);
+  run.stop();
 }
 
 bool is_png(const std::vector<unsigned char>& bytes) {
