@@ -44,13 +44,13 @@ std::string dotted_field(const std::string& pointer) {
 ChangeScope scope_of(const std::vector<std::string>& fields) {
   ChangeScope s;
   for (const std::string& f : fields) {
-    if (has_prefix(f, "analysis"))
-      s.analysis = true;
-    else if (has_prefix(f, "render"))
-      s.render = true;
-    else if (has_prefix(f, "time") || has_prefix(f, "fluid") || has_prefix(f, "subfilter") ||
-             has_prefix(f, "scheme") || has_prefix(f, "forcing"))
+    const std::string scope = live_rule(f).scope;  // the schema's "x-scope"
+    if (scope == "solver")
       s.solver = true;
+    else if (scope == "analysis")
+      s.analysis = true;
+    else if (scope == "render")
+      s.render = true;
     else
       s.other = true;
   }

@@ -28,7 +28,7 @@ struct CheckedChange {
 /// is malformed ("'a.b' must be ...") or fixed ("'a.b' cannot change while a run exists: why").
 CheckedChange check_change(const nlohmann::json& before, const nlohmann::json& after);
 
-/// Which parts of a run a set of changed fields touches.
+/// Which parts of a run a set of changed fields touches: the schema's "x-scope" of each.
 struct ChangeScope {
   bool solver = false, analysis = false, render = false, other = false;
 };

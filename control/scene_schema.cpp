@@ -176,7 +176,7 @@ std::optional<std::string> json_schema_violation(const json& schema, const json&
 }
 
 LiveRule live_rule(const std::string& dotted) {
-  // The innermost x-live or x-fixed on the way from the scene to the field decides.
+  // The innermost x-live, x-fixed or x-scope on the way from the scene to the field decides.
   LiveRule rule;
   const json* node = &sim::scene_schema_document();
   for (const std::string& key : sim::dotted_keys(dotted)) {
@@ -190,6 +190,8 @@ LiveRule live_rule(const std::string& dotted) {
       rule.live = false;
       rule.reason = fixed->get<std::string>();
     }
+    if (const auto scope = node->find("x-scope"); scope != node->end())
+      rule.scope = scope->get<std::string>();
   }
   return rule;
 }

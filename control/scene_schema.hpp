@@ -3,7 +3,7 @@
 // registry filled in (kernels, schemes, sub-filter models, analysis products and fields, presets),
 // for the API (GET /api/schema/scene, the OpenAPI document), the dashboard, `sphles schema` and
 // docs/scenes.md; the validation of a whole scene document against it; and the live-change rules
-// it declares ("x-live", "x-fixed").
+// it declares ("x-live", "x-fixed", "x-scope").
 #pragma once
 
 #include <optional>
@@ -42,10 +42,12 @@ std::optional<std::string> json_schema_violation(const nlohmann::json& schema,
 
 /// Whether a running run may change the dotted field, and why not: the nearest "x-live" /
 /// "x-fixed" of the field or its parents in the schema. `reason` is empty for a refusal the
-/// schema gives no reason for.
+/// schema gives no reason for. `scope` is the part of a run a change of it reconfigures, the
+/// nearest "x-scope" ("solver", "analysis", "render"; empty: none of them).
 struct LiveRule {
   bool live = false;
   std::string reason;
+  std::string scope;
 };
 LiveRule live_rule(const std::string& dotted);
 

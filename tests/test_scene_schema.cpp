@@ -235,4 +235,31 @@ TEST(SceneSchema, LiveChangeRulesComeFromTheSchema) {
   EXPECT_EQ(control::check_change(before, after).fields, std::vector<std::string>{"time.end"});
 }
 
+TEST(SceneSchema, TheScopeOfAChangeComesFromTheSchema) {
+  // The part of a run a change reconfigures is the schema's "x-scope" of the field or a parent.
+  EXPECT_EQ(control::live_rule("fluid.dynamic_viscosity").scope, "solver");
+  EXPECT_EQ(control::live_rule("time.end").scope, "solver");
+  EXPECT_EQ(control::live_rule("forcing.amplitude").scope, "solver");
+  EXPECT_EQ(control::live_rule("subfilter.smagorinsky_constant").scope, "solver");
+  EXPECT_EQ(control::live_rule("analysis.every").scope, "analysis");
+  EXPECT_EQ(control::live_rule("render.colour.omega2.scale").scope, "render");
+  EXPECT_EQ(control::live_rule("checkpoint.every").scope, "");
+  EXPECT_EQ(control::live_rule("name").scope, "");
+  // Every scope the schema declares is one the run knows how to apply.
+  for (const std::string& field : sim::scene_schema_fields()) {
+    const std::string scope = control::live_rule(field).scope;
+    EXPECT_TRUE(scope.empty() || scope == "solver" || scope == "analysis" || scope == "render")
+        << field << ": " << scope;
+  }
+  const control::ChangeScope s =
+      control::scope_of({"analysis.every", "checkpoint.every", "fluid.dynamic_viscosity"});
+  EXPECT_TRUE(s.solver);
+  EXPECT_TRUE(s.analysis);
+  EXPECT_FALSE(s.render);
+  EXPECT_TRUE(s.other);
+  const control::ChangeScope render_only = control::scope_of({"render.colour.omega2.scale"});
+  EXPECT_TRUE(render_only.render);
+  EXPECT_FALSE(render_only.solver || render_only.analysis || render_only.other);
+}
+
 }  // namespace
