@@ -4,7 +4,8 @@
 #include <array>
 #include <utility>
 
-#include "sim/json_reader.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
 
 namespace sphles::analysis {
 
@@ -44,7 +45,7 @@ std::string_view slice_field_units(SliceField field) {
 AnalysisConfig parse_analysis_config(const json* section) {
   AnalysisConfig c;
   if (!section) return c;
-  sim::ObjectReader r(*section, "analysis");
+  scene::ObjectReader r(*section, "analysis");
   r.number("every", c.every);
   std::vector<std::string> products;
   r.strings("products", products);
@@ -52,7 +53,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
     c.products.insert(
         parse_name(kProductNames, products[k], "analysis.products[" + std::to_string(k) + "]"));
   {
-    sim::ObjectReader s = r.object("slice");
+    scene::ObjectReader s = r.object("slice");
     s.choice("axis", kAxisNames, c.slice.axis);
     s.number("position", c.slice.position);
     std::vector<std::string> fields;
@@ -93,7 +94,7 @@ AnalysisConfig parse_analysis_config(const json* section) {
     }
   }
   {
-    sim::ObjectReader g = r.object("gridding");
+    scene::ObjectReader g = r.object("gridding");
     g.choice("velocity", kVelocityGriddingNames, c.gridding.velocity);
     g.choice("vorticity", kVorticityEstimateNames, c.gridding.vorticity);
     g.number("fit_radius", c.gridding.fit_radius);
@@ -152,7 +153,7 @@ json analysis_config_to_json(const AnalysisConfig& c) {
 
 RunConfig parse_run_config(const json& document) {
   if (!document.is_object())
-    throw_scene_error("(top level)", "must be an object, got " + sim::describe_type(document));
+    throw_scene_error("(top level)", "must be an object, got " + scene::describe_type(document));
   json solver_part = document;
   const json* analysis = nullptr;
   json analysis_section;
@@ -162,7 +163,7 @@ RunConfig parse_run_config(const json& document) {
     solver_part.erase("analysis");
   }
   RunConfig config;
-  config.scene = sim::parse_scene(solver_part);
+  config.scene = scene::parse_scene(solver_part);
   config.analysis = parse_analysis_config(analysis);
   // Snapshots are taken (and every step cut short to land on them) only while products are on.
   if (config.analysis.enabled())
@@ -201,7 +202,7 @@ RunConfig parse_run_config(const json& document) {
 }
 
 json run_config_to_json(const RunConfig& config) {
-  json j = sim::scene_to_json(config.scene);
+  json j = scene::scene_to_json(config.scene);
   j["analysis"] = analysis_config_to_json(config.analysis);
   return j;
 }

@@ -6,6 +6,7 @@
 #include <set>
 #include <string>
 
+#include "scene/document.hpp"
 #include "sim/name_table.hpp"
 #include "sim/scene.hpp"
 
@@ -108,7 +109,7 @@ struct AnalysisConfig {
 AnalysisConfig parse_analysis_config(const nlohmann::json* section);
 nlohmann::json analysis_config_to_json(const AnalysisConfig& config);
 
-/// A whole scene file: the solver's part (sim::parse_scene) plus the analysis section.
+/// A whole scene file: the solver's part (scene::parse_scene) plus the analysis section.
 struct RunConfig {
   sim::Scene scene;
   AnalysisConfig analysis;

@@ -9,8 +9,9 @@
 #include <stdexcept>
 
 #include "analysis/config.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/json_reader.hpp"
 
 namespace sphles::analysis {
 
@@ -181,7 +182,7 @@ std::optional<std::filesystem::path> best_reference_run(
   for (const fs::path& dir : runs) {
     if (!fs::exists(dir / "scene.json") || !fs::exists(dir / "spectra" / "index.csv")) continue;
     try {
-      nlohmann::json document = sim::read_scene_file(dir / "scene.json");
+      nlohmann::json document = scene::read_scene_file(dir / "scene.json");
       const int points =
           document.value("reference", nlohmann::json::object()).value("points_per_side", 0);
       document.erase("reference");

@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "app/commands.hpp"
+#include "scene/presets.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -161,7 +162,7 @@ void add_docs_command(CLI::App& app, int& exit_code) {
       ->check(CLI::IsMember({"man", "bash-completion"}));
   docs->callback([&app, what, &exit_code] {
     const std::string text =
-        *what == "man" ? man_page(app) : bash_completion(app, sim::preset_names());
+        *what == "man" ? man_page(app) : bash_completion(app, scene::preset_names());
     std::fputs(text.c_str(), stdout);
     exit_code = kExitOk;
   });

@@ -13,7 +13,8 @@
 #include "analysis/resolved_scales.hpp"
 #include "analysis/writer.hpp"
 #include "app/commands.hpp"
-#include "sim/json_reader.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
 
 namespace sphles::app {
 
@@ -57,7 +58,7 @@ int compare_command(CompareOptions o) {
   try {
     if (o.reference.empty()) {
       // The shipped reference of the run's flow (data/reference/).
-      nlohmann::json document = sim::read_scene_file(std::filesystem::path(o.run) / "scene.json");
+      nlohmann::json document = scene::read_scene_file(std::filesystem::path(o.run) / "scene.json");
       document.erase("reference");
       document.erase("render");
       const sim::Scene scene = analysis::parse_run_config(document).scene;

@@ -16,6 +16,7 @@
 #include "control/run.hpp"
 #include "io/checkpoint.hpp"
 #include "par/slab_exchange.hpp"
+#include "scene/document.hpp"
 #include "spectral/reference_run.hpp"
 
 namespace sphles::app {
@@ -48,8 +49,8 @@ nlohmann::json reference_scene_document(const ReferenceOptions& options) {
   if (!fs::exists(dir / "scene.json"))
     throw sim::SceneError(dir.string(),
                           "'" + dir.string() + "' holds no reference run (no scene.json)");
-  nlohmann::json document = sim::read_scene_file(dir / "scene.json");
-  for (const std::string& a : options.overrides) sim::apply_override(document, a);
+  nlohmann::json document = scene::read_scene_file(dir / "scene.json");
+  for (const std::string& a : options.overrides) scene::apply_override(document, a);
   return document;
 }
 

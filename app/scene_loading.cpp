@@ -9,8 +9,10 @@
 #include "control/scene_schema.hpp"
 #include "io/checkpoint.hpp"
 #include "io/particle_snapshot.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
+#include "scene/presets.hpp"
 #include "server/openapi.hpp"
-#include "sim/json_reader.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -18,7 +20,7 @@ namespace sphles::app {
 nlohmann::json load_scene_document(const std::string& scene_or_preset,
                                    const std::vector<std::string>& overrides) {
   nlohmann::json document;
-  const auto presets = sim::preset_names();
+  const auto presets = scene::preset_names();
   const bool is_preset =
       !std::filesystem::exists(scene_or_preset) &&
       std::find(presets.begin(), presets.end(), scene_or_preset) != presets.end();
@@ -29,15 +31,15 @@ nlohmann::json load_scene_document(const std::string& scene_or_preset,
   } else if (!std::filesystem::exists(scene_or_preset) && !looks_like_file) {
     // Neither a file nor a preset: say so, and which preset it may be a typo of.
     const std::optional<std::string> near =
-        sim::closest_key(scene_or_preset, std::set<std::string>(presets.begin(), presets.end()));
+        scene::closest_key(scene_or_preset, std::set<std::string>(presets.begin(), presets.end()));
     throw sim::SceneError(scene_or_preset,
                           "'" + scene_or_preset + "' is neither a scene file nor a preset" +
                               (near ? "; did you mean '" + *near + "'?" : std::string()) +
                               " (see 'sphles presets')");
   } else {
-    document = sim::read_scene_file(scene_or_preset);
+    document = scene::read_scene_file(scene_or_preset);
   }
-  for (const std::string& assignment : overrides) sim::apply_override(document, assignment);
+  for (const std::string& assignment : overrides) scene::apply_override(document, assignment);
   return document;
 }
 
@@ -75,8 +77,8 @@ int inspect_command(const std::string& file) {
 }
 
 int presets_command() {
-  for (const std::string& name : sim::preset_names()) {
-    const sim::Scene s = sim::parse_scene({{"preset", name}});
+  for (const std::string& name : scene::preset_names()) {
+    const sim::Scene s = scene::parse_scene({{"preset", name}});
     std::printf("%-16s %-13s N=%d^%d  %-15s D_K/dl=%g  model=%-8s C_S=%-5g c_s=%g  p_ref=%g\n",
                 name.c_str(), std::string(sim::case_name(s.case_type)).c_str(),
                 s.particles_per_side, s.dimension(),

@@ -17,6 +17,8 @@
 #include "control/resources.hpp"
 #include "control/run_manager.hpp"
 #include "launch/job.hpp"
+#include "scene/document.hpp"
+#include "scene/presets.hpp"
 #include "server/http_server.hpp"
 #include "sim/scene.hpp"
 
@@ -181,9 +183,9 @@ void finish_serve_options(ServeOptions& o) {
 control::CreateRequest start_request(const std::string& scene_or_preset,
                                      const std::vector<std::string>& overrides) {
   control::CreateRequest request;
-  const auto presets = sim::preset_names();
+  const auto presets = scene::preset_names();
   if (std::filesystem::exists(scene_or_preset))
-    request.scene = sim::read_scene_file(scene_or_preset);
+    request.scene = scene::read_scene_file(scene_or_preset);
   else if (std::find(presets.begin(), presets.end(), scene_or_preset) != presets.end())
     request.preset = scene_or_preset;
   else

@@ -28,12 +28,14 @@
 
 #include "analysis/pipeline.hpp"
 #include "analysis/products.hpp"
+#include "scene/document.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 
 namespace an = sphles::analysis;
+namespace scene = sphles::scene;
 namespace sim = sphles::sim;
 
 namespace {
@@ -41,10 +43,10 @@ namespace {
 using Clock = std::chrono::steady_clock;
 
 sim::Scene tgv_scene(int per_side) {
-  return sim::parse_scene({{"case", "tgv3d"},
-                           {"particles_per_side", per_side},
-                           {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
-                           {"packing", {{"enabled", false}}}});
+  return scene::parse_scene({{"case", "tgv3d"},
+                             {"particles_per_side", per_side},
+                             {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+                             {"packing", {{"enabled", false}}}});
 }
 
 an::AnalysisConfig all_products() {

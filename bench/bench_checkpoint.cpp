@@ -9,9 +9,11 @@
 #include <string>
 
 #include "io/checkpoint.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
+namespace scene = sphles::scene;
 namespace sim = sphles::sim;
 namespace io = sphles::io;
 
@@ -31,13 +33,13 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
-  const sim::Scene scene = sim::parse_scene(
+  const sim::Scene scene = scene::parse_scene(
       {{"case", "tgv3d"}, {"particles_per_side", per_side}, {"packing", {{"enabled", false}}}});
   sim::RunSetup setup = sim::setup_run(scene);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   simulation->step();
   const sim::SolverState state = simulation->state();
-  const io::CheckpointMetadata meta{sim::scene_to_json(scene).dump(), "bench", "lattice"};
+  const io::CheckpointMetadata meta{scene::scene_to_json(scene).dump(), "bench", "lattice"};
   std::printf("TGV %d^3 (%zu particles), best of %d:\n", per_side, state.particles.size(), repeats);
   std::printf("  %-8s %10s %10s %12s %8s\n", "gzip", "write s", "read s", "size MiB", "ratio");
   double raw_size = 0.0;

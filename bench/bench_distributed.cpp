@@ -29,6 +29,7 @@
 #include "par/decomposition.hpp"
 #include "par/exchange.hpp"
 #include "par/spectrum.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/scene.hpp"
@@ -87,10 +88,10 @@ int run(const Options& o) {
   MPI_Comm_rank(MPI_COMM_WORLD, &rank);
   MPI_Comm_size(MPI_COMM_WORLD, &ranks);
   const sim::Scene scene =
-      sim::parse_scene({{"case", "tgv3d"},
-                        {"particles_per_side", o.per_side},
-                        {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
-                        {"packing", {{"enabled", false}}}});
+      scene::parse_scene({{"case", "tgv3d"},
+                          {"particles_per_side", o.per_side},
+                          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+                          {"packing", {{"enabled", false}}}});
   sim::RunSetup setup = sim::setup_run(scene);
   sim::ParticleArrays& all = setup.particles;
   std::mt19937_64 rng(5);  // the displacement of bench_solver

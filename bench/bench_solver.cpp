@@ -14,12 +14,14 @@
 #include <memory>
 #include <random>
 
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/physics.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 
+namespace scene = sphles::scene;
 namespace sim = sphles::sim;
 
 namespace {
@@ -40,10 +42,11 @@ Fixture& fixture() {
   static std::unique_ptr<Fixture> f;
   if (f) return *f;
   f = std::make_unique<Fixture>();
-  f->scene = sim::parse_scene({{"case", "tgv3d"},
-                               {"particles_per_side", g_per_side},
-                               {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
-                               {"packing", {{"enabled", false}}}});
+  f->scene =
+      scene::parse_scene({{"case", "tgv3d"},
+                          {"particles_per_side", g_per_side},
+                          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
+                          {"packing", {{"enabled", false}}}});
   f->setup = sim::setup_run(f->scene);
   if (g_skin >= 0.0) f->setup.solver.neighbour_skin = g_skin;
   sim::ParticleArrays& p = f->setup.particles;

@@ -5,8 +5,8 @@
 #include <set>
 
 #include "control/scene_schema.hpp"
+#include "scene/schema.hpp"
 #include "sim/scene.hpp"
-#include "sim/scene_schema.hpp"
 
 namespace sphles::control {
 
@@ -61,7 +61,7 @@ const std::vector<std::string>& changeable_fields() {
   // The smallest set of prefixes covering every field the schema lets a run change: a field
   // whose own fields are all changeable stands for them.
   static const std::vector<std::string> fields = [] {
-    const std::vector<std::string> all = sim::scene_schema_fields();
+    const std::vector<std::string> all = scene::scene_schema_fields();
     std::vector<std::string> out;
     for (const std::string& field : all) {
       bool whole = live_rule(field).live;

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Live changes (docs/rendering.md "Live changes", docs/api.md): which fields of a run's scene
 // document may change while the run exists, and why the others may not (declared by the scene
-// schema, sim/scene.schema.json: "x-live", "x-fixed"). One rule serves live
+// schema, scene/scene.schema.json: "x-live", "x-fixed"). One rule serves live
 // parameter changes (PATCH, WebSocket) and the overrides of a restart (`sphles run --restart
 // --set`), so both refuse the same fields with the same message.
 #pragma once

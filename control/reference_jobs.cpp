@@ -11,8 +11,9 @@
 #include "control/resources.hpp"
 #include "control/run_files.hpp"
 #include "logging/logging.hpp"
-#include "sim/json_reader.hpp"
-#include "sim/scene_schema.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
+#include "scene/schema.hpp"
 #include "spectral/fourier_terms.hpp"
 
 namespace sphles::control {
@@ -48,7 +49,7 @@ std::shared_ptr<spdlog::logger> references_log() {
 /// The scene schema's rule for reference.KEY as a client reads it: "an even integer in [8,
 /// 1024]", "a number in (0, 1.5]".
 std::string schema_rule(const std::string& key) {
-  const json& node = *sim::scene_schema_node("reference." + key);
+  const json& node = *scene::scene_schema_node("reference." + key);
   const bool open = node.contains("exclusiveMinimum");
   const double low = node.at(open ? "exclusiveMinimum" : "minimum").get<double>();
   const std::string kind = node.value("multipleOf", 0.0) == 2.0  ? "an even integer"
@@ -134,7 +135,7 @@ std::string_view job_state_name(JobState state) {
 ReferenceRequest parse_reference_request(const json& body) {
   if (!body.is_object())
     throw SceneError("(body)",
-                     "request: '(body)' must be a JSON object, got " + sim::describe_type(body));
+                     "request: '(body)' must be a JSON object, got " + scene::describe_type(body));
   ReferenceRequest request;
   for (const auto& [key, value] : body.items()) {
     if (key == "run") {
@@ -151,7 +152,7 @@ ReferenceRequest parse_reference_request(const json& body) {
     } else if (key == "dry_run") {
       if (!value.is_boolean())
         throw SceneError("dry_run", "request: 'dry_run' must be true or false, got " +
-                                        sim::describe_type(value));
+                                        scene::describe_type(value));
       request.dry_run = value.get<bool>();
     } else {
       throw SceneError(
@@ -198,7 +199,7 @@ void ReferenceJobs::open_existing() {
       job->run = record.at("run").get<std::string>();
       job->error = record.value("error", "");
       job->directory = directory;
-      job->plan = plan(sim::read_scene_file(directory / "scene.json"), {});
+      job->plan = plan(scene::read_scene_file(directory / "scene.json"), {});
       job->state = parse_job_state(record.at("state").get<std::string>());
       // Queued or running when the previous process ended: nothing runs unasked.
       if (job->state == JobState::Queued || job->state == JobState::Running)

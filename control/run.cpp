@@ -8,7 +8,8 @@
 #include "control/live_changes.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
-#include "sim/json_reader.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
 
 namespace sphles::control {
 
@@ -119,7 +120,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
       throw std::runtime_error("'" + directory.string() +
                                "' is not a run directory (no scene.json)");
     source = "'" + scene.string() + "'";
-    document = sim::read_scene_file(scene.string());
+    document = scene::read_scene_file(scene.string());
   }
   // Documents written before the packing cache became a program setting name it; it applied to
   // the initial condition only, so a stored run ignores it.
@@ -138,7 +139,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     // and refuses the rest with the same message (the particle set, kernel, case, ...).
     const json before = run_spec_to_json(stored);
     json after = before;
-    for (const std::string& assignment : overrides) sim::apply_override(after, assignment);
+    for (const std::string& assignment : overrides) scene::apply_override(after, assignment);
     impl->spec = check_change(before, after).spec;
   }
   impl->end_time = impl->spec.run.scene.end_time;

@@ -12,7 +12,9 @@
 #include "control/resources.hpp"
 #include "control/step_time.hpp"
 #include "logging/logging.hpp"
-#include "sim/json_reader.hpp"
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
+#include "scene/presets.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::control {
@@ -75,7 +77,7 @@ ResourceEstimate on_this_machine(ResourceEstimate estimate, double rank_memory_b
 json with_live_defaults(json document) {
   if (!document.is_object() || document.contains("analysis") || document.contains("render"))
     return document;
-  const sim::Scene scene = sim::parse_scene(document);  // throws naming the field
+  const sim::Scene scene = scene::parse_scene(document);  // throws naming the field
   // kLiveAnalysisFrames over the run, but never closer than the time steps allow: a cadence
   // below them would cut every step short (and raising time.end would then make it a stall).
   const double step_bound =
@@ -94,34 +96,34 @@ json with_live_defaults(json document) {
 CreateRequest parse_create_request(const json& body) {
   if (!body.is_object())
     throw SceneError("(body)",
-                     "request: '(body)' must be a JSON object, got " + sim::describe_type(body));
+                     "request: '(body)' must be a JSON object, got " + scene::describe_type(body));
   CreateRequest request;
   for (const auto& [key, value] : body.items()) {
     if (key == "preset") {
       if (!value.is_string())
         throw SceneError("preset",
-                         "request: 'preset' must be a string, got " + sim::describe_type(value));
+                         "request: 'preset' must be a string, got " + scene::describe_type(value));
       request.preset = value.get<std::string>();
     } else if (key == "scene") {
       if (!value.is_object())
         throw SceneError("scene",
-                         "request: 'scene' must be an object, got " + sim::describe_type(value));
+                         "request: 'scene' must be an object, got " + scene::describe_type(value));
       request.scene = value;
     } else if (key == "patch") {
       if (!value.is_object())
         throw SceneError("patch", "request: 'patch' must be an object (a JSON merge patch), got " +
-                                      sim::describe_type(value));
+                                      scene::describe_type(value));
       request.patch = value;
     } else if (key == "overrides") {
       if (!value.is_array())
         throw SceneError("overrides",
                          "request: 'overrides' must be an array of \"key=value\" strings, got " +
-                             sim::describe_type(value));
+                             scene::describe_type(value));
       for (std::size_t k = 0; k < value.size(); ++k) {
         if (!value[k].is_string())
           throw SceneError("overrides[" + std::to_string(k) + "]",
                            "request: 'overrides[" + std::to_string(k) +
-                               "]' must be a string, got " + sim::describe_type(value[k]));
+                               "]' must be a string, got " + scene::describe_type(value[k]));
         request.overrides.push_back(value[k].get<std::string>());
       }
     } else if (key == "name") {
@@ -139,7 +141,7 @@ CreateRequest parse_create_request(const json& body) {
     } else if (key == "start") {
       if (!value.is_boolean())
         throw SceneError(
-            "start", "request: 'start' must be true or false, got " + sim::describe_type(value));
+            "start", "request: 'start' must be true or false, got " + scene::describe_type(value));
       request.start = value.get<bool>();
     } else {
       throw SceneError(key, "request: unknown key '" + key +
@@ -341,7 +343,7 @@ void RunManager::refuse_if_queue_full() const {
 RunSpec RunManager::spec_of(const CreateRequest& request) {
   json document;
   if (request.preset) {
-    const auto names = sim::preset_names();
+    const auto names = scene::preset_names();
     if (std::find(names.begin(), names.end(), *request.preset) == names.end()) {
       std::string valid;
       for (const auto& n : names) valid += (valid.empty() ? "" : ", ") + n;
@@ -353,7 +355,8 @@ RunSpec RunManager::spec_of(const CreateRequest& request) {
     document = *request.scene;
   }
   document.merge_patch(request.patch);
-  for (const std::string& assignment : request.overrides) sim::apply_override(document, assignment);
+  for (const std::string& assignment : request.overrides)
+    scene::apply_override(document, assignment);
   if (request.name) document["name"] = *request.name;
   return parse_run_spec(with_live_defaults(document));
 }
@@ -571,8 +574,8 @@ void RunManager::shutdown() {
 
 json RunManager::presets() {
   json list = json::array();
-  for (const std::string& name : sim::preset_names()) {
-    const sim::Scene s = sim::parse_scene({{"preset", name}});
+  for (const std::string& name : scene::preset_names()) {
+    const sim::Scene s = scene::parse_scene({{"preset", name}});
     json entry = {
         {"name", name},
         {"case", sim::case_name(s.case_type)},

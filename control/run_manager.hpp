@@ -19,6 +19,7 @@
 
 #include "control/reference_jobs.hpp"
 #include "control/run.hpp"
+#include "scene/document.hpp"
 
 namespace sphles::control {
 
@@ -50,7 +51,7 @@ struct ManagerOptions {
 };
 
 /// What a client asks for when creating a run: a preset or a full scene (exactly one), then a
-/// JSON merge patch and/or dotted key=value overrides (sim::apply_override syntax).
+/// JSON merge patch and/or dotted key=value overrides (scene::apply_override syntax).
 struct CreateRequest {
   std::optional<std::string> preset;
   std::optional<nlohmann::json> scene;

@@ -4,7 +4,7 @@
 #include "control/run.hpp"
 #include "control/scene_schema.hpp"
 #include "render/config.hpp"
-#include "sim/json_reader.hpp"
+#include "scene/json_reader.hpp"
 
 namespace sphles::control {
 
@@ -12,7 +12,8 @@ using nlohmann::json;
 
 RunSpec parse_run_spec(const json& document) {
   if (!document.is_object())
-    sim::throw_scene_error("(top level)", "must be an object, got " + sim::describe_type(document));
+    sim::throw_scene_error("(top level)",
+                           "must be an object, got " + scene::describe_type(document));
   json rest = document;
   json render_section;
   const bool has_render = document.contains("render");

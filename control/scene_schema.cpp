@@ -12,9 +12,10 @@
 #include <valijson/validator.hpp>
 
 #include "analysis/config.hpp"
+#include "scene/presets.hpp"
+#include "scene/schema.hpp"
 #include "sim/kernels.hpp"
 #include "sim/scene.hpp"
-#include "sim/scene_schema.hpp"
 #include "sim/scheme.hpp"
 #include "sim/subfilter.hpp"
 #include "sim/viscous_operator.hpp"
@@ -46,12 +47,12 @@ json inline_refs(const json& node, const json& root) {
 
 json& node_at(json& schema, std::string_view dotted) {
   json* node = &schema;
-  for (const std::string& key : sim::dotted_keys(dotted)) node = &node->at("properties").at(key);
+  for (const std::string& key : scene::dotted_keys(dotted)) node = &node->at("properties").at(key);
   return *node;
 }
 
 json build_schema() {
-  const json& document = sim::scene_schema_document();
+  const json& document = scene::scene_schema_document();
   json schema = inline_refs(document, document);
   const std::vector<std::string> slice_fields = analysis::kSliceFieldNames.names();
   std::vector<std::string> grid_fields = {"velocity"};
@@ -62,7 +63,7 @@ json build_schema() {
   const auto set_item_enum = [&](std::string_view field, const std::vector<std::string>& values) {
     node_at(schema, field)["items"]["enum"] = values;
   };
-  set_enum("preset", sim::preset_names());
+  set_enum("preset", scene::preset_names());
   set_enum("case", sim::kCaseNames.names());
   set_enum("kernel.type", sim::kKernelNames.names());
   set_enum("scheme.type", sim::kSchemeNames.names());
@@ -178,9 +179,9 @@ std::optional<std::string> json_schema_violation(const json& schema, const json&
 LiveRule live_rule(const std::string& dotted) {
   // The innermost x-live, x-fixed or x-scope on the way from the scene to the field decides.
   LiveRule rule;
-  const json* node = &sim::scene_schema_document();
-  for (const std::string& key : sim::dotted_keys(dotted)) {
-    node = sim::scene_schema_property(*node, key);
+  const json* node = &scene::scene_schema_document();
+  for (const std::string& key : scene::dotted_keys(dotted)) {
+    node = scene::scene_schema_property(*node, key);
     if (!node) break;
     if (const auto live = node->find("x-live"); live != node->end()) {
       rule.live = live->get<bool>();

@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The scene's schema as the program publishes it: sim/scene.schema.json with the names of every
+// The scene's schema as the program publishes it: scene/scene.schema.json with the names of every
 // registry filled in (kernels, schemes, sub-filter models, analysis products and fields, presets),
 // for the API (GET /api/schema/scene, the OpenAPI document), the dashboard, `sphles schema` and
 // docs/scenes.md; the validation of a whole scene document against it; and the live-change rules

@@ -14,6 +14,8 @@
 
 #include "io/collective_file.hpp"
 #include "io/hdf5_file.hpp"
+#include "scene/document.hpp"
+#include "scene/presets.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::io::checkpoint_format {
@@ -299,12 +301,12 @@ nlohmann::json parse_scene_attribute(const std::string& text, const std::string&
 
 bool is_known_preset(const nlohmann::json& value) {
   if (!value.is_string()) return false;
-  const auto presets = sim::preset_names();
+  const auto presets = scene::preset_names();
   return std::find(presets.begin(), presets.end(), value.get<std::string>()) != presets.end();
 }
 
 /// The geometry keys of the scene (case or preset, particles_per_side, box_length) resolved by
-/// sim::parse_scene, which owns their defaults and limits. A scene that names no case this
+/// scene::parse_scene, which owns their defaults and limits. A scene that names no case this
 /// sphles knows (not one sphles wrote) determines nothing; one that names a known case must
 /// determine the box, or the file is rejected.
 SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& file) {
@@ -315,7 +317,7 @@ SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& fil
     bool known = false;
     if (case_it->is_string()) {
       try {
-        sim::parse_scene({{"case", *case_it}});
+        scene::parse_scene({{"case", *case_it}});
         known = true;
       } catch (const sim::SceneError&) {
       }
@@ -338,7 +340,7 @@ SceneGeometry scene_geometry(const nlohmann::json& scene, const std::string& fil
   // must not hide an explicit case.
   if (preset_it != scene.end() && is_known_preset(*preset_it)) geometry["preset"] = *preset_it;
   try {
-    g.scene = sim::parse_scene(geometry);
+    g.scene = scene::parse_scene(geometry);
   } catch (const sim::SceneError& e) {
     throw CheckpointError("checkpoint '" + file +
                           "': attribute 'scene' does not determine the periodic box: " + e.what());

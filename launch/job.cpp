@@ -15,7 +15,6 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
-#include <nlohmann/json.hpp>
 #include <random>
 #include <thread>
 #include <vector>
@@ -23,6 +22,7 @@
 #include "analysis/snapshot.hpp"
 #include "io/checkpoint.hpp"
 #include "launch/channel.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/state_view.hpp"
 
@@ -323,7 +323,7 @@ class RemoteSimulation final : public sim::Simulation,
   std::vector<double> case_diagnostics(const sim::Scene& scene) const override {
     job_->require_current(generation_);
     Encoder e;
-    e.string(sim::scene_to_json(scene).dump());
+    e.string(scene::scene_to_json(scene).dump());
     Message reply = job_->request(MessageKind::CaseDiagnostics, e, "case diagnostics failed");
     if (reply.kind != MessageKind::Values) throw ProtocolError("expected a values reply");
     Decoder d(reply.body);
@@ -449,7 +449,7 @@ class JobHolder {
                                         const char* what) {
     std::shared_ptr<Job> job = current_job();
     Encoder e;
-    e.string(sim::scene_to_json(scene).dump());
+    e.string(scene::scene_to_json(scene).dump());
     encode(e, body);
     const std::uint64_t generation = job->next_generation();
     SolverStatus status = job->status(kind, e, what);
@@ -462,7 +462,7 @@ class JobHolder {
                                           sim::PackingReport& report) {
     std::shared_ptr<Job> job = current_job();
     Encoder e;
-    e.string(sim::scene_to_json(scene).dump());
+    e.string(scene::scene_to_json(scene).dump());
     e.string(options.packing_cache_dir.string());
     const std::uint64_t generation = job->next_generation();
     const Message reply = job->request(MessageKind::SetUp, e,
@@ -579,7 +579,7 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
         case MessageKind::Restore:
         case MessageKind::RestoreFile:
         case MessageKind::Change: {
-          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          const sim::Scene scene = scene::parse_scene(nlohmann::json::parse(d.string()));
           std::unique_ptr<sim::Simulation> fresh;
           if (request.kind == MessageKind::Make) {
             sim::ParticleArrays particles = decode_particles(d);
@@ -607,7 +607,7 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           break;
         }
         case MessageKind::SetUp: {
-          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          const sim::Scene scene = scene::parse_scene(nlohmann::json::parse(d.string()));
           sim::SetupOptions options;
           options.packing_cache_dir = d.string();
           d.finish();
@@ -628,7 +628,7 @@ void serve_job(const std::string& host, unsigned short port, const std::string& 
           break;
         }
         case MessageKind::CaseDiagnostics: {
-          const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(d.string()));
+          const sim::Scene scene = scene::parse_scene(nlohmann::json::parse(d.string()));
           d.finish();
           if (!simulation) throw std::logic_error("case diagnostics before the solver was made");
           kind = MessageKind::Values;

@@ -17,6 +17,7 @@
 #include "par/setup.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/state_view.hpp"
@@ -192,7 +193,7 @@ std::unique_ptr<Member> make_member(MPI_Comm comm, const std::string& scene_json
                                     const std::string& file = {}, SetUp* setup = nullptr) {
   const bool restore = start != Start::Fresh && start != Start::SetUp;
   auto m = std::make_unique<Member>();
-  const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(scene_json));
+  const sim::Scene scene = scene::parse_scene(nlohmann::json::parse(scene_json));
   m->config = sim::make_solver_config(scene);
   const sim::SolverConfig& c = m->config;
   const sim::VerletNeighbourSearch search(c.box, c.support_radius,
@@ -251,7 +252,7 @@ class DistributedSimulation final : public sim::Simulation,
   /// Summed by every rank over its owned particles (the scene travels with the command).
   std::vector<double> case_diagnostics(const sim::Scene& scene) const override {
     send_command(comm_, Command::CaseDiagnostics);
-    std::string json = sim::scene_to_json(scene).dump();
+    std::string json = scene::scene_to_json(scene).dump();
     broadcast_string(comm_, json);
     return m_->local->case_diagnostics(scene);
   }
@@ -341,7 +342,7 @@ int Driver::ranks() const {
 
 std::unique_ptr<sim::Simulation> Driver::make(const sim::Scene& scene, sim::ParticleArrays all) {
   send_command(comm_, Command::Make);
-  std::string json = sim::scene_to_json(scene).dump();
+  std::string json = scene::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
   sim::SolverState whole;
   whole.particles = std::move(all);
@@ -353,7 +354,7 @@ std::unique_ptr<sim::Simulation> Driver::set_up(const sim::Scene& scene,
                                                 const sim::SetupOptions& options,
                                                 sim::PackingReport& report) {
   send_command(comm_, Command::SetUp);
-  std::string json = sim::scene_to_json(scene).dump();
+  std::string json = scene::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
   std::string cache = options.packing_cache_dir.string();
   broadcast_string(comm_, cache);
@@ -365,7 +366,7 @@ std::unique_ptr<sim::Simulation> Driver::set_up(const sim::Scene& scene,
 
 std::unique_ptr<sim::Simulation> Driver::restore(const sim::Scene& scene, sim::SolverState whole) {
   send_command(comm_, Command::Restore);
-  std::string json = sim::scene_to_json(scene).dump();
+  std::string json = scene::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
   return std::make_unique<DistributedSimulation>(
       comm_, make_member(comm_, json, std::move(whole), Start::Restore));
@@ -376,7 +377,7 @@ std::unique_ptr<sim::Simulation> Driver::change(const sim::Simulation& current,
   const auto* mine = dynamic_cast<const DistributedSimulation*>(&current);
   if (!mine) throw std::invalid_argument("par::Driver::change: not a solver of this driver");
   send_command(comm_, Command::Change);
-  std::string json = sim::scene_to_json(scene).dump();
+  std::string json = scene::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
   return std::make_unique<DistributedSimulation>(
       comm_, make_member(comm_, json, mine->local_state(), Start::Continue));
@@ -385,7 +386,7 @@ std::unique_ptr<sim::Simulation> Driver::change(const sim::Simulation& current,
 std::unique_ptr<sim::Simulation> Driver::restore_file(const sim::Scene& scene,
                                                       const std::filesystem::path& path) {
   send_command(comm_, Command::RestoreFile);
-  std::string json = sim::scene_to_json(scene).dump();
+  std::string json = scene::scene_to_json(scene).dump();
   broadcast_string(comm_, json);
   std::string file = path.string();
   broadcast_string(comm_, file);
@@ -458,7 +459,7 @@ void serve_commands(MPI_Comm comm) {
           std::string json;
           broadcast_string(comm, json);
           if (member)
-            member->local->case_diagnostics(sim::parse_scene(nlohmann::json::parse(json)));
+            member->local->case_diagnostics(scene::parse_scene(nlohmann::json::parse(json)));
           break;
         }
       }

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "render/config.hpp"
 
-#include "sim/json_reader.hpp"
+#include "scene/json_reader.hpp"
 
 namespace sphles::render {
 
@@ -10,7 +10,7 @@ using sim::throw_scene_error;
 
 namespace {
 
-ColourMapping parse_mapping(sim::ObjectReader r, ColourMapping mapping) {
+ColourMapping parse_mapping(scene::ObjectReader r, ColourMapping mapping) {
   std::string scale = mapping.log_scale ? "log" : "linear";
   r.string("scale", scale);
   if (scale != "log" && scale != "linear")
@@ -52,7 +52,7 @@ json mapping_to_json(const ColourMapping& m) {
   return j;
 }
 
-void read_size(sim::ObjectReader& r, int& width, int& height) {
+void read_size(scene::ObjectReader& r, int& width, int& height) {
   r.integer("width", width);
   r.integer("height", height);
 }
@@ -72,7 +72,7 @@ const ColourMapping& RenderConfig::mapping(analysis::SliceField field) const {
 RenderConfig parse_render_config(const json* section, const analysis::AnalysisConfig& analysis) {
   RenderConfig c;
   if (!section) return c;
-  sim::ObjectReader r(*section, "render");
+  scene::ObjectReader r(*section, "render");
   std::vector<std::string> fields;
   r.strings("fields", fields);
   for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -90,7 +90,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
   r.boolean("save", c.save);
   read_size(r, c.width, c.height);
   {
-    sim::ObjectReader colour = r.object("colour");
+    scene::ObjectReader colour = r.object("colour");
     const json* colours = section->contains("colour") ? &section->at("colour") : nullptr;
     if (colours)
       for (const auto& [name, value] : colours->items()) {
@@ -101,7 +101,7 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
     colour.reject_unknown();
   }
   {
-    sim::ObjectReader v = r.object("view3d");
+    scene::ObjectReader v = r.object("view3d");
     View3dConfig& view = c.view3d;
     v.boolean("enabled", view.enabled);
     std::string field(analysis::slice_field_name(view.field));

@@ -116,7 +116,7 @@ def self_test():
             (".ci/run", True, "#!/usr/bin/env bash", True), ("tests/e2e/x.mjs", False, "", True),
             ("web/vendor/uPlot.iife.min.js", False, "", False),
             ("tests/e2e/node_modules/a/index.js", False, "", False),
-            ("sim/scene.schema.json", False, "{", False), ("data/reference/a.csv", False, "", False),
+            ("scene/scene.schema.json", False, "{", False), ("data/reference/a.csv", False, "", False),
             ("tests/tsan.supp", False, "#", False), ("README.md", False, "#", False)]:
         expect(f"is_source({path})", is_source(path, executable, first), want)
     for f in failures:

@@ -33,8 +33,12 @@ from check_spdx import tracked_files  # the tracked files, as the licence check 
 
 # Bottom up. A module may include itself and the modules listed before it, never one after it
 # or beside it. tests/, bench/ and app/ are the top: they may include any module.
-MODULES = ["logging", "net", "sim", "io", "analysis", "spectral", "render", "par", "launch",
-           "control", "server"]
+MODULES = ["logging", "net", "sim", "scene", "io", "analysis", "spectral", "render", "par",
+           "launch", "control", "server"]
+# Libraries a module must not include: the solver knows no document format (scene/ reads the
+# scene's JSON into sim's plain data).
+FORBIDDEN_LIBRARIES = {"sim": ["nlohmann/"]}
+SYSTEM_INCLUDE = re.compile(r'^\s*#\s*include\s+<([^>]+)>', re.MULTILINE)
 TOP = {"tests", "bench", "app"}
 MAX_FILE_LINES = 600
 MAX_FUNCTION_LINES = 120
@@ -247,6 +251,17 @@ def check_format(root, texts):
         out.stderr.strip()]
 
 
+def check_libraries(texts):
+    errors = []
+    for path, text in sorted(texts.items()):
+        forbidden = FORBIDDEN_LIBRARIES.get(module_of(path), [])
+        for header in SYSTEM_INCLUDE.findall(text):
+            if any(header.startswith(prefix) for prefix in forbidden):
+                errors.append(f"{path}: includes <{header}>; {module_of(path)}/ uses no "
+                              f"{header.split('/')[0]} (see scripts/check_structure.py)")
+    return errors
+
+
 CHECKS = ["layering", "cycles", "sizes", "tags", "format"]
 
 
@@ -256,7 +271,7 @@ def run(root, texts, checks):
     errors = []
     for check in checks:
         if check == "layering":
-            errors += check_layering(graph)
+            errors += check_layering(graph) + check_libraries(texts)
         elif check == "cycles":
             errors += check_cycles(unit_graph(graph), debt)
         elif check == "sizes":
@@ -294,6 +309,8 @@ def self_test():
                              ["layering"], 0),
         "include of a later module": ({"spectral/a.hpp": '#include "render/b.hpp"\n',
                                        "render/b.hpp": ""}, ["layering"], 1),
+        "json in the solver": ({"sim/a.cpp": "#include <nlohmann/json.hpp>\n"}, ["layering"], 1),
+        "json in the scene": ({"scene/a.cpp": "#include <nlohmann/json.hpp>\n"}, ["layering"], 0),
         "tests include anything": ({"tests/t.cpp": '#include "server/b.hpp"\n',
                                     "server/b.hpp": ""}, ["layering"], 0),
         "two files include each other": ({"io/a.hpp": '#include "io/b.hpp"\n',

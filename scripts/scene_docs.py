@@ -2,7 +2,7 @@
 # SPDX-License-Identifier: GPL-3.0-or-later
 """The table of scene keys in docs/scenes.md, derived from the scene schema.
 
-The scene schema (sim/scene.schema.json, published with the registries' names by `sphles schema`)
+The scene schema (scene/scene.schema.json, published with the registries' names by `sphles schema`)
 is the one declaration of the scene's keys. This script writes its table into docs/scenes.md,
 between the markers
 

@@ -1,19 +1,17 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Scene files: one validated configuration object for a run (docs/scenes.md).
-//
-// A scene is JSON. Every key has a default (which may depend on "case"); unknown keys, wrong
-// types and out-of-range values raise SceneError naming the field and the reason.
+// The scene: one validated configuration object for a run (docs/scenes.md), as plain data. Its
+// JSON document, the schema and the presets live in scene/ (scene/document.hpp); every key has a
+// default (which may depend on "case"); a scene that cannot run raises SceneError naming the
+// field and the reason.
 #pragma once
 
 #include <array>
 #include <cstdint>
-#include <filesystem>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
-
-#include <nlohmann/json.hpp>
 
 #include "sim/kernels.hpp"
 #include "sim/name_table.hpp"
@@ -40,6 +38,14 @@ class SceneError : public std::runtime_error {
 /// Throws SceneError for `field` with the message "scene: 'field' <reason>".
 [[noreturn]] inline void throw_scene_error(const std::string& field, const std::string& reason) {
   throw SceneError(field, "scene: '" + field + "' " + reason);
+}
+
+/// The value `name` names in `table`; SceneError for `field` otherwise, listing the names.
+template <class Enum, std::size_t N>
+Enum parse_name(const NameTable<Enum, N>& table, const std::string& name,
+                const std::string& field) {
+  if (const std::optional<Enum> value = table.find(name)) return *value;
+  throw_scene_error(field, "must be one of " + table.list() + ", got '" + name + "'");
 }
 
 enum class CaseType { TaylorGreen3D, TaylorGreen2D, Kolmogorov2D };
@@ -134,7 +140,7 @@ struct Scene {
   std::size_t num_particles() const;
 };
 
-/// Bounds of scene keys are declared by the scene schema (sim/scene.schema.json, its "$comment"s
+/// Bounds of scene keys are declared by the scene schema (scene/scene.schema.json, its "$comment"s
 /// say why; docs/scenes.md, "Limits").
 /// A non-zero cadence (output.timeseries_every, checkpoint.every, analysis.every) shorter than
 /// a step cuts every step short to land on the next cadence point, so the run takes one step per
@@ -172,25 +178,12 @@ double min_cadence(const Scene& scene);
 /// every step, or off).
 void check_cadence(const Scene& scene, const std::string& field, double every);
 
-/// Names of the built-in presets: tgv2d (64², Re = 100), tgv3d (32³), tgv3d-case1 ...
-/// tgv3d-case21 (SPEC Table 5.1), kolmogorov2d.
-std::vector<std::string> preset_names();
+/// The checks of a whole scene after its sections are read: the kernel fits in the box, the
+/// estimated initial time step can advance time.end, the output and checkpoint cadences are
+/// not shorter than a step (check_cadence). Throws SceneError naming the field.
+void check_scene(const Scene& scene);
 
-/// The scene document of a preset; throws SceneError for an unknown name.
-nlohmann::json preset_document(const std::string& name);
-
-/// Parses and validates a scene; throws SceneError. A "preset" key starts from that preset's
-/// document, and the other keys override it (JSON merge patch).
-Scene parse_scene(const nlohmann::json& document);
-
-/// Reads a JSON file; throws SceneError naming the file on I/O or syntax errors.
-nlohmann::json read_scene_file(const std::filesystem::path& path);
-
-/// Applies "dotted.key=value" to a scene document. The value is parsed as JSON when it is valid
-/// JSON, otherwise taken as a string. Throws SceneError on a malformed assignment.
-void apply_override(nlohmann::json& document, const std::string& assignment);
-
-/// The complete scene with every default filled in (written next to each run's output).
-nlohmann::json scene_to_json(const Scene& scene);
+/// The scene of a case with every key at its default (SPEC §6.1-6.3).
+Scene case_defaults(CaseType type);
 
 }  // namespace sphles::sim

@@ -15,9 +15,9 @@
 #include "io/checkpoint.hpp"
 #include "io/hdf5_file.hpp"
 #include "logging/logging.hpp"
+#include "scene/json_reader.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/json_reader.hpp"
 #include "spectral/reference_checkpoint.hpp"
 
 namespace sphles::spectral {
@@ -77,7 +77,7 @@ ReferenceConfig parse_reference_config(const json& document) {
   ReferenceConfig c;
   static const json kEmpty = json::object();
   const auto it = document.find("reference");
-  sim::ObjectReader r(it == document.end() ? kEmpty : *it, "reference");
+  scene::ObjectReader r(it == document.end() ? kEmpty : *it, "reference");
   r.integer("points_per_side", c.points_per_side);
   r.number("cfl", c.cfl);
   r.number("every", c.every);

@@ -12,6 +12,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -22,7 +23,7 @@ int main(int argc, char** argv) {
     return 2;
   }
   namespace sim = sphles::sim;
-  const sim::Scene scene = sim::parse_scene(nlohmann::json::parse(argv[1]));
+  const sim::Scene scene = sphles::scene::parse_scene(nlohmann::json::parse(argv[1]));
   const int steps = std::atoi(argv[2]);
   sim::RunSetup setup = sim::setup_run(scene);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));

@@ -24,6 +24,7 @@
 #include "io/checkpoint.hpp"
 #include "io/checkpoint_collective.hpp"
 #include "io/particle_snapshot.hpp"
+#include "scene/document.hpp"
 #include "server_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
@@ -413,7 +414,7 @@ struct TinyRun {
   std::unique_ptr<sim::Simulation> simulation;
   /// The complete run configuration as a run stores it (scene with defaults, plus analysis).
   CheckpointMetadata metadata() const {
-    json j = sim::scene_to_json(scene);
+    json j = scene::scene_to_json(scene);
     j["analysis"] = json::object();
     return {j.dump(), "test", "lattice"};
   }
@@ -421,7 +422,7 @@ struct TinyRun {
 
 TinyRun tiny_run(int steps) {
   TinyRun run;
-  run.scene = sim::parse_scene(tiny_run_scene());
+  run.scene = scene::parse_scene(tiny_run_scene());
   sim::RunSetup setup = sim::setup_run(run.scene);
   run.simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   for (int k = 0; k < steps; ++k) run.simulation->step();

@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <numbers>
 
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/physics.hpp"
 #include "sim/scene.hpp"
@@ -17,6 +18,9 @@
 #include "test_support.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
+using scene::scene_to_json;
 namespace {
 
 nlohmann::json taylor_green_2d(int per_side, double diameter_over_spacing) {

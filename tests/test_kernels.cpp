@@ -7,7 +7,7 @@
 #include <stdexcept>
 #include <string>
 
-#include "sim/json_reader.hpp"
+#include "scene/json_reader.hpp"
 #include "sim/kernels.hpp"
 
 namespace sphles::sim {

@@ -19,6 +19,7 @@
 #include "io/checkpoint.hpp"
 #include "launch/channel.hpp"
 #include "launch/job.hpp"
+#include "scene/document.hpp"
 #include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
@@ -220,10 +221,10 @@ TEST(JobChannel, AWaitGivesUpWhenTheCheckThrows) {
 }
 
 sim::Scene small_tgv2d() {
-  return sim::parse_scene({{"preset", "tgv2d"},
-                           {"particles_per_side", 32},
-                           {"packing", {{"enabled", false}}},
-                           {"time", {{"end", 1.0}}}});
+  return scene::parse_scene({{"preset", "tgv2d"},
+                             {"particles_per_side", 32},
+                             {"packing", {{"enabled", false}}},
+                             {"time", {{"end", 1.0}}}});
 }
 
 LaunchOptions options_for(const std::string& launcher, const std::filesystem::path& log) {
@@ -299,7 +300,7 @@ TEST(JobSolverFactories, AJobReachesAServiceListeningOnEveryInterface) {
 
 TEST(JobSolverFactories, KolmogorovDiagnosticsAreSummedInTheJobBitwiseLikeOneProcess) {
   const auto dir = fresh_directory("launch_kolmogorov");
-  const sim::Scene scene = sim::parse_scene(
+  const sim::Scene scene = scene::parse_scene(
       {{"preset", "kolmogorov2d"}, {"particles_per_side", 48}, {"packing", {{"enabled", false}}}});
   const sim::RunSetup setup = sim::setup_run(scene);
   auto local = sim::make_simulation(setup.solver, setup.particles);
@@ -423,7 +424,7 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   // comes back with the job's message.
   const auto* writer = dynamic_cast<const io::DistributedCheckpoints*>(remote.get());
   ASSERT_NE(writer, nullptr);
-  const io::CheckpointMetadata metadata{sim::scene_to_json(scene).dump(), "test", "none"};
+  const io::CheckpointMetadata metadata{scene::scene_to_json(scene).dump(), "test", "none"};
   writer->write_checkpoint(dir / "ckpt.h5", metadata, {.gzip_level = 1});
   const io::Checkpoint read = io::read_checkpoint(dir / "ckpt.h5");
   const sim::SolverState fetched = remote->state();

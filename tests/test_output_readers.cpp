@@ -23,6 +23,7 @@
 #include "analysis/products.hpp"
 #include "analysis/writer.hpp"
 #include "io/image_data.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -134,7 +135,7 @@ TEST_F(OutputReaders, BadImagesAreClearErrorsAndLeaveNoFile) {
 TEST_F(OutputReaders, SlicesReadBackAsTheAnalysedPlane) {
   for (const char* case_name : {"tgv3d", "tgv2d"}) {
     const auto run = dir_ / case_name;
-    const sim::Scene scene = sim::parse_scene(
+    const sim::Scene scene = scene::parse_scene(
         {{"case", case_name}, {"particles_per_side", 12}, {"packing", {{"enabled", false}}}});
     sim::RunSetup setup = sim::setup_run(scene, {});
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -200,7 +201,7 @@ TEST_F(OutputReaders, SlicesReadBackAsTheAnalysedPlane) {
 /// slice the same frame carries, bit for bit; the .pvd lists the files by time.
 TEST_F(OutputReaders, GridFieldsReadBackAsTheAnalysisGrid) {
   const auto run = dir_ / "fields";
-  const sim::Scene scene = sim::parse_scene(
+  const sim::Scene scene = scene::parse_scene(
       {{"case", "tgv3d"}, {"particles_per_side", 12}, {"packing", {{"enabled", false}}}});
   sim::RunSetup setup = sim::setup_run(scene, {});
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));

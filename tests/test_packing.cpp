@@ -7,10 +7,14 @@
 #include <filesystem>
 #include <fstream>
 
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/packing.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
+using scene::scene_to_json;
 namespace {
 
 class PackingTest : public ::testing::Test {

@@ -41,6 +41,7 @@
 #include "par/setup.hpp"
 #include "par/spectrum.hpp"
 #include "par/state.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
@@ -554,7 +555,7 @@ INSTANTIATE_TEST_SUITE_P(
 // summed by every rank over its owned particles and combined exactly equal one process' bit
 // for bit, without gathering the particles.
 TEST(DistributedCaseDiagnostics, KolmogorovEqualOneProcessBitForBit) {
-  const sim::Scene scene = sim::parse_scene(
+  const sim::Scene scene = scene::parse_scene(
       {{"preset", "kolmogorov2d"}, {"particles_per_side", 48}, {"packing", {{"enabled", false}}}});
   const sim::RunSetup setup = sim::setup_run(scene);
   const auto one = sim::make_simulation(setup.solver, setup.particles);
@@ -1426,10 +1427,10 @@ std::string file_bytes(const std::filesystem::path& path) {
 TEST(DistributedSetUp, EqualsTheOneProcessSetUpBitForBitAndSharesItsCache) {
   const SharedDirectory directory;
   for (const int dim : {2, 3}) {
-    const sim::Scene scene = sim::parse_scene({{"case", dim == 3 ? "tgv3d" : "tgv2d"},
-                                               {"particles_per_side", dim == 3 ? 16 : 40},
-                                               {"kernel", {{"diameter_over_spacing", 6}}},
-                                               {"initial", {{"mass", "summation"}}}});
+    const sim::Scene scene = scene::parse_scene({{"case", dim == 3 ? "tgv3d" : "tgv2d"},
+                                                 {"particles_per_side", dim == 3 ? 16 : 40},
+                                                 {"kernel", {{"diameter_over_spacing", 6}}},
+                                                 {"initial", {{"mass", "summation"}}}});
     const sim::SetupOptions ranks{.packing_cache_dir = directory.path / "ranks"};
     const sim::SetupOptions alone{.packing_cache_dir =
                                       directory.path / ("one" + std::to_string(world_rank()))};

@@ -10,14 +10,18 @@
 #include <cstdio>
 #include <cstring>
 
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/json_reader.hpp"
 #include "sim/packing.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "test_support.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
+using scene::scene_to_json;
 namespace {
 
 bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {

@@ -24,6 +24,7 @@
 #include "analysis/products.hpp"
 #include "analysis/timeseries.hpp"
 #include "analysis/writer.hpp"
+#include "scene/document.hpp"
 #include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/solver.hpp"
@@ -173,7 +174,7 @@ SnapshotPtr small_tgv_snapshot(const std::string& case_name, int per_side, doubl
   const json doc = {{"case", case_name},
                     {"particles_per_side", per_side},
                     {"kernel", {{"diameter_over_spacing", 6}}}};
-  const sim::Scene scene = sim::parse_scene(doc);
+  const sim::Scene scene = scene::parse_scene(doc);
   sim::RunSetup setup = sim::setup_run(
       scene, {.packing_cache_dir = std::filesystem::temp_directory_path() / "sphles_test_packing"});
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -188,7 +189,7 @@ TEST(Products, SnapshotsHoldTheSolversListOnlyForTheParticleEstimate) {
                     {"particles_per_side", 24},
                     {"kernel", {{"diameter_over_spacing", 6}}},
                     {"packing", {{"enabled", false}}}};
-  sim::RunSetup setup = sim::setup_run(sim::parse_scene(doc));
+  sim::RunSetup setup = sim::setup_run(scene::parse_scene(doc));
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   simulation->step();
   AnalysisConfig config;
@@ -634,7 +635,7 @@ TEST(Products, EddyViscositySliceOfAnExplicitModel) {
                     {"kernel", {{"diameter_over_spacing", 6}}},
                     {"subfilter", {{"model", "smag"}}},
                     {"packing", {{"enabled", false}}}};
-  const sim::Scene scene = sim::parse_scene(doc);
+  const sim::Scene scene = scene::parse_scene(doc);
   sim::RunSetup setup = sim::setup_run(scene);
   auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
   simulation->step();
@@ -666,7 +667,7 @@ TEST(Pipeline, SlowConsumerDropsSnapshotsAndLeavesSolverUntouched) {
                     {"particles_per_side", 32},
                     {"kernel", {{"diameter_over_spacing", 6}}},
                     {"packing", {{"enabled", false}}}};
-  const sim::Scene scene = sim::parse_scene(doc);
+  const sim::Scene scene = scene::parse_scene(doc);
   const auto run = [&](AnalysisPipeline* pipeline) {
     sim::RunSetup setup = sim::setup_run(scene);
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -715,7 +716,7 @@ TEST(Pipeline, LosslessDeliveryAnalysesEverySnapshotOfASlowConsumer) {
                     {"particles_per_side", 32},
                     {"kernel", {{"diameter_over_spacing", 6}}},
                     {"packing", {{"enabled", false}}}};
-  const sim::Scene scene = sim::parse_scene(doc);
+  const sim::Scene scene = scene::parse_scene(doc);
   AnalysisConfig config;
   config.every = 1.0;
   config.products = {Product::Spectrum};

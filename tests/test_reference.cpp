@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "analysis/reference.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
@@ -19,7 +20,7 @@ namespace {
 const std::filesystem::path kReferenceDir = SPHLES_SOURCE_DIR "/data/reference";
 
 TEST(Reference, TaylorGreen2dIsTheAnalyticDecay) {
-  sim::Scene scene = sim::parse_scene({{"case", "tgv2d"}, {"time", {{"end", 2.0}}}});
+  sim::Scene scene = scene::parse_scene({{"case", "tgv2d"}, {"time", {{"end", 2.0}}}});
   const double nu = scene.fluid.kinematic_viscosity();
   EXPECT_FALSE(missing_reference(scene));
   const ReferenceCurve c = reference_curve(scene, kReferenceDir, 5);
@@ -39,7 +40,7 @@ TEST(Reference, TaylorGreen2dIsTheAnalyticDecay) {
 }
 
 TEST(Reference, TaylorGreen3dAtRe5000IsTheDnsUpToTheEndTime) {
-  const sim::Scene scene = sim::parse_scene(
+  const sim::Scene scene = scene::parse_scene(
       {{"case", "tgv3d"}, {"fluid", {{"dynamic_viscosity", 2e-4}}}, {"time", {{"end", 10.0}}}});
   EXPECT_FALSE(missing_reference(scene));
   const ReferenceCurve c = reference_curve(scene, kReferenceDir);
@@ -55,9 +56,9 @@ TEST(Reference, TaylorGreen3dAtRe5000IsTheDnsUpToTheEndTime) {
 }
 
 TEST(Reference, TaylorGreen3dAtRe1600IsTheWorkshopsSpectralDns) {
-  const sim::Scene scene = sim::parse_scene({{"case", "tgv3d"},
-                                             {"fluid", {{"dynamic_viscosity", 1.0 / 1600.0}}},
-                                             {"time", {{"end", 20.0}}}});
+  const sim::Scene scene = scene::parse_scene({{"case", "tgv3d"},
+                                               {"fluid", {{"dynamic_viscosity", 1.0 / 1600.0}}},
+                                               {"time", {{"end", 20.0}}}});
   EXPECT_FALSE(missing_reference(scene));
   const ReferenceCurve c = reference_curve(scene, kReferenceDir);
   EXPECT_EQ(c.label, "DNS, Re = 1600");
@@ -70,7 +71,7 @@ TEST(Reference, TaylorGreen3dAtRe1600IsTheWorkshopsSpectralDns) {
 }
 
 TEST(Reference, KolmogorovIsTheLaminarSpinUpFromRest) {
-  sim::Scene scene = sim::parse_scene({{"preset", "kolmogorov2d"}, {"time", {{"end", 4.0}}}});
+  sim::Scene scene = scene::parse_scene({{"preset", "kolmogorov2d"}, {"time", {{"end", 4.0}}}});
   EXPECT_FALSE(missing_reference(scene));
   const ReferenceCurve c = reference_curve(scene, kReferenceDir, 4001);
   const double nu = scene.fluid.kinematic_viscosity(), k = scene.forcing_wavenumber();
@@ -96,19 +97,19 @@ TEST(Reference, KolmogorovIsTheLaminarSpinUpFromRest) {
 }
 
 TEST(Reference, OtherRunsHaveNoneAndSayWhy) {
-  const sim::Scene re10000 = sim::parse_scene({{"case", "tgv3d"}});  // ν = 1e-4, the thesis' Re
+  const sim::Scene re10000 = scene::parse_scene({{"case", "tgv3d"}});  // ν = 1e-4, the thesis' Re
   const auto why = missing_reference(re10000);
   ASSERT_TRUE(why);
   EXPECT_NE(why->find("Re = 5000"), std::string::npos) << *why;
   EXPECT_NE(why->find("0.0001"), std::string::npos) << *why;
   EXPECT_THROW(reference_curve(re10000, kReferenceDir), std::invalid_argument);
-  const sim::Scene sideways =
-      sim::parse_scene({{"preset", "kolmogorov2d"}, {"flow", {{"uniform_velocity", {0.0, 0.1}}}}});
+  const sim::Scene sideways = scene::parse_scene(
+      {{"preset", "kolmogorov2d"}, {"flow", {{"uniform_velocity", {0.0, 0.1}}}}});
   ASSERT_TRUE(missing_reference(sideways));
   EXPECT_NE(missing_reference(sideways)->find("y component"), std::string::npos);
   // A missing file is an error naming it.
   const sim::Scene dns =
-      sim::parse_scene({{"case", "tgv3d"}, {"fluid", {{"dynamic_viscosity", 2e-4}}}});
+      scene::parse_scene({{"case", "tgv3d"}, {"fluid", {{"dynamic_viscosity", 2e-4}}}});
   try {
     reference_curve(dns, "/nonexistent");
     FAIL();

@@ -21,6 +21,7 @@
 #include "control/run.hpp"
 #include "control/step_time.hpp"
 #include "io/checkpoint.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
@@ -57,7 +58,7 @@ RunSpec spec_of(const json& document) {
 }
 
 json with(json document, const std::string& key, const json& value) {
-  sim::apply_override(document, key + "=" + value.dump());
+  scene::apply_override(document, key + "=" + value.dump());
   return document;
 }
 

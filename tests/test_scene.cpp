@@ -9,11 +9,17 @@
 #include <filesystem>
 #include <fstream>
 
+#include "scene/document.hpp"
+#include "scene/schema.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
-#include "sim/scene_schema.hpp"
 
 namespace sphles::sim {
+
+using scene::apply_override;
+using scene::dotted_keys;
+using scene::parse_scene;
+using scene::scene_to_json;
 namespace {
 
 using nlohmann::json;

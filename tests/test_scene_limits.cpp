@@ -23,6 +23,8 @@
 #include "control/run.hpp"
 #include "control/run_manager.hpp"
 #include "render/config.hpp"
+#include "scene/document.hpp"
+#include "scene/presets.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::control {
@@ -160,8 +162,8 @@ TEST(SceneLimits, ProgramRefusesAStalledRunAndWritesNothing) {
 void expect_bound(const json& base, const std::string& key, const json& at, const json& beyond,
                   const std::string& field) {
   json accepted = base, refused = base;
-  sim::apply_override(accepted, key + "=" + at.dump());
-  sim::apply_override(refused, key + "=" + beyond.dump());
+  scene::apply_override(accepted, key + "=" + at.dump());
+  scene::apply_override(refused, key + "=" + beyond.dump());
   EXPECT_EQ(error_of(accepted), "") << key << " = " << at.dump();
   const std::string error = error_of(refused);
   EXPECT_NE(error.find("'" + field + "'"), std::string::npos)
@@ -196,7 +198,7 @@ TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {
                      {"kernel", {{"diameter_over_spacing", 6}}},
                      {"packing", {{"enabled", false}}},
                      {"time", {{"end", 100.0}}}};
-  const sim::Scene scene = sim::parse_scene(base);
+  const sim::Scene scene = scene::parse_scene(base);
   const double dt = sim::estimate_initial_time_step(scene).step();
   EXPECT_NEAR(dt, 0.01428, 1e-5);
   // Long run: the time-step side binds (half a step).
@@ -205,7 +207,7 @@ TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {
   for (const std::string key : {"output.timeseries_every", "checkpoint.every"}) {
     expect_bound(base, key, minimum, std::nextafter(minimum, 0.0), key);
     json off = base;
-    sim::apply_override(off, key + "=0");
+    scene::apply_override(off, key + "=0");
     EXPECT_EQ(error_of(off), "") << key << " = 0 (every step, or off)";
   }
   const json with_products = analysed(base, {{"every", 1.0}, {"products", kProducts}});
@@ -218,7 +220,7 @@ TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {
   // analysis default is 60 frames per run, whatever its length).
   json short_run = base;
   short_run["time"]["end"] = 0.1;
-  const double short_minimum = sim::min_cadence(sim::parse_scene(short_run));
+  const double short_minimum = sim::min_cadence(scene::parse_scene(short_run));
   EXPECT_DOUBLE_EQ(short_minimum, 0.1 / sim::kMaxShortCadencePoints);
   expect_bound(short_run, "output.timeseries_every", short_minimum,
                std::nextafter(short_minimum, 0.0), "output.timeseries_every");
@@ -237,12 +239,12 @@ TEST(SceneLimits, TimeStepBelowTheResolutionOfTheEndTimeIsRefused) {
 }
 
 TEST(SceneLimits, EveryPresetAndShippedSceneParses) {
-  for (const std::string& name : sim::preset_names()) {
+  for (const std::string& name : scene::preset_names()) {
     EXPECT_EQ(error_of({{"preset", name}}), "") << name;
     EXPECT_EQ(error_of(with_live_defaults({{"preset", name}})), "") << name << " (live defaults)";
   }
   for (const auto& entry : fs::directory_iterator(fs::path(SPHLES_SOURCE_DIR) / "scenes")) {
-    const json document = sim::read_scene_file(entry.path());
+    const json document = scene::read_scene_file(entry.path());
     EXPECT_EQ(error_of(document), "") << entry.path().filename();
   }
 }
@@ -255,7 +257,7 @@ TEST(SceneLimits, EveryPresetAndShippedSceneParses) {
 TEST(SceneLimits, TvfScenesKeepTheCalibratedBackgroundPressureTimesStep) {
   for (const char* name : {"tgv2d-peers.json", "tgv3d-tvf.json"}) {
     SCOPED_TRACE(name);
-    const json document = sim::read_scene_file(fs::path(SPHLES_SOURCE_DIR) / "scenes" / name);
+    const json document = scene::read_scene_file(fs::path(SPHLES_SOURCE_DIR) / "scenes" / name);
     const sim::Scene scene = parse_run_spec(document).run.scene;
     ASSERT_EQ(scene.scheme.type, sim::SchemeType::TransportVelocity);
     const sim::FluidParameters& fluid = scene.fluid;

@@ -10,14 +10,16 @@
 #include "control/live_changes.hpp"
 #include "control/run.hpp"
 #include "control/scene_schema.hpp"
+#include "scene/presets.hpp"
+#include "scene/schema.hpp"
 #include "sim/kernels.hpp"
 #include "sim/scene.hpp"
-#include "sim/scene_schema.hpp"
 
 namespace {
 
 using nlohmann::json;
 namespace control = sphles::control;
+namespace scene = sphles::scene;
 namespace sim = sphles::sim;
 
 /// Every section present, so that the normalised document holds every key its writers write.
@@ -69,10 +71,10 @@ std::string parse_error(const json& document) {
 }
 
 TEST(SceneSchema, EveryPresetAndItsNormalisedDocumentConform) {
-  for (const std::string& preset : sim::preset_names()) {
+  for (const std::string& preset : scene::preset_names()) {
     const json scene = {{"preset", preset}, {"particles_per_side", 16}};
     EXPECT_EQ(control::schema_violation(scene), std::nullopt) << preset;
-    EXPECT_EQ(control::schema_violation(sim::preset_document(preset)), std::nullopt) << preset;
+    EXPECT_EQ(control::schema_violation(scene::preset_document(preset)), std::nullopt) << preset;
   }
   for (const std::string& c : kCases) {
     const json full = normalised(with_every_section({{"case", c}}));
@@ -91,8 +93,8 @@ TEST(SceneSchema, EveryDeclaredKeyIsWrittenAndReadBack) {
     documents.push_back(normalised(with_every_section({{"case", c}})));
     EXPECT_NO_THROW(control::parse_run_spec(documents.back())) << c;
   }
-  for (const std::string& field : sim::scene_schema_fields()) {
-    const json* node = sim::scene_schema_node(field);
+  for (const std::string& field : scene::scene_schema_fields()) {
+    const json* node = scene::scene_schema_node(field);
     ASSERT_NE(node, nullptr) << field;
     if (node->contains("properties") || field == "preset" || field == "packing.cache_dir" ||
         field == "render.colour")
@@ -107,8 +109,8 @@ TEST(SceneSchema, DeclaredDefaultsAreTheReadersDefaults) {
   std::size_t checked = 0;
   for (const std::string& c : kCases) {
     const json full = normalised(with_every_section({{"case", c}}));
-    for (const std::string& field : sim::scene_schema_fields()) {
-      const json* node = sim::scene_schema_node(field);
+    for (const std::string& field : scene::scene_schema_fields()) {
+      const json* node = scene::scene_schema_node(field);
       if (!node->contains("default")) continue;
       const json* value = value_at(full, field);
       if (!value || kSetBySection.contains(field)) continue;
@@ -119,7 +121,7 @@ TEST(SceneSchema, DeclaredDefaultsAreTheReadersDefaults) {
     const json* mapping = value_at(full, "render.view3d.colour");
     ASSERT_NE(mapping, nullptr);
     EXPECT_EQ(mapping->at("lower_percentile"),
-              sim::scene_schema_node("render.view3d.colour.lower_percentile")->at("default"));
+              scene::scene_schema_node("render.view3d.colour.lower_percentile")->at("default"));
   }
   EXPECT_GT(checked, 100u);
 }
@@ -246,7 +248,7 @@ TEST(SceneSchema, TheScopeOfAChangeComesFromTheSchema) {
   EXPECT_EQ(control::live_rule("checkpoint.every").scope, "");
   EXPECT_EQ(control::live_rule("name").scope, "");
   // Every scope the schema declares is one the run knows how to apply.
-  for (const std::string& field : sim::scene_schema_fields()) {
+  for (const std::string& field : scene::scene_schema_fields()) {
     const std::string scope = control::live_rule(field).scope;
     EXPECT_TRUE(scope.empty() || scope == "solver" || scope == "analysis" || scope == "render")
         << field << ": " << scope;

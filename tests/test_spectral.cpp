@@ -13,6 +13,7 @@
 
 #include "analysis/reference.hpp"
 #include "analysis/writer.hpp"
+#include "scene/document.hpp"
 #include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
 #include "spectral/navier_stokes.hpp"
@@ -342,7 +343,7 @@ TEST(ReferenceCommand, WritesARunDirectoryAndRestarts) {
             read_file(straight / "spectra" / "E_t1.0000.csv"));
 
   // The run is found as the reference of its flow, and of no other.
-  const sim::Scene same = sim::parse_scene(
+  const sim::Scene same = scene::parse_scene(
       {{"preset", "tgv2d"}, {"fluid", {{"dynamic_viscosity", 0.02}}}, {"particles_per_side", 16}});
   EXPECT_EQ(analysis::find_reference_run(same, dir), out);
   sim::Scene other = same;

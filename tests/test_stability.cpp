@@ -12,6 +12,7 @@
 #include <optional>
 #include <string>
 
+#include "scene/document.hpp"
 #include "sim/health.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
@@ -21,6 +22,8 @@
 #include "test_support.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
 namespace {
 
 // ---- Health figures on constructed particle sets ----

@@ -5,8 +5,10 @@
 #include <cmath>
 #include <random>
 
+#include "scene/document.hpp"
+#include "scene/json_reader.hpp"
+#include "scene/presets.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/json_reader.hpp"
 #include "sim/packing.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -14,6 +16,10 @@
 #include "test_support.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
+using scene::preset_names;
+using scene::scene_to_json;
 namespace {
 
 using nlohmann::json;

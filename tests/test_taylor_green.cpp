@@ -6,12 +6,15 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "test_support.hpp"
 
 namespace sphles::sim {
+
+using scene::parse_scene;
 namespace {
 
 /// Runs a 2D Taylor-Green vortex at Re = 100 to t = 2 and returns the largest relative error of

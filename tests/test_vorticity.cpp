@@ -23,6 +23,7 @@
 #include "analysis/grid.hpp"
 #include "analysis/products.hpp"
 #include "analysis/vorticity.hpp"
+#include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/packing.hpp"
 #include "sim/physics.hpp"
@@ -360,7 +361,7 @@ SnapshotPtr packed_tgv(const std::string& case_name, int per_side, double ratio)
   const json doc = {{"case", case_name},
                     {"particles_per_side", per_side},
                     {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", ratio}}}};
-  const sim::Scene scene = sim::parse_scene(doc);
+  const sim::Scene scene = scene::parse_scene(doc);
   const auto start = std::chrono::steady_clock::now();
   sim::RunSetup setup = sim::setup_run(
       scene, {.packing_cache_dir = std::filesystem::temp_directory_path() / "sphles_test_packing"});

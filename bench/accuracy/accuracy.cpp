@@ -22,6 +22,7 @@
 #include "analysis/snapshot.hpp"
 #include "analysis/vorticity.hpp"
 #include "bench/process_time.hpp"
+#include "scene/document.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
@@ -488,7 +489,7 @@ std::vector<RunSpec> make_matrix(const std::string& study, bool quick) {
           scene["scheme"] = v.scheme;
           scene["initial"]["mass"] = v.initial_mass;
           if (v.pressure == Pressure::BulkModulus) {
-            const sim::Scene parsed = sim::parse_scene(scene);
+            const sim::Scene parsed = scene::parse_scene(scene);
             scene["fluid"]["reference_pressure"] = parsed.fluid.reference_density *
                                                    parsed.fluid.sound_speed *
                                                    parsed.fluid.sound_speed / v.step_factor;
@@ -526,7 +527,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
   };
   RunResult r;
   r.spec = spec;
-  const sim::Scene scene = sim::parse_scene(spec.scene);
+  const sim::Scene scene = scene::parse_scene(spec.scene);
   r.case_name = std::string(sim::case_name(scene.case_type));
   r.particles_per_side = scene.particles_per_side;
   r.particles = scene.num_particles();

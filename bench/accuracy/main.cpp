@@ -45,6 +45,7 @@
 #include <vector>
 
 #include "bench/accuracy/accuracy.hpp"
+#include "scene/document.hpp"
 #include "sim/scene.hpp"
 
 namespace {
@@ -287,7 +288,7 @@ int main(int argc, char** argv) {
     try {
       for (ac::RunSpec& r : runs)
         for (const std::string& assignment : overrides)
-          sphles::sim::apply_override(r.scene, assignment);
+          sphles::scene::apply_override(r.scene, assignment);
     } catch (const std::exception& e) {
       std::cerr << e.what() << '\n';
       return 2;

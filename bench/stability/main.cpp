@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "bench/stability/sweep.hpp"
+#include "scene/document.hpp"
 #include "sim/scene.hpp"
 
 namespace {
@@ -100,7 +101,7 @@ int main(int argc, char** argv) {
     for (st::RunSpec& r : runs) {
       if (cfl > 0.0) r.cfl = cfl;
       for (const std::string& assignment : overrides)
-        sphles::sim::apply_override(r.scene, assignment);
+        sphles::scene::apply_override(r.scene, assignment);
     }
   } catch (const std::exception& e) {
     std::cerr << e.what() << '\n';

@@ -10,6 +10,7 @@
 #include <ostream>
 #include <sstream>
 
+#include "scene/document.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
@@ -139,7 +140,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
   RunResult r;
   r.spec = spec;
   json document = spec.scene;
-  const sim::Scene scene = sim::parse_scene(document);
+  const sim::Scene scene = scene::parse_scene(document);
   r.case_name = std::string(sim::case_name(scene.case_type));
   r.particles_per_side = scene.particles_per_side;
   r.kernel = std::string(sim::kernel_name(scene.kernel));

@@ -11,11 +11,12 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scene/document.hpp"
 #include "sim/health.hpp"
 
 namespace sphles::stability {
 
-/// One configuration of the sweep: a scene document (parsed by sim::parse_scene, so every key is
+/// One configuration of the sweep: a scene document (parsed by scene::parse_scene, so every key is
 /// validated as in a scene file) and the acoustic CFL factor, which is set on the solver
 /// configuration directly because the scene limits it to (0, 2].
 struct RunSpec {

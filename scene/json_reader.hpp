@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Reading validated configuration objects from JSON: every read names its dotted field and takes
-// the field's type and bounds from the scene's schema (sim/scene.schema.json, scene_schema.hpp);
+// the field's type and bounds from the scene's schema (scene/scene.schema.json, scene/schema.hpp);
 // keys the schema does not declare are reported as unknown. Used by every module that owns a
 // section of a scene.
 #pragma once
@@ -18,22 +18,23 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scene/schema.hpp"
+#include "sim/format.hpp"
 #include "sim/name_table.hpp"
 #include "sim/scene.hpp"
-#include "sim/scene_schema.hpp"
 
-namespace sphles::sim {
+namespace sphles::scene {
+
+using sim::format_number;
+using sim::NameTable;
+using sim::parse_name;
+using sim::SceneError;
+using sim::throw_scene_error;
 
 using nlohmann::json;
 
 inline std::string describe_type(const json& value) {
   return value.type_name();
-}
-
-inline std::string format_number(double value) {
-  std::ostringstream s;
-  s << value;
-  return s.str();
 }
 
 /// Levenshtein distance of two keys (insertions, deletions and substitutions).
@@ -75,18 +76,12 @@ inline std::optional<std::string> closest_key(const std::string& key,
   return best;
 }
 
-/// The value `name` names in `table`; SceneError for `field` otherwise, listing the names.
-template <class Enum, std::size_t N>
-Enum parse_name(const NameTable<Enum, N>& table, const std::string& name,
-                const std::string& field) {
-  if (const std::optional<Enum> value = table.find(name)) return *value;
-  throw_scene_error(field, "must be one of " + table.list() + ", got '" + name + "'");
-}
-
 /// Reads keys of one JSON object, remembering which were used so that the rest can be reported
 /// as unknown. Targets hold their defaults on entry.
 class ObjectReader {
  public:
+  static constexpr bool kReads = true;
+
   /// The object at the dotted `path` of the scene ("" for the whole scene), whose schema the
   /// scene's schema must declare.
   ObjectReader(const json& object, std::string path)
@@ -202,6 +197,9 @@ class ObjectReader {
     target = std::move(result);
   }
 
+  /// reject_unknown(), the end of a section read by a function shared with ObjectWriter.
+  void finish() const { reject_unknown(); }
+
   /// Throws on the first key the schema does not declare, suggesting the declared key it is a
   /// typo of; std::logic_error for a declared key that no read asked for (a defect: the key
   /// would be accepted and ignored).
@@ -235,4 +233,4 @@ class ObjectReader {
   std::set<std::string> seen_;
 };
 
-}  // namespace sphles::sim
+}  // namespace sphles::scene

@@ -1,10 +1,10 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-#include "sim/scene_schema.hpp"
+#include "scene/schema.hpp"
 
 #include <sstream>
 #include <stdexcept>
 
-namespace sphles::sim {
+namespace sphles::scene {
 
 using nlohmann::json;
 
@@ -109,4 +109,4 @@ std::vector<std::string> scene_schema_fields() {
   return fields;
 }
 
-}  // namespace sphles::sim
+}  // namespace sphles::scene

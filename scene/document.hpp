@@ -1,0 +1,31 @@
+// SPDX-License-Identifier: GPL-3.0-or-later
+// The scene document (docs/scenes.md): a scene is JSON, read section by section into the plain
+// sim::Scene and written back with every default filled in. Keys, types and bounds come from the
+// scene schema (scene/schema.hpp); unknown keys, wrong types and out-of-range values raise
+// sim::SceneError naming the field and the reason.
+#pragma once
+
+#include <filesystem>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "sim/scene.hpp"
+
+namespace sphles::scene {
+
+/// Parses and validates a scene; throws sim::SceneError. A "preset" key starts from that preset's
+/// document (scene/presets.hpp), and the other keys override it (JSON merge patch).
+sim::Scene parse_scene(const nlohmann::json& document);
+
+/// Reads a JSON file; throws sim::SceneError naming the file on I/O or syntax errors.
+nlohmann::json read_scene_file(const std::filesystem::path& path);
+
+/// Applies "dotted.key=value" to a scene document. The value is parsed as JSON when it is valid
+/// JSON, otherwise taken as a string. Throws sim::SceneError on a malformed assignment.
+void apply_override(nlohmann::json& document, const std::string& assignment);
+
+/// The complete scene with every default filled in (written next to each run's output).
+nlohmann::json scene_to_json(const sim::Scene& scene);
+
+}  // namespace sphles::scene
