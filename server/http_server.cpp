@@ -26,7 +26,7 @@
 #include <vector>
 
 #include "logging/logging.hpp"
-#include "server/routes.hpp"
+#include "server/router.hpp"
 #include "server/url.hpp"
 #include "server/websocket_session.hpp"
 

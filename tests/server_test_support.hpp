@@ -38,7 +38,7 @@
 #include "control/run_manager.hpp"
 #include "server/client_queue.hpp"
 #include "server/http_server.hpp"
-#include "server/routes.hpp"
+#include "server/router.hpp"
 #include "server/static_files.hpp"
 #include "server/url.hpp"
 
