@@ -38,7 +38,7 @@
 #include "control/run_manager.hpp"
 #include "server/client_queue.hpp"
 #include "server/http_server.hpp"
-#include "server/routes.hpp"
+#include "server/router.hpp"
 #include "server/static_files.hpp"
 #include "server/url.hpp"
 
@@ -181,6 +181,20 @@ struct Reply {
   }
 };
 
+/// A response as the tests read it: its status, its headers (lower-case names) and `body`.
+template <class Body>
+Reply reply_of(const http::response<Body>& res, std::string body) {
+  Reply reply;
+  reply.status = static_cast<int>(res.result_int());
+  for (const auto& field : res) {
+    std::string name(field.name_string());
+    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    reply.headers[name] = std::string(field.value());
+  }
+  reply.body = std::move(body);
+  return reply;
+}
+
 struct Request {
   Request(http::verb m, std::string t, std::string b = "", std::string type = "application/json",
           std::vector<std::pair<std::string, std::string>> h = {})
@@ -214,15 +228,7 @@ inline Reply send(unsigned short port, const Request& r) {
   parser.skip(r.method == http::verb::head);  // a HEAD response has a length but no body
   http::read(socket, buffer, parser);
   const auto& res = parser.get();
-  Reply reply;
-  reply.status = static_cast<int>(res.result_int());
-  for (const auto& field : res) {
-    std::string name(field.name_string());
-    for (char& c : name) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    reply.headers[name] = std::string(field.value());
-  }
-  reply.body = res.body();
-  return reply;
+  return reply_of(res, res.body());
 }
 
 /// send(), or nullopt when the server closes or resets the connection instead of answering.

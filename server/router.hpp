@@ -6,10 +6,12 @@
 // Order of checks for a request: path (404), method (405), token for mutating calls (401),
 // Content-Type of JSON bodies (415), body (400 naming the field), run id (404), state (409).
 // Body size (413) and malformed HTTP (400) are rejected before routing, by the HTTP session.
+//
+// The router holds the route table (router.cpp: every route, the index of the API) and makes
+// the checks up to the token; the handlers behind it, in server/handlers/ by resource, make the
+// rest, and build their answers with server/responses.hpp.
 #pragma once
 
-#include <boost/beast/http/message.hpp>
-#include <boost/beast/http/string_body.hpp>
 #include <boost/beast/http/verb.hpp>
 #include <filesystem>
 #include <memory>
@@ -19,19 +21,16 @@
 #include <vector>
 
 #include "control/run_manager.hpp"
-#include "server/api_json.hpp"
 #include "server/history.hpp"
 #include "server/product_cache.hpp"
-#include "server/static_files.hpp"
-#include "server/text_body.hpp"
+#include "server/responses.hpp"
 
 namespace sphles::server {
 
 class StreamRegistry;
-
-using Request = boost::beast::http::request<boost::beast::http::string_body>;
-/// Owned text, or a product's text shared with other responses (server/text_body.hpp).
-using Response = boost::beast::http::response<TextBody>;
+namespace handlers {
+struct Services;
+}
 
 struct RouteInfo {
   boost::beast::http::verb method;
@@ -72,13 +71,8 @@ class Router {
   };
   StreamTarget stream_target(const Request& request) const;
 
-  struct Services;
-
  private:
-  std::shared_ptr<Services> services_;
+  std::shared_ptr<handlers::Services> services_;
 };
-
-/// {"error": {...}} with the error's status, as a response to a request of this version.
-Response error_response(const ApiError& error, unsigned version, bool keep_alive);
 
 }  // namespace sphles::server
