@@ -117,17 +117,17 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
                 control::format_bytes(e.analysis_disk_bytes).c_str());
   std::printf("initial time step    %.6g s (%s limit), %.6g steps to t = %g s\n",
               e.time_step.step(), std::string(e.time_step.limits.binding()).c_str(), e.steps,
-              spec.run.scene.end_time);
+              spec.scene.end_time);
   if (time) {
     std::printf(
         "time per step        %s on %d threads (measured: %d steps of %zu^%d particles in "
         "%.3g s, scaled by the particle count)\n",
         format_duration(time->seconds_per_step).c_str(), time->threads, time->calibration_steps,
-        time->calibration_side, spec.run.scene.dimension(), time->calibration_seconds);
+        time->calibration_side, spec.scene.dimension(), time->calibration_seconds);
     std::printf(
         "time to the end      %s to t = %g s at the initial step (the step may shrink "
         "as the flow develops); packing, analysis and rendering not included\n",
-        format_duration(time->seconds_to_end).c_str(), spec.run.scene.end_time);
+        format_duration(time->seconds_to_end).c_str(), spec.scene.end_time);
   }
   return too_big;
 }

@@ -58,7 +58,7 @@ nlohmann::json reference_scene_document(const ReferenceOptions& options) {
 /// needs more memory than this machine has. True when the run is to go ahead.
 bool reference_fits(const ReferenceOptions& options, const control::RunSpec& spec, int ranks,
                     bool root) {
-  const sim::Scene& scene = spec.run.scene;
+  const sim::Scene& scene = spec.scene;
   const spectral::ReferenceConfig& config = spec.reference;
   const spectral::ReferenceEstimate e = spectral::estimate_reference(scene, config, ranks);
   // Every rank of this machine's job together (mpirun on one node).
@@ -135,7 +135,7 @@ int run_reference_until_stopped(const control::RunSpec& spec, const nlohmann::js
     // Rank 0 renders the frames; the other ranks step their slabs.
     const spectral::ReferenceRunResult r =
         root ? control::run_rendered_reference(spec, document, run_options)
-             : spectral::run_reference(spec.run.scene, spec.run.analysis, spec.reference, document,
+             : spectral::run_reference(spec.scene, spec.analysis, spec.reference, document,
                                        run_options);
     if (r.stopped) {
       if (root)
@@ -179,17 +179,17 @@ int reference_command(const ReferenceOptions& options, bool mpi) {
     document = control::run_spec_to_json(spec);
     // A 2D reference runs on rank 0 alone. The other ranks leave before looking at the run
     // directory, which rank 0 may already be writing.
-    if (spec.run.scene.dimension() == 2) {
+    if (spec.scene.dimension() == 2) {
       if (!root) return kExitOk;
       ranks = 1;
     }
     if (!reference_fits(options, spec, ranks, root)) return kExitOk;  // --dry-run
-    if (options.restart.empty()) dir = new_reference_directory(options, spec.run.scene, root);
+    if (options.restart.empty()) dir = new_reference_directory(options, spec.scene, root);
   } catch (const std::exception& e) {
     if (root) std::fprintf(stderr, "sphles reference: %s\n", e.what());
     return kExitUsage;
   }
-  if (mpi && spec.run.scene.dimension() == 2) {
+  if (mpi && spec.scene.dimension() == 2) {
     std::fprintf(stderr, "sphles reference: a 2D reference runs on rank 0 alone\n");
     mpi = false;
   }

@@ -115,7 +115,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
       const std::filesystem::path out_dir =
           !options.out_dir.empty()
               ? std::filesystem::path(options.out_dir)
-              : std::filesystem::path("runs") / control::directory_name(spec.run.scene.name);
+              : std::filesystem::path("runs") / control::directory_name(spec.scene.name);
       // A fresh run never silently replaces the checkpoints of an earlier one.
       if (std::filesystem::exists(out_dir / "run.json") ||
           std::filesystem::exists(out_dir / "checkpoints")) {

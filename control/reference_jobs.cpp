@@ -105,15 +105,15 @@ spectral::ReferenceRunResult run_rendered_reference(const RunSpec& spec, const j
   render.combined = false;
   render.save = true;
   RenderSink sink(
-      render, std::string(sim::case_name(spec.run.scene.case_type)), options.directory / "frames",
+      render, std::string(sim::case_name(spec.scene.case_type)), options.directory / "frames",
       [](const RenderedImage&) {}, [] { return false; });
   spectral::ReferenceRunOptions rendered = options;
   rendered.on_frame = [&sink, &options](std::shared_ptr<const analysis::AnalysisFrame> frame) {
     if (options.on_frame) options.on_frame(frame);
     sink.post(std::move(frame));
   };
-  const spectral::ReferenceRunResult result = spectral::run_reference(
-      spec.run.scene, spec.run.analysis, spec.reference, document, rendered);
+  const spectral::ReferenceRunResult result =
+      spectral::run_reference(spec.scene, spec.analysis, spec.reference, document, rendered);
   sink.close(true);
   if (!sink.error().empty()) throw std::runtime_error("rendering: " + sink.error());
   return result;
@@ -226,9 +226,9 @@ ReferencePlan ReferenceJobs::plan(json scene_document, const ReferenceRequest& r
   ReferencePlan p;
   p.spec = parse_run_spec(scene_document);
   p.document = run_spec_to_json(p.spec);
-  p.estimate = spectral::estimate_reference(p.spec.run.scene, p.spec.reference);
+  p.estimate = spectral::estimate_reference(p.spec.scene, p.spec.reference);
   // The solver refuses a forcing it cannot represent; say so before the job is queued.
-  const int forcing = spectral::flow_of(p.spec.run.scene).forcing_periods;
+  const int forcing = spectral::flow_of(p.spec.scene).forcing_periods;
   if (forcing > p.estimate.max_wavenumber) {
     int enough = p.spec.reference.points_per_side;
     while (spectral::dealiased_max_wavenumber(enough) < forcing) enough += 2;
@@ -246,7 +246,7 @@ json ReferenceJobs::estimate(const ReferencePlan& plan) const {
   json answer = reference_estimate_json(plan.estimate);
   answer["points_per_side"] = plan.spec.reference.points_per_side;
   answer["cfl"] = plan.spec.reference.cfl;
-  answer["end_time"] = plan.spec.run.scene.end_time;
+  answer["end_time"] = plan.spec.scene.end_time;
   answer["memory_limit_bytes"] = max_memory_bytes_;
   const std::optional<std::string> refusal = memory_refusal(plan, max_memory_bytes_);
   answer["admitted"] = !refusal;
@@ -262,7 +262,7 @@ ReferenceJobStatus ReferenceJobs::submit(const std::string& run, const Reference
   auto job = std::make_shared<Job>();
   char number[32];
   std::snprintf(number, sizeof number, "%04llu", static_cast<unsigned long long>(next_number_++));
-  job->id = std::string(number) + "-" + directory_name(plan.spec.run.scene.name) + "-n" +
+  job->id = std::string(number) + "-" + directory_name(plan.spec.scene.name) + "-n" +
             std::to_string(plan.spec.reference.points_per_side);
   job->run = run;
   job->plan = plan;
@@ -278,7 +278,7 @@ ReferenceJobStatus ReferenceJobs::submit(const std::string& run, const Reference
   lock.unlock();
   changed_.notify_all();
   references_log()->info("reference {} for run {} queued ({}^{} points, about {} steps)", status.id,
-                         run, status.points_per_side, plan.spec.run.scene.dimension(),
+                         run, status.points_per_side, plan.spec.scene.dimension(),
                          plan.estimate.steps);
   return status;
 }
@@ -385,7 +385,7 @@ ReferenceJobStatus ReferenceJobs::status_of(const Job& job) const {
   s.error = job.error;
   s.time = job.time;
   s.step = job.step;
-  s.end_time = job.plan.spec.run.scene.end_time;
+  s.end_time = job.plan.spec.scene.end_time;
   s.points_per_side = job.plan.spec.reference.points_per_side;
   s.cfl = job.plan.spec.reference.cfl;
   s.estimate = job.plan.estimate;

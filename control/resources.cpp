@@ -458,8 +458,8 @@ RankEstimate rank_estimate(const sim::Scene& s, const analysis::AnalysisConfig& 
 }  // namespace
 
 ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
-  const sim::Scene& s = spec.run.scene;
-  const analysis::AnalysisConfig& a = spec.run.analysis;
+  const sim::Scene& s = spec.scene;
+  const analysis::AnalysisConfig& a = spec.analysis;
   const int dim = s.dimension();
   const bool explicit_model = s.subfilter.model != sim::SubfilterModel::Implicit;
   ResourceEstimate e;

@@ -82,7 +82,7 @@ Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptio
   std::filesystem::create_directories(directory_);
   std::unique_lock lock(impl_->mutex);
   impl_->spec = std::move(spec);
-  impl_->end_time = impl_->spec.run.scene.end_time;
+  impl_->end_time = impl_->spec.scene.end_time;
   impl_->created = utc_now();
   impl_->write_scene_file_locked();
   impl_->write_run_file_locked();
@@ -142,7 +142,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     for (const std::string& assignment : overrides) scene::apply_override(after, assignment);
     impl->spec = check_change(before, after).spec;
   }
-  impl->end_time = impl->spec.run.scene.end_time;
+  impl->end_time = impl->spec.scene.end_time;
   impl->continue_from_checkpoint = true;
   impl->state = RunState::Stopped;
   impl->created = utc_now();
@@ -223,9 +223,8 @@ std::optional<std::string> Run::Impl::start_refusal(bool* continues) const {
     case RunState::Stopped:
     case RunState::Failed:
     case RunState::Finished: {
-      if (time >= spec.run.scene.end_time * (1.0 - 1e-12))
-        return "run " + id +
-               " has reached time.end = " + sim::format_number(spec.run.scene.end_time) +
+      if (time >= spec.scene.end_time * (1.0 - 1e-12))
+        return "run " + id + " has reached time.end = " + sim::format_number(spec.scene.end_time) +
                "; raise 'time.end' to continue it";
       // A run that has stepped continues from a checkpoint and never silently starts again at
       // t = 0 (that would overwrite its time series and frames); one that never stepped (stopped
@@ -411,7 +410,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
   const bool end_changes =
       std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end();
   const auto refuse_past_end = [&] {
-    if (end_changes && change.spec.run.scene.end_time <= r.time)
+    if (end_changes && change.spec.scene.end_time <= r.time)
       throw ChangeError("time.end", "must be after the current time " + sim::format_number(r.time));
   };
   {
@@ -437,7 +436,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
     r.attention = true;
   } else {
     r.spec = std::move(change.spec);
-    r.end_time = r.spec.run.scene.end_time;
+    r.end_time = r.spec.scene.end_time;
     ++r.revision;
     r.try_write_run_file_locked();  // the name may have changed
   }

@@ -36,7 +36,8 @@ namespace sphles::control {
 
 /// A scene document parsed in full: solver, analysis and render sections.
 struct RunSpec {
-  analysis::RunConfig run;
+  sim::Scene scene;                   // the solver's sections (scene/document.hpp)
+  analysis::AnalysisConfig analysis;  // "analysis"
   render::RenderConfig render;
   spectral::ReferenceConfig reference;  // the case's spectral reference (sphles reference)
 };

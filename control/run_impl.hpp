@@ -106,7 +106,7 @@ struct Run::Impl {
     json j = {{"schema", "sphles-run"},
               {"code_version", SPHLES_VERSION},
               {"id", id},
-              {"name", spec.run.scene.name},
+              {"name", spec.scene.name},
               {"state", run_state_name(state)},
               {"reason", reason},
               {"created", created},

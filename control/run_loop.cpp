@@ -149,9 +149,9 @@ class Run::Impl::Loop {
         checkpoint_dir_(run.directory / "checkpoints"),
         frames_dir_(run.directory / "frames"),
         identity_(directory_identity(run.directory)),
-        timeseries_(run.directory / "timeseries.csv", sim::case_diagnostic_names(current.run.scene),
+        timeseries_(run.directory / "timeseries.csv", sim::case_diagnostic_names(current.scene),
                     resumed),
-        dissipation_(current.run.analysis.dissipation_window) {
+        dissipation_(current.analysis.dissipation_window) {
     // A resumed run refills the trailing window from its time series, so that ε(t) continues
     // as in an uninterrupted run.
     if (resumed)
@@ -171,7 +171,7 @@ class Run::Impl::Loop {
     for (;;) {
       if (run_.attention.load(std::memory_order_relaxed) && attend()) continue;
       if (stopped_) return true;
-      if (sim::reached_end(simulation_->time(), current_.run.scene.end_time)) return false;
+      if (sim::reached_end(simulation_->time(), current_.scene.end_time)) return false;
       step();
     }
   }
@@ -205,7 +205,7 @@ class Run::Impl::Loop {
   /// due after it.
   void step() {
     const double t = simulation_->time();
-    const double end = current_.run.scene.end_time;
+    const double end = current_.scene.end_time;
     const double max_dt =
         checkpoints_.limit_step(t, snapshots_.limit_step(t, rows_.limit_step(t, end - t)));
     const auto step_start = Clock::now();
@@ -214,7 +214,7 @@ class Run::Impl::Loop {
     if (const bool row = rows_.take(d.time); row || !rows_.active()) record(d);
     if (snapshots_.take(d.time)) publish_snapshot();
     bool checkpoint_due = checkpoints_.take(d.time);
-    const double every_seconds = current_.run.scene.checkpoint.every_seconds;
+    const double every_seconds = current_.scene.checkpoint.every_seconds;
     if (every_seconds > 0.0 && seconds_since(last_checkpoint_wall_) >= every_seconds)
       checkpoint_due = true;
     if (checkpoint_due) save_checkpoint();
@@ -239,7 +239,7 @@ class Run::Impl::Loop {
       run_.pending.reset();
       run_.pending_fields.clear();
       ++run_.revision;
-      run_.end_time = run_.spec.run.scene.end_time;
+      run_.end_time = run_.spec.scene.end_time;
       current_ = run_.spec;
       lock.unlock();
       apply_changes(scope);
@@ -272,9 +272,9 @@ class Run::Impl::Loop {
     if (scope.solver)
       // A distributed solver continues where its particles live; one process from its state.
       simulation_ = run_.options.solvers.change
-                        ? run_.options.solvers.change(*simulation_, current_.run.scene)
-                        : restore_solver(run_.options, current_.run.scene, simulation_->state());
-    if (scope.analysis && pipeline_) pipeline_->set_config(current_.run.analysis);
+                        ? run_.options.solvers.change(*simulation_, current_.scene)
+                        : restore_solver(run_.options, current_.scene, simulation_->state());
+    if (scope.analysis && pipeline_) pipeline_->set_config(current_.analysis);
     if (scope.render && renderer_) renderer_->set_config(current_.render);
     ensure_consumers();
     reset_cadences();
@@ -284,11 +284,11 @@ class Run::Impl::Loop {
   /// checkpoints at their cadences in simulated time, from now; a new progress reporter.
   void reset_cadences() {
     const auto cadence = [&](double every) { return sim::Cadence(every, simulation_->time()); };
-    rows_ = cadence(current_.run.scene.output.timeseries_every);
-    snapshots_ = cadence(pipeline_ ? current_.run.analysis.every : 0.0);
-    checkpoints_ = cadence(current_.run.scene.checkpoint.every);
+    rows_ = cadence(current_.scene.output.timeseries_every);
+    snapshots_ = cadence(pipeline_ ? current_.analysis.every : 0.0);
+    checkpoints_ = cadence(current_.scene.checkpoint.every);
     progress_ = std::make_unique<sim::ProgressReporter>(
-        current_.run.scene.end_time, current_.run.scene.output.progress_every_seconds);
+        current_.scene.end_time, current_.scene.output.progress_every_seconds);
   }
 
   /// Every output goes to the run directory: if it is deleted or replaced while the run goes
@@ -341,9 +341,9 @@ class Run::Impl::Loop {
 
   void record(const sim::StepDiagnostics& d) {
     // Summed where the particles live (a distributed run gathers nothing for them).
-    const std::vector<std::string> names = sim::case_diagnostic_names(current_.run.scene);
+    const std::vector<std::string> names = sim::case_diagnostic_names(current_.scene);
     const std::vector<double> values =
-        names.empty() ? std::vector<double>{} : simulation_->case_diagnostics(current_.run.scene);
+        names.empty() ? std::vector<double>{} : simulation_->case_diagnostics(current_.scene);
     const double epsilon = dissipation_.add(d.time, d.kinetic_energy);
     latest_dissipation_ = epsilon;
     timeseries_.write(d, epsilon, values);
@@ -362,8 +362,7 @@ class Run::Impl::Loop {
     const io::CheckpointMetadata metadata{run_spec_to_json(current_).dump(), SPHLES_VERSION,
                                           packing_};
     const auto file = checkpoint_dir_ / io::checkpoint_file_name(simulation_->step_count());
-    const io::CheckpointWriteOptions options{.gzip_level =
-                                                 current_.run.scene.checkpoint.compression};
+    const io::CheckpointWriteOptions options{.gzip_level = current_.scene.checkpoint.compression};
     if (const auto* ranks = dynamic_cast<const io::DistributedCheckpoints*>(simulation_.get())) {
       // A distributed solver's ranks write their own particles; none is gathered.
       ranks->write_checkpoint(file, metadata, options);
@@ -375,8 +374,8 @@ class Run::Impl::Loop {
       io::write_checkpoint_xdmf(file, state);
     }
     const auto files = io::list_checkpoints(checkpoint_dir_);
-    for (std::size_t k = static_cast<std::size_t>(current_.run.scene.checkpoint.keep);
-         k < files.size(); ++k) {
+    for (std::size_t k = static_cast<std::size_t>(current_.scene.checkpoint.keep); k < files.size();
+         ++k) {
       std::filesystem::remove(files[k]);
       std::filesystem::remove(io::checkpoint_xdmf_path(files[k]));
     }
@@ -394,16 +393,16 @@ class Run::Impl::Loop {
   void ensure_consumers() {
     if (current_.render.enabled() && !renderer_) {
       renderer_ = std::make_unique<RenderSink>(
-          current_.render, current_.run.scene.name, frames_dir_,
+          current_.render, current_.scene.name, frames_dir_,
           [this](const RenderedImage& image) { on_image(image); },
           [this] { return run_.wants_images(); });
       render_target_ = renderer_.get();
     }
-    if (current_.run.analysis.enabled() && !pipeline_) {
+    if (current_.analysis.enabled() && !pipeline_) {
       writer_ = std::make_unique<analysis::RunDirectoryWriter>(
           run_.directory, io::SnapshotMetadata{run_spec_to_json(current_).dump(), SPHLES_VERSION});
       pipeline_ = std::make_unique<analysis::AnalysisPipeline>(
-          current_.run.analysis,
+          current_.analysis,
           std::vector<analysis::FrameSink>{
               [this](const analysis::AnalysisFrame& frame) { on_frame(frame); }});
     }
@@ -501,7 +500,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
   }
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
   remove_interrupted_writes(checkpoint_dir);
-  const sim::Scene& scene0 = current.run.scene;
+  const sim::Scene& scene0 = current.scene;
   set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
   // Read here, or by the ranks of a distributed solver (restore_from_file below).
   const bool ranks_read = resumed && static_cast<bool>(options.solvers.restore_file);

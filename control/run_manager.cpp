@@ -410,7 +410,7 @@ std::shared_ptr<Run> RunManager::create(const CreateRequest& request) {
                           "); delete some first");
     char number[32];
     std::snprintf(number, sizeof number, "%04llu", static_cast<unsigned long long>(next_number_++));
-    const std::string id = std::string(number) + "-" + directory_name(spec.run.scene.name);
+    const std::string id = std::string(number) + "-" + directory_name(spec.scene.name);
     const std::filesystem::path directory = options_.data_directory / "runs" / id;
     run = std::make_shared<Run>(id, std::move(spec), directory,
                                 run_options_for(request.ranks, directory));

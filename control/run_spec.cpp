@@ -23,9 +23,10 @@ RunSpec parse_run_spec(const json& document) {
   }
   rest.erase("reference");
   RunSpec spec;
-  spec.run = analysis::parse_run_config(rest);
-  spec.render =
-      render::parse_render_config(has_render ? &render_section : nullptr, spec.run.analysis);
+  analysis::RunConfig run = analysis::parse_run_config(rest);
+  spec.scene = std::move(run.scene);
+  spec.analysis = std::move(run.analysis);
+  spec.render = render::parse_render_config(has_render ? &render_section : nullptr, spec.analysis);
   spec.reference = spectral::parse_reference_config(document);
   // The readers apply the schema's keys, types and bounds with their own messages; the whole
   // schema (every keyword, by valijson) is the last word.
@@ -35,7 +36,7 @@ RunSpec parse_run_spec(const json& document) {
 }
 
 json run_spec_to_json(const RunSpec& spec) {
-  json j = analysis::run_config_to_json(spec.run);
+  json j = analysis::run_config_to_json({spec.scene, spec.analysis});
   j["render"] = render::render_config_to_json(spec.render);
   j["reference"] = spectral::reference_config_to_json(spec.reference);
   return j;

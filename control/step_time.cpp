@@ -22,7 +22,7 @@ double seconds_since(Clock::time_point start) {
 }  // namespace
 
 std::size_t calibration_side(const RunSpec& spec) {
-  const sim::Scene& scene = spec.run.scene;
+  const sim::Scene& scene = spec.scene;
   const std::size_t small = scene.dimension() == 2 ? kCalibrationSide2d : kCalibrationSide3d;
   return std::min(static_cast<std::size_t>(scene.particles_per_side), small);
 }
@@ -41,7 +41,7 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
   document.erase("render");
   const RunSpec small = parse_run_spec(document);
   const auto setup_start = Clock::now();
-  sim::RunSetup setup = sim::setup_run(small.run.scene);
+  sim::RunSetup setup = sim::setup_run(small.scene);
   e.calibration_particles = static_cast<double>(setup.particles.size());
   const std::unique_ptr<sim::Simulation> simulation =
       sim::make_simulation(setup.solver, std::move(setup.particles));

@@ -24,7 +24,7 @@ int document_dimension(const nlohmann::json& document) {
         return sim::case_dimension(type);
   }
   try {
-    return control::parse_run_spec(document).run.scene.dimension();
+    return control::parse_run_spec(document).scene.dimension();
   } catch (const std::exception&) {
     return 0;
   }
@@ -108,7 +108,7 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
   // What GET spectrum / statistics / images/{field} would return now, so that a client asks
   // only for products that exist instead of collecting 404s.
   const auto frame = run.latest_frame();
-  const bool reference = !analysis::missing_reference(run.spec().run.scene);
+  const bool reference = !analysis::missing_reference(run.spec().scene);
   detail["available"] = {{"spectrum", frame && frame->spectrum.has_value()},
                          {"statistics", frame && frame->subfilter.has_value()},
                          {"images", run.image_fields()},

@@ -252,7 +252,7 @@ TEST(ResourceEstimate, HugeRunsAreEstimatedWithoutOverflowOrAllocation) {
   // A tiny kernel (refused by the scene since, but the estimate must still be finite): the cell
   // grid of the neighbour search grows as (L / D_K)³.
   RunSpec tiny = spec_of({{"preset", "tgv3d"}});
-  tiny.run.scene.kernel_diameter_over_spacing = 0.02;
+  tiny.scene.kernel_diameter_over_spacing = 0.02;
   const ResourceEstimate t = estimate_resources(tiny);
   EXPECT_TRUE(std::isfinite(t.memory_bytes));
   EXPECT_GT(t.memory_bytes, 1e12);  // 1.7e11 cells x 16 B
@@ -269,7 +269,7 @@ TEST(ResourceEstimate, CheckpointBytesBoundARealCheckpointFile) {
                            {"subfilter", {{"model", model}}},
                            {"checkpoint", {{"every", 1.0}, {"keep", 4}}}};
     const RunSpec spec = spec_of(document);
-    sim::RunSetup setup = sim::setup_run(spec.run.scene);
+    sim::RunSetup setup = sim::setup_run(spec.scene);
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
     simulation->step();
     const fs::path file = dir / ("ckpt_" + model + ".h5");
@@ -315,7 +315,7 @@ TEST(ResourceEstimate, InitialTimeStepMatchesTheSolver) {
        "fixed", 0.0},
   };
   for (const Case& c : cases) {
-    const sim::Scene s = spec_of(c.document).run.scene;
+    const sim::Scene s = spec_of(c.document).scene;
     const sim::TimeStepEstimate e = sim::estimate_initial_time_step(s);
     sim::RunSetup setup = sim::setup_run(s);
     const auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));

@@ -258,7 +258,7 @@ TEST(SceneLimits, TvfScenesKeepTheCalibratedBackgroundPressureTimesStep) {
   for (const char* name : {"tgv2d-peers.json", "tgv3d-tvf.json"}) {
     SCOPED_TRACE(name);
     const json document = scene::read_scene_file(fs::path(SPHLES_SOURCE_DIR) / "scenes" / name);
-    const sim::Scene scene = parse_run_spec(document).run.scene;
+    const sim::Scene scene = parse_run_spec(document).scene;
     ASSERT_EQ(scene.scheme.type, sim::SchemeType::TransportVelocity);
     const sim::FluidParameters& fluid = scene.fluid;
     const double calibrated = fluid.reference_density * fluid.sound_speed * fluid.sound_speed *

@@ -75,7 +75,7 @@ Response reference(const Services& s, const Context& c) {
   constexpr int kSamples = 201;
   const auto run = find_run(s, c.params[0]);
   const std::optional<double> until = query_positive(c, "until");
-  const sim::Scene scene = run->spec().run.scene;
+  const sim::Scene scene = run->spec().scene;
   analysis::ReferenceCurve curve;
   try {
     curve =
@@ -96,7 +96,7 @@ Response reference(const Services& s, const Context& c) {
 /// and the reference's E(k) at the latest of them; 404 saying why when there is none.
 Response resolved(const Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
-  const sim::Scene scene = run->spec().run.scene;
+  const sim::Scene scene = run->spec().scene;
   const auto reference = reference_run_of(s, scene);
   if (!reference)
     throw ApiError(404, "run '" + run->id() +

@@ -40,7 +40,7 @@ Response get_run(const Services& s, const Context& c) {
   nlohmann::json detail = run_detail_json(*run, s.streams.counters(run->id()));
   // Whether GET resolved answers: a spectrum and a reference run of the run's flow.
   detail["available"]["resolved"] = detail["available"]["spectrum"].get<bool>() &&
-                                    reference_run_of(s, run->spec().run.scene).has_value();
+                                    reference_run_of(s, run->spec().scene).has_value();
   return json_response(c.request, detail);
 }
 
