@@ -19,7 +19,7 @@
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 
 namespace sphles::sim {
 class Simulation;

@@ -26,7 +26,7 @@ void principal_axes(const std::array<double, 6>& t, double& norm, std::array<dou
                     std::array<std::array<double, 3>, 3>& directions) {
   using Matrix = Eigen::Matrix<double, Dim, Dim>;
   // 64-byte aligned: the same address-dependent loop splitting in Eigen on every thread's stack
-  // (thread-count determinism; see directional_weight in sim/viscous_operator.hpp).
+  // (thread-count determinism; see directional_weight in sim/physics/viscous_operator.hpp).
   alignas(64) Matrix m;
   double squares = 0.0;
   for (int a = 0; a < Dim; ++a) {

@@ -13,6 +13,7 @@
 #include "analysis/local_fit.hpp"
 #include "analysis/snapshot.hpp"
 #include "sim/neighbour_search.hpp"
+#include "sim/physics/subfilter_stress.hpp"
 #include "sim/reduction.hpp"
 #include "sim/subfilter.hpp"
 

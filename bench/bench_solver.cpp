@@ -17,7 +17,7 @@
 #include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 

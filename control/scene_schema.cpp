@@ -15,10 +15,10 @@
 #include "scene/presets.hpp"
 #include "scene/schema.hpp"
 #include "sim/kernels.hpp"
+#include "sim/physics/viscous_operator.hpp"
 #include "sim/scene.hpp"
 #include "sim/scheme.hpp"
 #include "sim/subfilter.hpp"
-#include "sim/viscous_operator.hpp"
 
 namespace sphles::control {
 

@@ -4,7 +4,7 @@
 #include <cmath>
 
 #include "sim/neighbour_search.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::sim {

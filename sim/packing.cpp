@@ -12,7 +12,7 @@
 #include <Random123/uniform.hpp>
 
 #include "sim/neighbour_search.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/reduction.hpp"
 #include "sim/scheme.hpp"
 

@@ -15,7 +15,7 @@
 
 #include "sim/kernels.hpp"
 #include "sim/name_table.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::sim {

@@ -30,10 +30,10 @@
 #include "sim/name_table.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
-#include "sim/particle_shifting.hpp"
 #include "sim/particles.hpp"
-#include "sim/physics.hpp"
-#include "sim/transport_velocity.hpp"
+#include "sim/physics/particle_shifting.hpp"
+#include "sim/physics/thesis_passes.hpp"
+#include "sim/physics/transport_velocity.hpp"
 
 namespace sphles::sim {
 

@@ -8,6 +8,7 @@
 
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
+#include "sim/physics/subfilter_stress.hpp"
 #include "sim/reduction.hpp"
 
 namespace sphles::sim {

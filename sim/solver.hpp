@@ -28,7 +28,7 @@
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/particles.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/scheme.hpp"
 #include "sim/subfilter.hpp"
 

@@ -18,7 +18,7 @@
 #include "analysis/local_fit.hpp"
 #include "analysis/vorticity.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "test_support.hpp"
 
 namespace sphles::analysis {

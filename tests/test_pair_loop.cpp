@@ -15,11 +15,12 @@
 #include <vector>
 
 #include "sim/pair_loop.hpp"
-#include "sim/particle_shifting.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/particle_shifting.hpp"
+#include "sim/physics/subfilter_stress.hpp"
+#include "sim/physics/thesis_passes.hpp"
+#include "sim/physics/transport_velocity.hpp"
 #include "sim/select.hpp"
 #include "sim/subfilter.hpp"
-#include "sim/transport_velocity.hpp"
 #include "test_support.hpp"
 
 namespace sphles::sim {

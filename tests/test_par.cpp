@@ -46,7 +46,7 @@
 #include "sim/kernels.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/process_grid.hpp"
 #include "sim/solver.hpp"
 

@@ -1,7 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // Particle shifting with the consistent ALE correction (Sun et al. 2017, 2019;
-// sim/particle_shifting.hpp) beside the thesis model and the TVF: the pair formulas, δv on a
-// lattice, the drift with v + δv, conservation, thread independence, exact restart, the scene
+// sim/physics/particle_shifting.hpp) beside the thesis model and the TVF: the pair formulas, δv on
+// a lattice, the drift with v + δv, conservation, thread independence, exact restart, the scene
 // keys, Galilean invariance and the 2D Taylor-Green decay (docs/models.md, "Particle shifting").
 #include <gtest/gtest.h>
 #include <omp.h>

@@ -10,6 +10,7 @@
 #include "scene/presets.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/packing.hpp"
+#include "sim/physics/subfilter_stress.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "sim/subfilter.hpp"

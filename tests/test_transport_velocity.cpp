@@ -1,5 +1,5 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// The transport-velocity formulation (Adami, Hu & Adams 2013; sim/transport_velocity.hpp)
+// The transport-velocity formulation (Adami, Hu & Adams 2013; sim/physics/transport_velocity.hpp)
 // beside the thesis model: conservation, exact restart, the scene key, Galilean invariance (2D,
 // and case 21 in 3D with both forms of the extra stress) and the 2D Taylor-Green decay of both
 // schemes side by side (docs/models.md).

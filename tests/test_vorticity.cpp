@@ -26,7 +26,7 @@
 #include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/packing.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/thesis_passes.hpp"
 #include "sim/solver.hpp"
 #include "test_support.hpp"
 

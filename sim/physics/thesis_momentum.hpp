@@ -8,7 +8,7 @@
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
 #include "sim/physics/fluid.hpp"
-#include "sim/viscous_operator.hpp"
+#include "sim/physics/viscous_operator.hpp"
 
 namespace sphles::sim {
 

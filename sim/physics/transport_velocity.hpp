@@ -26,11 +26,11 @@
 #include <cstddef>
 #include <vector>
 
-#include "sim/ale_correction.hpp"
 #include "sim/neighbour_search.hpp"
 #include "sim/pair_loop.hpp"
 #include "sim/particles.hpp"
-#include "sim/physics.hpp"
+#include "sim/physics/ale_correction.hpp"
+#include "sim/physics/thesis_passes.hpp"
 
 namespace sphles::sim {
 

@@ -19,7 +19,7 @@
 #include "sim/physics/density.hpp"
 #include "sim/physics/fluid.hpp"
 #include "sim/physics/thesis_momentum.hpp"
-#include "sim/viscous_operator.hpp"
+#include "sim/physics/viscous_operator.hpp"
 
 namespace sphles::sim {
 
