@@ -364,9 +364,14 @@ TEST(RunControl, LiveChangesApplyAtTheNextStepAndFixedFieldsAreRejected) {
     EXPECT_EQ(e.field(), "time.end");
   }
   EXPECT_THROW(run.apply_changes(json::array()), ChangeError);
-  // Shorten the run: it finishes at the new end.
+  // Shorten the run: it finishes at the new end. The run holds while the end is set, so that
+  // the new end is still ahead of it when the change takes effect (a change is parsed, admitted
+  // and written while the run goes on).
+  run.pause();
+  ASSERT_TRUE(eventually([&] { return run.status().holding; }));
   const double end = run.status().time + 0.05;
   run.apply_changes({{"time", {{"end", end}}}});
+  run.resume();
   run.wait();
   EXPECT_EQ(run.status().state, RunState::Finished);
   EXPECT_NEAR(run.status().time, end, 1e-9);
