@@ -148,6 +148,13 @@ TEST_F(RouterTest, UnknownRunIs404) {
   expect_error(get("/api/runs/no-such-run"), 404, "id");
   expect_error(get("/api/runs/no-such-run/timeseries"), 404, "id");
   expect_error(reply(handle(http::verb::post, "/api/runs/no-such-run/start")), 404, "id");
+  // A parameter change's Content-Type and body are checked before its run.
+  const auto patch = [&](const std::string& body, const std::string& type) {
+    return reply(handle(http::verb::patch, "/api/runs/no-such-run/parameters", body, type));
+  };
+  expect_error(patch("time.end=3", "text/plain"), 415, "Content-Type");
+  expect_error(patch("{\"time\": ", "application/json"), 400);
+  expect_error(patch(json{{"time", {{"end", 3.0}}}}.dump(), "application/json"), 404, "id");
 }
 
 TEST_F(RouterTest, HeadHasTheGetsLengthAndNoBody) {

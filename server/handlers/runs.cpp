@@ -51,8 +51,9 @@ Response delete_run(const Services& s, const Context& c) {
 }
 
 Response change_parameters(const Services& s, const Context& c) {
-  const auto run = find_run(s, c.params[0]);
+  // The body before the run (docs/api.md "Conventions": 415 and 400 before the run's 404).
   const nlohmann::json patch = json_body(c.request);
+  const auto run = find_run(s, c.params[0]);
   const std::vector<std::string> changed = run->apply_changes(patch);
   return json_response(c.request, {{"changed", changed}, {"effective", "next step"}});
 }
