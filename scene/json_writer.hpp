@@ -40,9 +40,6 @@ class ObjectWriter {
   void vector(const std::string& key, const std::array<double, 3>& value, std::size_t size) {
     object_[key] = std::vector<double>(value.begin(), value.begin() + size);
   }
-  void strings(const std::string& key, const std::vector<std::string>& value) {
-    object_[key] = value;
-  }
 
   /// Nothing to check when writing (the reader rejects keys no call read).
   void finish() const {}
