@@ -171,10 +171,9 @@ SnapshotPtr make_snapshot(const sim::Simulation& simulation, double energy_dissi
 
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation, const ParticleFileTarget* particles,
-                          const ViewPointsRequest& view) {
+                          const ViewPointsRequest& view, const DistributedProducts* ranks) {
   auto snapshot = describe(simulation, energy_dissipation);
   snapshot->view = view;
-  const auto* ranks = dynamic_cast<const DistributedProducts*>(&simulation);
   const bool on_ranks = ranks && cubic(snapshot->box);
   const auto served = [&](Product p) {
     return on_ranks && served_by_ranks(config, p, particles != nullptr);

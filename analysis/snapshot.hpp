@@ -188,7 +188,7 @@ using SnapshotPtr = std::shared_ptr<const Snapshot>;
 
 /// What a solver spread over MPI ranks computes where its particles live, so that analysis need
 /// not gather them to one process (docs/scaling.md). A sim::Simulation that also derives from this
-/// (par's distributed solver, launch's job solver) is asked by make_snapshot.
+/// (remote's proxy of a solver on MPI ranks) is passed to make_snapshot.
 class DistributedProducts {
  public:
   virtual ~DistributedProducts();  // out of line: one vtable and typeinfo for dynamic_cast
@@ -238,17 +238,18 @@ RanksRequest ranks_request(const Snapshot& snapshot, const AnalysisConfig& confi
 SnapshotPtr make_snapshot(const sim::Simulation& simulation,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN());
 
-/// The same for the products `config` asks for: when the simulation is DistributedProducts and
-/// the velocity is gridded by nearest particle on a cubic box, the energy and spectrum come
-/// from the ranks; when every product asked for is served_by_ranks, the others come from the
-/// ranks too and nothing is gathered (the ranks write the particle file into
-/// particles->directory, when given, as RunDirectoryWriter would); otherwise the particles are
-/// gathered for them.
+/// The same for the products `config` asks for: with `ranks` (the simulation's
+/// DistributedProducts, which the caller asked for once when it received the solver) and the
+/// velocity gridded by nearest particle on a cubic box, the energy and spectrum come from the
+/// ranks; when every product asked for is served_by_ranks, the others come from the ranks too
+/// and nothing is gathered (the ranks write the particle file into particles->directory, when
+/// given, as RunDirectoryWriter would); otherwise the particles are gathered for them.
 /// `view`: the 3D particle view's points to carry with the product "particles" (the ranks
 /// select and send only those).
 SnapshotPtr make_snapshot(const sim::Simulation& simulation, const AnalysisConfig& config,
                           double energy_dissipation = std::numeric_limits<double>::quiet_NaN(),
                           const ParticleFileTarget* particles = nullptr,
-                          const ViewPointsRequest& view = {});
+                          const ViewPointsRequest& view = {},
+                          const DistributedProducts* ranks = nullptr);
 
 }  // namespace sphles::analysis

@@ -152,6 +152,7 @@ class Run::Impl::Loop {
         timeseries_(run.directory / "timeseries.csv", sim::case_diagnostic_names(current.scene),
                     resumed),
         dissipation_(current.analysis.dissipation_window) {
+    received();
     // A resumed run refills the trailing window from its time series, so that ε(t) continues
     // as in an uninterrupted run.
     if (resumed)
@@ -269,11 +270,13 @@ class Run::Impl::Loop {
   /// A change set taken into current_: the solver restored from its state under the new scene
   /// (when a solver key changed), the consumers reconfigured, the cadences restarted.
   void apply_changes(const ChangeScope& scope) {
-    if (scope.solver)
+    if (scope.solver) {
       // A distributed solver continues where its particles live; one process from its state.
       simulation_ = run_.options.solvers.change
                         ? run_.options.solvers.change(*simulation_, current_.scene)
                         : restore_solver(run_.options, current_.scene, simulation_->state());
+      received();
+    }
     if (scope.analysis && pipeline_) pipeline_->set_config(current_.analysis);
     if (scope.render && renderer_) renderer_->set_config(current_.render);
     ensure_consumers();
@@ -325,8 +328,8 @@ class Run::Impl::Loop {
     if (current_.render.enabled() && view3d.enabled)
       view = {static_cast<std::uint64_t>(view3d.max_points), view3d.field};
     const analysis::ParticleFileTarget target = writer_->particle_target();
-    analysis::SnapshotPtr snapshot = analysis::make_snapshot(*simulation_, pipeline_->config(),
-                                                             latest_dissipation_, &target, view);
+    analysis::SnapshotPtr snapshot = analysis::make_snapshot(
+        *simulation_, pipeline_->config(), latest_dissipation_, &target, view, ranks_products_);
     const char* ranks = snapshot->velocity_spectrum && snapshot->ranks
                             ? "spectrum and particle products"
                         : snapshot->velocity_spectrum ? "spectrum"
@@ -363,9 +366,9 @@ class Run::Impl::Loop {
                                           packing_};
     const auto file = checkpoint_dir_ / io::checkpoint_file_name(simulation_->step_count());
     const io::CheckpointWriteOptions options{.gzip_level = current_.scene.checkpoint.compression};
-    if (const auto* ranks = dynamic_cast<const io::DistributedCheckpoints*>(simulation_.get())) {
+    if (ranks_checkpoints_) {
       // A distributed solver's ranks write their own particles; none is gathered.
-      ranks->write_checkpoint(file, metadata, options);
+      ranks_checkpoints_->write_checkpoint(file, metadata, options);
       run_.log->debug("checkpoint {} written by the ranks, no particles gathered",
                       file.filename().string());
     } else {
@@ -463,6 +466,13 @@ class Run::Impl::Loop {
   Run::Impl& run_;
   RunSpec& current_;
   std::unique_ptr<sim::Simulation>& simulation_;
+  // What the solver does where its particles live (null: nothing), asked once per solver.
+  const analysis::DistributedProducts* ranks_products_ = nullptr;
+  const io::DistributedCheckpoints* ranks_checkpoints_ = nullptr;
+  void received() {
+    ranks_products_ = dynamic_cast<const analysis::DistributedProducts*>(simulation_.get());
+    ranks_checkpoints_ = dynamic_cast<const io::DistributedCheckpoints*>(simulation_.get());
+  }
   const std::string& packing_;
   const std::filesystem::path checkpoint_dir_, frames_dir_;
   const std::optional<std::pair<dev_t, ino_t>> identity_;  // directory_identity at the start

@@ -22,7 +22,7 @@
 
 namespace sphles::par {
 
-/// Rank 0's end of the command channel: makes distributed solvers; ends the other ranks' service
+/// Rank 0's end of the ranks' requests: makes distributed solvers; ends the other ranks' service
 /// when destroyed.
 class Driver {
  public:
@@ -32,43 +32,26 @@ class Driver {
   Driver(const Driver&) = delete;
   Driver& operator=(const Driver&) = delete;
 
-  /// A solver over all ranks for `scene` (sim::make_solver_config) starting from `all`, every
-  /// particle of the run (each rank receives those of its sub-box). Replaces the solver the other
-  /// ranks held; the Simulation returned must not outlive this Driver.
-  std::unique_ptr<sim::Simulation> make(const sim::Scene& scene, sim::ParticleArrays all);
-  /// A new run's solver whose particles the ranks make, each its share: the lattice of its
-  /// sub-box, relaxed with the other ranks' or read from the packing cache, with the case's
-  /// fields (par::set_up_share): bitwise make(scene, sim::setup_run(scene, options).particles),
-  /// without any rank holding every particle. `options.cancelled` is polled here (rank 0);
-  /// throws sim::SetupCancelled on every rank when it says so. `report` gets the packing's.
-  std::unique_ptr<sim::Simulation> set_up(const sim::Scene& scene, const sim::SetupOptions& options,
-                                          sim::PackingReport& report);
-  /// The same from a state of every particle (a checkpoint, or state() of a solver made here):
-  /// continues bitwise on this rank count whatever count wrote it (par::scatter_state sends each
-  /// rank its share).
-  std::unique_ptr<sim::Simulation> restore(const sim::Scene& scene, sim::SolverState whole);
-
-  /// The same from the checkpoint file `path`, read by every rank, each a block of it, then sent
-  /// to the ranks that own them (par::read_share): no rank holds the whole state. Throws
-  /// io::CheckpointError (on every rank) for a file read_checkpoint would reject.
-  std::unique_ptr<sim::Simulation> restore_file(const sim::Scene& scene,
-                                                const std::filesystem::path& path);
-
-  /// A solver for `scene` (a live change) continuing `current`, a solver made here, on the ranks
-  /// where its particles are: each rank restores from its own state (no gather), bitwise what
-  /// restore(scene, current.state()) gives. Throws std::invalid_argument for another solver.
-  std::unique_ptr<sim::Simulation> change(const sim::Simulation& current, const sim::Scene& scene);
-
   int ranks() const;
-  /// make(), set_up(), restore() and the others as the factories a run takes
-  /// (control::RunOptions::solvers); they refer to this Driver, which must outlive them.
+  /// The factories a run takes (control::RunOptions::solvers): solvers over all ranks whose
+  /// requests (remote/messages.hpp) rank 0 sends to the other ranks and carries out its own part
+  /// of. make() scatters the particles to the ranks of their sub-boxes; set_up() has the ranks
+  /// make theirs (par::set_up_share: the lattice of each sub-box, relaxed with the other ranks'
+  /// or read from the packing cache, bitwise make(scene, sim::setup_run(scene,
+  /// options).particles) without any rank holding every particle); restore() continues a state
+  /// of every particle bitwise on this rank count whatever count wrote it; restore_file() has
+  /// every rank read a block of the checkpoint and send it to the ranks that own it; change()
+  /// continues each rank's own particles (no gather). The solvers refer to this Driver, which
+  /// must outlive them.
   sim::SolverFactories factories();
 
  private:
+  class RankZero;
   MPI_Comm comm_;
+  std::shared_ptr<RankZero> rank_zero_;
 };
 
-/// The other ranks: carries out rank 0's commands until its Driver ends. A solver error (a
+/// The other ranks: carries out rank 0's requests until its Driver ends. A solver error (a
 /// blow-up, a decomposition too fine for the scene) ends the command on every rank alike; rank 0
 /// reports it and this rank waits for the next command. Returns when told to stop.
 void serve_commands(MPI_Comm comm);

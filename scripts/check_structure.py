@@ -33,7 +33,7 @@ from check_spdx import tracked_files  # the tracked files, as the licence check 
 
 # Bottom up. A module may include itself and the modules listed before it, never one after it
 # or beside it. tests/, bench/ and app/ are the top: they may include any module.
-MODULES = ["logging", "net", "sim", "scene", "io", "analysis", "spectral", "render", "par",
+MODULES = ["logging", "net", "sim", "scene", "io", "analysis", "spectral", "render", "remote", "par",
            "launch", "control", "server"]
 # Libraries a module must not include: the solver knows no document format (scene/ reads the
 # scene's JSON into sim's plain data).

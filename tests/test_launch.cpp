@@ -19,6 +19,7 @@
 #include "io/checkpoint.hpp"
 #include "launch/channel.hpp"
 #include "launch/job.hpp"
+#include "remote/messages.hpp"
 #include "scene/document.hpp"
 #include "scratch_directory.hpp"
 #include "sim/initial_conditions.hpp"
@@ -96,13 +97,15 @@ TEST(JobChannel, StatesAndDiagnosticsCrossTheConnectionBitForBit) {
 
       Encoder e;
       encode(e, state);
-      encode(e, SolverStatus{state.time, state.step, 0.003, g});
-      pair.service.send(MessageKind::State, e);
+      encode(e, remote::SolverStatus{state.time, state.step, 0.003, g});
+      pair.service.send(MessageKind::Reply, e);
       const Message m = pair.job.receive();
-      ASSERT_EQ(m.kind, MessageKind::State);
+      ASSERT_EQ(m.kind, MessageKind::Reply);
       Decoder d(m.body);
-      const sim::SolverState back = decode_state(d);
-      const SolverStatus status = decode_status(d);
+      sim::SolverState back;
+      decode(d, back);
+      remote::SolverStatus status;
+      decode(d, status);
       d.finish();
       expect_same_particles(state.particles, back.particles);
       for (int a = 0; a < dimension; ++a)
@@ -133,7 +136,8 @@ TEST(JobChannel, AFreshParticleSetKeepsItsEmptyArrays) {
   Encoder e;
   encode(e, p);
   Decoder d(e.bytes());
-  const sim::ParticleArrays back = decode_particles(d);
+  sim::ParticleArrays back;
+  decode(d, back);
   d.finish();
   EXPECT_EQ(back.position[0], p.position[0]);
   EXPECT_EQ(back.velocity[1], p.velocity[1]);
@@ -177,18 +181,19 @@ TEST(JobChannel, TruncatedAndOversizedMessagesAreRefused) {
   std::vector<std::byte> bytes = e.bytes();
   bytes.resize(bytes.size() - 1);
   Decoder truncated(bytes);
-  EXPECT_THROW(decode_particles(truncated), ProtocolError);
+  sim::ParticleArrays back;
+  EXPECT_THROW(decode(truncated, back), ProtocolError);
 
   Encoder huge;
   huge.u64(3);
   huge.u64(std::uint64_t{1} << 60);  // a length far beyond the message
   Decoder lying(huge.bytes());
-  EXPECT_THROW(decode_particles(lying), ProtocolError);
+  EXPECT_THROW(decode(lying, back), ProtocolError);
 
   Encoder wrong_dimension;
   wrong_dimension.u64(4);
   Decoder four(wrong_dimension.bytes());
-  EXPECT_THROW(decode_particles(four), ProtocolError);
+  EXPECT_THROW(decode(four, back), ProtocolError);
 
   Encoder extra;
   extra.f64(1.0);
