@@ -15,7 +15,6 @@
 #include "scene/presets.hpp"
 #include "scene/schema.hpp"
 #include "sim/kernels.hpp"
-#include "sim/physics/viscous_operator.hpp"
 #include "sim/scene.hpp"
 #include "sim/scheme.hpp"
 #include "sim/subfilter.hpp"
@@ -67,8 +66,10 @@ json build_schema() {
   set_enum("case", sim::kCaseNames.names());
   set_enum("kernel.type", sim::kKernelNames.names());
   set_enum("scheme.type", sim::kSchemeNames.names());
-  set_enum("scheme.viscous_operator", sim::kViscousOperatorNames.names());
-  set_enum("scheme.ale_correction", sim::kAleCorrectionNames.names());
+  const auto scheme_choice = [&](const auto& p) {
+    if constexpr (requires { p.names; }) set_enum("scheme." + std::string(p.key), p.names->names());
+  };
+  std::apply([&](const auto&... p) { (scheme_choice(p), ...); }, sim::kSchemeParameters);
   set_enum("subfilter.model", sim::kSubfilterModelNames.names());
   set_enum("initial.mass", sim::kInitialMassNames.names());
   set_item_enum("analysis.products", analysis::kProductNames.names());

@@ -61,16 +61,23 @@ void blow_up_keys(IO& io, B& b) {
 template <class IO, class C>
 void scheme_keys(IO& io, C& c) {
   io.choice("type", kSchemeNames, c.type);
-  io.choice("viscous_operator", kViscousOperatorNames, c.viscous_operator);
-  io.number("shifting_mach", c.shifting_mach);
-  io.choice("ale_correction", kAleCorrectionNames, c.ale_correction);
+  // The schemes' parameters, as kSchemeParameters declares them.
+  const auto parameter = [&](const auto& p) {
+    if constexpr (requires { p.names; })
+      io.choice(std::string(p.key), *p.names, c.*p.value);
+    else
+      io.number(std::string(p.key), c.*p.value);
+  };
+  std::apply([&](const auto&... p) { (parameter(p), ...); }, kSchemeParameters);
 }
 
 template <class IO, class M>
 void subfilter_keys(IO& io, M& m) {
   io.choice("model", kSubfilterModelNames, m.model);
-  io.number("smagorinsky_constant", m.smagorinsky_constant);
-  io.number("sigma_constant", m.sigma_constant);
+  // Each model's own constants, as the registry declares them.
+  for_each_subfilter_constant([&](const SubfilterConstant& constant) {
+    io.number(std::string(constant.key), m.*constant.value);
+  });
   io.number("filter_width", m.filter_width);
 }
 
@@ -164,18 +171,17 @@ void scene_keys(IO& top, S& s) {
   section(top, "output", [&](IO& io) { output_keys(io, s.output); });
 }
 
-/// The scheme's keys that apply to some schemes only (docs/models.md).
+/// A scheme parameter other than its default is refused by the schemes that do not take it
+/// (kSchemeParameters, docs/models.md).
 void check_scheme(const SchemeConfig& c) {
-  if (c.viscous_operator != ViscousOperator::Thesis && c.type == SchemeType::TransportVelocity)
-    throw_scene_error("scheme.viscous_operator",
-                      "= '" + std::string(viscous_operator_name(c.viscous_operator)) +
-                          "' applies to scheme.type thesis and particle_shifting only (the "
-                          "transport-velocity scheme has its own viscous term)");
-  if (c.shifting_mach != SchemeConfig{}.shifting_mach && c.type != SchemeType::ParticleShifting)
-    throw_scene_error("scheme.shifting_mach", "applies to scheme.type particle_shifting only");
-  if (c.ale_correction != SchemeConfig{}.ale_correction && !scheme_uses_transport_velocity(c.type))
-    throw_scene_error("scheme.ale_correction",
-                      "applies to scheme.type transport_velocity and particle_shifting only");
+  const SchemeConfig defaults;
+  const auto check = [&](const auto& p) {
+    if (c.*p.value == defaults.*p.value || scheme_takes(c.type, p.key)) return;
+    std::string why = "applies to scheme.type " + schemes_taking(p.key) + " only";
+    if (!p.note.empty()) why += " (" + std::string(p.note) + ")";
+    throw_scene_error("scheme." + std::string(p.key), why);
+  };
+  std::apply([&](const auto&... p) { (check(p), ...); }, kSchemeParameters);
 }
 
 }  // namespace

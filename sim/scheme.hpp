@@ -16,13 +16,17 @@
 // exchange.refresh on them (the halo of a distributed run, sim/exchange.hpp; the positions,
 // velocities and the transport shift the solver refreshes before the evaluation). Adding a scheme
 // is its struct, its enum value and one line in SchemeRegistry below; the solver dispatches once
-// per force evaluation (visit_scheme).
+// per force evaluation (visit_scheme). A scheme's parameters are members of SchemeConfig declared
+// in kSchemeParameters (the scene reads and checks them from there); the scheme lists the keys it
+// takes in `parameters` and reads their values from SchemeFields::scheme.
 #pragma once
 
 #include <array>
 #include <span>
 #include <stdexcept>
+#include <string>
 #include <string_view>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -54,6 +58,38 @@ struct SchemeConfig {
   AleCorrection ale_correction = AleCorrection::Conservative;
 };
 
+/// Scene names of scheme.ale_correction.
+inline constexpr NameTable<AleCorrection, 2> kAleCorrectionNames{{{
+    {AleCorrection::Conservative, "conservative"},
+    {AleCorrection::Full, "full"},
+}}};
+
+/// A scheme parameter: its key in the scene's "scheme" object, where SchemeConfig keeps it (for
+/// a choice, its names too), and why the schemes that do not take it refuse it (may be empty).
+struct SchemeNumber {
+  std::string_view key;
+  double SchemeConfig::*value;
+  std::string_view note = {};
+};
+template <class Enum, std::size_t N>
+struct SchemeChoice {
+  std::string_view key;
+  Enum SchemeConfig::*value;
+  const NameTable<Enum, N>* names;
+  std::string_view note = {};
+};
+
+/// Every scheme parameter a scene may set: the scene reads, writes and publishes them from here.
+/// A scheme lists the keys it takes (its `parameters`); the others refuse a value other than
+/// the default.
+inline constexpr auto kSchemeParameters =
+    std::tuple{SchemeChoice<ViscousOperator, 2>{
+                   "viscous_operator", &SchemeConfig::viscous_operator, &kViscousOperatorNames,
+                   "the transport-velocity scheme has its own viscous term"},
+               SchemeNumber{"shifting_mach", &SchemeConfig::shifting_mach},
+               SchemeChoice<AleCorrection, 2>{"ale_correction", &SchemeConfig::ale_correction,
+                                              &kAleCorrectionNames}};
+
 /// Per-particle fields a scheme carries between force evaluations, in the particles' order.
 /// Empty for a scheme without transport velocity. They are functions of the positions (and
 /// the step size), so a restart recomputes them instead of storing them.
@@ -68,9 +104,10 @@ struct SchemeFields {
   /// Particle shifting: Ma c_0 (2h), W(Δx) and the limiter (particle_shifting.hpp); both
   /// transport-velocity schemes: the ALE correction (`ale`).
   ShiftingParameters shifting;
-  /// The thesis scheme with ViscousOperator::Corrected: the operator, and its g_i of the
-  /// current evaluation (viscous_correction_pass), a function of the positions.
-  ViscousOperator viscous_operator = ViscousOperator::Thesis;
+  /// The scene's scheme parameters: an evaluation reads its own from here.
+  SchemeConfig scheme;
+  /// With ViscousOperator::Corrected: its g_i of the current evaluation
+  /// (viscous_correction_pass), a function of the positions.
   std::vector<double> viscous_weights;
   /// The pairs inside the kernel support at the positions of the current evaluation, recorded
   /// by its density pass; every later pass of the evaluation (and the sub-filter model's) loops
@@ -96,6 +133,7 @@ struct ThesisScheme {
   static constexpr SchemeType type = SchemeType::Thesis;
   static constexpr std::string_view name = "thesis";
   static constexpr bool transport_velocity = false;
+  static constexpr std::array<std::string_view, 1> parameters{"viscous_operator"};
 
   template <int Dim, class KernelT>
   static void evaluate(const KernelT& kernel, const PeriodicBox& box,
@@ -123,7 +161,7 @@ struct ThesisScheme {
   static const double* viscous_weights(const KernelT& kernel, const PeriodicBox& box,
                                        SchemeFields& fields, ParticleArrays& p,
                                        const Exchange& exchange) {
-    if (fields.viscous_operator != ViscousOperator::Corrected) return nullptr;
+    if (fields.scheme.viscous_operator != ViscousOperator::Corrected) return nullptr;
     viscous_correction_pass<Dim>(kernel, box, fields.interactions, p, fields.viscous_weights);
     std::vector<double>* written[] = {&fields.viscous_weights};  // g_j of the force pass
     exchange.refresh(written);
@@ -136,6 +174,7 @@ struct TransportVelocityScheme {
   static constexpr SchemeType type = SchemeType::TransportVelocity;
   static constexpr std::string_view name = "transport_velocity";
   static constexpr bool transport_velocity = true;
+  static constexpr std::array<std::string_view, 1> parameters{"ale_correction"};
 
   /// ṽ - v = (dt/2) ã^n (eqs. 14-16).
   static double drift_shift(double dt, double background_acceleration) {
@@ -164,6 +203,8 @@ struct ParticleShiftingScheme {
   static constexpr SchemeType type = SchemeType::ParticleShifting;
   static constexpr std::string_view name = "particle_shifting";
   static constexpr bool transport_velocity = true;
+  static constexpr std::array<std::string_view, 3> parameters{"viscous_operator", "shifting_mach",
+                                                              "ale_correction"};
 
   /// δv^n, computed at the positions x^n (a velocity: independent of dt).
   static double drift_shift(double /*dt*/, double shifting_velocity) { return shifting_velocity; }
@@ -215,11 +256,6 @@ using SchemeRegistry = SchemeList<ThesisScheme, TransportVelocityScheme, Particl
 
 /// The schemes' scene names, from the registry.
 inline constexpr auto kSchemeNames = registry_names<SchemeType>(SchemeRegistry{});
-/// Scene names of scheme.ale_correction.
-inline constexpr NameTable<AleCorrection, 2> kAleCorrectionNames{{{
-    {AleCorrection::Conservative, "conservative"},
-    {AleCorrection::Full, "full"},
-}}};
 
 /// Calls f(S{}) with the registered scheme S of the given type.
 template <class F, class... Schemes>
@@ -235,6 +271,10 @@ void visit_scheme(SchemeType type, F&& f) {
 /// Scene names: "thesis", "transport_velocity", "particle_shifting".
 std::string_view scheme_name(SchemeType type);
 bool scheme_uses_transport_velocity(SchemeType type);
+/// Whether the scheme of `type` takes the parameter `key` (its `parameters`).
+bool scheme_takes(SchemeType type, std::string_view key);
+/// The registered schemes that take the parameter `key`, as "thesis and particle_shifting".
+std::string schemes_taking(std::string_view key);
 
 /// Scene names of scheme.ale_correction: "conservative", "full".
 std::string_view ale_correction_name(AleCorrection ale);

@@ -294,7 +294,7 @@ class SphSolver final : public Simulation {
   }
 
   void allocate_scheme_fields() {
-    fields_.viscous_operator = config_.scheme.viscous_operator;
+    fields_.scheme = config_.scheme;
     transport_velocity_ = scheme_uses_transport_velocity(config_.scheme.type);
     if (!transport_velocity_) return;
     fields_.shifting = shifting_parameters(

@@ -35,6 +35,13 @@ struct SubfilterConfig {
   double filter_width = 0.0;           // Δ [m]; 0 means D_K
 };
 
+/// A model's own constant: its key in the scene's "subfilter" object and where SubfilterConfig
+/// keeps it. The scene reads and writes every registered model's constants from these.
+struct SubfilterConstant {
+  std::string_view key;
+  double SubfilterConfig::*value;
+};
+
 /// 3x3 velocity gradient J_ab = ∂v_a/∂x_b (2D uses the upper-left 2x2 block, rest zero).
 using VelocityGradient = std::array<std::array<double, 3>, 3>;
 
@@ -53,14 +60,15 @@ enum class SubfilterForce {
   Central,     // (A.23): central pair forces (SMAG-MCG), angular momentum conserved
 };
 
-/// The models, one struct each: its enum value, scene name, force form and eddy viscosity ν_t
-/// from the velocity gradient and the filter width Δ.
+/// The models, one struct each: its enum value, scene name, force form, its own constants and
+/// eddy viscosity ν_t from the velocity gradient and the filter width Δ.
 namespace subfilter_model {
 
 struct Implicit {
   static constexpr SubfilterModel type = SubfilterModel::Implicit;
   static constexpr std::string_view name = "implicit";
   static constexpr SubfilterForce force = SubfilterForce::None;
+  static constexpr std::array<SubfilterConstant, 0> constants{};
   static double eddy_viscosity(const SubfilterConfig&, double, const VelocityGradient&) {
     return 0.0;
   }
@@ -70,6 +78,8 @@ struct Smagorinsky {
   static constexpr SubfilterModel type = SubfilterModel::Smagorinsky;
   static constexpr std::string_view name = "smag";
   static constexpr SubfilterForce force = SubfilterForce::Divergence;
+  static constexpr std::array<SubfilterConstant, 1> constants{
+      {{"smagorinsky_constant", &SubfilterConfig::smagorinsky_constant}}};
   static double eddy_viscosity(const SubfilterConfig& c, double width,
                                const VelocityGradient& gradient) {
     const double cs_delta = c.smagorinsky_constant * width;
@@ -81,6 +91,8 @@ struct Sigma {
   static constexpr SubfilterModel type = SubfilterModel::Sigma;
   static constexpr std::string_view name = "sigma";
   static constexpr SubfilterForce force = SubfilterForce::Divergence;
+  static constexpr std::array<SubfilterConstant, 1> constants{
+      {{"sigma_constant", &SubfilterConfig::sigma_constant}}};
   static double eddy_viscosity(const SubfilterConfig& c, double width,
                                const VelocityGradient& gradient) {
     const double c_delta = c.sigma_constant * width;
@@ -88,11 +100,12 @@ struct Sigma {
   }
 };
 
-/// SMAG's eddy viscosity with the central pair force of (A.23).
+/// SMAG's eddy viscosity with the central pair force of (A.23), and SMAG's C_S.
 struct SmagorinskyMcg {
   static constexpr SubfilterModel type = SubfilterModel::SmagorinskyMcg;
   static constexpr std::string_view name = "smag_mcg";
   static constexpr SubfilterForce force = SubfilterForce::Central;
+  static constexpr std::array<SubfilterConstant, 0> constants{};
   static double eddy_viscosity(const SubfilterConfig& c, double width,
                                const VelocityGradient& gradient) {
     return Smagorinsky::eddy_viscosity(c, width, gradient);
@@ -105,7 +118,8 @@ template <class... Models>
 struct SubfilterModelList {};
 
 /// The registry: every sub-filter model a scene may name. Adding a model is its struct above,
-/// its enum value and one entry here; names, parsing, ν_t and the solver's force dispatch follow.
+/// its enum value, its constants in SubfilterConfig and one entry here; names, parsing of the
+/// name and the constants, ν_t and the solver's force dispatch follow.
 using SubfilterRegistry =
     SubfilterModelList<subfilter_model::Implicit, subfilter_model::Smagorinsky,
                        subfilter_model::Sigma, subfilter_model::SmagorinskyMcg>;
@@ -119,6 +133,18 @@ constexpr std::array<SubfilterModel, sizeof...(Models)> subfilter_model_types(
 inline constexpr auto kSubfilterModels = subfilter_model_types(SubfilterRegistry{});
 /// The models' scene names, from the registry.
 inline constexpr auto kSubfilterModelNames = registry_names<SubfilterModel>(SubfilterRegistry{});
+
+/// Calls f(constant) for every registered model's own constants, in registry order.
+template <class F, class... Models>
+void for_each_subfilter_constant(F&& f, SubfilterModelList<Models...>) {
+  (..., [&] {
+    for (const SubfilterConstant& constant : Models::constants) f(constant);
+  }());
+}
+template <class F>
+void for_each_subfilter_constant(F&& f) {
+  for_each_subfilter_constant(std::forward<F>(f), SubfilterRegistry{});
+}
 
 /// Calls f(Model{}) with the registered model of the given type.
 template <class F, class First, class... Rest>
