@@ -10,7 +10,7 @@
 #include <string>
 #include <vector>
 
-#include "control/run.hpp"
+#include "control/run_types.hpp"
 
 namespace sphles::control {
 

@@ -65,7 +65,7 @@ std::string directory_name(const std::string& name) {
 // ---------------------------------------------------------------------------------------------
 
 Run::Run(std::string id, std::filesystem::path directory, RunOptions options,
-         std::unique_ptr<Impl> impl)
+         std::unique_ptr<RunImpl> impl)
     : id_(std::move(id)), directory_(std::move(directory)), impl_(std::move(impl)) {
   impl_->id = id_;
   impl_->directory = directory_;
@@ -74,7 +74,7 @@ Run::Run(std::string id, std::filesystem::path directory, RunOptions options,
 }
 
 Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptions options)
-    : Run(std::move(id), std::move(directory), options, std::make_unique<Impl>()) {
+    : Run(std::move(id), std::move(directory), options, std::make_unique<RunImpl>()) {
   if (std::filesystem::exists(directory_ / "run.json") ||
       std::filesystem::exists(directory_ / "checkpoints"))
     throw std::runtime_error("run directory '" + directory_.string() +
@@ -91,7 +91,7 @@ Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptio
 std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& directory,
                                RunOptions options, const std::vector<std::string>& overrides,
                                std::optional<std::filesystem::path> checkpoint) {
-  auto impl = std::make_unique<Impl>();
+  auto impl = std::make_unique<RunImpl>();
   json document;
   std::string source;  // where the stored document came from, for error messages
   if (checkpoint) {
@@ -181,7 +181,7 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     record_changed = true;
   }
   std::unique_ptr<Run> run(new Run(std::move(id), directory, options, std::move(impl)));
-  Impl& r = *run->impl_;
+  RunImpl& r = *run->impl_;
   std::unique_lock lock(r.mutex);
   // Opening writes only what changed, so that a read-only data directory still lists its runs.
   // A restart with a checkpoint or overrides must record its scene; a listing need not.
@@ -209,11 +209,11 @@ Run::~Run() {
   impl_->join_solver();
 }
 
-void Run::Impl::join_solver() {
+void RunImpl::join_solver() {
   if (thread.joinable() && thread.get_id() != std::this_thread::get_id()) thread.join();
 }
 
-std::optional<std::string> Run::Impl::start_refusal(bool* continues) const {
+std::optional<std::string> RunImpl::start_refusal(bool* continues) const {
   if (retired) return "run " + id + " has been deleted";
   switch (state) {
     case RunState::Running:
@@ -243,14 +243,14 @@ std::optional<std::string> Run::Impl::start_refusal(bool* continues) const {
   return std::nullopt;
 }
 
-void Run::Impl::prepare_start_locked() {
+void RunImpl::prepare_start_locked() {
   refuse_if_retired();
   bool continues = continue_from_checkpoint;
   if (auto refusal = start_refusal(&continues)) throw StateError(*refusal);
   continue_from_checkpoint = continues;
 }
 
-std::vector<std::string_view> Run::Impl::actions_locked() const {
+std::vector<std::string_view> RunImpl::actions_locked() const {
   std::vector<std::string_view> verbs;
   if (retired) return verbs;
   if (!start_refusal(nullptr)) verbs.push_back("start");
@@ -261,7 +261,7 @@ std::vector<std::string_view> Run::Impl::actions_locked() const {
   return verbs;
 }
 
-void Run::Impl::start_locked() {
+void RunImpl::start_locked() {
   std::unique_lock lock(mutex);
   if (state != RunState::Queued) prepare_start_locked();
   refuse_if_retired();
@@ -320,7 +320,7 @@ void Run::resume() {
   start();  // re-checks the state under the transition lock
 }
 
-void Run::Impl::stop_locked(const std::string& why) {
+void RunImpl::stop_locked(const std::string& why) {
   std::unique_lock lock(mutex);
   refuse_if_retired();
   if (is_terminal(state))
@@ -349,7 +349,7 @@ void Run::retire() {
     // A change being written finishes first; none starts after (refuse_if_retired).
     std::lock_guard serial(impl_->change_mutex);
     std::lock_guard lock(impl_->mutex);
-    Impl& r = *impl_;
+    RunImpl& r = *impl_;
     r.refuse_if_retired();
     if (r.state != RunState::Created && !is_terminal(r.state))
       throw StateError("run " + id_ + " is " + std::string(run_state_name(r.state)) +
@@ -392,7 +392,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
   if (!patch.is_object())
     throw ChangeError("(body)", "must be a JSON object (a merge patch of the scene), got " +
                                     std::string(patch.type_name()));
-  Impl& r = *impl_;
+  RunImpl& r = *impl_;
   // Parsing, validation, admission and the file write run outside the state lock, which the
   // solver thread takes every step; change_mutex keeps concurrent changes in order.
   std::lock_guard serial(r.change_mutex);
@@ -449,7 +449,7 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
 
 RunStatus Run::status() const {
   std::lock_guard lock(impl_->mutex);
-  const Impl& r = *impl_;
+  const RunImpl& r = *impl_;
   RunStatus s;
   s.state = r.state;
   s.reason = r.reason;

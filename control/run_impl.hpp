@@ -16,8 +16,8 @@
 
 #include <nlohmann/json.hpp>
 
-#include "control/run.hpp"
 #include "control/run_files.hpp"
+#include "control/run_types.hpp"
 #include "logging/logging.hpp"
 #include "sim/solver.hpp"
 
@@ -27,7 +27,7 @@
 
 namespace sphles::control {
 
-struct Run::Impl {
+struct RunImpl {
   using json = nlohmann::json;
   std::string id;
   std::filesystem::path directory;

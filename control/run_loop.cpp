@@ -26,7 +26,7 @@ namespace sphles::control {
 using nlohmann::json;
 using Clock = std::chrono::steady_clock;
 
-void Run::Impl::execute() {
+void RunImpl::execute() {
   if (options.threads > 0) omp_set_num_threads(options.threads);
   std::unique_ptr<sim::Simulation> simulation;
   std::string packing;
@@ -138,9 +138,9 @@ std::unique_ptr<sim::Simulation> restore_from_file(
 /// then run() steps to the end or a stop and finish() closes the outputs.
 }  // namespace
 
-class Run::Impl::Loop {
+class RunImpl::Loop {
  public:
-  Loop(Run::Impl& run, RunSpec& current, std::unique_ptr<sim::Simulation>& simulation,
+  Loop(RunImpl& run, RunSpec& current, std::unique_ptr<sim::Simulation>& simulation,
        const std::string& packing, bool resumed)
       : run_(run),
         current_(current),
@@ -463,7 +463,7 @@ class Run::Impl::Loop {
     return std::chrono::duration<double>(Clock::now() - then).count();
   }
 
-  Run::Impl& run_;
+  RunImpl& run_;
   RunSpec& current_;
   std::unique_ptr<sim::Simulation>& simulation_;
   // What the solver does where its particles live (null: nothing), asked once per solver.
@@ -501,8 +501,8 @@ class Run::Impl::Loop {
 
 /// The solver of a new run (packed or lattice particles, the packing's provenance into
 /// `packing`), or nothing to do for a resumed one; then the loop, then the end state.
-void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& packing,
-                      bool resumed) {
+void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& packing,
+                    bool resumed) {
   RunSpec current;
   {
     std::lock_guard lock(mutex);
@@ -553,7 +553,7 @@ void Run::Impl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string&
 
 /// A new run's particles (packed, from the packing cache, or the lattice) and its solver; a
 /// stop during the packing cancels it (sim::SetupCancelled).
-std::unique_ptr<sim::Simulation> Run::Impl::set_up(const sim::Scene& scene, std::string& packing) {
+std::unique_ptr<sim::Simulation> RunImpl::set_up(const sim::Scene& scene, std::string& packing) {
   std::error_code ignored;
   std::filesystem::remove(directory / "timeseries.csv", ignored);
   std::filesystem::remove(directory / "frames" / "index.csv", ignored);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "sim/case_diagnostics.hpp"
 #include "sim/packing.hpp"
 #include "sim/particles.hpp"
 #include "sim/reduction.hpp"
@@ -42,18 +43,6 @@ ExternalAcceleration kolmogorov_acceleration(const KolmogorovForcing& forcing, d
 /// Laminar steady state v_x = χ sin(k_y y) / (ν k_y² + μ) of the Kolmogorov flow.
 double kolmogorov_laminar_velocity(const KolmogorovForcing& forcing, double wavenumber,
                                    double kinematic_viscosity, double y);
-
-/// Per-step scalars a case adds to the time series, after the standard columns. kolmogorov2d:
-/// energy_injection = ⟨χ sin(k_y y) v_x⟩, film_dissipation = μ⟨|v|²⟩, u_rms = sqrt(⟨|v|²⟩)
-/// (mass-weighted averages, SPEC (4.3)); the Taylor-Green cases add none.
-std::vector<std::string> case_diagnostic_names(const Scene& scene);
-std::vector<double> case_diagnostics(const Scene& scene, const ParticleArrays& particles);
-/// The same in two halves, for particles spread over processes: the exact sums over particles
-/// [0, n) (a process' owned ones), which combine bitwise in any order (ExactSum), and the
-/// diagnostics from the sums over every particle.
-std::vector<ExactSum> case_diagnostic_sums(const Scene& scene, const ParticleArrays& particles,
-                                           std::size_t n);
-std::vector<double> case_diagnostics_from_sums(const Scene& scene, std::span<const ExactSum> sums);
 
 /// V_i = 1/Σ_j W_ij (A.1) of every particle of an arrangement, with the kernel, support and box
 /// of `config`: the volumes the solver's first density pass computes. With a distributed

@@ -13,10 +13,13 @@
 #include <utility>
 #include <vector>
 
+#include "sim/health.hpp"
 #include "sim/kernels.hpp"
 #include "sim/name_table.hpp"
 #include "sim/physics/thesis_passes.hpp"
-#include "sim/solver.hpp"
+#include "sim/scheme.hpp"
+#include "sim/subfilter.hpp"
+#include "sim/time_step.hpp"
 
 namespace sphles::sim {
 
