@@ -207,6 +207,183 @@ double percentile(std::vector<double> v, double q) {
   return v[i];
 }
 
+/// The middle of a sorted copy of `v` (the mean of the two middle values of an even count); 0
+/// when empty.
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+/// A 2D Taylor-Green run that renders ω² slices (saved) with every analysis frame.
+json bench_scene(const Options& o) {
+  return {
+      {"name", "bench"},
+      {"case", "tgv2d"},
+      {"particles_per_side", o.size},
+      {"packing", {{"enabled", false}}},
+      {"time", {{"end", 1e6}}},
+      {"analysis", {{"every", 1e5}, {"products", {"slices"}}, {"slice", {{"fields", {"omega2"}}}}}},
+      {"render",
+       {{"fields", {"omega2"}},
+        {"combined", false},
+        {"save", true},
+        {"width", o.image},
+        {"height", o.image}}}};
+}
+
+/// The run's status now and when it was taken.
+std::pair<Clock::time_point, sphles::control::RunStatus> sample(const sphles::control::Run& run) {
+  return std::make_pair(Clock::now(), run.status());
+}
+
+/// Calibrate: simulated time per wall second, then one analysis frame every 1/fps seconds.
+void calibrate(sphles::control::Run& run, const sphles::server::HttpServer& server,
+               const Options& o) {
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  auto [t0, s0] = sample(run);
+  std::this_thread::sleep_for(std::chrono::seconds(3));
+  auto [t1, s1] = sample(run);
+  const double rate = (s1.time - s0.time) / std::chrono::duration<double>(t1 - t0).count();
+  const double every = rate / o.fps;
+  run.apply_changes({{"analysis", {{"every", every}}}});
+  std::printf(
+      "bench_server: tgv2d %d^2 particles, %d solver thread(s), %.3g simulated s per wall s; "
+      "an %dx%d omega2 image every %.4g simulated s (target %.1f images/s); %.0f s per phase\n",
+      o.size, o.threads, rate, o.image, o.image, every, o.fps, o.seconds);
+  std::printf("server on %s, clients on 1 thread in the same process\n\n", server.url().c_str());
+}
+
+/// One phase: n clients connected, 2 s warm-up, then o.seconds measured.
+struct Phase {
+  int clients = 0;
+  double steps_per_second = 0.0, images_per_client = 0.0, kib_per_image = 0.0;
+  double cpu_cores = 0.0;     // CPU time of the whole process per wall second
+  double io_cores = 0.0;      // of the server's I/O threads ("sphles-io")
+  double client_cores = 0.0;  // of the benchmark's client thread
+  std::uint64_t dropped = 0;
+  std::vector<double> latency_ms;
+};
+
+/// What a phase streams from and to: the server, its run, and the clients' thread and counts.
+struct Streaming {
+  sphles::server::HttpServer& server;
+  sphles::control::Run& run;
+  net::io_context& client_ioc;
+  Stats& stats;
+  const Options& o;
+};
+
+Phase measure(const Streaming& s, int n) {
+  std::vector<std::shared_ptr<Client>> clients;
+  for (int k = 0; k < n; ++k) {
+    auto c = std::make_shared<Client>(s.client_ioc, s.stats);
+    c->connect(s.server.port(), "/api/runs/" + s.run.id() + "/stream");
+    c->start();
+    clients.push_back(std::move(c));
+  }
+  std::this_thread::sleep_for(std::chrono::seconds(2));
+  s.stats.reset();
+  const std::uint64_t dropped0 = dropped_images(s.server.port(), s.run.id());
+  const double cpu0 = sphles::bench::process_cpu_seconds();
+  const auto threads0 = thread_cpu_seconds();
+  auto [a, sa] = sample(s.run);
+  std::this_thread::sleep_for(std::chrono::duration<double>(s.o.seconds));
+  auto [b, sb] = sample(s.run);
+  const double cpu1 = sphles::bench::process_cpu_seconds();
+  const auto threads1 = thread_cpu_seconds();
+  Phase p;
+  p.clients = n;
+  const double wall = std::chrono::duration<double>(b - a).count();
+  p.cpu_cores = (cpu1 - cpu0) / wall;
+  const auto by_name = [&](const std::string& name) {
+    const auto t0 = threads0.find(name), t1 = threads1.find(name);
+    return t1 == threads1.end() ? 0.0 : (t1->second - (t0 == threads0.end() ? 0.0 : t0->second));
+  };
+  p.io_cores = by_name("sphles-io") / wall;
+  p.client_cores = by_name("bench-clients") / wall;
+  p.steps_per_second = static_cast<double>(sb.step - sa.step) / wall;
+  p.dropped = dropped_images(s.server.port(), s.run.id()) - dropped0;
+  {
+    std::lock_guard lock(s.stats.mutex);
+    p.latency_ms = s.stats.latency_ms;
+  }
+  const auto images = static_cast<double>(s.stats.images);
+  p.images_per_client = n > 0 ? images / n / wall : 0.0;
+  p.kib_per_image = images > 0 ? static_cast<double>(s.stats.bytes) / images / 1024.0 : 0.0;
+  for (const auto& c : clients) c->close();
+  clients.clear();
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  std::printf(
+      "  phase: %2d clients  %6.1f steps/s  %5.2f images/s/client  latency median %5.1f ms  "
+      "CPU: process %.2f, server I/O %.3f, clients %.3f cores\n",
+      n, p.steps_per_second, p.images_per_client, percentile(p.latency_ms, 0.5), p.cpu_cores,
+      p.io_cores, p.client_cores);
+  std::fflush(stdout);
+  return p;
+}
+
+/// The phases of every client count, and each one's step rate relative to the neighbouring
+/// 0-client phases.
+struct Phases {
+  std::map<int, std::vector<Phase>> phases;
+  std::map<int, std::vector<double>> ratio;  // vs the neighbouring 0-client phases
+};
+
+/// Each client count is measured between two client-free phases and compared with their mean,
+/// so that the drifting load of a shared machine cancels; repeated, then the median is taken.
+Phases measure_all(const Streaming& s) {
+  Phases all;
+  Phase before = measure(s, 0);
+  all.phases[0].push_back(before);
+  for (int r = 0; r < s.o.repeat; ++r)
+    for (const int n : s.o.clients) {
+      if (n == 0) continue;
+      const Phase with = measure(s, n);
+      const Phase after = measure(s, 0);
+      all.phases[n].push_back(with);
+      all.phases[0].push_back(after);
+      const double base = 0.5 * (before.steps_per_second + after.steps_per_second);
+      all.ratio[n].push_back(with.steps_per_second / base);
+      before = after;
+    }
+  return all;
+}
+
+/// The table of every client count: medians over its phases.
+void print_table(Phases& all) {
+  std::printf(
+      "\nclients  steps/s  vs 0 clients (median, min..max)  images/s/client  KiB/image  "
+      "latency ms: median    p95    max  dropped  server I/O CPU (cores)  client CPU\n");
+  for (const auto& [n, list] : all.phases) {
+    std::vector<double> steps, latency;
+    double images = 0.0, kib = 0.0;
+    std::uint64_t dropped = 0;
+    std::vector<double> io, client;
+    for (const Phase& p : list) {
+      io.push_back(p.io_cores);
+      client.push_back(p.client_cores);
+      steps.push_back(p.steps_per_second);
+      latency.insert(latency.end(), p.latency_ms.begin(), p.latency_ms.end());
+      images += p.images_per_client / static_cast<double>(list.size());
+      kib += p.kib_per_image / static_cast<double>(list.size());
+      dropped += p.dropped;
+    }
+    const std::vector<double>& r = all.ratio[n];
+    const double change = n == 0 ? 0.0 : 100.0 * (median(r) - 1.0);
+    const double lo = r.empty() ? 0.0 : 100.0 * (*std::min_element(r.begin(), r.end()) - 1.0);
+    const double hi = r.empty() ? 0.0 : 100.0 * (*std::max_element(r.begin(), r.end()) - 1.0);
+    std::printf(
+        "%7d  %7.1f  %+8.1f%% (%+6.1f%% .. %+6.1f%%)  %15.2f  %9.1f  %17.1f  %5.1f  %5.1f  %7llu  "
+        "%22.4f  %10.4f\n",
+        n, median(steps), change, lo, hi, images, kib, percentile(latency, 0.5),
+        percentile(latency, 0.95),
+        latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end()),
+        static_cast<unsigned long long>(dropped), median(io), median(client));
+  }
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -224,38 +401,10 @@ int main(int argc, char** argv) {
   sphles::server::HttpServer server(manager, s);
   server.start();
 
-  // A 2D Taylor-Green run that renders ω² slices (saved) with every analysis frame.
-  json scene = {
-      {"name", "bench"},
-      {"case", "tgv2d"},
-      {"particles_per_side", o.size},
-      {"packing", {{"enabled", false}}},
-      {"time", {{"end", 1e6}}},
-      {"analysis", {{"every", 1e5}, {"products", {"slices"}}, {"slice", {{"fields", {"omega2"}}}}}},
-      {"render",
-       {{"fields", {"omega2"}},
-        {"combined", false},
-        {"save", true},
-        {"width", o.image},
-        {"height", o.image}}}};
   sphles::control::CreateRequest request;
-  request.scene = scene;
+  request.scene = bench_scene(o);
   const auto run = manager.create(request);
-
-  // Calibrate: simulated time per wall second, then one analysis frame every 1/fps seconds.
-  const auto sample = [&] { return std::make_pair(Clock::now(), run->status()); };
-  std::this_thread::sleep_for(std::chrono::seconds(2));
-  auto [t0, s0] = sample();
-  std::this_thread::sleep_for(std::chrono::seconds(3));
-  auto [t1, s1] = sample();
-  const double rate = (s1.time - s0.time) / std::chrono::duration<double>(t1 - t0).count();
-  const double every = rate / o.fps;
-  run->apply_changes({{"analysis", {{"every", every}}}});
-  std::printf(
-      "bench_server: tgv2d %d^2 particles, %d solver thread(s), %.3g simulated s per wall s; "
-      "an %dx%d omega2 image every %.4g simulated s (target %.1f images/s); %.0f s per phase\n",
-      o.size, o.threads, rate, o.image, o.image, every, o.fps, o.seconds);
-  std::printf("server on %s, clients on 1 thread in the same process\n\n", server.url().c_str());
+  calibrate(*run, server, o);
   Stats stats;
   net::io_context client_ioc;
   auto guard = net::make_work_guard(client_ioc);
@@ -264,118 +413,8 @@ int main(int argc, char** argv) {
     client_ioc.run();
   });
 
-  // One phase: n clients connected, 2 s warm-up, then o.seconds measured.
-  struct Phase {
-    int clients = 0;
-    double steps_per_second = 0.0, images_per_client = 0.0, kib_per_image = 0.0;
-    double cpu_cores = 0.0;     // CPU time of the whole process per wall second
-    double io_cores = 0.0;      // of the server's I/O threads ("sphles-io")
-    double client_cores = 0.0;  // of the benchmark's client thread
-    std::uint64_t dropped = 0;
-    std::vector<double> latency_ms;
-  };
-  const auto measure = [&](int n) {
-    std::vector<std::shared_ptr<Client>> clients;
-    for (int k = 0; k < n; ++k) {
-      auto c = std::make_shared<Client>(client_ioc, stats);
-      c->connect(server.port(), "/api/runs/" + run->id() + "/stream");
-      c->start();
-      clients.push_back(std::move(c));
-    }
-    std::this_thread::sleep_for(std::chrono::seconds(2));
-    stats.reset();
-    const std::uint64_t dropped0 = dropped_images(server.port(), run->id());
-    const double cpu0 = sphles::bench::process_cpu_seconds();
-    const auto threads0 = thread_cpu_seconds();
-    auto [a, sa] = sample();
-    std::this_thread::sleep_for(std::chrono::duration<double>(o.seconds));
-    auto [b, sb] = sample();
-    const double cpu1 = sphles::bench::process_cpu_seconds();
-    const auto threads1 = thread_cpu_seconds();
-    Phase p;
-    p.clients = n;
-    const double wall = std::chrono::duration<double>(b - a).count();
-    p.cpu_cores = (cpu1 - cpu0) / wall;
-    const auto by_name = [&](const std::string& name) {
-      const auto t0 = threads0.find(name), t1 = threads1.find(name);
-      return t1 == threads1.end() ? 0.0 : (t1->second - (t0 == threads0.end() ? 0.0 : t0->second));
-    };
-    p.io_cores = by_name("sphles-io") / wall;
-    p.client_cores = by_name("bench-clients") / wall;
-    p.steps_per_second = static_cast<double>(sb.step - sa.step) / wall;
-    p.dropped = dropped_images(server.port(), run->id()) - dropped0;
-    {
-      std::lock_guard lock(stats.mutex);
-      p.latency_ms = stats.latency_ms;
-    }
-    const auto images = static_cast<double>(stats.images);
-    p.images_per_client = n > 0 ? images / n / wall : 0.0;
-    p.kib_per_image = images > 0 ? static_cast<double>(stats.bytes) / images / 1024.0 : 0.0;
-    for (const auto& c : clients) c->close();
-    clients.clear();
-    std::this_thread::sleep_for(std::chrono::milliseconds(500));
-    std::printf(
-        "  phase: %2d clients  %6.1f steps/s  %5.2f images/s/client  latency median %5.1f ms  "
-        "CPU: process %.2f, server I/O %.3f, clients %.3f cores\n",
-        n, p.steps_per_second, p.images_per_client, percentile(p.latency_ms, 0.5), p.cpu_cores,
-        p.io_cores, p.client_cores);
-    std::fflush(stdout);
-    return p;
-  };
-
-  // Each client count is measured between two client-free phases and compared with their mean,
-  // so that the drifting load of a shared machine cancels; repeated, then the median is taken.
-  std::map<int, std::vector<Phase>> phases;
-  std::map<int, std::vector<double>> ratio;  // vs the neighbouring 0-client phases
-  Phase before = measure(0);
-  phases[0].push_back(before);
-  for (int r = 0; r < o.repeat; ++r)
-    for (const int n : o.clients) {
-      if (n == 0) continue;
-      const Phase with = measure(n);
-      const Phase after = measure(0);
-      phases[n].push_back(with);
-      phases[0].push_back(after);
-      const double base = 0.5 * (before.steps_per_second + after.steps_per_second);
-      ratio[n].push_back(with.steps_per_second / base);
-      before = after;
-    }
-
-  const auto median = [](std::vector<double> v) {
-    if (v.empty()) return 0.0;
-    std::sort(v.begin(), v.end());
-    const std::size_t m = v.size() / 2;
-    return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-  };
-  std::printf(
-      "\nclients  steps/s  vs 0 clients (median, min..max)  images/s/client  KiB/image  "
-      "latency ms: median    p95    max  dropped  server I/O CPU (cores)  client CPU\n");
-  for (const auto& [n, list] : phases) {
-    std::vector<double> steps, latency;
-    double images = 0.0, kib = 0.0;
-    std::uint64_t dropped = 0;
-    std::vector<double> io, client;
-    for (const Phase& p : list) {
-      io.push_back(p.io_cores);
-      client.push_back(p.client_cores);
-      steps.push_back(p.steps_per_second);
-      latency.insert(latency.end(), p.latency_ms.begin(), p.latency_ms.end());
-      images += p.images_per_client / static_cast<double>(list.size());
-      kib += p.kib_per_image / static_cast<double>(list.size());
-      dropped += p.dropped;
-    }
-    const std::vector<double>& r = ratio[n];
-    const double change = n == 0 ? 0.0 : 100.0 * (median(r) - 1.0);
-    const double lo = r.empty() ? 0.0 : 100.0 * (*std::min_element(r.begin(), r.end()) - 1.0);
-    const double hi = r.empty() ? 0.0 : 100.0 * (*std::max_element(r.begin(), r.end()) - 1.0);
-    std::printf(
-        "%7d  %7.1f  %+8.1f%% (%+6.1f%% .. %+6.1f%%)  %15.2f  %9.1f  %17.1f  %5.1f  %5.1f  %7llu  "
-        "%22.4f  %10.4f\n",
-        n, median(steps), change, lo, hi, images, kib, percentile(latency, 0.5),
-        percentile(latency, 0.95),
-        latency.empty() ? 0.0 : *std::max_element(latency.begin(), latency.end()),
-        static_cast<unsigned long long>(dropped), median(io), median(client));
-  }
+  Phases phases = measure_all({server, *run, client_ioc, stats, o});
+  print_table(phases);
   guard.reset();
   client_ioc.stop();
   client_thread.join();

@@ -278,6 +278,138 @@ analysis::ViewPoints gather_view_points(const Decomposition& d, const sim::Parti
   return v;
 }
 
+/// What a request needs: the particle file, what is computed at the particles, and a slice.
+struct Needs {
+  bool particles = false;  // the particle snapshot file
+  bool fits = false;       // ω fitted at the particles (the "mls" estimate)
+  bool stress = false;     // τ_SFS at the particles
+  bool slice = false;      // a slice of ω², |τ_SFS| or ν_t
+};
+
+/// What `request` needs; throws std::invalid_argument (on every rank alike) when the ranks cannot
+/// answer it: a box that is not a cube, no grid, or a fit radius outside (0, L/2] or (with more
+/// than one rank along an axis) wider than the halo.
+Needs needs_of(const Decomposition& d, const analysis::RanksRequest& request) {
+  const int dim = d.dimension();
+  const sim::PeriodicBox& box = d.box();
+  for (int a = 1; a < dim; ++a)
+    if (box.length[static_cast<std::size_t>(a)] != box.length[0])
+      throw std::invalid_argument("distributed particle products: the box must be a cube");
+  Needs needs;
+  needs.particles = !request.particles.path.empty();
+  const analysis::ViewPointsRequest& view = request.view;
+  const auto view_of = [&](analysis::SliceField f) {
+    return view.max_points > 0 && view.field == f;
+  };
+  needs.fits = request.vorticity || request.slice_omega2 || request.statistics ||
+               (needs.particles && request.particles.omega2) || request.fields.omega2 ||
+               view_of(analysis::SliceField::VorticitySquared);
+  needs.stress = request.slice_tau || request.statistics ||
+                 (needs.particles && request.particles.tau) || request.fields.tau ||
+                 view_of(analysis::SliceField::SubfilterStressNorm);
+  needs.slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
+  if (request.points_per_side < 1 ||
+      (needs.fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
+    throw std::invalid_argument(
+        "distributed particle products: needs points_per_side >= 1 and a fit radius in (0, L/2]");
+  bool alone = true;
+  for (int a = 0; a < dim; ++a) alone = alone && d.dims()[static_cast<std::size_t>(a)] == 1;
+  if (needs.fits && !alone && request.fit_radius > d.halo_width())
+    throw std::invalid_argument(
+        "distributed particle products: the fits' radius " + std::to_string(request.fit_radius) +
+        " m reaches further than the halo (" + std::to_string(d.halo_width()) + " m)");
+  return needs;
+}
+
+/// This rank's particles, own first and then the halo, and how many particles all ranks hold.
+struct RankParticles {
+  const Decomposition& d;
+  const sim::ParticleArrays& local;
+  const Halo& halo;
+  std::uint64_t total;
+};
+
+/// The chapter-4 statistics as analyse computes sfs_stats: maxima, an exact sum, counts
+/// (analysis/products.cpp), over the ranks.
+analysis::SubfilterStatisticsProduct subfilter_statistics(
+    const RankParticles& p, const analysis::SubfilterStressField& stress,
+    const std::vector<double>& omega2, const analysis::RanksRequest& request) {
+  const Decomposition& d = p.d;
+  std::array<double, 2> maxima{analysis::max_value(stress.norm), analysis::max_value(omega2)};
+  allreduce_max(d, maxima);
+  const std::vector<double>& norm = stress.norm;
+  sim::ExactSum sum = sim::exact_sum(norm.size(), [&](std::size_t i) { return norm[i]; });
+  sum = allreduce(d, sum);
+  analysis::SubfilterStatisticsProduct s;
+  s.max_norm = maxima[0];
+  s.mean_norm = p.total == 0 ? 0.0 : sum.value() / static_cast<double>(p.total);
+  s.joint = analysis::bivariate_histogram(norm, omega2, maxima[0], maxima[1],
+                                          request.histogram_bins, request.histogram_bins);
+  allreduce_counts(d, s.joint.counts);
+  s.joint.total = p.total;
+  if (d.dimension() == 2) {
+    analysis::AngleHistogram a = analysis::principal_direction_alignment(
+        stress, p.local, request.angle_bins, request.angle_threshold, maxima[0]);
+    allreduce_counts(d, a.counts);
+    allreduce_counts(d, std::span<std::uint64_t>(&a.total, 1));
+    s.alignment = std::move(a);
+  }
+  return s;
+}
+
+/// Whether the run has ν_t: only with an explicit model, on every rank alike (a rank may hold no
+/// particles). ν_t travels with the particles (the halo holds the owners' values).
+bool has_eddy_viscosity(const RankParticles& p) {
+  return !on_every_rank(p.d,
+                        p.local.eddy_viscosity.size() != p.local.size() || p.local.size() == 0);
+}
+
+/// The slice and the grid fields (products "slices" and "fields") into `result`, from the fits
+/// and the nodes' nearest particles.
+void node_products(const RankParticles& p, const analysis::Grid& grid,
+                   const analysis::FitSettings& fit, analysis::ParticleVorticity& omega,
+                   const analysis::SubfilterStressField& stress, const Needs& needs,
+                   const analysis::RanksRequest& request, analysis::RanksProducts& result) {
+  const Decomposition& d = p.d;
+  const int dim = d.dimension();
+  const analysis::GridFieldsRequest& fields = request.fields;
+  // The halo's ω and |τ_SFS| from their owners, for the nodes' fits and nearest particles.
+  const bool omega2_at_nodes = request.slice_omega2 || fields.omega2;
+  const bool tau_at_nodes = request.slice_tau || fields.tau;
+  if (omega2_at_nodes) {
+    std::vector<std::vector<double>*> components;
+    for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
+      omega.component[c].resize(p.local.size());
+      components.push_back(&omega.component[c]);
+    }
+    p.halo.update(d, components);
+  }
+  std::vector<double> norm = stress.norm;
+  if (tau_at_nodes) {
+    norm.resize(p.local.size());
+    std::vector<double>* halo_fields[] = {&norm};
+    p.halo.update(d, halo_fields);
+  }
+  const bool has_eddy = has_eddy_viscosity(p);
+  const NodeSources sources{d, grid, p.local, fit, omega, norm, p.total};
+  if (needs.slice) {
+    const SliceShare share = slice_share(d, grid, request);
+    NodeValues v = node_values(sources, share, request.slice_omega2, request.slice_tau,
+                               request.slice_eddy && has_eddy, false);
+    result.slice_omega2 = std::move(v.omega2);
+    result.slice_tau = std::move(v.tau);
+    result.slice_eddy = std::move(v.eddy);
+  }
+  if (fields.any()) {
+    NodeValues v = node_values(sources, grid_share(d, grid), fields.omega2, fields.tau,
+                               fields.eddy && has_eddy, fields.velocity);
+    result.fields_omega2 = std::move(v.omega2);
+    result.fields_tau = std::move(v.tau);
+    result.fields_eddy = std::move(v.eddy);
+    result.fields_velocity = std::move(v.velocity);
+  }
+}
+
 }  // namespace
 
 analysis::RanksProducts distributed_particle_products(const Decomposition& d,
@@ -286,31 +418,7 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
                                                       const analysis::RanksRequest& request) {
   const int dim = d.dimension();
   const sim::PeriodicBox& box = d.box();
-  for (int a = 1; a < dim; ++a)
-    if (box.length[static_cast<std::size_t>(a)] != box.length[0])
-      throw std::invalid_argument("distributed particle products: the box must be a cube");
-  const bool particles = !request.particles.path.empty();
-  const analysis::ViewPointsRequest& view = request.view;
-  const auto view_of = [&](analysis::SliceField f) {
-    return view.max_points > 0 && view.field == f;
-  };
-  const bool fits = request.vorticity || request.slice_omega2 || request.statistics ||
-                    (particles && request.particles.omega2) || request.fields.omega2 ||
-                    view_of(analysis::SliceField::VorticitySquared);
-  const bool stress_needed = request.slice_tau || request.statistics ||
-                             (particles && request.particles.tau) || request.fields.tau ||
-                             view_of(analysis::SliceField::SubfilterStressNorm);
-  const bool slice = request.slice_omega2 || request.slice_tau || request.slice_eddy;
-  if (request.points_per_side < 1 ||
-      (fits && (!(request.fit_radius > 0.0) || 2.0 * request.fit_radius > box.length[0])))
-    throw std::invalid_argument(
-        "distributed particle products: needs points_per_side >= 1 and a fit radius in (0, L/2]");
-  bool alone = true;
-  for (int a = 0; a < dim; ++a) alone = alone && d.dims()[static_cast<std::size_t>(a)] == 1;
-  if (fits && !alone && request.fit_radius > d.halo_width())
-    throw std::invalid_argument(
-        "distributed particle products: the fits' radius " + std::to_string(request.fit_radius) +
-        " m reaches further than the halo (" + std::to_string(d.halo_width()) + " m)");
+  const Needs needs = needs_of(d, request);
   analysis::Grid grid;
   grid.dimension = dim;
   grid.points_per_side = request.points_per_side;
@@ -325,14 +433,15 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
   const std::size_t mine = halo.owned();
   std::uint64_t total = mine;
   allreduce_counts(d, std::span<std::uint64_t>(&total, 1));
+  const RankParticles rank{d, local, halo, total};
 
   analysis::RanksProducts result;
   result.request = request;
   // ω and ω² at the own particles (the "mls" estimate).
   analysis::ParticleVorticity omega;
   omega.dimension = dim;
-  if (fits && mine > 0) omega = analysis::fitted_particle_vorticity(local, grid, fit, mine);
-  const std::vector<double> omega2 = fits ? omega.squared_magnitude() : std::vector<double>{};
+  if (needs.fits && mine > 0) omega = analysis::fitted_particle_vorticity(local, grid, fit, mine);
+  const std::vector<double> omega2 = needs.fits ? omega.squared_magnitude() : std::vector<double>{};
   if (request.vorticity) {
     std::array<sim::ExactSum, 2> sums = analysis::volume_weighted_sums(local, omega2);
     allreduce(d, std::span<sim::ExactSum>(sums));
@@ -340,79 +449,17 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
   }
   // τ_SFS at the own particles.
   analysis::SubfilterStressField stress;
-  if (stress_needed)
+  if (needs.stress)
     stress = analysis::implicit_subfilter_stress(local, box, kernel, support_radius, mine);
 
-  if (request.statistics) {
-    // As analyse computes sfs_stats: maxima, an exact sum, counts (analysis/products.cpp).
-    std::array<double, 2> maxima{analysis::max_value(stress.norm), analysis::max_value(omega2)};
-    allreduce_max(d, maxima);
-    const std::vector<double>& norm = stress.norm;
-    sim::ExactSum sum = sim::exact_sum(norm.size(), [&](std::size_t i) { return norm[i]; });
-    sum = allreduce(d, sum);
-    analysis::SubfilterStatisticsProduct p;
-    p.max_norm = maxima[0];
-    p.mean_norm = total == 0 ? 0.0 : sum.value() / static_cast<double>(total);
-    p.joint = analysis::bivariate_histogram(norm, omega2, maxima[0], maxima[1],
-                                            request.histogram_bins, request.histogram_bins);
-    allreduce_counts(d, p.joint.counts);
-    p.joint.total = total;
-    if (dim == 2) {
-      analysis::AngleHistogram a = analysis::principal_direction_alignment(
-          stress, local, request.angle_bins, request.angle_threshold, maxima[0]);
-      allreduce_counts(d, a.counts);
-      allreduce_counts(d, std::span<std::uint64_t>(&a.total, 1));
-      p.alignment = std::move(a);
-    }
-    result.statistics = std::move(p);
-  }
-  const analysis::GridFieldsRequest& fields = request.fields;
-  if (slice || fields.any()) {
-    // The halo's ω and |τ_SFS| from their owners, for the nodes' fits and nearest particles.
-    const bool omega2_at_nodes = request.slice_omega2 || fields.omega2;
-    const bool tau_at_nodes = request.slice_tau || fields.tau;
-    if (omega2_at_nodes) {
-      std::vector<std::vector<double>*> components;
-      for (std::size_t c = dim == 3 ? 0 : 2; c < 3; ++c) {
-        omega.component[c].resize(local.size());
-        components.push_back(&omega.component[c]);
-      }
-      halo.update(d, components);
-    }
-    std::vector<double> norm = stress.norm;
-    if (tau_at_nodes) {
-      norm.resize(local.size());
-      std::vector<double>* halo_fields[] = {&norm};
-      halo.update(d, halo_fields);
-    }
-    // ν_t travels with the particles (the halo holds the owners' values): only when the run has
-    // an explicit model, on every rank alike.
-    const bool has_eddy =
-        !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
-    const NodeSources sources{d, grid, local, fit, omega, norm, total};
-    if (slice) {
-      const SliceShare share = slice_share(d, grid, request);
-      NodeValues v = node_values(sources, share, request.slice_omega2, request.slice_tau,
-                                 request.slice_eddy && has_eddy, false);
-      result.slice_omega2 = std::move(v.omega2);
-      result.slice_tau = std::move(v.tau);
-      result.slice_eddy = std::move(v.eddy);
-    }
-    if (fields.any()) {
-      NodeValues v = node_values(sources, grid_share(d, grid), fields.omega2, fields.tau,
-                                 fields.eddy && has_eddy, fields.velocity);
-      result.fields_omega2 = std::move(v.omega2);
-      result.fields_tau = std::move(v.tau);
-      result.fields_eddy = std::move(v.eddy);
-      result.fields_velocity = std::move(v.velocity);
-    }
-  }
+  if (request.statistics) result.statistics = subfilter_statistics(rank, stress, omega2, request);
+  if (needs.slice || request.fields.any())
+    node_products(rank, grid, fit, omega, stress, needs, request, result);
+  const analysis::ViewPointsRequest& view = request.view;
   if (view.max_points > 0) {
     // ν_t only when the run has an explicit model, on every rank alike (as for the file).
     const bool eddy = view.field == analysis::SliceField::EddyViscosity;
-    const bool has_field = !eddy || !on_every_rank(d, local.eddy_viscosity.size() != local.size() ||
-                                                          local.size() == 0);
-    if (has_field) {
+    if (!eddy || has_eddy_viscosity(rank)) {
       const std::vector<double>& values = eddy ? local.eddy_viscosity
                                           : view.field == analysis::SliceField::VorticitySquared
                                               ? omega2
@@ -420,12 +467,9 @@ analysis::RanksProducts distributed_particle_products(const Decomposition& d,
       result.view = gather_view_points(d, local, mine, values, view.field, total, view.max_points);
     }
   }
-  if (particles) {
-    // Written last: every refusal above comes before the file. ν_t travels with the particles: only
-    // when the run has an explicit model, on every rank alike (a rank may hold no particles).
-    const bool eddy =
-        request.particles.eddy &&
-        !on_every_rank(d, local.eddy_viscosity.size() != local.size() || local.size() == 0);
+  if (needs.particles) {
+    // Written last: every refusal above comes before the file. ν_t only when the run has it.
+    const bool eddy = request.particles.eddy && has_eddy_viscosity(rank);
     result.particles = write_particles(d, local, mine, omega2, stress.norm, eddy, request);
   }
   return result;

@@ -16,6 +16,8 @@
 
 namespace sphles::accuracy {
 
+inline constexpr double kMisfitEndTime = 12.0;  // the 3D comparison window t ∈ [0, 12]
+
 /// Studies: "tgv2d_re100", "tgv2d_re1000", "tgv3d_re5000", "peers", "kolmogorov".
 struct RunSpec {
   std::string study;

@@ -191,9 +191,8 @@ std::vector<ac::RunSpec> select_runs(const std::vector<ac::RunSpec>& matrix,
   return runs;
 }
 
-}  // namespace
-
-int main(int argc, char** argv) {
+/// The command line.
+struct Options {
   bool quick = false, list_only = false, merge = false;
   std::vector<int> base_sides;       // empty: the matrix' own resolutions
   std::vector<std::string> configs;  // empty: every configuration
@@ -201,11 +200,17 @@ int main(int argc, char** argv) {
   int threads = 1;
   int refine_2d = -1;  // -1: 1 in full mode, 0 with --quick
   int refine_2d_side = 256;
+  std::vector<int> sides_3d;           // --refine-3d-sides: "40" in full mode, none with --quick
+  std::vector<std::string> overrides;  // "dotted.key=value", applied to every scene
+  ac::RunOptions run;
+};
+
+/// Reads the command line into `o`; false (after saying why, where there is more to say than the
+/// usage) when it is not one.
+bool parse_arguments(int argc, char** argv, Options& o) {
   std::string refine_3d_sides;  // empty: "40" in full mode, none with --quick
   bool refine_3d_set = false;
-  std::vector<std::string> overrides;  // "dotted.key=value", applied to every scene
-  ac::RunOptions options;
-  options.reference_dir = SPHLES_SOURCE_DIR "/data/reference";
+  o.run.reference_dir = SPHLES_SOURCE_DIR "/data/reference";
   for (int k = 1; k < argc; ++k) {
     const std::string arg = argv[k];
     auto value = [&]() -> std::string {
@@ -216,182 +221,214 @@ int main(int argc, char** argv) {
       return argv[++k];
     };
     if (arg == "--quick") {
-      quick = true;
+      o.quick = true;
     } else if (arg == "--only") {
-      only = value();
+      o.only = value();
     } else if (arg == "--out") {
-      out_dir = value();
+      o.out_dir = value();
     } else if (arg == "--reference-dir") {
-      options.reference_dir = value();
+      o.run.reference_dir = value();
     } else if (arg == "--threads") {
-      threads = std::atoi(value().c_str());
+      o.threads = std::atoi(value().c_str());
     } else if (arg == "--refine-2d") {
-      refine_2d = std::atoi(value().c_str());
+      o.refine_2d = std::atoi(value().c_str());
     } else if (arg == "--refine-2d-side") {
-      refine_2d_side = std::atoi(value().c_str());
+      o.refine_2d_side = std::atoi(value().c_str());
     } else if (arg == "--refine-3d-sides") {
       refine_3d_sides = value();
       refine_3d_set = true;
     } else if (arg == "--wall-limit") {
-      options.wall_limit_seconds = std::atof(value().c_str());
+      o.run.wall_limit_seconds = std::atof(value().c_str());
     } else if (arg == "--set") {
-      overrides.push_back(value());
+      o.overrides.push_back(value());
     } else if (arg == "--sides") {
       for (const std::string& side : split(value())) {
-        base_sides.push_back(std::atoi(side.c_str()));
-        if (base_sides.back() < 2) {
+        o.base_sides.push_back(std::atoi(side.c_str()));
+        if (o.base_sides.back() < 2) {
           std::cerr << "--sides: '" << side << "' is not a resolution of at least 2\n";
-          return usage(argv[0]);
+          return false;
         }
       }
     } else if (arg == "--config") {
-      configs = split(value());
+      o.configs = split(value());
     } else if (arg == "--merge") {
-      merge = true;
+      o.merge = true;
     } else if (arg == "--list") {
-      list_only = true;
+      o.list_only = true;
     } else if (arg == "--trace") {
-      options.trace = true;
+      o.run.trace = true;
     } else {
-      return usage(argv[0]);
+      return false;
     }
   }
-  if (threads < 1) return usage(argv[0]);
-  if (refine_2d < 0) refine_2d = quick ? 0 : 1;
-  if (!refine_3d_set) refine_3d_sides = quick ? "" : "40";
-  std::vector<int> sides_3d;
-  for (const std::string& s : split(refine_3d_sides)) sides_3d.push_back(std::atoi(s.c_str()));
-  omp_set_num_threads(threads);
+  if (o.threads < 1) return false;
+  if (o.refine_2d < 0) o.refine_2d = o.quick ? 0 : 1;
+  if (!refine_3d_set) refine_3d_sides = o.quick ? "" : "40";
+  for (const std::string& s : split(refine_3d_sides)) o.sides_3d.push_back(std::atoi(s.c_str()));
+  return true;
+}
+
+/// The files one study writes into DIR.
+struct StudyFiles {
+  std::string summary, history, run;
+};
+
+StudyFiles study_files(const std::string& out_dir, const std::string& study) {
+  return {out_dir + "/accuracy_" + study + ".csv", out_dir + "/accuracy_history_" + study + ".csv",
+          out_dir + "/accuracy_run_" + study + ".json"};
+}
+
+/// Rewritten after every run. With --merge, the rows of runs this invocation does not make
+/// stay (read under the directory lock, so concurrent invocations keep each other's rows).
+void write_results(const Options& o, const StudyFiles& files,
+                   const std::vector<ac::RunResult>& results) {
+  const DirectoryLock lock(o.out_dir, o.merge);
+  std::ostringstream summary, history;
+  ac::write_summary_header(summary);
+  ac::write_history_header(history);
+  if (o.merge) {
+    std::set<std::string> rerun;
+    for (const ac::RunResult& r : results) rerun.insert(row_key(r.spec.study, r.spec.label));
+    for (const std::string& row : kept_rows(files.summary, 2, rerun)) summary << row << '\n';
+    for (const std::string& row : kept_rows(files.history, 1, rerun)) history << row << '\n';
+  }
+  for (const ac::RunResult& r : results) {
+    ac::write_summary_row(summary, r);
+    ac::write_history_rows(history, r);
+  }
+  replace_file(files.summary, summary.str());
+  replace_file(files.history, history.str());
+}
+
+/// Runs `list` one after another, printing a line per run and rewriting the files after each.
+void run_all(const std::vector<ac::RunSpec>& list, const char* phase, const std::string& study,
+             const Options& o, const StudyFiles& files, std::vector<ac::RunResult>& results) {
+  for (std::size_t k = 0; k < list.size(); ++k) {
+    ac::RunResult r;
+    try {
+      r = ac::run_one(list[k], o.run);
+    } catch (const std::exception& e) {
+      std::cerr << list[k].label << ": " << e.what() << '\n';
+      std::exit(1);
+    }
+    std::printf(
+        "[%s %s %zu/%zu] %-14s %-40s %-10s t=%-6.4g steps=%-6llu wall=%7.1f s cpu=%7.1f s"
+        "  E_res misfit=%.4g  e_v err=%.4g  v err=%.4g  eps misfit=%.4g  imbalance=%.4g"
+        "  load %s\n",
+        study.c_str(), phase, k + 1, list.size(), r.spec.study.c_str(), r.spec.label.c_str(),
+        r.status.c_str(), r.time_reached, static_cast<unsigned long long>(r.steps), r.wall_seconds,
+        r.cpu_seconds, r.resolved_misfit, r.case_name == "tgv3d" ? r.energy_misfit : r.energy_error,
+        r.velocity_error_end, r.dissipation_misfit, r.budget_imbalance, load_average().c_str());
+    std::fflush(stdout);
+    results.push_back(r);
+    write_results(o, files, results);
+  }
+}
+
+/// DIR/accuracy_run_<study>.json: this invocation's record (load averages at start and end, total
+/// wall time); with --merge, appended to the records of the earlier invocations.
+void write_invocation_record(const std::string& study, const Options& o, const StudyFiles& files,
+                             const std::vector<ac::RunResult>& results, double seconds,
+                             const std::string& load_start) {
+  nlohmann::json invocation = {{"study", study},
+                               {"quick", o.quick},
+                               {"threads_per_run", o.threads},
+                               {"runs", results.size()},
+                               {"labels", nlohmann::json::array()},
+                               {"total_wall_seconds", seconds},
+                               {"load_average_start", load_start},
+                               {"load_average_end", load_average()}};
+  for (const ac::RunResult& r : results)
+    invocation["labels"].push_back(r.spec.study + " " + r.spec.label);
+  nlohmann::json meta = invocation;
+  const DirectoryLock lock(o.out_dir, o.merge);
+  if (o.merge) {
+    // One record per invocation that wrote into these files, the earlier ones first.
+    nlohmann::json previous;
+    std::ifstream in(files.run);
+    if (in) previous = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
+    nlohmann::json records = nlohmann::json::array();
+    if (previous.is_object() && previous.contains("invocations"))
+      records = previous["invocations"];
+    else if (previous.is_object())
+      records.push_back(previous);
+    records.push_back(invocation);
+    meta = {{"study", study}, {"invocations", records}};
+  }
+  replace_file(files.run, meta.dump(2) + "\n");
+}
+
+/// One study: its base matrix, then its refinements; or with --list only its runs. The exit
+/// status of the program when the study cannot run, else 0.
+int run_study(const std::string& study, const Options& o, const char* program) {
+  std::vector<ac::RunSpec> runs;
+  try {
+    runs = select_runs(ac::make_matrix(study, o.quick), o.base_sides, o.configs);
+  } catch (const std::exception& e) {
+    std::cerr << e.what() << '\n';
+    return usage(program);
+  }
+  if (runs.empty()) {
+    std::cerr << "--config: no configuration of study '" << study << "' is named (see --list)\n";
+    return 2;
+  }
+  try {
+    for (ac::RunSpec& r : runs)
+      for (const std::string& assignment : o.overrides)
+        sphles::scene::apply_override(r.scene, assignment);
+  } catch (const std::exception& e) {
+    std::cerr << e.what() << '\n';
+    return 2;
+  }
+  if (o.list_only) {
+    for (const ac::RunSpec& r : runs)
+      std::cout << r.study << "  " << r.label << "  " << r.scene.dump() << '\n';
+    return 0;
+  }
+  const StudyFiles files = study_files(o.out_dir, study);
+  const std::string load_start = load_average();
+  const auto study_start = std::chrono::steady_clock::now();
+  std::vector<ac::RunResult> results;
+  run_all(runs, "base", study, o, files, results);
+  if (study == "2d" && o.refine_2d > 0)
+    run_all(refinements(results, &ac::RunResult::energy_error,
+                        static_cast<std::size_t>(o.refine_2d), {o.refine_2d_side}),
+            "refine", study, o, files, results);
+  if (study == "3d" && !o.sides_3d.empty()) {
+    const bool resolved = std::any_of(results.begin(), results.end(), [](const auto& r) {
+      return std::isfinite(r.resolved_misfit);
+    });
+    run_all(
+        refinements(results,
+                    resolved ? &ac::RunResult::resolved_misfit : &ac::RunResult::dissipation_misfit,
+                    1, o.sides_3d),
+        "refine", study, o, files, results);
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - study_start).count();
+  write_invocation_record(study, o, files, results, seconds, load_start);
+  std::cout << "wrote " << files.summary << ", " << files.history << " (" << results.size()
+            << " runs, " << seconds << " s wall)\n";
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  if (!parse_arguments(argc, argv, o)) return usage(argv[0]);
+  omp_set_num_threads(o.threads);
   // Before any run: a result that cannot be written would be lost after hours of runs.
-  if (!list_only) {
+  if (!o.list_only) {
     std::error_code error;
-    std::filesystem::create_directories(out_dir, error);
+    std::filesystem::create_directories(o.out_dir, error);
     if (error) {
-      std::cerr << "--out: cannot create directory '" << out_dir << "': " << error.message()
+      std::cerr << "--out: cannot create directory '" << o.out_dir << "': " << error.message()
                 << '\n';
       return 1;
     }
   }
-
-  for (const std::string& study : split(only)) {
-    std::vector<ac::RunSpec> runs;
-    try {
-      runs = select_runs(ac::make_matrix(study, quick), base_sides, configs);
-    } catch (const std::exception& e) {
-      std::cerr << e.what() << '\n';
-      return usage(argv[0]);
-    }
-    if (runs.empty()) {
-      std::cerr << "--config: no configuration of study '" << study << "' is named (see --list)\n";
-      return 2;
-    }
-    try {
-      for (ac::RunSpec& r : runs)
-        for (const std::string& assignment : overrides)
-          sphles::scene::apply_override(r.scene, assignment);
-    } catch (const std::exception& e) {
-      std::cerr << e.what() << '\n';
-      return 2;
-    }
-    if (list_only) {
-      for (const ac::RunSpec& r : runs)
-        std::cout << r.study << "  " << r.label << "  " << r.scene.dump() << '\n';
-      continue;
-    }
-    const std::string summary_path = out_dir + "/accuracy_" + study + ".csv";
-    const std::string history_path = out_dir + "/accuracy_history_" + study + ".csv";
-    const std::string run_path = out_dir + "/accuracy_run_" + study + ".json";
-    const std::string load_start = load_average();
-    const auto study_start = std::chrono::steady_clock::now();
-    std::vector<ac::RunResult> results;
-    // Rewritten after every run. With --merge, the rows of runs this invocation does not make
-    // stay (read under the directory lock, so concurrent invocations keep each other's rows).
-    auto write_files = [&] {
-      const DirectoryLock lock(out_dir, merge);
-      std::ostringstream summary, history;
-      ac::write_summary_header(summary);
-      ac::write_history_header(history);
-      if (merge) {
-        std::set<std::string> rerun;
-        for (const ac::RunResult& r : results) rerun.insert(row_key(r.spec.study, r.spec.label));
-        for (const std::string& row : kept_rows(summary_path, 2, rerun)) summary << row << '\n';
-        for (const std::string& row : kept_rows(history_path, 1, rerun)) history << row << '\n';
-      }
-      for (const ac::RunResult& r : results) {
-        ac::write_summary_row(summary, r);
-        ac::write_history_rows(history, r);
-      }
-      replace_file(summary_path, summary.str());
-      replace_file(history_path, history.str());
-    };
-    auto run_all = [&](const std::vector<ac::RunSpec>& list, const char* phase) {
-      for (std::size_t k = 0; k < list.size(); ++k) {
-        ac::RunResult r;
-        try {
-          r = ac::run_one(list[k], options);
-        } catch (const std::exception& e) {
-          std::cerr << list[k].label << ": " << e.what() << '\n';
-          std::exit(1);
-        }
-        std::printf(
-            "[%s %s %zu/%zu] %-14s %-40s %-10s t=%-6.4g steps=%-6llu wall=%7.1f s cpu=%7.1f s"
-            "  E_res misfit=%.4g  e_v err=%.4g  v err=%.4g  eps misfit=%.4g  imbalance=%.4g"
-            "  load %s\n",
-            study.c_str(), phase, k + 1, list.size(), r.spec.study.c_str(), r.spec.label.c_str(),
-            r.status.c_str(), r.time_reached, static_cast<unsigned long long>(r.steps),
-            r.wall_seconds, r.cpu_seconds, r.resolved_misfit,
-            r.case_name == "tgv3d" ? r.energy_misfit : r.energy_error, r.velocity_error_end,
-            r.dissipation_misfit, r.budget_imbalance, load_average().c_str());
-        std::fflush(stdout);
-        results.push_back(r);
-        write_files();
-      }
-    };
-    run_all(runs, "base");
-    if (study == "2d" && refine_2d > 0)
-      run_all(refinements(results, &ac::RunResult::energy_error,
-                          static_cast<std::size_t>(refine_2d), {refine_2d_side}),
-              "refine");
-    if (study == "3d" && !sides_3d.empty()) {
-      const bool resolved = std::any_of(results.begin(), results.end(), [](const auto& r) {
-        return std::isfinite(r.resolved_misfit);
-      });
-      run_all(refinements(
-                  results,
-                  resolved ? &ac::RunResult::resolved_misfit : &ac::RunResult::dissipation_misfit,
-                  1, sides_3d),
-              "refine");
-    }
-    const double seconds =
-        std::chrono::duration<double>(std::chrono::steady_clock::now() - study_start).count();
-    nlohmann::json invocation = {{"study", study},
-                                 {"quick", quick},
-                                 {"threads_per_run", threads},
-                                 {"runs", results.size()},
-                                 {"labels", nlohmann::json::array()},
-                                 {"total_wall_seconds", seconds},
-                                 {"load_average_start", load_start},
-                                 {"load_average_end", load_average()}};
-    for (const ac::RunResult& r : results)
-      invocation["labels"].push_back(r.spec.study + " " + r.spec.label);
-    nlohmann::json meta = invocation;
-    const DirectoryLock lock(out_dir, merge);
-    if (merge) {
-      // One record per invocation that wrote into these files, the earlier ones first.
-      nlohmann::json previous;
-      std::ifstream in(run_path);
-      if (in) previous = nlohmann::json::parse(in, nullptr, /*allow_exceptions=*/false);
-      nlohmann::json records = nlohmann::json::array();
-      if (previous.is_object() && previous.contains("invocations"))
-        records = previous["invocations"];
-      else if (previous.is_object())
-        records.push_back(previous);
-      records.push_back(invocation);
-      meta = {{"study", study}, {"invocations", records}};
-    }
-    replace_file(run_path, meta.dump(2) + "\n");
-    std::cout << "wrote " << summary_path << ", " << history_path << " (" << results.size()
-              << " runs, " << seconds << " s wall)\n";
-  }
+  for (const std::string& study : split(o.only))
+    if (const int status = run_study(study, o, argv[0]); status != 0) return status;
   return 0;
 }

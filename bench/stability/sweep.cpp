@@ -132,15 +132,10 @@ std::vector<RunSpec> make_sweep(bool quick) {
   return runs;
 }
 
-RunResult run_one(const RunSpec& spec, const RunOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  auto wall = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
-  RunResult r;
-  r.spec = spec;
-  json document = spec.scene;
-  const sim::Scene scene = scene::parse_scene(document);
+namespace {
+
+/// The run's parameters, read back from the parsed scene.
+void read_parameters(RunResult& r, const sim::Scene& scene) {
   r.case_name = std::string(sim::case_name(scene.case_type));
   r.particles_per_side = scene.particles_per_side;
   r.kernel = std::string(sim::kernel_name(scene.kernel));
@@ -151,57 +146,110 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
   r.forcing_amplitude =
       scene.case_type == sim::CaseType::Kolmogorov2D ? scene.forcing.amplitude : 0.0;
   r.end_time = scene.end_time;
+}
 
-  sim::RunSetup setup = sim::setup_run(scene, {.packing_cache_dir = options.packing_cache_dir});
-  sim::TimeStepConfig& ts = setup.solver.time_step;
-  const double ratio = spec.cfl / ts.cfl_acoustic;
-  ts.cfl_acoustic = spec.cfl;
+/// The acoustic CFL factor `cfl` on the solver configuration, the viscous and force factors
+/// scaled by the same ratio to their defaults (RunSpec::cfl).
+void set_cfl(sim::TimeStepConfig& ts, double cfl) {
+  const double ratio = cfl / ts.cfl_acoustic;
+  ts.cfl_acoustic = cfl;
   ts.cfl_viscous *= ratio;
   ts.cfl_force *= ratio;
-  sim::HealthThresholds thresholds = options.thresholds;
-  // Expected energy: analytic decay (tgv2d), or for kolmogorov2d the laminar spin-up from rest
-  // v_x = A (1 - exp(-λt)) sin(k_y y), λ = ν k_y² + μ, A = χ/λ, whose mean energy is
-  // ¼ A² (1 - exp(-λt))². Its limit ¼ A² is the runaway reference of a forced run.
-  const double nu = scene.fluid.kinematic_viscosity();
-  double laminar_energy = 0.0;
-  if (scene.case_type == sim::CaseType::Kolmogorov2D) {
-    const double amplitude =
-        sim::kolmogorov_laminar_velocity(scene.forcing, scene.forcing_wavenumber(), nu,
-                                         0.25 * scene.box_length() / scene.forcing.periods);
-    laminar_energy = 0.25 * amplitude * amplitude;
-    thresholds.blow_up.reference_energy =
-        std::max(thresholds.blow_up.reference_energy, laminar_energy);
+}
+
+/// Expected energy: analytic decay (tgv2d), or for kolmogorov2d the laminar spin-up from rest
+/// v_x = A (1 - exp(-λt)) sin(k_y y), λ = ν k_y² + μ, A = χ/λ, whose mean energy is
+/// ¼ A² (1 - exp(-λt))². Its limit ¼ A² is the runaway reference of a forced run.
+class ExpectedEnergy {
+ public:
+  explicit ExpectedEnergy(const sim::Scene& scene)
+      : scene_(scene), nu_(scene.fluid.kinematic_viscosity()) {
+    if (scene.case_type == sim::CaseType::Kolmogorov2D) {
+      const double amplitude =
+          sim::kolmogorov_laminar_velocity(scene.forcing, scene.forcing_wavenumber(), nu_,
+                                           0.25 * scene.box_length() / scene.forcing.periods);
+      laminar_energy_ = 0.25 * amplitude * amplitude;
+    }
   }
-  auto expected_energy = [&](double time) {
-    if (scene.case_type == sim::CaseType::TaylorGreen2D)
-      return sim::taylor_green_2d_energy(scene.velocity_amplitude, nu, time);
-    const double k = scene.forcing_wavenumber();
-    const double growth = 1.0 - std::exp(-(nu * k * k + scene.forcing.friction) * time);
-    return laminar_energy * growth * growth;
+  /// 0 for the cases without a forcing (the reference of a decaying flow is its initial energy).
+  double laminar_energy() const { return laminar_energy_; }
+  double operator()(double time) const {
+    if (scene_.case_type == sim::CaseType::TaylorGreen2D)
+      return sim::taylor_green_2d_energy(scene_.velocity_amplitude, nu_, time);
+    const double k = scene_.forcing_wavenumber();
+    const double growth = 1.0 - std::exp(-(nu_ * k * k + scene_.forcing.friction) * time);
+    return laminar_energy_ * growth * growth;
+  }
+
+ private:
+  const sim::Scene& scene_;
+  double nu_;
+  double laminar_energy_ = 0.0;
+};
+
+/// One health check into the result: the extremes over the checks, and the worst
+/// classification with its reason and time.
+void record_health(RunResult& r, const sim::HealthReport& report, double time, bool trace) {
+  if (trace)
+    std::fprintf(stderr,
+                 "%s | t=%.4g e_v=%.4g dev_max=%.4g dev_rms=%.4g paired=%.4g nn_min=%.3g %s\n",
+                 r.spec.label.c_str(), time, report.kinetic_energy, report.density.max,
+                 report.density.rms, report.pairing.paired_fraction, report.pairing.min_distance,
+                 std::string(sim::classification_name(report.classification)).c_str());
+  r.max_density_deviation = std::max(r.max_density_deviation, report.density.max);
+  r.max_rms_density_deviation = std::max(r.max_rms_density_deviation, report.density.rms);
+  r.max_paired_fraction = std::max(r.max_paired_fraction, report.pairing.paired_fraction);
+  r.min_neighbour_distance = std::min(r.min_neighbour_distance, report.pairing.min_distance);
+  if (report.classification > r.classification) {
+    r.classification = report.classification;
+    std::ostringstream reason;
+    reason << report.reason << " at t = " << time;
+    r.reason = reason.str();
+  }
+}
+
+/// A run that ended in a BlowUpError: blown up, where and when.
+void record_blow_up(RunResult& r, const sim::BlowUpError& e,
+                    const ExpectedEnergy& expected_energy) {
+  r.classification = sim::Classification::BlownUp;
+  std::ostringstream reason;
+  reason << "BlowUpError: " << e.quantity() << " = " << e.value() << " at t = " << e.time()
+         << " (particle id " << e.particle_id() << ")";
+  r.reason = reason.str();
+  r.time_reached = e.time();
+  r.steps = e.step();
+  if (e.quantity() == "kinetic energy") {  // the runaway value, not the last check's
+    r.final_energy = e.value();
+    const double expected = expected_energy(e.time());
+    r.energy_ratio = expected > 0.0 ? r.final_energy / expected : 0.0;
+  }
+}
+
+}  // namespace
+
+RunResult run_one(const RunSpec& spec, const RunOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  auto wall = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
+  RunResult r;
+  r.spec = spec;
+  json document = spec.scene;
+  const sim::Scene scene = scene::parse_scene(document);
+  read_parameters(r, scene);
+
+  sim::RunSetup setup = sim::setup_run(scene, {.packing_cache_dir = options.packing_cache_dir});
+  set_cfl(setup.solver.time_step, spec.cfl);
+  sim::HealthThresholds thresholds = options.thresholds;
+  const ExpectedEnergy expected_energy(scene);
+  if (scene.case_type == sim::CaseType::Kolmogorov2D)
+    thresholds.blow_up.reference_energy =
+        std::max(thresholds.blow_up.reference_energy, expected_energy.laminar_energy());
   setup.solver.blow_up = thresholds.blow_up;
   const sim::PeriodicBox box = setup.solver.box;
   const double spacing = setup.solver.particle_spacing;
   const double rho_ref = setup.solver.fluid.reference_density;
 
-  auto record = [&](const sim::HealthReport& report, double time) {
-    if (options.trace)
-      std::fprintf(stderr,
-                   "%s | t=%.4g e_v=%.4g dev_max=%.4g dev_rms=%.4g paired=%.4g nn_min=%.3g %s\n",
-                   spec.label.c_str(), time, report.kinetic_energy, report.density.max,
-                   report.density.rms, report.pairing.paired_fraction, report.pairing.min_distance,
-                   std::string(sim::classification_name(report.classification)).c_str());
-    r.max_density_deviation = std::max(r.max_density_deviation, report.density.max);
-    r.max_rms_density_deviation = std::max(r.max_rms_density_deviation, report.density.rms);
-    r.max_paired_fraction = std::max(r.max_paired_fraction, report.pairing.paired_fraction);
-    r.min_neighbour_distance = std::min(r.min_neighbour_distance, report.pairing.min_distance);
-    if (report.classification > r.classification) {
-      r.classification = report.classification;
-      std::ostringstream reason;
-      reason << report.reason << " at t = " << time;
-      r.reason = reason.str();
-    }
-  };
   r.min_neighbour_distance = std::numeric_limits<double>::infinity();
   try {
     auto simulation = sim::make_simulation(setup.solver, std::move(setup.particles));
@@ -209,9 +257,10 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
     const double reference = sim::runaway_reference_energy(
         r.initial_energy, scene.fluid.sound_speed, thresholds.blow_up);
     auto check = [&] {
-      record(sim::assess_health(simulation->particles(), *simulation->neighbour_list(), box,
-                                spacing, rho_ref, reference, thresholds),
-             simulation->time());
+      record_health(r,
+                    sim::assess_health(simulation->particles(), *simulation->neighbour_list(), box,
+                                       spacing, rho_ref, reference, thresholds),
+                    simulation->time(), options.trace);
       r.time_reached = simulation->time();
       r.steps = simulation->step_count();
       r.final_energy = simulation->diagnostics().kinetic_energy;
@@ -244,18 +293,7 @@ RunResult run_one(const RunSpec& spec, const RunOptions& options) {
     }
     check();
   } catch (const sim::BlowUpError& e) {
-    r.classification = sim::Classification::BlownUp;
-    std::ostringstream reason;
-    reason << "BlowUpError: " << e.quantity() << " = " << e.value() << " at t = " << e.time()
-           << " (particle id " << e.particle_id() << ")";
-    r.reason = reason.str();
-    r.time_reached = e.time();
-    r.steps = e.step();
-    if (e.quantity() == "kinetic energy") {  // the runaway value, not the last check's
-      r.final_energy = e.value();
-      const double expected = expected_energy(e.time());
-      r.energy_ratio = expected > 0.0 ? r.final_energy / expected : 0.0;
-    }
+    record_blow_up(r, e, expected_energy);
   }
   if (r.classification == sim::Classification::Stable && r.reason.empty())
     r.reason = "all checks within thresholds";

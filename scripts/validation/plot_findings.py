@@ -8,11 +8,12 @@ Reads RUNS/NAME/{timeseries.csv, stats/, spectra/, slices/, wall.json} for every
 exists (missing runs are left out of the figures and listed), writes
 DOCS/figures/validation_*.png and DOCS/validation_findings.csv (columns run, quantity, value,
 note): every number docs/validation.md quotes. Needs python3, numpy and matplotlib only.
+The runs and their files are read by findings_runs.py, the numbers taken by findings_numbers.py;
+this script draws the figures and writes the CSV.
 """
 
 import argparse
 import csv
-import json
 import math
 import os
 import sys
@@ -23,40 +24,12 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-REFERENCE = os.path.join(ROOT, "data", "reference", "tgv_re5000_incompact3d_1280_dairay2017.dat")
-T_SPEC = 14.0
-NU = 1e-4
+import findings_runs  # noqa: E402
+from findings_numbers import dns_numbers, print_table, read_kept_rows, tgv_numbers  # noqa: E402
+from findings_runs import (ROOT, TGV_RUNS, TVF_PAIRS, joint, joint_correlation,  # noqa: E402
+                           large_scale_energy, load_reference, load_run, read_csv, record, rows,
+                           slice_pair, spectrum, spectrum_row)
 
-# name: (label, N per side, kernel, D_K/Δl, model note)
-TGV_RUNS = {
-    "case8_n24": ("WC4 8Δl 24³", 24, "WC4", 8),
-    "case8_n32": ("WC4 8Δl 32³ (case 7/8)", 32, "WC4", 8),
-    "case8_n48": ("WC4 8Δl 48³", 48, "WC4", 8),
-    "case8_n48_t5": ("WC4 8Δl 48³ (to t = 5)", 48, "WC4", 8),
-    "case1_n24": ("QS 6Δl 24³", 24, "QS", 6),
-    "case1_n32": ("QS 6Δl 32³ (case 1)", 32, "QS", 6),
-    "case5_n32": ("WC4 4Δl 32³ (case 5)", 32, "WC4", 4),
-    "case6_n32": ("WC4 6Δl 32³ (case 6)", 32, "WC4", 6),
-    "case12_n32": ("SMAG 0.15 (case 12)", 32, "WC4", 8),
-    "case16_n32": ("SIGMA (case 16)", 32, "WC4", 8),
-    "case17_n32": ("SMAG-MCG (case 17)", 32, "WC4", 8),
-    "case18_n32": ("SMAG 0.075 (case 18)", 32, "WC4", 8),
-    "case19_n32": ("SMAG 0.3 (case 19)", 32, "WC4", 8),
-    "case20_n32": ("p_ref 68 (case 20)", 32, "WC4", 8),
-    "case21_n32": ("p_ref 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
-    # The transport-velocity scheme on the same cases (docs/validation.md): run_findings.py, TVF.
-    "tvf_case8_n32": ("TVF: WC4 8Δl 32³ (case 8)", 32, "WC4", 8),
-    "tvf_case1_n32": ("TVF: QS 6Δl 32³ (case 1)", 32, "QS", 6),
-    "tvf_case5_n32": ("TVF: WC4 4Δl 32³ (case 5)", 32, "WC4", 4),
-    "tvf_case12_n32": ("TVF: SMAG 0.15 (case 12)", 32, "WC4", 8),
-    "tvf_case20_n32": ("TVF: p_b 68 (case 20)", 32, "WC4", 8),
-    "tvf_case21_n32": ("TVF: p_b 68, v_z+π, c_s 16.5 (case 21)", 32, "WC4", 8),
-}
-# The TVF runs and their thesis-model counterparts (figure validation_tvf.png).
-TVF_PAIRS = [("case8_n32", "tvf_case8_n32"), ("case1_n32", "tvf_case1_n32"),
-             ("case5_n32", "tvf_case5_n32"), ("case12_n32", "tvf_case12_n32"),
-             ("case20_n32", "tvf_case20_n32"), ("case21_n32", "tvf_case21_n32")]
 GROUPS = [
     ("kernel, D_K/Δl and N", ["case8_n24", "case8_n32", "case8_n48", "case8_n48_t5", "case1_n24", "case1_n32",
                               "case5_n32", "case6_n32"]),
@@ -79,258 +52,6 @@ STYLE = {
     "tvf_case20_n32": dict(color="tab:brown", ls="-"),
     "tvf_case21_n32": dict(color="tab:pink", ls="--"),
 }
-
-rows = []  # (run, quantity, value, note)
-
-
-def record(run, quantity, value, note=""):
-    rows.append((run, quantity, value, note))
-    return value
-
-
-def read_csv(path):
-    """Columns of a CSV with a header as a dict of numpy arrays (non-numeric columns as str)."""
-    with open(path) as f:
-        reader = csv.reader(f)
-        header = next(reader)
-        data = [r for r in reader if r]
-    out = {}
-    for i, h in enumerate(header):
-        col = [r[i] if i < len(r) else "" for r in data]
-        try:
-            out[h] = np.array([float(x) if x not in ("", "nan") else np.nan for x in col])
-        except ValueError:
-            out[h] = np.array(col)
-    return out
-
-
-def tag(t):
-    return f"{t:.4f}"
-
-
-def load_reference():
-    if not os.path.exists(REFERENCE):
-        return None
-    d = np.loadtxt(REFERENCE, comments="#")
-    return {"t": d[:, 0], "e_v": d[:, 1], "eps": d[:, 2], "eps_nu": d[:, 3]}
-
-
-def load_run(runs_dir, name):
-    d = os.path.join(runs_dir, name)
-    ts_file = os.path.join(d, "timeseries.csv")
-    if not os.path.exists(ts_file):
-        return None
-    r = {"dir": d, "name": name, "ts": read_csv(ts_file)}
-    # e_v (5.3) of a run with a uniform velocity U added (case 21) holds the mean-flow energy
-    # ½|U|², constant because momentum is conserved to round-off (the TGV's own mean is zero by
-    # symmetry); subtract it so that e_v is the energy of the flow relative to the mean, the
-    # quantity that Galilean invariance says must match the run without U.
-    scene_file = os.path.join(d, "scene.json")
-    if os.path.exists(scene_file):
-        u = json.load(open(scene_file)).get("flow", {}).get("uniform_velocity", [])
-        mean_energy = 0.5 * sum(float(x) ** 2 for x in u)
-        if mean_energy > 0.0:
-            r["ts"]["e_v"] = r["ts"]["e_v"] - mean_energy
-            r["mean_flow_energy"] = mean_energy
-    wall = os.path.join(d, "wall.json")
-    r["wall"] = json.load(open(wall)) if os.path.exists(wall) else None
-    snap = os.path.join(d, "stats", "snapshots.csv")
-    r["snap"] = read_csv(snap) if os.path.exists(snap) else None
-    spec_index = os.path.join(d, "spectra", "index.csv")
-    r["spec_index"] = read_csv(spec_index) if os.path.exists(spec_index) else None
-    return r
-
-
-def value_at(t, y, t0):
-    """Linear interpolation of y at t0 (NaN outside the data)."""
-    if len(t) == 0 or t0 < t[0] - 1e-9 or t0 > t[-1] + 1e-9:
-        return math.nan
-    return float(np.interp(t0, t, y))
-
-
-def spectrum(run, t):
-    f = os.path.join(run["dir"], "spectra", f"E_t{tag(t)}.csv")
-    return read_csv(f) if os.path.exists(f) else None
-
-
-def spectrum_row(run, t):
-    si = run["spec_index"]
-    if si is None:
-        return None
-    i = np.where(np.abs(si["t"] - t) < 1e-6)[0]
-    return {k: si[k][i[0]] for k in si} if len(i) else None
-
-
-def smooth_dissipation(t, ev, window=1.0, step=0.1):
-    """-de_v/dt as the least-squares slope of e_v over a centred window (default 1.0), on a grid
-    of spacing `step`. The run's own column uses a trailing 0.2 window, which keeps the acoustic
-    oscillations of a coarse weakly compressible run; the wider window shows the trend."""
-    grid = np.arange(t[0] + window / 2, t[-1] - window / 2 + 1e-9, step)
-    out = np.full(len(grid), np.nan)
-    for i, tc in enumerate(grid):
-        m = np.abs(t - tc) <= window / 2
-        if m.sum() >= 3:
-            out[i] = -np.polyfit(t[m], ev[m], 1)[0]
-    return grid, out
-
-
-def local_maxima(t, y, lo, hi):
-    m = (t >= lo) & (t <= hi)
-    tt, yy = t[m], y[m]
-    return [(tt[i], yy[i]) for i in range(1, len(tt) - 1)
-            if yy[i] >= yy[i - 1] and yy[i] > yy[i + 1]]
-
-
-def tgv_numbers(run, ref):
-    name = run["name"]
-    ts = run["ts"]
-    t, ev, eps = ts["t"], ts["e_v"], ts["dissipation"]
-    t_end = float(t[-1])
-    if run["wall"]:
-        record(name, "wall_seconds", round(run["wall"]["wall_seconds"], 1),
-               f"sphles run, --threads {run['wall']['threads']}")
-        record(name, "exit_code", run["wall"]["exit_code"])
-    record(name, "t_end", round(t_end, 4))
-    record(name, "steps", int(ts["step"][-1]))
-    ev0 = float(ev[0])
-    record(name, "e_v(0)", ev0)
-    for tq in (5.0, 9.0, 14.0):
-        record(name, f"e_v({tq:g})", value_at(t, ev, tq))
-    record(name, "e_v(5)/e_v(0)", value_at(t, ev, 5.0) / ev0,
-           "laminar-phase energy kept")
-    record(name, "max_density_deviation_max", float(np.nanmax(ts["max_density_deviation"])))
-    record(name, "max_density_deviation(t=5)",
-           value_at(t, ts["max_density_deviation"], 5.0))
-    if t_end >= 3.0:
-        g, eg = smooth_dissipation(t, ev)
-        run["eps_smooth"] = (g, eg)
-        m = (g >= 3.0) & np.isfinite(eg)
-        if m.any():
-            i = np.argmax(np.where(m, eg, -np.inf))
-            record(name, "eps_peak", float(eg[i]), "max of -de_v/dt (1.0 centred window), t >= 3")
-            record(name, "t_eps_peak", float(g[i]))
-            late = local_maxima(g, eg, float(g[i]) + 1.0, 14.0)
-            if late:
-                tp, ep = max(late, key=lambda p: p[1])
-                record(name, "t_eps_second_peak", float(tp), "largest local max after t_peak + 1")
-                record(name, "eps_second_peak", float(ep))
-        record(name, "eps_smooth(14)", value_at(g[np.isfinite(eg)], eg[np.isfinite(eg)], T_SPEC),
-               "-de_v/dt, 1.0 centred window")
-        i0 = (g <= 3.0)
-        if i0.any():
-            record(name, "eps_early_max", float(np.nanmax(eg[i0])), "max of smoothed -de_v/dt, t <= 3")
-            record(name, "t_eps_early_max", float(g[i0][np.nanargmax(eg[i0])]))
-    # Decay law e_v ~ t^-a over [10, 15] (the thesis: a = 1.2 after the peak at t ≈ 9).
-    m = (t >= 10.0) & (t <= 15.0) & (ev > 0)
-    if m.sum() > 10 and t_end >= 14.9:
-        a = -np.polyfit(np.log(t[m]), np.log(ev[m]), 1)[0]
-        record(name, "decay_exponent", float(a), "fit e_v ~ t^-a over [10, 15]")
-    snap = run["snap"]
-    if snap is not None:
-        j = np.where(np.abs(snap["t"] - T_SPEC) < 1e-6)[0]
-        if len(j):
-            j = j[0]
-            record(name, "eps_vorticity(14)", float(snap["dissipation_vorticity"][j]),
-                   "nu <omega^2> on the grid")
-            record(name, "eps_spectral(14)", float(snap["dissipation_spectral"][j]),
-                   "2 nu sum k^2 E dk, all shells")
-            record(name, "eps_history(14)", value_at(t, eps, T_SPEC), "-de_v/dt")
-            record(name, "tau_sfs_mean(14)", float(snap["tau_sfs_mean"][j]))
-            record(name, "tau_sfs_max(14)", float(snap["tau_sfs_max"][j]))
-            record(name, "tau_sfs_mean/e_v(14)",
-                   float(snap["tau_sfs_mean"][j]) / value_at(t, ev, T_SPEC))
-        asec = snap["analysis_seconds"]
-        record(name, "analysis_seconds_total", round(float(np.nansum(asec)), 1))
-    sr0 = spectrum_row(run, 0.0)
-    if sr0 is not None:
-        kk, kr = float(sr0["k_kernel"]), float(sr0["k_resolution"])
-        record(name, "k_kernel", kk, "2π/D_K")
-        record(name, "k_resolution", kr, "π/Δl")
-        ls = large_scale_energy(run)
-        for tq in (0.0, 5.0, 9.0, T_SPEC):
-            i = np.where(np.abs(ls[:, 0] - tq) < 1e-6)[0] if ls is not None else []
-            if len(i):
-                record(name, f"energy_k<=2({tq:g})", float(ls[i[0], 1]),
-                       "energy of the TGV shell |k| = √3 and larger scales")
-        for tq in (0.0, 2.0, 5.0, 9.0, T_SPEC):
-            sq = spectrum(run, tq)
-            if sq is not None:
-                record(name, f"energy_fraction_k>k_kern({tq:g})",
-                       float(np.sum(sq["E"][sq["k"] > kk])) / float(np.sum(sq["E"])),
-                       "share of the gridded e_v below the kernel scale (noise)")
-                # k_SPH: where the kernel-scale noise overtakes the resolved signal, i.e. the
-                # minimum of E(k) between the large-scale peak (k <= max(k_kern/2, 2)) and k_res.
-                if tq >= 5.0:
-                    k, e = sq["k"], sq["E"]
-                    lo = (k > 0) & (k <= max(kk / 2, 2.0))
-                    kpeak = float(k[lo][np.argmax(e[lo])])
-                    m = (k >= kpeak) & (k <= kr)
-                    kmin = float(k[m][np.argmin(e[m])])
-                    record(name, f"k_SPH({tq:g})", kmin,
-                           "minimum of E(k) between the large-scale peak and k_res")
-                    record(name, f"k_SPH/k_kernel({tq:g})", kmin / kk)
-    sr = spectrum_row(run, T_SPEC)
-    sp = spectrum(run, T_SPEC)
-    if sr is not None and sp is not None:
-        k, e = sp["k"], sp["E"]
-        kk, kr = float(sr["k_kernel"]), float(sr["k_resolution"])
-        ik = np.argmin(np.abs(k - kk))
-        record(name, "E(k_kern)(14)", float(e[ik]), f"E at the shell k = {k[ik]:g}")
-        record(name, "E(k_kern)/E(2)(14)", float(e[ik] / e[np.argmin(np.abs(k - 2))]),
-               "kernel-scale energy relative to the TGV shell")
-        record(name, "eps_spectral_resolved(14)", float(sr["dissipation_spectral_resolved"]),
-               "2 nu sum k^2 E dk, k <= k_res")
-        # log-log slope of E over [2, k_kern] (inertial or deficit range at this N)
-        m2 = (k >= 2) & (k <= kk + 1e-9)
-        if m2.sum() >= 2:
-            record(name, "spectral_slope_[2,k_kern](14)",
-                   float(np.polyfit(np.log(k[m2]), np.log(e[m2]), 1)[0]))
-        m3 = (k >= kk) & (k <= kr + 1e-9)
-        if m3.sum() >= 2:
-            record(name, "spectral_slope_[k_kern,k_res](14)",
-                   float(np.polyfit(np.log(k[m3]), np.log(e[m3]), 1)[0]))
-    # Correlation of |τ_SFS| and ω² on the slice x = π at t = 14.
-    for tq in (5.0, T_SPEC):
-        sl = slice_pair(run, tq)
-        if sl is not None:
-            w2, tau = sl
-            record(name, f"slice_corr_tau_omega2({tq:g})",
-                   float(np.corrcoef(w2.ravel(), tau.ravel())[0, 1]), "Pearson, grid plane x = π")
-    for tq in (5.0, T_SPEC):
-        jt = joint(run, tq)
-        if jt is not None:
-            record(name, f"joint_corr_tau_omega2({tq:g})", joint_correlation(jt),
-                   "Pearson over particles, from the (τ*, ω²*) histogram bin centres")
-    if snap is not None:
-        for tq in (5.0,):
-            j = np.where(np.abs(snap["t"] - tq) < 1e-6)[0]
-            if len(j):
-                record(name, f"tau_sfs_mean/e_v({tq:g})",
-                       float(snap["tau_sfs_mean"][j[0]]) / value_at(t, ev, tq))
-
-
-def slice_pair(run, t):
-    d = os.path.join(run["dir"], "slices")
-    a, b = (os.path.join(d, f"{f}_t{tag(t)}.npy") for f in ("omega2", "tau_sfs"))
-    if not (os.path.exists(a) and os.path.exists(b)):
-        return None
-    return np.load(a), np.load(b)
-
-
-def joint(run, t):
-    f = os.path.join(run["dir"], "stats", f"joint_tau_omega2_t{tag(t)}.csv")
-    return read_csv(f) if os.path.exists(f) else None
-
-
-def joint_correlation(j):
-    x = 0.5 * (j["tau_lo"] + j["tau_hi"])
-    y = 0.5 * (j["omega2_lo"] + j["omega2_hi"])
-    w = j["count"]
-    mx, my = np.average(x, weights=w), np.average(y, weights=w)
-    cov = np.average((x - mx) * (y - my), weights=w)
-    return float(cov / math.sqrt(np.average((x - mx) ** 2, weights=w) *
-                                 np.average((y - my) ** 2, weights=w)))
-
 
 def save(fig, docs, name, colors=128):
     path = os.path.join(docs, "figures", name)
@@ -407,8 +128,8 @@ def plot_spectra(runs, docs):
         for n in names:
             if n not in runs:
                 continue
-            sp = spectrum(runs[n], T_SPEC)
-            sr = spectrum_row(runs[n], T_SPEC)
+            sp = spectrum(runs[n], findings_runs.T_SPEC)
+            sr = spectrum_row(runs[n], findings_runs.T_SPEC)
             if sp is None or sr is None:
                 continue
             st = STYLE[n]
@@ -422,26 +143,12 @@ def plot_spectra(runs, docs):
         ax.set_ylim(1e-6, 3)
         ax.set_xlabel("k L_c  (L_c = π)")
         ax.set_ylabel("E(k) / (e_v L_c)")
-        ax.set_title(f"E(k) at t = {T_SPEC:g}: {title}\nthin vertical lines: k_kern = 2π/D_K",
-                     fontsize=9)
+        ax.set_title(f"E(k) at t = {findings_runs.T_SPEC:g}: {title}\n"
+                     "thin vertical lines: k_kern = 2π/D_K", fontsize=9)
         ax.legend(fontsize=7)
         ax.grid(alpha=0.3, which="both")
     fig.tight_layout()
     save(fig, docs, "validation_spectra_t14.png")
-
-
-def large_scale_energy(run):
-    """Energy of the shells k <= 2 (the TGV's initial shell, |k| = √3, and larger scales) at every
-    spectrum time: the same scales at every N."""
-    si = run["spec_index"]
-    if si is None:
-        return None
-    out = []
-    for tq, kk in zip(si["t"], si["k_kernel"]):
-        sp = spectrum(run, float(tq))
-        if sp is not None:
-            out.append((float(tq), float(np.sum(sp["E"][sp["k"] <= 2 + 1e-9]))))
-    return np.array(out) if out else None
 
 
 def plot_spectra_time(runs, ref, docs):
@@ -490,7 +197,7 @@ def plot_slices(runs, docs):
                          "case12_n32") if n in runs and slice_pair(runs[n], 5.0) is not None]
     if not names:
         return
-    times = (5.0, T_SPEC)
+    times = (5.0, findings_runs.T_SPEC)
     fig, axes = plt.subplots(4, len(names), figsize=(2.2 * len(names), 8.8), squeeze=False)
     for c, n in enumerate(names):
         for b, tq in enumerate(times):
@@ -519,7 +226,7 @@ def plot_joint(runs, docs):
         return
     fig, axes = plt.subplots(2, len(names), figsize=(3.0 * len(names), 6.0), squeeze=False)
     for c, n in enumerate(names):
-        for r, tq in enumerate((5.0, T_SPEC)):
+        for r, tq in enumerate((5.0, findings_runs.T_SPEC)):
             ax = axes[r, c]
             j = joint(runs[n], tq)
             if j is None:
@@ -629,21 +336,6 @@ def kolmogorov(runs_dir, docs):
     save(fig, docs, "validation_kolmogorov.png")
 
 
-TABLE = [("wall [s]", "wall_seconds", "{:.0f}"), ("steps", "steps", "{:d}"),
-         ("t reached", "t_end", "{:g}"),
-         ("e_v(5)/e_v(0)", "e_v(5)/e_v(0)", "{:.3f}"), ("e_v(14)", "e_v(14)", "{:.4f}"),
-         ("E(k<=2) at 5 / 9 / 14", ("energy_k<=2(5)", "energy_k<=2(9)", "energy_k<=2(14)"),
-          "{:.4f}"),
-         ("noise share k>k_kern at 5 / 14", ("energy_fraction_k>k_kern(5)",
-                                             "energy_fraction_k>k_kern(14)"), "{:.2f}"),
-         ("t of max ε (t>=3)", "t_eps_peak", "{:.1f}"), ("max ε (t>=3)", "eps_peak", "{:.4f}"),
-         ("k_SPH / k_kern at 5 / 14", ("k_SPH/k_kernel(5)", "k_SPH/k_kernel(14)"), "{:.2f}"),
-         ("max ρ dev", "max_density_deviation_max", "{:.3f}"),
-         ("r(τ,ω²) slice 5 / 14", ("slice_corr_tau_omega2(5)", "slice_corr_tau_omega2(14)"),
-          "{:.2f}"),
-         ("⟨τ⟩/e_v at 5 / 14", ("tau_sfs_mean/e_v(5)", "tau_sfs_mean/e_v(14)"), "{:.2f}")]
-
-
 def plot_tvf(runs, ref, docs):
     """e_v(t) and the smoothed ε(t) of the TVF runs against the DNS (the thesis-model
     counterparts too when their run directories are present)."""
@@ -674,70 +366,21 @@ def plot_tvf(runs, ref, docs):
     save(fig, docs, "validation_tvf.png")
 
 
-def read_kept_rows(path, loaded):
-    """The rows of an earlier validation_findings.csv whose run is not among `loaded` (--merge)."""
-    kept = []
-    if not os.path.exists(path):
-        return kept
-    with open(path, newline="") as f:
-        for run, quantity, value, note in list(csv.reader(f))[1:]:
-            if run in loaded or run == "campaign":
-                continue
-            try:
-                value = float(value)
-            except ValueError:
-                pass
-            kept.append((run, quantity, value, note))
-    return kept
-
-
-def print_table(runs):
-    """The per-run numbers of the CSV as a markdown table (pasted into docs/validation.md)."""
-    look = {(r, q): v for r, q, v, _ in rows}
-
-    def fmt(run, key, f):
-        keys = key if isinstance(key, tuple) else (key,)
-        out = []
-        for k in keys:
-            v = look.get((run, k))
-            out.append("–" if v is None or (isinstance(v, float) and math.isnan(v))
-                       else f.format(int(v) if "d" in f else v))
-        return " / ".join(out)
-
-    print("| run | " + " | ".join(h for h, _, _ in TABLE) + " |")
-    print("|---" * (len(TABLE) + 1) + "|")
-    recorded = {r for r, _, _, _ in rows}
-    for n in list(TGV_RUNS) + ["dns_re5000"]:
-        if n in runs or n in recorded:
-            label = TGV_RUNS[n][0] if n in TGV_RUNS else "DNS Re 5000"
-            print(f"| {label} | " + " | ".join(fmt(n, k, f) for _, k, f in TABLE) + " |")
-
-
 def main():
-    global T_SPEC
     p = argparse.ArgumentParser()
     p.add_argument("--runs", default=os.path.join(ROOT, "runs", "validation"))
     p.add_argument("--docs", default=os.path.join(ROOT, "docs"))
-    p.add_argument("--t-spectra", type=float, default=T_SPEC,
+    p.add_argument("--t-spectra", type=float, default=findings_runs.T_SPEC,
                    help="time of spectra, slices and statistics (14; smaller only for tests)")
     p.add_argument("--merge", action="store_true",
                    help="keep the CSV rows of runs not found in --runs and write only the figures "
                         "that need none of the missing runs (validation_tvf.png)")
     a = p.parse_args()
-    T_SPEC = a.t_spectra
+    findings_runs.T_SPEC = a.t_spectra
     os.makedirs(os.path.join(a.docs, "figures"), exist_ok=True)
     ref = load_reference()
     if ref is not None:
-        i = np.argmax(ref["eps"])
-        record("dns_re5000", "eps_peak", float(ref["eps"][i]), "Dairay et al. 2017, 1280³")
-        record("dns_re5000", "t_eps_peak", float(ref["t"][i]))
-        for tq in (5.0, 9.0, 14.0):
-            record("dns_re5000", f"e_v({tq:g})", value_at(ref["t"], ref["e_v"], tq))
-        record("dns_re5000", "e_v(5)/e_v(0)", value_at(ref["t"], ref["e_v"], 5.0) / ref["e_v"][0])
-        m = (ref["t"] >= 10.0) & (ref["t"] <= 15.0)
-        record("dns_re5000", "decay_exponent",
-               float(-np.polyfit(np.log(ref["t"][m]), np.log(ref["e_v"][m]), 1)[0]),
-               "fit e_v ~ t^-a over [10, 15]")
+        dns_numbers(ref)
     runs = {}
     for n in TGV_RUNS:
         r = load_run(a.runs, n)
