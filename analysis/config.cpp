@@ -80,6 +80,8 @@ AnalysisConfig parse_analysis_config(const json* section) {
     std::vector<std::string> fields;
     r.strings("grid_fields", fields);
     if (r.find("grid_fields")) {
+      if (fields.empty())
+        throw_scene_error("analysis.grid_fields", "is empty: it names at least one field");
       c.grid_velocity = false;
       c.grid_fields.clear();
       for (std::size_t k = 0; k < fields.size(); ++k) {
@@ -181,9 +183,6 @@ RunConfig parse_run_config(const json& document) {
       config.analysis.grid_fields.contains(SliceField::EddyViscosity))
     throw_scene_error("analysis.grid_fields",
                       "asks for nu_t, but 'subfilter.model' is implicit (no eddy viscosity)");
-  if (config.analysis.wants(Product::Fields) && !config.analysis.grid_velocity &&
-      config.analysis.grid_fields.empty())
-    throw_scene_error("analysis.grid_fields", "is empty, but the product 'fields' is on");
   // The local fits of the mls estimate reach R = fit_radius H around a point; the periodic box
   // must hold the fit's ball once: 2 R <= L, i.e. fit_radius D_K <= particles_per_side.
   const AnalysisConfig& a = config.analysis;

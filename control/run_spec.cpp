@@ -1,8 +1,7 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Scene documents of a run: the sections of every module read into one RunSpec, validated
-// against the scene schema, and written back in full.
+// Scene documents of a run: the sections of every module read into one RunSpec by their readers,
+// which apply the scene schema, and written back in full.
 #include "control/run.hpp"
-#include "control/scene_schema.hpp"
 #include "render/config.hpp"
 #include "scene/json_reader.hpp"
 
@@ -28,10 +27,9 @@ RunSpec parse_run_spec(const json& document) {
   spec.analysis = std::move(run.analysis);
   spec.render = render::parse_render_config(has_render ? &render_section : nullptr, spec.analysis);
   spec.reference = spectral::parse_reference_config(document);
-  // The readers apply the schema's keys, types and bounds with their own messages; the whole
-  // schema (every keyword, by valijson) is the last word.
-  if (const std::optional<SchemaViolation> violation = first_schema_violation(document))
-    sim::throw_scene_error(violation->field, violation->reason);
+  // The readers are the document's one validation: every key, type, bound, name and array rule
+  // of the schema, with their own messages (SceneSchema.TheReadersEnforceEveryKeywordOfTheSchema
+  // walks the schema to check it).
   return spec;
 }
 

@@ -172,6 +172,98 @@ TEST(SceneSchema, ReadersAndValidatorRefuseTheSameDocumentsNamingTheField) {
             "scene: unknown key 'kernel.typ'; did you mean 'kernel.type'?");
 }
 
+/// `document` with `value` at the dotted `field` (objects made on the way).
+json with_value(json document, const std::string& field, const json& value) {
+  json* node = &document;
+  std::size_t start = 0;
+  for (std::size_t end = field.find('.'); end != std::string::npos;
+       start = end + 1, end = field.find('.', start))
+    node = &(*node)[field.substr(start, end - start)];
+  (*node)[field.substr(start)] = value;
+  return document;
+}
+
+/// Calls f(dotted field, schema node) for every object and every key the schema declares.
+template <class F>
+void for_each_schema_node(const json& node, const std::string& field, F&& f) {
+  f(field, node);
+  if (const auto properties = node.find("properties"); properties != node.end())
+    for (const auto& [key, child] : properties->items())
+      for_each_schema_node(child, field.empty() ? key : field + "." + key, f);
+}
+
+TEST(SceneSchema, TheReadersEnforceEveryKeywordOfTheSchema) {
+  // parse_run_spec's readers are the scene's one validation: every object of the schema refuses
+  // an unknown key, every key a value of another type, every bound, enum and array rule, each
+  // naming the field (or, for an unknown key or an array item, the field inside it).
+  std::size_t checked = 0;
+  for_each_schema_node(
+      control::scene_schema(), "", [&](const std::string& field, const json& node) {
+        // The forcing applies to the Kolmogorov case only; the reference needs nothing else.
+        const json base =
+            field.rfind("forcing", 0) == 0 ? json{{"case", "kolmogorov2d"}} : json::object();
+        std::vector<json> bad;
+        const json kind = node.value("type", json(""));
+        const std::string type =
+            kind.is_array() ? kind.at(0).get<std::string>() : kind.get<std::string>();
+        if (type == "object" && node.contains("additionalProperties") &&
+            node["additionalProperties"] == false)
+          bad.push_back(field.empty() ? json{{"zz_unknown", 1}}
+                                      : with_value(base, field + ".zz_unknown", 1));
+        if (field.empty() || type == "object") {
+          checked += bad.size();
+          for (const json& document : bad)
+            EXPECT_NE(parse_error(document).find("zz_unknown"), std::string::npos)
+                << document.dump() << ": " << parse_error(document);
+          return;
+        }
+        if (type == "number" || type == "integer") {
+          bad.push_back(with_value(base, field, "text"));
+          if (node.contains("minimum"))
+            bad.push_back(with_value(base, field, node["minimum"].get<double>() - 1.0));
+          if (node.contains("exclusiveMinimum"))
+            bad.push_back(with_value(base, field, node["exclusiveMinimum"]));
+          if (node.contains("maximum"))
+            bad.push_back(with_value(base, field, node["maximum"].get<double>() + 1.0));
+          if (node.contains("exclusiveMaximum"))
+            bad.push_back(with_value(base, field, node["exclusiveMaximum"]));
+          if (node.contains("multipleOf"))
+            bad.push_back(with_value(base, field, node["multipleOf"].get<int>() * 8 + 1));
+          if (type == "integer") bad.push_back(with_value(base, field, 2.5));
+        } else if (type == "boolean") {
+          bad.push_back(with_value(base, field, "yes"));
+        } else if (type == "string") {
+          bad.push_back(with_value(base, field, 1));
+          if (node.contains("enum")) bad.push_back(with_value(base, field, "zz_not_a_name"));
+        } else if (type == "array") {
+          bad.push_back(with_value(base, field, "text"));
+          if (node.contains("minItems") && node["minItems"].get<int>() > 0)
+            bad.push_back(with_value(base, field, json::array()));
+          if (const auto items = node.find("items"); items != node.end())
+            bad.push_back(with_value(
+                base, field, {items->value("type", "") == "string" ? json(1) : json("text")}));
+          if (const auto items = node.find("items"); items != node.end() && items->contains("enum"))
+            bad.push_back(with_value(base, field, {"zz_not_a_name"}));
+          if (node.value("uniqueItems", false))
+            bad.push_back(with_value(
+                base, field, {(*node.find("items"))["enum"][0], (*node.find("items"))["enum"][0]}));
+        }
+        for (const json& document : bad) {
+          ++checked;
+          std::string error, named;
+          try {
+            control::parse_run_spec(document);
+          } catch (const sim::SceneError& e) {
+            error = e.what();
+            named = e.field();
+          }
+          EXPECT_TRUE(named.rfind(field, 0) == 0 || error.find("'" + field) != std::string::npos)
+              << document.dump() << ": " << (error.empty() ? "accepted" : error);
+        }
+      });
+  EXPECT_GT(checked, 150u);
+}
+
 TEST(SceneSchema, RegistryNamesArePublishedAsEnumsAndEachIsAccepted) {
   const json& schema = control::scene_schema();
   const json& kernels = schema["properties"]["kernel"]["properties"]["type"]["enum"];
