@@ -93,7 +93,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
                                               ? checkpoint_file / "checkpoints"
                                               : checkpoint_file;
         std::vector<std::string> rejected;
-        // Under mpirun the ranks read and validate the particles (Driver::restore_file).
+        // Under mpirun the ranks read and validate the particles (the factories' restore_file).
         checkpoint_file = io::newest_valid_checkpoint(
             dir, &rejected, driver ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole);
         for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
