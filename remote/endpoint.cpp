@@ -13,8 +13,12 @@ namespace {
 
 using Held = Endpoint::Held;
 
-sim::Scene scene_of(const std::string& json) {
-  return scene::parse_scene(nlohmann::json::parse(json));
+const sim::Scene& scene_of(Held& h, const std::string& json) {
+  if (json != h.scene_json || h.scene_json.empty()) {
+    h.scene = scene::parse_scene(nlohmann::json::parse(json));
+    h.scene_json = json;
+  }
+  return h.scene;
 }
 
 /// Takes `fresh` as the solver (the new one first, then the old one goes) and asks once what it
@@ -40,7 +44,7 @@ Reply on(Held&, Finish&) {
 }
 
 Reply on(Held& h, Make& r) {
-  hold(h, h.solvers.make(scene_of(r.scene), std::move(r.particles)));
+  hold(h, h.solvers.make(scene_of(h, r.scene), std::move(r.particles)));
   return status(h);
 }
 
@@ -50,26 +54,26 @@ Reply on(Held& h, SetUp& r) {
   options.packing_cache_dir = r.packing_cache_dir;
   options.cancelled = r.cancelled;
   sim::PackingReport report;
-  hold(h, h.solvers.set_up(scene_of(r.scene), options, report));
+  hold(h, h.solvers.set_up(scene_of(h, r.scene), options, report));
   return SetUpStatus{status(h), report};
 }
 
 Reply on(Held& h, Restore& r) {
-  hold(h, h.solvers.restore(scene_of(r.scene), std::move(r.state)));
+  hold(h, h.solvers.restore(scene_of(h, r.scene), std::move(r.state)));
   return status(h);
 }
 
 Reply on(Held& h, RestoreFile& r) {
   if (!h.solvers.restore_file)
     throw std::invalid_argument("the solvers here do not read checkpoint files");
-  hold(h, h.solvers.restore_file(scene_of(r.scene), r.file));
+  hold(h, h.solvers.restore_file(scene_of(h, r.scene), r.file));
   return status(h);
 }
 
 Reply on(Held& h, Change& r) {
   sim::Simulation& current = solver(h, "a change");
   if (!h.solvers.change) throw std::invalid_argument("the solvers here do not change in place");
-  hold(h, h.solvers.change(current, scene_of(r.scene)));
+  hold(h, h.solvers.change(current, scene_of(h, r.scene)));
   return status(h);
 }
 
@@ -83,7 +87,7 @@ Reply on(Held& h, State&) {
 }
 
 Reply on(Held& h, CaseDiagnostics& r) {
-  return solver(h, "case diagnostics").case_diagnostics(scene_of(r.scene));
+  return solver(h, "case diagnostics").case_diagnostics(scene_of(h, r.scene));
 }
 
 Reply on(Held& h, Spectrum& r) {

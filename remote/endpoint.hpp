@@ -6,8 +6,10 @@
 #pragma once
 
 #include <memory>
+#include <string>
 
 #include "remote/messages.hpp"
+#include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "sim/solver_factories.hpp"
 
@@ -30,6 +32,10 @@ class Endpoint {
     std::unique_ptr<sim::Simulation> simulation;
     const analysis::DistributedProducts* products = nullptr;  // null: it does not
     const io::DistributedCheckpoints* checkpoints = nullptr;
+    // The last scene document parsed and its scene: case diagnostics carry the same scene with
+    // every time-series row, which is parsed once, not per row.
+    std::string scene_json;
+    sim::Scene scene;
   };
 
  private:
