@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -133,13 +134,16 @@ TEST(ResourceEstimate, MemoryIsWithinAFactorOfTheMeasuredPeakRss) {
                         {"kernel", {{"diameter_over_spacing", 4}}},
                         {"packing", {{"enabled", false}}},
                         {"time", {{"end", 0.01}}}};
-  const double baseline = peak_rss_of_run(
-      [&] {
-        auto a = set_arguments(trivial);
-        a.insert(a.begin(), "tgv2d");
-        return a;
-      }(),
-      dir / "trivial");
+  // The trivial run's own peak moves by a few MiB from run to run (glibc's per-thread arenas,
+  // heap trimming): one CI run measured its peak 3.2 MiB above that of the 2D 32² run. The
+  // least of three is the floor the cases are measured above.
+  double baseline = 0.0;
+  for (int k = 0; k < 3; ++k) {
+    std::vector<std::string> a = set_arguments(trivial);
+    a.insert(a.begin(), "tgv2d");
+    const double peak = peak_rss_of_run(a, dir / ("trivial" + std::to_string(k)));
+    baseline = k == 0 ? peak : std::min(baseline, peak);
+  }
   for (std::size_t k = 0; k < cases.size(); ++k) {
     const Case& c = cases[k];
     std::vector<std::string> arguments = set_arguments(c.document);
