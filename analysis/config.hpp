@@ -109,10 +109,12 @@ struct AnalysisConfig {
 AnalysisConfig parse_analysis_config(const nlohmann::json* section);
 nlohmann::json analysis_config_to_json(const AnalysisConfig& config);
 
-/// A whole scene file: the solver's part (scene::parse_scene) plus the analysis section.
+/// A whole scene file but its render and reference sections: the solver's part and when the run
+/// writes (scene::parse_scene_and_policy), and the analysis section.
 struct RunConfig {
   sim::Scene scene;
   AnalysisConfig analysis;
+  scene::RunPolicy policy;  // "output", "checkpoint"
 };
 
 RunConfig parse_run_config(const nlohmann::json& document);

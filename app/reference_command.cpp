@@ -135,8 +135,8 @@ int run_reference_until_stopped(const control::RunSpec& spec, const nlohmann::js
     // Rank 0 renders the frames; the other ranks step their slabs.
     const spectral::ReferenceRunResult r =
         root ? control::run_rendered_reference(spec, document, run_options)
-             : spectral::run_reference(spec.scene, spec.analysis, spec.reference, document,
-                                       run_options);
+             : spectral::run_reference(spec.scene, spec.analysis, spec.policy, spec.reference,
+                                       document, run_options);
     if (r.stopped) {
       if (root)
         std::fprintf(stderr, "sphles reference: stopped at t = %.6g; continue with --restart %s\n",

@@ -112,8 +112,8 @@ spectral::ReferenceRunResult run_rendered_reference(const RunSpec& spec, const j
     if (options.on_frame) options.on_frame(frame);
     sink.post(std::move(frame));
   };
-  const spectral::ReferenceRunResult result =
-      spectral::run_reference(spec.scene, spec.analysis, spec.reference, document, rendered);
+  const spectral::ReferenceRunResult result = spectral::run_reference(
+      spec.scene, spec.analysis, spec.policy, spec.reference, document, rendered);
   sink.close(true);
   if (!sink.error().empty()) throw std::runtime_error("rendering: " + sink.error());
   return result;

@@ -339,7 +339,8 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   e.memory_bytes = total(e.memory);
   if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, n, run_parts, setup_parts);
   e.checkpoint_disk_bytes =
-      e.checkpoint_file_bytes * (s.checkpoint.enabled() ? s.checkpoint.keep + 1.0 : 1.0);
+      e.checkpoint_file_bytes *
+      (spec.policy.checkpoint.enabled() ? spec.policy.checkpoint.keep + 1.0 : 1.0);
 
   e.time_step = sim::estimate_initial_time_step(s);
   e.steps = std::ceil(s.end_time / e.time_step.step());

@@ -14,12 +14,12 @@
 #include "analysis/timeseries.hpp"
 #include "analysis/writer.hpp"
 #include "control/live_changes.hpp"
+#include "control/progress.hpp"
 #include "control/render_sink.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/run_log.hpp"
 
 namespace sphles::control {
 
@@ -215,7 +215,7 @@ class RunImpl::Loop {
     if (const bool row = rows_.take(d.time); row || !rows_.active()) record(d);
     if (snapshots_.take(d.time)) publish_snapshot();
     bool checkpoint_due = checkpoints_.take(d.time);
-    const double every_seconds = current_.scene.checkpoint.every_seconds;
+    const double every_seconds = current_.policy.checkpoint.every_seconds;
     if (every_seconds > 0.0 && seconds_since(last_checkpoint_wall_) >= every_seconds)
       checkpoint_due = true;
     if (checkpoint_due) save_checkpoint();
@@ -287,11 +287,11 @@ class RunImpl::Loop {
   /// checkpoints at their cadences in simulated time, from now; a new progress reporter.
   void reset_cadences() {
     const auto cadence = [&](double every) { return sim::Cadence(every, simulation_->time()); };
-    rows_ = cadence(current_.scene.output.timeseries_every);
+    rows_ = cadence(current_.policy.output.timeseries_every);
     snapshots_ = cadence(pipeline_ ? current_.analysis.every : 0.0);
-    checkpoints_ = cadence(current_.scene.checkpoint.every);
-    progress_ = std::make_unique<sim::ProgressReporter>(
-        current_.scene.end_time, current_.scene.output.progress_every_seconds);
+    checkpoints_ = cadence(current_.policy.checkpoint.every);
+    progress_ = std::make_unique<ProgressReporter>(current_.scene.end_time,
+                                                   current_.policy.output.progress_every_seconds);
   }
 
   /// Every output goes to the run directory: if it is deleted or replaced while the run goes
@@ -365,7 +365,7 @@ class RunImpl::Loop {
     const io::CheckpointMetadata metadata{run_spec_to_json(current_).dump(), SPHLES_VERSION,
                                           packing_};
     const auto file = checkpoint_dir_ / io::checkpoint_file_name(simulation_->step_count());
-    const io::CheckpointWriteOptions options{.gzip_level = current_.scene.checkpoint.compression};
+    const io::CheckpointWriteOptions options{.gzip_level = current_.policy.checkpoint.compression};
     if (ranks_checkpoints_) {
       // A distributed solver's ranks write their own particles; none is gathered.
       ranks_checkpoints_->write_checkpoint(file, metadata, options);
@@ -377,8 +377,8 @@ class RunImpl::Loop {
       io::write_checkpoint_xdmf(file, state);
     }
     const auto files = io::list_checkpoints(checkpoint_dir_);
-    for (std::size_t k = static_cast<std::size_t>(current_.scene.checkpoint.keep); k < files.size();
-         ++k) {
+    for (std::size_t k = static_cast<std::size_t>(current_.policy.checkpoint.keep);
+         k < files.size(); ++k) {
       std::filesystem::remove(files[k]);
       std::filesystem::remove(io::checkpoint_xdmf_path(files[k]));
     }
@@ -487,7 +487,7 @@ class RunImpl::Loop {
   Clock::time_point last_checkpoint_wall_ = Clock::now();
   std::uint64_t last_checkpoint_step_ = std::numeric_limits<std::uint64_t>::max();
   sim::Cadence rows_{0.0, 0.0}, snapshots_{0.0, 0.0}, checkpoints_{0.0, 0.0};  // reset_cadences
-  std::unique_ptr<sim::ProgressReporter> progress_;
+  std::unique_ptr<ProgressReporter> progress_;
   Clock::time_point rate_wall_ = Clock::now();
   std::uint64_t rate_step_ = 0;
   bool stopped_ = false;

@@ -24,6 +24,7 @@ RunSpec parse_run_spec(const json& document) {
   RunSpec spec;
   analysis::RunConfig run = analysis::parse_run_config(rest);
   spec.scene = std::move(run.scene);
+  spec.policy = run.policy;
   spec.analysis = std::move(run.analysis);
   spec.render = render::parse_render_config(has_render ? &render_section : nullptr, spec.analysis);
   spec.reference = spectral::parse_reference_config(document);
@@ -34,7 +35,7 @@ RunSpec parse_run_spec(const json& document) {
 }
 
 json run_spec_to_json(const RunSpec& spec) {
-  json j = analysis::run_config_to_json({spec.scene, spec.analysis});
+  json j = analysis::run_config_to_json({spec.scene, spec.analysis, spec.policy});
   j["render"] = render::render_config_to_json(spec.render);
   j["reference"] = spectral::reference_config_to_json(spec.reference);
   return j;

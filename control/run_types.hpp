@@ -25,6 +25,7 @@
 #include "analysis/config.hpp"
 #include "analysis/products.hpp"
 #include "render/config.hpp"
+#include "scene/run_policy.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
 #include "sim/solver_factories.hpp"
@@ -35,6 +36,7 @@ namespace sphles::control {
 /// A scene document parsed in full: solver, analysis and render sections.
 struct RunSpec {
   sim::Scene scene;                   // the solver's sections (scene/document.hpp)
+  scene::RunPolicy policy;            // "output", "checkpoint": when the run writes
   analysis::AnalysisConfig analysis;  // "analysis"
   render::RenderConfig render;
   spectral::ReferenceConfig reference;  // the case's spectral reference (sphles reference)

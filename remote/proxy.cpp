@@ -5,9 +5,9 @@
 #include <string>
 #include <utility>
 
+#include "remote/state_view.hpp"
 #include "scene/document.hpp"
 #include "sim/initial_conditions.hpp"
-#include "sim/state_view.hpp"
 
 namespace sphles::remote {
 
@@ -98,7 +98,7 @@ class RemoteSimulation final : public sim::Simulation,
   std::uint64_t generation_;
   sim::SolverConfig config_;
   SolverStatus status_;
-  sim::StateView view_{config_};
+  StateView view_{config_};
 };
 
 /// A solver made by `request` across `transport`: the generation is taken once the solver's

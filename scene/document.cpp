@@ -143,8 +143,8 @@ void section(IO& top, const std::string& key, Keys keys) {
 
 /// Every key of the scene below "case" and "preset", in document order; keys of one case only
 /// are refused (reading) or left out (writing) for the others.
-template <class IO, class S>
-void scene_keys(IO& top, S& s) {
+template <class IO, class S, class P>
+void scene_keys(IO& top, S& s, P& policy) {
   const bool kolmogorov = s.case_type == CaseType::Kolmogorov2D;
   top.string("name", s.name);
   top.integer("particles_per_side", s.particles_per_side);
@@ -167,8 +167,8 @@ void scene_keys(IO& top, S& s) {
   section(top, "neighbours", [&](IO& io) { neighbours_keys(io, s); });
   section(top, "packing", [&](IO& io) { packing_keys(io, s.packing); });
   section(top, "initial", [&](IO& io) { initial_keys(io, s.initial); });
-  section(top, "checkpoint", [&](IO& io) { checkpoint_keys(io, s.checkpoint); });
-  section(top, "output", [&](IO& io) { output_keys(io, s.output); });
+  section(top, "checkpoint", [&](IO& io) { checkpoint_keys(io, policy.checkpoint); });
+  section(top, "output", [&](IO& io) { output_keys(io, policy.output); });
 }
 
 /// A scheme parameter other than its default is refused by the schemes that do not take it
@@ -186,7 +186,7 @@ void check_scheme(const SchemeConfig& c) {
 
 }  // namespace
 
-Scene parse_scene(const json& input) {
+SceneAndPolicy parse_scene_and_policy(const json& input) {
   if (!input.is_object())
     throw_scene_error("(top level)", "must be an object, got " + describe_type(input));
   // A preset is the base document; the scene's own keys patch it.
@@ -208,11 +208,18 @@ Scene parse_scene(const json& input) {
   s.preset = preset;
   if (!preset.empty()) s.name = preset;
   top.find("preset");
-  scene_keys(top, s);
+  RunPolicy policy;
+  scene_keys(top, s, policy);
   top.reject_unknown();
   check_scheme(s.scheme);
   sim::check_scene(s);
-  return s;
+  sim::check_cadence(s, "output.timeseries_every", policy.output.timeseries_every);
+  sim::check_cadence(s, "checkpoint.every", policy.checkpoint.every);
+  return {std::move(s), policy};
+}
+
+Scene parse_scene(const json& document) {
+  return parse_scene_and_policy(document).scene;
 }
 
 json read_scene_file(const std::filesystem::path& path) {
@@ -250,12 +257,12 @@ void apply_override(json& document, const std::string& assignment) {
   }
 }
 
-json scene_to_json(const Scene& s) {
+json scene_to_json(const Scene& s, const RunPolicy& policy) {
   json j = json::object();
   ObjectWriter top(j);
   if (!s.preset.empty()) top.string("preset", s.preset);
   top.choice("case", kCaseNames, s.case_type);
-  scene_keys(top, s);
+  scene_keys(top, s, policy);
   return j;
 }
 

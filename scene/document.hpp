@@ -10,12 +10,21 @@
 
 #include <nlohmann/json.hpp>
 
+#include "scene/run_policy.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::scene {
 
+/// A scene read in full: the solver's sections and when the run writes.
+struct SceneAndPolicy {
+  sim::Scene scene;
+  RunPolicy policy;
+};
+
 /// Parses and validates a scene; throws sim::SceneError. A "preset" key starts from that preset's
 /// document (scene/presets.hpp), and the other keys override it (JSON merge patch).
+SceneAndPolicy parse_scene_and_policy(const nlohmann::json& document);
+/// The same checks; the run policy is validated and left out (a solver's own reader).
 sim::Scene parse_scene(const nlohmann::json& document);
 
 /// Reads a JSON file; throws sim::SceneError naming the file on I/O or syntax errors.
@@ -26,6 +35,6 @@ nlohmann::json read_scene_file(const std::filesystem::path& path);
 void apply_override(nlohmann::json& document, const std::string& assignment);
 
 /// The complete scene with every default filled in (written next to each run's output).
-nlohmann::json scene_to_json(const sim::Scene& scene);
+nlohmann::json scene_to_json(const sim::Scene& scene, const RunPolicy& policy = {});
 
 }  // namespace sphles::scene

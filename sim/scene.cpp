@@ -141,8 +141,6 @@ void check_scene(const Scene& s) {
             " m with 'particles_per_side' = " + std::to_string(s.particles_per_side) + ")");
   }
   check_time_resolution(s);
-  check_cadence(s, "output.timeseries_every", s.output.timeseries_every);
-  check_cadence(s, "checkpoint.every", s.checkpoint.every);
 }
 
 TimeStepEstimate estimate_initial_time_step(const Scene& s) {

@@ -97,21 +97,6 @@ struct KolmogorovForcing {
   double friction = 0.7;   // μ [1/s]
 };
 
-/// Checkpoints (docs/checkpoints.md): at a cadence in simulated and/or wall time, keeping the
-/// newest `keep` files.
-struct CheckpointConfig {
-  double every = 0.0;          // simulated time between checkpoints [s]; 0 = none by sim time
-  double every_seconds = 0.0;  // wall time between checkpoints [s]; 0 = none by wall time
-  int keep = 3;                // newest files kept
-  int compression = 0;         // gzip level 0-9 (0 = none)
-  bool enabled() const { return every > 0.0 || every_seconds > 0.0; }
-};
-
-struct OutputConfig {
-  double timeseries_every = 0.0;        // simulated time between rows; 0 writes every step
-  double progress_every_seconds = 1.0;  // wall time between progress lines
-};
-
 struct Scene {
   std::string name;
   std::string preset;  // preset the scene was built from, empty if none
@@ -132,8 +117,6 @@ struct Scene {
   double neighbour_skin = 0.15;  // fraction of H
   PackingConfig packing;
   InitialConfig initial;
-  OutputConfig output;
-  CheckpointConfig checkpoint;
 
   int dimension() const { return case_dimension(case_type); }
   double box_length() const { return box_length_; }  // L [m]
@@ -181,9 +164,8 @@ double min_cadence(const Scene& scene);
 /// every step, or off).
 void check_cadence(const Scene& scene, const std::string& field, double every);
 
-/// The checks of a whole scene after its sections are read: the kernel fits in the box, the
-/// estimated initial time step can advance time.end, the output and checkpoint cadences are
-/// not shorter than a step (check_cadence). Throws SceneError naming the field.
+/// The checks of a whole scene after its sections are read: the kernel fits in the box and the
+/// estimated initial time step can advance time.end. Throws SceneError naming the field.
 void check_scene(const Scene& scene);
 
 /// The scene of a case with every key at its default (SPEC §6.1-6.3).

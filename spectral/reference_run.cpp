@@ -312,10 +312,11 @@ ReferenceState newest_valid_checkpoint(const fs::path& checkpoints, const sim::S
 class ReferenceRun {
  public:
   ReferenceRun(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
-               const ReferenceConfig& config, const json& scene_document,
-               const ReferenceRunOptions& options)
+               const scene::RunPolicy& policy, const ReferenceConfig& config,
+               const json& scene_document, const ReferenceRunOptions& options)
       : scene_(scene),
         analysis_(analysis),
+        policy_(policy),
         config_(config),
         scene_document_(scene_document),
         options_(options),
@@ -340,8 +341,8 @@ class ReferenceRun {
     // The points k · every the loop lands on, the same in a fresh and a restarted run; a fresh
     // run also writes its row and frame at t = 0.
     sim::Cadence frames(every_, solver_.time()),
-        rows(scene_.output.timeseries_every, solver_.time()),
-        checkpoints_due(scene_.checkpoint.every, solver_.time());
+        rows(policy_.output.timeseries_every, solver_.time()),
+        checkpoints_due(policy_.checkpoint.every, solver_.time());
     on_root([&] {
       log_->info("reference: {}^{} points, modes |m| <= {}, nu = {}, t = {} to {}{}",
                  config_.points_per_side, scene_.dimension(), solver_.max_wavenumber(),
@@ -489,7 +490,7 @@ class ReferenceRun {
       const fs::path file = checkpoints_ / reference_checkpoint_name(st.step);
       write_reference_checkpoint(file, st);
       const std::vector<fs::path> files = reference_checkpoint_files(checkpoints_);
-      const std::size_t keep = static_cast<std::size_t>(std::max(1, scene_.checkpoint.keep));
+      const std::size_t keep = static_cast<std::size_t>(std::max(1, policy_.checkpoint.keep));
       for (std::size_t i = 0; i + keep < files.size(); ++i) fs::remove(files[i]);
       log_->info("checkpoint {} at t = {}", file.filename().string(), st.time);
     });
@@ -537,7 +538,7 @@ class ReferenceRun {
   void progress(double dt) {
     const auto now = std::chrono::steady_clock::now();
     if (!root_ || std::chrono::duration<double>(now - last_progress_).count() <
-                      scene_.output.progress_every_seconds)
+                      policy_.output.progress_every_seconds)
       return;
     const double wall = std::chrono::duration<double>(now - wall_start_).count();
     const double steps_per_s = static_cast<double>(solver_.step() - first_step_) / wall;
@@ -548,6 +549,7 @@ class ReferenceRun {
 
   const sim::Scene& scene_;
   const analysis::AnalysisConfig& analysis_;
+  const scene::RunPolicy& policy_;
   const ReferenceConfig& config_;
   const json& scene_document_;
   const ReferenceRunOptions& options_;
@@ -567,9 +569,9 @@ class ReferenceRun {
 }  // namespace
 
 ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
-                                 const ReferenceConfig& config, const json& scene_document,
-                                 const ReferenceRunOptions& options) {
-  return ReferenceRun(scene, analysis, config, scene_document, options).run();
+                                 const scene::RunPolicy& policy, const ReferenceConfig& config,
+                                 const json& scene_document, const ReferenceRunOptions& options) {
+  return ReferenceRun(scene, analysis, policy, config, scene_document, options).run();
 }
 
 }  // namespace sphles::spectral

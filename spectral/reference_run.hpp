@@ -18,6 +18,7 @@
 
 #include "analysis/config.hpp"
 #include "analysis/products.hpp"
+#include "scene/run_policy.hpp"
 #include "sim/scene.hpp"
 #include "spectral/navier_stokes.hpp"
 
@@ -101,7 +102,7 @@ struct ReferenceRunResult {
 /// complete scene (written as scene.json, stored in checkpoints). Throws std::runtime_error on
 /// I/O failure or a non-finite state, sim::SceneError on a bad configuration.
 ReferenceRunResult run_reference(const sim::Scene& scene, const analysis::AnalysisConfig& analysis,
-                                 const ReferenceConfig& config,
+                                 const scene::RunPolicy& policy, const ReferenceConfig& config,
                                  const nlohmann::json& scene_document,
                                  const ReferenceRunOptions& options);
 

@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// sim::ProgressReporter (sim/run_log.hpp): the progress line's rate and ETA, measured over the
-// last minute of wall time, so that one short step (cut to land on an output time) or one slow
+// control::ProgressReporter (control/progress.hpp): the progress line's rate and ETA, measured over
+// the last minute of wall time, so that one short step (cut to land on an output time) or one slow
 // one (a checkpoint) does not make them jump.
 #include <gtest/gtest.h>
 
@@ -8,9 +8,10 @@
 #include <cstdio>
 #include <string>
 
-#include "sim/run_log.hpp"
+#include "control/progress.hpp"
 
-namespace sphles::sim {
+namespace sphles::control {
+using sim::StepDiagnostics;
 namespace {
 
 using Clock = ProgressReporter::Clock;
@@ -69,4 +70,4 @@ TEST(Progress, RateAndEtaComeFromTheLastMinuteNotTheLastInterval) {
 }
 
 }  // namespace
-}  // namespace sphles::sim
+}  // namespace sphles::control

@@ -8,7 +8,7 @@
 
 #include "sim/solver.hpp"
 
-namespace sphles::sim {
+namespace sphles::control {
 
 /// Formats "t = 1.200 / 15.000  step 120  41.2 steps/s  ETA 0:05:12  e_v = 0.12312".
 /// The rate and the ETA are measured over the lines of about the last kRateWindowSeconds of wall
@@ -21,11 +21,11 @@ class ProgressReporter {
 
   ProgressReporter(double end_time, double interval_seconds);
   /// Returns a line when `interval_seconds` have passed since the last one (or `force`), else "".
-  std::string update(const StepDiagnostics& diagnostics, bool force = false) {
+  std::string update(const sim::StepDiagnostics& diagnostics, bool force = false) {
     return update(diagnostics, Clock::now(), force);
   }
   /// The same at wall time `now` (for tests).
-  std::string update(const StepDiagnostics& diagnostics, Clock::time_point now, bool force);
+  std::string update(const sim::StepDiagnostics& diagnostics, Clock::time_point now, bool force);
 
  private:
   struct Sample {
@@ -38,4 +38,4 @@ class ProgressReporter {
   std::deque<Sample> samples_;  // the first call's state, then one per line, oldest first
 };
 
-}  // namespace sphles::sim
+}  // namespace sphles::control

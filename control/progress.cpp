@@ -1,16 +1,17 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-#include "sim/run_log.hpp"
+#include "control/progress.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-namespace sphles::sim {
+namespace sphles::control {
 
 ProgressReporter::ProgressReporter(double end_time, double interval_seconds)
     : end_time_(end_time), interval_(interval_seconds) {}
 
-std::string ProgressReporter::update(const StepDiagnostics& d, Clock::time_point now, bool force) {
+std::string ProgressReporter::update(const sim::StepDiagnostics& d, Clock::time_point now,
+                                     bool force) {
   const auto seconds_since = [&](const Sample& s) {
     return std::chrono::duration<double>(now - s.wall).count();
   };
@@ -46,4 +47,4 @@ std::string ProgressReporter::update(const StepDiagnostics& d, Clock::time_point
   return line;
 }
 
-}  // namespace sphles::sim
+}  // namespace sphles::control

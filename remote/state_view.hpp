@@ -12,14 +12,15 @@
 #include "sim/neighbour_search.hpp"
 #include "sim/solver.hpp"
 
-namespace sphles::sim {
+namespace sphles::remote {
 
 class StateView {
  public:
-  explicit StateView(const SolverConfig& config) : config_(config) {}
+  explicit StateView(const sim::SolverConfig& config) : config_(config) {}
 
   /// The state at `step`: `fetch()` the first time it is asked for at this step.
-  const SolverState& state(std::uint64_t step, const std::function<SolverState()>& fetch) const {
+  const sim::SolverState& state(std::uint64_t step,
+                                const std::function<sim::SolverState()>& fetch) const {
     if (!state_ || state_step_ != step) {
       state_.reset();
       state_ = fetch();
@@ -29,23 +30,23 @@ class StateView {
   }
 
   /// A list over `particles` (the state at `step`), built once per step asked for.
-  std::shared_ptr<const NeighbourList> neighbour_list(std::uint64_t step,
-                                                      const ParticleArrays& particles) const {
+  std::shared_ptr<const sim::NeighbourList> neighbour_list(
+      std::uint64_t step, const sim::ParticleArrays& particles) const {
     if (!search_ || list_step_ != step) {
-      search_ = std::make_unique<VerletNeighbourSearch>(
+      search_ = std::make_unique<sim::VerletNeighbourSearch>(
           config_.box, config_.support_radius, config_.neighbour_skin * config_.support_radius);
-      search_->build(view_positions(particles));
+      search_->build(sim::view_positions(particles));
       list_step_ = step;
     }
     return search_->shared_list();
   }
 
  private:
-  const SolverConfig& config_;
-  mutable std::optional<SolverState> state_;
+  const sim::SolverConfig& config_;
+  mutable std::optional<sim::SolverState> state_;
   mutable std::uint64_t state_step_ = 0;
-  mutable std::unique_ptr<VerletNeighbourSearch> search_;
+  mutable std::unique_ptr<sim::VerletNeighbourSearch> search_;
   mutable std::uint64_t list_step_ = 0;
 };
 
-}  // namespace sphles::sim
+}  // namespace sphles::remote
