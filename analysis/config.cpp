@@ -6,6 +6,7 @@
 
 #include "scene/document.hpp"
 #include "scene/json_reader.hpp"
+#include "scene/json_writer.hpp"
 
 namespace sphles::analysis {
 
@@ -42,73 +43,69 @@ std::string_view slice_field_units(SliceField field) {
   return "";
 }
 
+namespace {
+
+/// "grid_fields": "velocity" and slice fields in one list, each at most once; present, it
+/// names at least one.
+template <class IO, class C>
+void grid_fields_key(IO& io, C& c) {
+  std::vector<std::string> fields;
+  if constexpr (IO::kReads) {
+    io.strings("grid_fields", fields);
+    if (!io.find("grid_fields")) return;
+    if (fields.empty())
+      throw_scene_error("analysis.grid_fields", "is empty: it names at least one field");
+    c.grid_velocity = false;
+    c.grid_fields.clear();
+    for (std::size_t k = 0; k < fields.size(); ++k) {
+      const std::string field = "analysis.grid_fields[" + std::to_string(k) + "]";
+      if (fields[k] == "velocity") {
+        if (c.grid_velocity) throw_scene_error(field, "repeats 'velocity'");
+        c.grid_velocity = true;
+      } else if (!c.grid_fields.insert(parse_name(kSliceFieldNames, fields[k], field)).second) {
+        throw_scene_error(field, "repeats '" + fields[k] + "'");
+      }
+    }
+  } else {
+    if (c.grid_velocity) fields.push_back("velocity");
+    for (const SliceField f : c.grid_fields) fields.emplace_back(slice_field_name(f));
+    io.strings("grid_fields", fields);
+  }
+}
+
+/// Every key of the "analysis" section, for reading and writing alike.
+template <class IO, class C>
+void analysis_keys(IO& io, C& c) {
+  io.number("every", c.every);
+  io.names("products", kProductNames, c.products);
+  IO slice = io.object("slice");
+  slice.choice("axis", kAxisNames, c.slice.axis);
+  slice.number("position", c.slice.position);
+  slice.names("fields", kSliceFieldNames, c.slice.fields);
+  slice.finish();
+  io.names("particle_fields", kSliceFieldNames, c.particle_fields);
+  grid_fields_key(io, c);
+  IO gridding = io.object("gridding");
+  gridding.choice("velocity", kVelocityGriddingNames, c.gridding.velocity);
+  gridding.choice("vorticity", kVorticityEstimateNames, c.gridding.vorticity);
+  gridding.number("fit_radius", c.gridding.fit_radius);
+  gridding.finish();
+  io.integer("grid_points_per_spacing", c.grid_points_per_spacing);
+  io.integer("histogram_bins", c.histogram_bins);
+  io.integer("angle_bins", c.angle_bins);
+  io.number("angle_threshold", c.angle_threshold);
+  io.number("dissipation_window", c.dissipation_window);
+  io.number("spectrum_length_scale", c.spectrum_length_scale);
+  io.finish();
+}
+
+}  // namespace
+
 AnalysisConfig parse_analysis_config(const json* section) {
   AnalysisConfig c;
   if (!section) return c;
   scene::ObjectReader r(*section, "analysis");
-  r.number("every", c.every);
-  std::vector<std::string> products;
-  r.strings("products", products);
-  for (std::size_t k = 0; k < products.size(); ++k)
-    c.products.insert(
-        parse_name(kProductNames, products[k], "analysis.products[" + std::to_string(k) + "]"));
-  {
-    scene::ObjectReader s = r.object("slice");
-    s.choice("axis", kAxisNames, c.slice.axis);
-    s.number("position", c.slice.position);
-    std::vector<std::string> fields;
-    s.strings("fields", fields);
-    if (s.find("fields")) {
-      c.slice.fields.clear();
-      for (std::size_t k = 0; k < fields.size(); ++k)
-        c.slice.fields.insert(parse_name(kSliceFieldNames, fields[k],
-                                         "analysis.slice.fields[" + std::to_string(k) + "]"));
-    }
-    s.reject_unknown();
-  }
-  {
-    std::vector<std::string> fields;
-    r.strings("particle_fields", fields);
-    if (r.find("particle_fields")) {
-      c.particle_fields.clear();
-      for (std::size_t k = 0; k < fields.size(); ++k)
-        c.particle_fields.insert(parse_name(kSliceFieldNames, fields[k],
-                                            "analysis.particle_fields[" + std::to_string(k) + "]"));
-    }
-  }
-  {
-    std::vector<std::string> fields;
-    r.strings("grid_fields", fields);
-    if (r.find("grid_fields")) {
-      if (fields.empty())
-        throw_scene_error("analysis.grid_fields", "is empty: it names at least one field");
-      c.grid_velocity = false;
-      c.grid_fields.clear();
-      for (std::size_t k = 0; k < fields.size(); ++k) {
-        const std::string field = "analysis.grid_fields[" + std::to_string(k) + "]";
-        if (fields[k] == "velocity") {
-          if (c.grid_velocity) throw_scene_error(field, "repeats 'velocity'");
-          c.grid_velocity = true;
-        } else if (!c.grid_fields.insert(parse_name(kSliceFieldNames, fields[k], field)).second) {
-          throw_scene_error(field, "repeats '" + fields[k] + "'");
-        }
-      }
-    }
-  }
-  {
-    scene::ObjectReader g = r.object("gridding");
-    g.choice("velocity", kVelocityGriddingNames, c.gridding.velocity);
-    g.choice("vorticity", kVorticityEstimateNames, c.gridding.vorticity);
-    g.number("fit_radius", c.gridding.fit_radius);
-    g.reject_unknown();
-  }
-  r.integer("grid_points_per_spacing", c.grid_points_per_spacing);
-  r.integer("histogram_bins", c.histogram_bins);
-  r.integer("angle_bins", c.angle_bins);
-  r.number("angle_threshold", c.angle_threshold);
-  r.number("dissipation_window", c.dissipation_window);
-  r.number("spectrum_length_scale", c.spectrum_length_scale);
-  r.reject_unknown();
+  analysis_keys(r, c);
   if (!c.products.empty() && !(c.every > 0.0))
     throw_scene_error("analysis.every", "must be > 0 when products are requested, got " +
                                             sim::format_number(c.every));
@@ -116,41 +113,10 @@ AnalysisConfig parse_analysis_config(const json* section) {
 }
 
 json analysis_config_to_json(const AnalysisConfig& c) {
-  json products = json::array();
-  for (const Product p : c.products) products.push_back(std::string(product_name(p)));
-  json fields = json::array();
-  for (const SliceField f : c.slice.fields) fields.push_back(std::string(slice_field_name(f)));
-  return {{"every", c.every},
-          {"products", products},
-          {"slice",
-           {{"axis", std::string(kAxisNames.name(c.slice.axis))},
-            {"position", c.slice.position},
-            {"fields", fields}}},
-          {"particle_fields",
-           [&] {
-             json list = json::array();
-             for (const SliceField f : c.particle_fields)
-               list.push_back(std::string(slice_field_name(f)));
-             return list;
-           }()},
-          {"grid_fields",
-           [&] {
-             json list = json::array();
-             if (c.grid_velocity) list.push_back("velocity");
-             for (const SliceField f : c.grid_fields)
-               list.push_back(std::string(slice_field_name(f)));
-             return list;
-           }()},
-          {"gridding",
-           {{"velocity", std::string(velocity_gridding_name(c.gridding.velocity))},
-            {"vorticity", std::string(vorticity_estimate_name(c.gridding.vorticity))},
-            {"fit_radius", c.gridding.fit_radius}}},
-          {"grid_points_per_spacing", c.grid_points_per_spacing},
-          {"histogram_bins", c.histogram_bins},
-          {"angle_bins", c.angle_bins},
-          {"angle_threshold", c.angle_threshold},
-          {"dissipation_window", c.dissipation_window},
-          {"spectrum_length_scale", c.spectrum_length_scale}};
+  json j = json::object();
+  scene::ObjectWriter w(j);
+  analysis_keys(w, c);
+  return j;
 }
 
 RunConfig parse_run_config(const json& document) {
@@ -165,7 +131,9 @@ RunConfig parse_run_config(const json& document) {
     solver_part.erase("analysis");
   }
   RunConfig config;
-  config.scene = scene::parse_scene(solver_part);
+  scene::SceneAndPolicy read = scene::parse_scene_and_policy(solver_part);
+  config.scene = std::move(read.scene);
+  config.policy = read.policy;
   config.analysis = parse_analysis_config(analysis);
   // Snapshots are taken (and every step cut short to land on them) only while products are on.
   if (config.analysis.enabled())
@@ -201,7 +169,7 @@ RunConfig parse_run_config(const json& document) {
 }
 
 json run_config_to_json(const RunConfig& config) {
-  json j = scene::scene_to_json(config.scene);
+  json j = scene::scene_to_json(config.scene, config.policy);
   j["analysis"] = analysis_config_to_json(config.analysis);
   return j;
 }

@@ -197,6 +197,31 @@ class ObjectReader {
     target = std::move(result);
   }
 
+  /// An array of names of `table`, as a set (a repeated name counts once); present, it replaces
+  /// the target's default. Each element's field is named "key[i]" in errors.
+  template <class Enum, std::size_t N>
+  void names(const std::string& key, const NameTable<Enum, N>& table, std::set<Enum>& target) {
+    std::vector<std::string> list;
+    strings(key, list);
+    if (!object_.contains(key)) return;
+    target.clear();
+    for (std::size_t k = 0; k < list.size(); ++k)
+      target.insert(parse_name(table, list[k], field(key) + "[" + std::to_string(k) + "]"));
+  }
+
+  /// A number, or null for none (null clears a value, as a JSON merge patch would).
+  void optional_number(const std::string& key, std::optional<double>& target) {
+    const json* value = find(key);
+    if (!value) return;
+    if (value->is_null()) {
+      target.reset();
+      return;
+    }
+    double x = 0.0;
+    number(key, x);
+    target = x;
+  }
+
   /// reject_unknown(), the end of a section read by a function shared with ObjectWriter.
   void finish() const { reject_unknown(); }
 

@@ -6,6 +6,8 @@
 
 #include <array>
 #include <cstddef>
+#include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -39,6 +41,19 @@ class ObjectWriter {
   }
   void vector(const std::string& key, const std::array<double, 3>& value, std::size_t size) {
     object_[key] = std::vector<double>(value.begin(), value.begin() + size);
+  }
+  void strings(const std::string& key, const std::vector<std::string>& value) {
+    object_[key] = value;
+  }
+  template <class Enum, std::size_t N>
+  void names(const std::string& key, const sim::NameTable<Enum, N>& table,
+             const std::set<Enum>& value) {
+    nlohmann::json list = nlohmann::json::array();
+    for (const Enum e : value) list.push_back(std::string(table.name(e)));
+    object_[key] = std::move(list);
+  }
+  void optional_number(const std::string& key, const std::optional<double>& value) {
+    object_[key] = value ? nlohmann::json(*value) : nlohmann::json(nullptr);
   }
 
   /// Nothing to check when writing (the reader rejects keys no call read).
