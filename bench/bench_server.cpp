@@ -222,6 +222,7 @@ json bench_scene(const Options& o) {
       {"name", "bench"},
       {"case", "tgv2d"},
       {"particles_per_side", o.size},
+      {"kernel", {{"diameter_over_spacing", 12}}},
       {"packing", {{"enabled", false}}},
       {"time", {{"end", 1e6}}},
       {"analysis", {{"every", 1e5}, {"products", {"slices"}}, {"slice", {{"fields", {"omega2"}}}}}},
