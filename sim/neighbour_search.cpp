@@ -183,181 +183,110 @@ template <int Dim>
 /// When a region overflows, the estimate grows at least by this factor for the next round.
 constexpr double kRegrowth = 1.25;
 
-/// Particle indices sorted by cell into `members`, and where each cell's members begin into
-/// `start` (num_cells + 1 entries). Within a cell, members follow `visit` when it is not empty (a
-/// permutation of the indices), else ascending index (a stable counting sort).
-void counting_sort_by_cell(const std::vector<std::uint32_t>& cell, std::size_t num_cells,
-                           std::vector<std::uint32_t>& members, std::vector<std::size_t>& start,
-                           std::span<const std::uint32_t> visit = {}) {
-  start.assign(num_cells + 1, 0);
-  for (const std::uint32_t c : cell) ++start[c + 1];
-  for (std::size_t c = 0; c < num_cells; ++c) start[c + 1] += start[c];
-  members.resize(cell.size());
-  if (visit.empty()) {
-    for (std::size_t i = 0; i < cell.size(); ++i)
-      members[start[cell[i]]++] = static_cast<std::uint32_t>(i);
-  } else {
-    for (const std::uint32_t i : visit) members[start[cell[i]]++] = i;
-  }
-  // start[c] now holds where cell c ends, the start of c + 1: shift back.
-  for (std::size_t c = num_cells; c > 0; --c) start[c] = start[c - 1];
-  start[0] = 0;
-}
-
-}  // namespace
-
-std::vector<std::uint32_t> order_by_key(std::span<const std::uint64_t> keys) {
-  const std::size_t n = keys.size();
-  std::vector<std::uint32_t> order(n);
-  const bool permutation =
-      std::all_of(keys.begin(), keys.end(), [n](std::uint64_t k) { return k < n; });
-  if (permutation) {  // unique keys below n: each index's place is its key
-    for (std::size_t i = 0; i < n; ++i) order[keys[i]] = static_cast<std::uint32_t>(i);
-    return order;
-  }
-  for (std::size_t i = 0; i < n; ++i) order[i] = static_cast<std::uint32_t>(i);
-  std::sort(order.begin(), order.end(),
-            [&](std::uint32_t a, std::uint32_t b) { return keys[a] < keys[b]; });
-  return order;
-}
-
-VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin)
-    : box_(box), cutoff_(cutoff), skin_(skin) {
-  if (!(cutoff > 0.0)) throw std::invalid_argument("neighbour search: cutoff must be > 0");
-  if (!(skin >= 0.0)) throw std::invalid_argument("neighbour search: skin must be >= 0");
-  const double min_length = box.min_length();
-  if (min_length < 2.0 * cutoff) {
-    throw std::invalid_argument("neighbour search: box length " + std::to_string(min_length) +
-                                " is smaller than the kernel support diameter " +
-                                std::to_string(2.0 * cutoff));
-  }
-  // Minimum-image lists need every listed pair closer than half a box.
-  skin_ = std::min(skin_, 0.5 * min_length - cutoff);
-  // Cells of at least radius / kCellsPerRadius: candidates lie at most kCellsPerRadius cells away.
-  const double cell_size = list_radius() / kCellsPerRadius;
-  for (int d = 0; d < box.dimension; ++d) {
-    cells_[d] = std::max(1, static_cast<int>(std::floor(box.length[d] / cell_size)));
-    inv_cell_size_[d] = cells_[d] / box.length[d];
-  }
-}
-
-void VerletNeighbourSearch::cell_of(const PositionsView& positions,
-                                    std::vector<std::uint32_t>& cell) const {
-  cell.resize(positions.size);
-  const auto n = static_cast<std::ptrdiff_t>(positions.size);
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t si = 0; si < n; ++si) {
-    const auto i = static_cast<std::size_t>(si);
-    std::uint32_t c = 0;
-    for (int d = positions.dimension - 1; d >= 0; --d) {
-      int k = static_cast<int>(positions.x[d][i] * inv_cell_size_[d]);
-      k = std::clamp(k, 0, cells_[d] - 1);
-      c = c * static_cast<std::uint32_t>(cells_[d]) + static_cast<std::uint32_t>(k);
-    }
-    cell[i] = c;
-  }
-}
-
-std::vector<std::uint32_t> VerletNeighbourSearch::locality_order(
-    const PositionsView& positions) const {
-  std::vector<std::uint32_t> cell, order;
-  std::vector<std::size_t> start;
-  cell_of(positions, cell);
-  counting_sort_by_cell(cell, num_cells(), order, start);
-  return order;
-}
-
+/// The box and list radius as the candidate tests take them; the band of kSinglePrecisionBand
+/// around the squared radius.
 template <int Dim>
-void VerletNeighbourSearch::build_impl(const PositionsView& positions,
-                                       std::span<const std::uint32_t> cell_order,
-                                       std::size_t listed) {
-  const std::size_t n = positions.size;
-  // Scratch kept between builds (BuildScratch): fresh vectors of this size would be mapped and
-  // zeroed page by page at every build.
-  std::vector<std::uint32_t>& cell = scratch_.cell;
-  std::vector<std::size_t>& cell_start = scratch_.cell_start;
-  std::vector<std::uint32_t>& cell_members = scratch_.cell_members;
-  cell_of(positions, cell);
-  const std::size_t num_cells = this->num_cells();
-  counting_sort_by_cell(cell, num_cells, cell_members, cell_start, cell_order);
-
-  // Distinct cell offsets per direction: -reach..reach, reduced modulo the number of cells when
-  // a direction has fewer than 2 reach + 1 cells, so that no cell is visited twice.
-  std::array<std::vector<int>, 3> offsets;
-  for (int d = 0; d < Dim; ++d) {
-    if (cells_[d] >= 2 * kCellsPerRadius + 1) {
-      for (int o = -kCellsPerRadius; o <= kCellsPerRadius; ++o) offsets[d].push_back(o);
-    } else {
-      for (int o = 0; o < cells_[d]; ++o) offsets[d].push_back(o);
-    }
-  }
-
-  std::size_t max_occupancy = 0;
-  for (std::size_t c = 0; c < num_cells; ++c)
-    max_occupancy = std::max(max_occupancy, cell_start[c + 1] - cell_start[c]);
-  std::size_t max_candidates = max_occupancy;
-  for (int d = 0; d < Dim; ++d) max_candidates *= offsets[d].size();
-
-  std::array<double, 3> length{}, half_length{};
-  for (int d = 0; d < Dim; ++d) {
-    length[d] = box_.length[d];
-    half_length[d] = 0.5 * box_.length[d];
-  }
-  const double radius2 = list_radius() * list_radius();
-
-  // Positions in cell order, so that a run of neighbouring cells along x is one contiguous run of
-  // candidates: the distance test below is a vectorised loop over contiguous memory. rank[i] is
-  // particle i's place in that order.
-  std::array<std::vector<double>, 3>& sorted = scratch_.sorted;
-  for (int d = 0; d < Dim; ++d) sorted[d].resize(n);
-  std::vector<std::uint32_t>& rank = scratch_.rank;
-  rank.resize(n);
-  const auto signed_n = static_cast<std::ptrdiff_t>(n);
-#pragma omp parallel for schedule(static)
-  for (std::ptrdiff_t sk = 0; sk < signed_n; ++sk) {
-    const auto k = static_cast<std::size_t>(sk);
-    for (int d = 0; d < Dim; ++d) sorted[d][k] = positions.x[d][cell_members[k]];
-    rank[cell_members[k]] = static_cast<std::uint32_t>(k);
-  }
-
+ListGeometry list_geometry(const PeriodicBox& box, double radius) {
   ListGeometry geometry;
   for (int d = 0; d < Dim; ++d) {
-    geometry.length[d] = length[d];
-    geometry.half_length[d] = half_length[d];
+    geometry.length[d] = box.length[d];
+    geometry.half_length[d] = 0.5 * box.length[d];
   }
+  const double radius2 = radius * radius;
   geometry.radius2 = radius2;
   geometry.inner2 = static_cast<float>(radius2 * (1.0 - kSinglePrecisionBand));
   geometry.outer2 = static_cast<float>(radius2 * (1.0 + kSinglePrecisionBand));
-  std::array<double, 3> cell_size{};
-  for (int d = 0; d < Dim; ++d) cell_size[d] = box_.length[d] / cells_[d];
-  // Cell k of axis d, k in [-cells, 2 cells) (a cell index plus an offset of at most one box),
-  // and the shift to the periodic image of its members nearest the unwrapped cell k.
-  const auto wrap_cell = [&](int d, int k) {
-    const int n = cells_[d];
-    return k < 0 ? k + n : (k >= n ? k - n : k);
-  };
-  const auto image_shift = [&](int d, int k) {
-    return k < 0 ? -length[d] : (k >= cells_[d] ? length[d] : 0.0);
-  };
-  const auto cell_coordinates = [&](std::uint32_t c) {
-    std::array<int, 3> cc{0, 0, 0};
-    for (int d = 0; d < Dim; ++d) {
-      cc[d] = static_cast<int>(c % static_cast<std::uint32_t>(cells_[d]));
-      c /= static_cast<std::uint32_t>(cells_[d]);
-    }
-    return cc;
-  };
+  return geometry;
+}
 
+/// Distinct cell offsets per direction: -reach..reach, reduced modulo the number of cells when
+/// a direction has fewer than 2 reach + 1 cells, so that no cell is visited twice.
+template <int Dim>
+std::array<std::vector<int>, 3> stencil_offsets(const std::array<int, 3>& cells, int reach) {
+  std::array<std::vector<int>, 3> offsets;
+  for (int d = 0; d < Dim; ++d) {
+    if (cells[d] >= 2 * reach + 1) {
+      for (int o = -reach; o <= reach; ++o) offsets[d].push_back(o);
+    } else {
+      for (int o = 0; o < cells[d]; ++o) offsets[d].push_back(o);
+    }
+  }
+  return offsets;
+}
+
+/// Per chunk of particles: the candidates of the last home cell and its origin.
+struct Scratch {
+  Candidates candidates;
+  std::array<double, 3> origin{};
+};
+
+/// One build's particles in cells as the scans read them (VerletNeighbourSearch::bin_particles:
+/// each particle's cell, the members cell by cell and where each cell begins, the positions in
+/// that order and each particle's place in it), and the scans for one particle's neighbours.
+template <int Dim>
+struct CellScan {
+  static constexpr int kReach = VerletNeighbourSearch::kCellsPerRadius;
+  const PositionsView& positions;
+  ListGeometry geometry;
+  std::array<int, 3> cells;
+  std::array<double, 3> cell_size;
+  std::array<std::vector<int>, 3> offsets;
+  const std::vector<std::uint32_t>& cell;
+  const std::vector<std::size_t>& cell_start;
+  const std::vector<std::uint32_t>& cell_members;
+  const std::array<std::vector<double>, 3>& sorted;
+  const std::vector<std::uint32_t>& rank;
   // With at least 2 reach + 1 cells along every axis, each cell of the stencil is one periodic
   // image of the home cell's surroundings, so the candidates of all particles of a home cell are
   // gathered once (Candidates) and tested in one long single-precision vector loop. Otherwise
   // (boxes of a few cells), each particle's candidates are tested in place in double precision.
-  bool gathered = true;
-  for (int d = 0; d < Dim; ++d) gathered = gathered && cells_[d] >= 2 * kCellsPerRadius + 1;
+  bool gathered;
 
-  // Gathers the members of the cells around `home` in visiting order (z, y, x offsets ascending;
-  // a cell's members in the order of cell_members) into c.
-  const auto gather = [&](std::uint32_t home, Candidates& c, std::array<double, 3>& origin) {
+  /// The most candidates one particle has: the fullest cell's members in every stencil cell.
+  std::size_t max_candidates() const {
+    std::size_t max_occupancy = 0;
+    for (std::size_t c = 0; c + 1 < cell_start.size(); ++c)
+      max_occupancy = std::max(max_occupancy, cell_start[c + 1] - cell_start[c]);
+    std::size_t max_candidates = max_occupancy;
+    for (int d = 0; d < Dim; ++d) max_candidates *= offsets[d].size();
+    return max_candidates;
+  }
+
+  // Cell k of axis d, k in [-cells, 2 cells) (a cell index plus an offset of at most one box),
+  // and the shift to the periodic image of its members nearest the unwrapped cell k.
+  int wrap_cell(int d, int k) const {
+    const int n = cells[d];
+    return k < 0 ? k + n : (k >= n ? k - n : k);
+  }
+  double image_shift(int d, int k) const {
+    return k < 0 ? -geometry.length[d] : (k >= cells[d] ? geometry.length[d] : 0.0);
+  }
+  std::array<int, 3> cell_coordinates(std::uint32_t c) const {
+    std::array<int, 3> cc{0, 0, 0};
+    for (int d = 0; d < Dim; ++d) {
+      cc[d] = static_cast<int>(c % static_cast<std::uint32_t>(cells[d]));
+      c /= static_cast<std::uint32_t>(cells[d]);
+    }
+    return cc;
+  }
+
+  /// Appends the neighbours of particle i to `out` and returns their number: z, y, x cell
+  /// offsets ascending, the members of a cell in the order of cell_members.
+  std::size_t neighbours(std::size_t i, std::uint32_t* out, Scratch& scratch) const {
+    if (!gathered) return scan_in_place(i, out, scratch.candidates.keep);
+    const std::uint32_t home = cell[i];
+    const std::size_t self = rank[i] - cell_start[home];
+    Candidates& c = scratch.candidates;
+    if (c.cell != home) gather(home, c, scratch.origin);
+    std::array<float, 3> xi{0.0f, 0.0f, 0.0f};
+    for (int d = 0; d < Dim; ++d) xi[d] = static_cast<float>(positions.x[d][i] - scratch.origin[d]);
+    return select_candidates<Dim>(c, xi, self, positions, geometry, i, out, c.keep.data());
+  }
+
+  /// Gathers the members of the cells around `home` in visiting order (z, y, x offsets
+  /// ascending; a cell's members in the order of cell_members) into c, relative to the home
+  /// cell's corner `origin`.
+  void gather(std::uint32_t home, Candidates& c, std::array<double, 3>& origin) const {
     const std::array<int, 3> hc = cell_coordinates(home);
     for (int d = 0; d < Dim; ++d) origin[d] = hc[d] * cell_size[d];
     c.cell = home;
@@ -381,56 +310,40 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     // The x cells of one row: one run, or two where the offsets wrap around the box.
     const auto row = [&](std::size_t row_start) {
       const std::size_t* const at = cell_start.data() + row_start;
-      const int first = hc[0] - kCellsPerRadius, last = hc[0] + kCellsPerRadius;
-      const int n = cells_[0];
+      const int first = hc[0] - kReach, last = hc[0] + kReach;
+      const int n = cells[0];
       if (first < 0) {
-        append(at[first + n], at[n], -length[0]);
+        append(at[first + n], at[n], -geometry.length[0]);
         append(at[0], at[last + 1], 0.0);
       } else if (last >= n) {
         append(at[first], at[n], 0.0);
-        append(at[0], at[last + 1 - n], length[0]);
+        append(at[0], at[last + 1 - n], geometry.length[0]);
       } else {
         append(at[first], at[last + 1], 0.0);
       }
     };
     if constexpr (Dim == 2) {
-      for (int oy = -kCellsPerRadius; oy <= kCellsPerRadius; ++oy) {
+      for (int oy = -kReach; oy <= kReach; ++oy) {
         shift[1] = image_shift(1, hc[1] + oy);
-        row(static_cast<std::size_t>(wrap_cell(1, hc[1] + oy)) * cells_[0]);
+        row(static_cast<std::size_t>(wrap_cell(1, hc[1] + oy)) * cells[0]);
       }
     } else {
-      for (int oz = -kCellsPerRadius; oz <= kCellsPerRadius; ++oz) {
-        const std::size_t plane = static_cast<std::size_t>(wrap_cell(2, hc[2] + oz)) * cells_[1];
-        for (int oy = -kCellsPerRadius; oy <= kCellsPerRadius; ++oy) {
+      for (int oz = -kReach; oz <= kReach; ++oz) {
+        const std::size_t plane = static_cast<std::size_t>(wrap_cell(2, hc[2] + oz)) * cells[1];
+        for (int oy = -kReach; oy <= kReach; ++oy) {
           shift[2] = image_shift(2, hc[2] + oz);
           shift[1] = image_shift(1, hc[1] + oy);
-          row((plane + static_cast<std::size_t>(wrap_cell(1, hc[1] + oy))) * cells_[0]);
+          row((plane + static_cast<std::size_t>(wrap_cell(1, hc[1] + oy))) * cells[0]);
         }
       }
     }
-  };
+  }
 
-  // Per chunk of particles: the candidates of the last home cell and its origin.
-  struct Scratch {
-    Candidates candidates;
-    std::array<double, 3> origin{};
-  };
-
-  // Appends the neighbours of particle i to `out` and returns their number: z, y, x cell offsets
-  // ascending, the members of a cell in the order of cell_members.
-  const auto visit = [&](std::size_t i, std::uint32_t* out, Scratch& scratch) -> std::size_t {
-    const std::uint32_t home = cell[i];
-    if (gathered) {
-      const std::size_t self = rank[i] - cell_start[home];
-      Candidates& c = scratch.candidates;
-      if (c.cell != home) gather(home, c, scratch.origin);
-      std::array<float, 3> xi{0.0f, 0.0f, 0.0f};
-      for (int d = 0; d < Dim; ++d)
-        xi[d] = static_cast<float>(positions.x[d][i] - scratch.origin[d]);
-      return select_candidates<Dim>(c, xi, self, positions, geometry, i, out, c.keep.data());
-    }
-    const std::array<int, 3> ci = cell_coordinates(home);
-    std::vector<std::uint8_t>& keep = scratch.candidates.keep;
+  /// neighbours() in a box of a few cells: the members of each stencil cell tested in place by
+  /// the reference test, `keep` its marks.
+  std::size_t scan_in_place(std::size_t i, std::uint32_t* out,
+                            std::vector<std::uint8_t>& keep) const {
+    const std::array<int, 3> ci = cell_coordinates(cell[i]);
     std::size_t used = 0;
     const auto scan = [&](std::size_t begin, std::size_t end) {
       const std::size_t count = end - begin;
@@ -459,52 +372,30 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     };
     if constexpr (Dim == 2) {
       for (int oy : offsets[1])
-        scan_row(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells_[0]);
+        scan_row(static_cast<std::size_t>(wrap_cell(1, ci[1] + oy)) * cells[0]);
     } else {
       for (int oz : offsets[2])
         for (int oy : offsets[1])
-          scan_row((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells_[1] +
+          scan_row((static_cast<std::size_t>(wrap_cell(2, ci[2] + oz)) * cells[1] +
                     static_cast<std::size_t>(wrap_cell(1, ci[1] + oy))) *
-                   cells_[0]);
+                   cells[0]);
     }
     return used;
-  };
-
-  // A list still held by a reader (an analysis snapshot) is left intact: build into the spare
-  // one if its reader has let it go, else into a new one.
-  if (list_ && list_.use_count() > 1) {
-    std::swap(list_, spare_);
-    if (list_ && list_.use_count() > 1) list_.reset();
   }
-  if (!list_) list_ = std::make_shared<NeighbourList>();
-  NeighbourList& list = *list_;
-  list.start.resize(listed);
-  list.count.resize(listed);
+};
 
-  // The listed particles cell by cell (in the order of cell_members), so that the candidates of
-  // a home cell are gathered once for all its particles whatever order the arrays are in (the
-  // solver's are in cell order already; a set-up's lattice or a gathered snapshot are not).
-  std::vector<std::uint32_t>& visit_order = scratch_.visit_order;
-  visit_order.clear();
-  visit_order.reserve(listed);
-  for (const std::uint32_t i : cell_members)
-    if (i < listed) visit_order.push_back(i);
-
-  // One scan per particle, written straight into the list: each of `chunks` contiguous ranges of
-  // that order fills its own region of list.indices, sized from the entries per particle of the
-  // last build (or the number density at the first). A range that outgrows its region goes on in
-  // a new region appended to the list. (Per-thread buffers copied into the list afterwards kept a
-  // second array as large as the list, a third of the solver's memory.) A particle's entries do
-  // not depend on the thread count or on where its region lies.
-  double per_particle = entries_per_particle_;
-  if (per_particle <= 0.0) {
-    double volume = 1.0;
-    for (int d = 0; d < Dim; ++d) volume *= box_.length[d];
-    const double pi = std::acos(-1.0);
-    const double ball = Dim == 2 ? pi * radius2 : 4.0 / 3.0 * pi * radius2 * list_radius();
-    per_particle = static_cast<double>(n) / volume * ball;
-  }
-  const std::size_t room = max_candidates + kStoreSlack;  // what one scan may write
+/// Writes the row of each particle of `visit_order` into `list` (start, count, indices) and
+/// list.entries; `room` is what one scan may write, `per_particle` the entries expected per
+/// particle. One scan per particle, written straight into the list: each of `chunks` contiguous
+/// ranges of the order fills its own region of list.indices, sized from the entries per particle
+/// of the last build (or the number density at the first). A range that outgrows its region goes
+/// on in a new region appended to the list. (Per-thread buffers copied into the list afterwards
+/// kept a second array as large as the list, a third of the solver's memory.) A particle's
+/// entries do not depend on the thread count or on where its region lies.
+template <int Dim>
+void write_rows(NeighbourList& list, std::span<const std::uint32_t> visit_order,
+                double per_particle, std::size_t room, const CellScan<Dim>& scan) {
+  const std::size_t listed = visit_order.size();
   struct Range {
     std::size_t first, next, end;  // places in visit_order: the range, and the next one to scan
     std::size_t at, limit;         // where the next entries go in list.indices, and the region end
@@ -514,8 +405,8 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
   std::vector<Range> ranges(chunks);
   std::size_t top = 0;
   const auto place = [&](Range& r) {
-    const auto wanted = static_cast<std::size_t>(kRegionMargin * per_particle *
-                                                 static_cast<double>(r.end - r.next));
+    const auto wanted = static_cast<std::size_t>(
+        VerletNeighbourSearch::kRegionMargin * per_particle * static_cast<double>(r.end - r.next));
     r.at = top;
     r.limit = top + wanted + room;
     top = r.limit;
@@ -531,7 +422,8 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     // reallocation (which maps and zeroes a new array, and is the next step's interaction list's
     // too); at the first round nothing is kept, so a reallocation need not copy.
     if (list.indices.size() < top) {
-      const auto grown = static_cast<std::size_t>(kRegionMargin * static_cast<double>(top));
+      const auto grown =
+          static_cast<std::size_t>(VerletNeighbourSearch::kRegionMargin * static_cast<double>(top));
       if (first_round && list.indices.capacity() < top) list.indices.clear();
       list.indices.resize(list.indices.capacity() >= top ? top : grown);
     }
@@ -539,10 +431,10 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     for (std::ptrdiff_t t = 0; t < num_chunks; ++t) {
       Range& r = ranges[static_cast<std::size_t>(t)];
       Scratch scratch;
-      scratch.candidates.reserve(max_candidates + kStoreSlack, Dim);
+      scratch.candidates.reserve(room, Dim);
       for (; r.next < r.end && r.at + room <= r.limit; ++r.next) {
         const std::uint32_t i = visit_order[r.next];
-        const std::size_t found = visit(i, list.indices.data() + r.at, scratch);
+        const std::size_t found = scan.neighbours(i, list.indices.data() + r.at, scratch);
         list.start[i] = r.at;
         list.count[i] = static_cast<std::uint32_t>(found);
         r.at += found;
@@ -560,13 +452,99 @@ void VerletNeighbourSearch::build_impl(const PositionsView& positions,
     }
     if (!pending) {
       list.entries = written;
-      break;
+      return;
     }
     const double seen = done == 0 ? 0.0 : static_cast<double>(written) / static_cast<double>(done);
     per_particle = std::max(seen, kRegrowth * per_particle);
     for (Range& r : ranges)
       if (r.next < r.end) place(r);
   }
+}
+
+}  // namespace
+
+VerletNeighbourSearch::VerletNeighbourSearch(const PeriodicBox& box, double cutoff, double skin)
+    : box_(box), cutoff_(cutoff), skin_(skin) {
+  if (!(cutoff > 0.0)) throw std::invalid_argument("neighbour search: cutoff must be > 0");
+  if (!(skin >= 0.0)) throw std::invalid_argument("neighbour search: skin must be >= 0");
+  const double min_length = box.min_length();
+  if (min_length < 2.0 * cutoff) {
+    throw std::invalid_argument("neighbour search: box length " + std::to_string(min_length) +
+                                " is smaller than the kernel support diameter " +
+                                std::to_string(2.0 * cutoff));
+  }
+  // Minimum-image lists need every listed pair closer than half a box.
+  skin_ = std::min(skin_, 0.5 * min_length - cutoff);
+  // Cells of at least radius / kCellsPerRadius: candidates lie at most kCellsPerRadius cells away.
+  const double cell_size = list_radius() / kCellsPerRadius;
+  for (int d = 0; d < box.dimension; ++d) {
+    cells_[d] = std::max(1, static_cast<int>(std::floor(box.length[d] / cell_size)));
+    inv_cell_size_[d] = cells_[d] / box.length[d];
+  }
+}
+
+NeighbourList& VerletNeighbourSearch::list_to_build(std::size_t listed) {
+  // A list still held by a reader (an analysis snapshot) is left intact: build into the spare
+  // one if its reader has let it go, else into a new one.
+  if (list_ && list_.use_count() > 1) {
+    std::swap(list_, spare_);
+    if (list_ && list_.use_count() > 1) list_.reset();
+  }
+  if (!list_) list_ = std::make_shared<NeighbourList>();
+  NeighbourList& list = *list_;
+  list.start.resize(listed);
+  list.count.resize(listed);
+  return list;
+}
+
+template <int Dim>
+void VerletNeighbourSearch::build_impl(const PositionsView& positions,
+                                       std::span<const std::uint32_t> cell_order,
+                                       std::size_t listed) {
+  const std::size_t n = positions.size;
+  // Into the scratch kept between builds (BuildScratch): fresh vectors of this size would be
+  // mapped and zeroed page by page at every build.
+  bin_particles<Dim>(positions, cell_order);
+  std::array<double, 3> cell_size{};
+  bool gathered = true;
+  for (int d = 0; d < Dim; ++d) {
+    cell_size[d] = box_.length[d] / cells_[d];
+    gathered = gathered && cells_[d] >= 2 * kCellsPerRadius + 1;
+  }
+  const CellScan<Dim> scan{positions,
+                           list_geometry<Dim>(box_, list_radius()),
+                           cells_,
+                           cell_size,
+                           stencil_offsets<Dim>(cells_, kCellsPerRadius),
+                           scratch_.cell,
+                           scratch_.cell_start,
+                           scratch_.cell_members,
+                           scratch_.sorted,
+                           scratch_.rank,
+                           gathered};
+  NeighbourList& list = list_to_build(listed);
+
+  // The listed particles cell by cell (in the order of cell_members), so that the candidates of
+  // a home cell are gathered once for all its particles whatever order the arrays are in (the
+  // solver's are in cell order already; a set-up's lattice or a gathered snapshot are not).
+  std::vector<std::uint32_t>& visit_order = scratch_.visit_order;
+  visit_order.clear();
+  visit_order.reserve(listed);
+  for (const std::uint32_t i : scratch_.cell_members)
+    if (i < listed) visit_order.push_back(i);
+
+  // The entries per particle of the last build, or at the first the number density times the
+  // volume of the list radius's ball.
+  double per_particle = entries_per_particle_;
+  if (per_particle <= 0.0) {
+    double volume = 1.0;
+    for (int d = 0; d < Dim; ++d) volume *= box_.length[d];
+    const double pi = std::acos(-1.0);
+    const double radius2 = list_radius() * list_radius();
+    const double ball = Dim == 2 ? pi * radius2 : 4.0 / 3.0 * pi * radius2 * list_radius();
+    per_particle = static_cast<double>(n) / volume * ball;
+  }
+  write_rows<Dim>(list, visit_order, per_particle, scan.max_candidates() + kStoreSlack, scan);
   entries_per_particle_ =
       listed == 0 ? 0.0 : static_cast<double>(list.entries) / static_cast<double>(listed);
 

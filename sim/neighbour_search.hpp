@@ -112,6 +112,13 @@ class VerletNeighbourSearch {
   template <int Dim>
   void build_impl(const PositionsView& positions, std::span<const std::uint32_t> cell_order,
                   std::size_t listed);
+  /// A build's binning into scratch_ (neighbour_search_cells.cpp): each particle's cell, the
+  /// particles cell by cell (within a cell in the order of `cell_order` when given, else by index)
+  /// and where each cell begins, the positions in that order and each particle's place in it.
+  template <int Dim>
+  void bin_particles(const PositionsView& positions, std::span<const std::uint32_t> cell_order);
+  /// The list to build into, with room for the rows of `listed` particles.
+  NeighbourList& list_to_build(std::size_t listed);
   void cell_of(const PositionsView& positions, std::vector<std::uint32_t>& cell) const;
   std::size_t num_cells() const {
     return static_cast<std::size_t>(cells_[0]) * static_cast<std::size_t>(cells_[1]) *
