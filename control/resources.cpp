@@ -8,7 +8,7 @@
 //                 writer hold and write: control/resources_analysis.cpp)
 //   rendering     control/render_sink.cpp, render/ (measured per pixel, see below)
 // docs/scenes.md ("Resource estimate") lists what is counted and how the estimate compares with
-// the peak RSS of real runs (tests/test_resources.cpp).
+// the peak RSS of real runs (tests/control/test_resources.cpp).
 #include "control/resources.hpp"
 
 #include <algorithm>

@@ -19,7 +19,8 @@ inline constexpr double kSize = sizeof(std::size_t);     // NeighbourList::offse
 inline constexpr double kId = sizeof(std::uint64_t);
 
 /// HDF5 per dataset and per file (object headers, chunk index, checksums), an upper bound
-/// for the files sphles writes (measured against real checkpoints, tests/test_resources.cpp).
+/// for the files sphles writes (measured against real checkpoints,
+/// tests/control/test_resources.cpp).
 inline constexpr double kHdf5BytesPerDataset = 4096.0;
 inline constexpr double kHdf5BytesPerFile = 8192.0;
 

@@ -8,7 +8,7 @@
 // equals its continuous, isotropic value -n ⟨e⊗e⊗e⊗e⟩ (the Taylor expansion of v_ij to second
 // order). On a packed arrangement it does not: the arrangement keeps the anisotropy of the
 // lattice it was relaxed from, and the TGV modes decay at 0.95 to 1.16 times ν depending on
-// D_K/Δl, at any N (tests/test_consistent_start.cpp).
+// D_K/Δl, at any N (tests/sim/test_consistent_start.cpp).
 //
 // ViscousOperator::Corrected weighs every pair by g_ij = ½(g_i(e_ij) + g_j(e_ij)), where g_i is
 // the quartic polynomial of the direction (all monomials e^a e^b e^c e^d: 5 in 2D, 15 in 3D, the
