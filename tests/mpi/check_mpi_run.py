@@ -134,7 +134,7 @@ def same_views(reference, other, label, count):
 def main():
     sphles, mpiexec, work = sys.argv[1:4]
     scene = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "scenes",
-                         "tgv2d.json")
+                         "tgv2d-validation.json")
     shutil.rmtree(work, ignore_errors=True)
     os.makedirs(work)
     env = dict(os.environ, OMP_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
