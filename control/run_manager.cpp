@@ -181,7 +181,9 @@ RunManager::RunManager(ManagerOptions options)
   options_.run_options.admit = [this](const RunSpec& spec, int ranks) { admit(spec, ranks); };
   const std::filesystem::path runs = options_.data_directory / "runs";
   std::filesystem::create_directories(runs);
-  std::error_code ignored;  // deletions a previous process did not finish (remove())
+  lock_.emplace(options_.data_directory);  // before anything of another server is touched
+  // Deletions a previous process did not finish (remove()).
+  std::error_code ignored;
   std::filesystem::remove_all(options_.data_directory / "trash", ignored);
   std::vector<std::filesystem::path> directories;
   for (const auto& entry : std::filesystem::directory_iterator(runs))

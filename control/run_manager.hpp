@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "control/data_lock.hpp"
 #include "control/reference_jobs.hpp"
 #include "control/run.hpp"
 #include "scene/document.hpp"
@@ -170,6 +171,7 @@ class RunManager {
   void schedule_loop();  // the scheduler thread
 
   ManagerOptions options_;
+  std::optional<DataDirectoryLock> lock_;  // taken first, released last
   std::shared_ptr<Wakeup> wakeup_ = std::make_shared<Wakeup>();
   std::shared_ptr<SlotObserver> slot_observer_;
   // Lock order: schedule_mutex_, then mutex_, then a run's own locks. A run's threads take

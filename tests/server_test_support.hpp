@@ -490,6 +490,7 @@ class ServeProcess {
   ServeProcess& operator=(const ServeProcess&) = delete;
 
   unsigned short port() const { return port_; }
+  pid_t pid() const { return pid_; }
   void signal(int number) const { ::kill(pid_, number); }
   /// Exit status (or -signal) once the process has ended, nullopt if it has not within `limit`.
   std::optional<int> wait_exit(std::chrono::milliseconds limit) {

@@ -489,6 +489,50 @@ TEST(ServiceFaults, StartRunAgainContinuesTheStoppedRun) {
   EXPECT_EQ(serve.wait_exit(60s), 0);
 }
 
+// Two servers on one data directory started without a word and then ran the same runs, wrote
+// the same checkpoints and run.json, and deleted each other's runs. The second is refused,
+// naming the first; a killed server leaves no stale lock.
+TEST(ServiceFaults, ASecondServerOnTheSameDataDirectoryIsRefusedNamingTheFirst) {
+  const fs::path base = scratch("two_servers");
+  const fs::path data = base / "data";
+  const std::vector<std::string> args{"--data", data.string(), "--threads", "1"};
+  ServeProcess first(args, base / "first.log");
+  std::vector<std::string> second_args{"serve", "--port", "0"};
+  second_args.insert(second_args.end(), args.begin(), args.end());
+  const ProcessResult second = run_sphles(second_args, base, 60s);
+  EXPECT_EQ(second.code, 1) << second.err;
+  const std::string holder =
+      "in use by another sphles server (process " + std::to_string(first.pid()) + ")";
+  EXPECT_NE(second.err.find(holder), std::string::npos) << second.err;
+  EXPECT_NE(second.err.find(data.string()), std::string::npos) << second.err;
+  EXPECT_EQ(Api{first.port()}.get("/api/health").status, 200);
+
+  // In one process too: a second run manager on the directory is refused while the first
+  // lives, and accepted once it is gone.
+  const fs::path other = base / "other";
+  sphles::control::ManagerOptions options;
+  options.data_directory = other;
+  {
+    sphles::control::RunManager manager(options);
+    try {
+      sphles::control::RunManager again(options);
+      ADD_FAILURE() << "a second run manager took the data directory";
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("(process " + std::to_string(::getpid()) + ")"),
+                std::string::npos)
+          << e.what();
+    }
+  }
+  EXPECT_NO_THROW(sphles::control::RunManager{options});
+
+  first.signal(SIGKILL);
+  ASSERT_TRUE(first.wait_exit(30s).has_value());
+  ServeProcess third(args, base / "third.log");
+  EXPECT_EQ(Api{third.port()}.get("/api/health").status, 200);
+  third.signal(SIGTERM);
+  EXPECT_EQ(third.wait_exit(60s), 0);
+}
+
 // A scene's packing.cache_dir made the server create directories and write files wherever it
 // could; in the command line a scene name of ../../x wrote outside runs/.
 TEST(ServiceFaults, ClientsChooseNoPaths) {
