@@ -496,10 +496,16 @@ void RunManager::remove(const std::string& id) {
   run->retire();  // throws StateError for an active run; no transition is accepted afterwards
   const std::filesystem::path trash =
       options_.data_directory / "trash" / run->directory().filename();
+  // A directory deleted by hand leaves nothing to move: the run only leaves the list.
+  std::error_code status_error;
+  const bool on_disk =
+      std::filesystem::exists(std::filesystem::symlink_status(run->directory(), status_error));
   try {
-    std::filesystem::create_directories(trash.parent_path());
-    std::filesystem::remove_all(trash);
-    std::filesystem::rename(run->directory(), trash);
+    if (on_disk) {
+      std::filesystem::create_directories(trash.parent_path());
+      std::filesystem::remove_all(trash);
+      std::filesystem::rename(run->directory(), trash);
+    }
   } catch (...) {
     run->reinstate();
     throw;
@@ -512,7 +518,8 @@ void RunManager::remove(const std::string& id) {
   run->remove_observer(slot_observer_.get());
   std::error_code ignored;
   std::filesystem::remove_all(trash, ignored);  // a leftover is removed on the next start
-  logging::console("runs")->info("deleted run {}", id);
+  logging::console("runs")->info("deleted run {}{}", id,
+                                 on_disk ? "" : " (its directory was already gone)");
 }
 
 void RunManager::start_queued() {
