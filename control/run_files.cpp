@@ -8,6 +8,9 @@
 #include <fstream>
 #include <iterator>
 #include <stdexcept>
+#include <string_view>
+#include <system_error>
+#include <vector>
 
 #include "analysis/writer.hpp"
 #include "io/checkpoint.hpp"
@@ -59,6 +62,25 @@ void seed_dissipation(const std::filesystem::path& path, double time,
     if (values[0] >= time - estimator.window() && values[0] <= time)
       estimator.add(values[0], values[3]);
   }
+}
+
+bool is_temporary_file(const std::string& name) {
+  constexpr std::string_view kTmp = ".tmp";
+  return name.find(".tmp.") != std::string::npos ||
+         (name.size() >= kTmp.size() &&
+          name.compare(name.size() - kTmp.size(), kTmp.size(), kTmp) == 0);
+}
+
+void remove_interrupted_writes(const std::filesystem::path& dir) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  std::vector<fs::path> doomed;
+  for (fs::recursive_directory_iterator it(dir, fs::directory_options::skip_permission_denied, ec),
+       end;
+       !ec && it != end; it.increment(ec))
+    if (it->is_regular_file(ec) && is_temporary_file(it->path().filename().string()))
+      doomed.push_back(it->path());
+  for (const fs::path& file : doomed) fs::remove(file, ec);
 }
 
 std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path) {

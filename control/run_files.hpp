@@ -30,6 +30,14 @@ void truncate_timeseries_after(const std::filesystem::path& path, double time);
 void seed_dissipation(const std::filesystem::path& path, double time,
                       analysis::DissipationEstimator& estimator);
 
+/// A file written under a temporary name and renamed into place when complete (NAME.tmp,
+/// NAME.tmp.PID, NAME.tmp.PID.N): never a valid output while it has that name.
+bool is_temporary_file(const std::string& name);
+
+/// Removes the temporaries that interrupted writes (a crash, SIGKILL, a full disk between the
+/// write and its rename) left in the run directory and its subdirectories.
+void remove_interrupted_writes(const std::filesystem::path& dir);
+
 /// Device and inode of a directory; nullopt if it does not exist.
 std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path);
 

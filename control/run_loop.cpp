@@ -16,6 +16,7 @@
 #include "control/live_changes.hpp"
 #include "control/progress.hpp"
 #include "control/render_sink.hpp"
+#include "control/run_files.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
 #include "sim/cadence.hpp"
@@ -65,14 +66,6 @@ std::unique_ptr<sim::Simulation> restore_solver(const RunOptions& options, const
   return options.solvers.restore
              ? options.solvers.restore(scene, std::move(state))
              : sim::restore_simulation(sim::make_solver_config(scene), std::move(state));
-}
-
-/// Temporaries of a write that a crash interrupted are never valid checkpoints: removed.
-void remove_interrupted_writes(const std::filesystem::path& checkpoint_dir) {
-  if (!std::filesystem::exists(checkpoint_dir)) return;
-  for (const auto& entry : std::filesystem::directory_iterator(checkpoint_dir))
-    if (entry.path().filename().string().find(".h5.tmp.") != std::string::npos)
-      std::filesystem::remove(entry.path());
 }
 
 /// A resumed run found no checkpoint to continue from.
@@ -509,7 +502,8 @@ void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& p
     current = spec;
   }
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
-  remove_interrupted_writes(checkpoint_dir);
+  // Temporaries of writes a crash interrupted are never valid outputs (nor checkpoints).
+  remove_interrupted_writes(directory);
   const sim::Scene& scene0 = current.scene;
   set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
   // Read here, or by the ranks of a distributed solver (restore_from_file below).

@@ -14,6 +14,7 @@
 #include <utility>
 #include <vector>
 
+#include "control/run_files.hpp"
 #include "server/handlers/handlers.hpp"
 #include "server/run_archive.hpp"
 
@@ -33,14 +34,6 @@ bool is_plain_name(std::string_view name, std::size_t max_size) {
   });
 }
 
-/// A file a run is still writing under a temporary name (renamed into place when complete).
-bool is_temporary(const std::string& name) {
-  constexpr std::string_view kTmp = ".tmp";
-  return name.find(".tmp.") != std::string::npos ||
-         (name.size() >= kTmp.size() &&
-          name.compare(name.size() - kTmp.size(), kTmp.size(), kTmp) == 0);
-}
-
 /// Every file of the run directory and its subdirectories (one level: checkpoints/, spectra/,
 /// slices/, stats/, frames/, ...) as (path relative to the directory, file), by path; files under
 /// a temporary name are left out.
@@ -50,7 +43,7 @@ std::vector<std::pair<std::string, fs::path>> run_files(const fs::path& root) {
     std::error_code e;
     if (entry.is_symlink(e) || !entry.is_regular_file(e) ||
         !is_plain_name(entry.path().filename().string(), kMaxFileName) ||
-        is_temporary(entry.path().filename().string()))
+        control::is_temporary_file(entry.path().filename().string()))
       return;
     files.emplace_back(relative, entry.path());
   };
@@ -159,7 +152,7 @@ Response get_file(const Services& s, const Context& c) {
   const fs::path root = fs::canonical(run->directory(), ec);
   const fs::path file = ec ? fs::path() : fs::canonical(root / relative, ec);
   const std::string missing = "no file '" + relative + "' in run '" + run->id() + "'";
-  if (ec || !is_within(root, file) || is_temporary(file.filename().string()))
+  if (ec || !is_within(root, file) || control::is_temporary_file(file.filename().string()))
     throw ApiError(404, missing, "path");
   std::shared_ptr<const FileSource> source = FileSource::open(file, ec);
   if (!source) throw ApiError(404, missing + " (" + ec.message() + ")", "path");

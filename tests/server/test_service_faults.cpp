@@ -383,6 +383,17 @@ TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
     serve.signal(SIGKILL);
     ASSERT_TRUE(serve.wait_exit(10s).has_value());
   }
+  // What a kill between a write and its rename leaves (whether this kill fell there is chance):
+  // removed when the run continues.
+  const fs::path run_dir = data / "runs" / id;
+  const std::vector<fs::path> interrupted{run_dir / "run.json.tmp",
+                                          run_dir / "checkpoints" / "ckpt_0000000009.h5.tmp.4242",
+                                          run_dir / "frames" / "omega2_t0.1000.png.tmp.4242.0",
+                                          run_dir / "spectra" / "spectra.xdmf2.tmp"};
+  for (const fs::path& file : interrupted) {
+    fs::create_directories(file.parent_path());
+    std::ofstream(file) << "half a file";
+  }
   const fs::path newest = sphles::io::newest_valid_checkpoint(data / "runs" / id / "checkpoints");
   const sphles::io::Checkpoint c = sphles::io::read_checkpoint(newest);
   TestServer server(data);
@@ -396,6 +407,7 @@ TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
   EXPECT_LE(run["time"].get<double>(), c.state.time + 1e-12) << run;
   ASSERT_EQ(api.post("/api/runs/" + id + "/resume").status, 200);
   ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > c.state.time; }));
+  for (const fs::path& file : interrupted) EXPECT_FALSE(fs::exists(file)) << file;
 }
 
 // `sphles run --restart CKPT --set particles_per_side=48` exited 0 and continued the stored
