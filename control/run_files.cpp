@@ -83,6 +83,15 @@ void remove_interrupted_writes(const std::filesystem::path& dir) {
   for (const fs::path& file : doomed) fs::remove(file, ec);
 }
 
+bool move_to_trash(const std::filesystem::path& dir, const std::filesystem::path& trash) {
+  std::error_code ec;
+  if (!std::filesystem::exists(std::filesystem::symlink_status(dir, ec))) return false;
+  std::filesystem::create_directories(trash.parent_path());
+  std::filesystem::remove_all(trash);
+  std::filesystem::rename(dir, trash);
+  return true;
+}
+
 std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path) {
   struct stat info {};
   if (::stat(path.c_str(), &info) != 0 || !S_ISDIR(info.st_mode)) return std::nullopt;

@@ -38,6 +38,10 @@ bool is_temporary_file(const std::string& name);
 /// write and its rename) left in the run directory and its subdirectories.
 void remove_interrupted_writes(const std::filesystem::path& dir);
 
+/// Moves a run directory to `trash`, replacing what is there; false when the directory is gone
+/// already (deleted by hand), which leaves nothing to move. Throws on failure.
+bool move_to_trash(const std::filesystem::path& dir, const std::filesystem::path& trash);
+
 /// Device and inode of a directory; nullopt if it does not exist.
 std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path);
 

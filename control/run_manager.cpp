@@ -10,6 +10,7 @@
 #include <sys/statvfs.h>
 
 #include "control/resources.hpp"
+#include "control/run_files.hpp"
 #include "control/step_time.hpp"
 #include "logging/logging.hpp"
 #include "scene/document.hpp"
@@ -496,16 +497,9 @@ void RunManager::remove(const std::string& id) {
   run->retire();  // throws StateError for an active run; no transition is accepted afterwards
   const std::filesystem::path trash =
       options_.data_directory / "trash" / run->directory().filename();
-  // A directory deleted by hand leaves nothing to move: the run only leaves the list.
-  std::error_code status_error;
-  const bool on_disk =
-      std::filesystem::exists(std::filesystem::symlink_status(run->directory(), status_error));
+  bool on_disk = true;
   try {
-    if (on_disk) {
-      std::filesystem::create_directories(trash.parent_path());
-      std::filesystem::remove_all(trash);
-      std::filesystem::rename(run->directory(), trash);
-    }
+    on_disk = move_to_trash(run->directory(), trash);
   } catch (...) {
     run->reinstate();
     throw;
