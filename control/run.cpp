@@ -233,7 +233,8 @@ std::optional<std::string> RunImpl::start_refusal(bool* continues) const {
           start_checkpoint || !io::list_checkpoints(directory / "checkpoints").empty();
       if (step > 0 && !has_checkpoint)
         return "run " + id + " stepped to t = " + sim::format_number(time) +
-               " but has no checkpoint to continue from (its scene writes none); create a new run";
+               " but has no checkpoint to continue from: its checkpoints/ holds none (removed, "
+               "or the run ended before it wrote one); create a new run";
       if (continues) *continues = step > 0 || has_checkpoint;
       return std::nullopt;
     }
