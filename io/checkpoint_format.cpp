@@ -380,6 +380,14 @@ Header read_header(hid_t root, const std::string& file) {
   if (c.state.time < 0.0)
     throw CheckpointError("checkpoint '" + file + "': attribute 'time' is " + number(c.state.time) +
                           " (must be >= 0)");
+  // Steps are reported as JSON numbers (run.json, the API, the time series), which clients read
+  // as doubles: exact up to 2^53. A scene's step is at least 2^-40 of time.end (sim/scene.hpp),
+  // so no run of an accepted scene comes near it.
+  constexpr std::uint64_t kMaxStep = std::uint64_t{1} << 53;
+  if (c.state.step > kMaxStep)
+    throw CheckpointError(
+        "checkpoint '" + file + "': attribute 'step' is " + std::to_string(c.state.step) +
+        ", above 2^53 = " + std::to_string(kMaxStep) + " (the largest step count read exactly)");
   if (c.state.step > 0 && !(c.state.time > 0.0))
     throw CheckpointError("checkpoint '" + file + "': attribute 'step' is " +
                           std::to_string(c.state.step) +

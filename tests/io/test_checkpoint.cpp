@@ -807,6 +807,11 @@ TEST_F(CheckpointTest, ImplausibleContentIsRejectedNamingTheField) {
       {"steps_without_time",
        [](const auto& f) { overwrite_attribute(f, "time", H5T_NATIVE_DOUBLE, 0.0); },
        "attribute 'step' is " + step + " but 'time' is 0"},
+      {"step_beyond_2_53",
+       [](const auto& f) {
+         overwrite_attribute(f, "step", H5T_NATIVE_UINT64, std::uint64_t{1} << 63);
+       },
+       "attribute 'step' is 9223372036854775808, above 2^53 = 9007199254740992"},
       {"neighbour_builds",
        [&](const auto& f) {
          overwrite_attribute(f, "neighbour_builds", H5T_NATIVE_UINT64, state.step + 2);
