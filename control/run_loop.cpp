@@ -48,9 +48,17 @@ void RunImpl::execute() {
     std::string why = e.what();
     try {
       const auto files = io::list_checkpoints(directory / "checkpoints");
-      why += files.empty()
-                 ? "; no checkpoint was written"
-                 : "; last valid checkpoint: checkpoints/" + files.front().filename().string();
+      if (files.empty()) {
+        why += "; no checkpoint was written";
+      } else {
+        try {  // the newest that reads whole, not merely the newest name
+          why += "; last valid checkpoint: checkpoints/" +
+                 io::newest_valid_checkpoint(directory / "checkpoints").filename().string();
+        } catch (const io::CheckpointError&) {
+          why += "; no valid checkpoint is left (" + std::to_string(files.size()) +
+                 " file(s) in checkpoints/, none reads whole)";
+        }
+      }
     } catch (const std::exception& listing) {
       why += std::string("; the checkpoints cannot be listed: ") + listing.what();
     }

@@ -304,6 +304,27 @@ TEST(RunControl, StopAndResumeGivesTheSameResultAsAnUninterruptedRun) {
   EXPECT_EQ(lines_of(dir / "timeseries.csv"), lines_of(straight_dir / "timeseries.csv"));
 }
 
+// A run whose every checkpoint was truncated failed naming a truncated file as the "last valid
+// checkpoint".
+TEST(RunControl, AFailureNamesOnlyACheckpointThatReadsWhole) {
+  json scene = tiny_scene(0.05);
+  scene["checkpoint"] = {{"every", 0.02}};
+  const auto dir = fresh_directory("truncated");
+  control::Run run("r", parse_run_spec(scene), dir);
+  ASSERT_EQ(run.run_here(), RunState::Finished);
+  const auto files = io::list_checkpoints(dir / "checkpoints");
+  ASSERT_FALSE(files.empty());
+  for (const auto& f : files) std::filesystem::resize_file(f, std::filesystem::file_size(f) / 2);
+  run.apply_changes({{"time", {{"end", 1.0}}}});
+  EXPECT_EQ(run.run_here(), RunState::Failed);
+  const std::string reason = run.status().reason;
+  EXPECT_EQ(reason.find("last valid checkpoint"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("no valid checkpoint is left (" + std::to_string(files.size()) +
+                        " file(s) in checkpoints/, none reads whole)"),
+            std::string::npos)
+      << reason;
+}
+
 TEST(RunControl, ABlowUpFailsTheRunCleanlyAndKeepsTheLastValidCheckpoint) {
   json scene = tiny_scene(5.0);
   scene["time"]["fixed_step"] = 0.1;  // 2.5 x the acoustic limit: blows up within ~1.2 s
