@@ -83,6 +83,22 @@ void remove_interrupted_writes(const std::filesystem::path& dir) {
   for (const fs::path& file : doomed) fs::remove(file, ec);
 }
 
+std::string checkpoints_left(const std::filesystem::path& checkpoint_dir) {
+  try {
+    const auto files = io::list_checkpoints(checkpoint_dir);
+    if (files.empty()) return "; no checkpoint was written";
+    try {  // the newest that reads whole, not merely the newest name
+      return "; last valid checkpoint: checkpoints/" +
+             io::newest_valid_checkpoint(checkpoint_dir).filename().string();
+    } catch (const io::CheckpointError&) {
+      return "; no valid checkpoint is left (" + std::to_string(files.size()) +
+             " file(s) in checkpoints/, none reads whole)";
+    }
+  } catch (const std::exception& listing) {
+    return std::string("; the checkpoints cannot be listed: ") + listing.what();
+  }
+}
+
 bool move_to_trash(const std::filesystem::path& dir, const std::filesystem::path& trash) {
   std::error_code ec;
   if (!std::filesystem::exists(std::filesystem::symlink_status(dir, ec))) return false;

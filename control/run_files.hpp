@@ -42,6 +42,10 @@ void remove_interrupted_writes(const std::filesystem::path& dir);
 /// already (deleted by hand), which leaves nothing to move. Throws on failure.
 bool move_to_trash(const std::filesystem::path& dir, const std::filesystem::path& trash);
 
+/// What a failed run says of the checkpoints it leaves: "; last valid checkpoint: checkpoints/
+/// NAME" (the newest that reads whole), or that none was written or none is valid.
+std::string checkpoints_left(const std::filesystem::path& checkpoint_dir);
+
 /// Device and inode of a directory; nullopt if it does not exist.
 std::optional<std::pair<dev_t, ino_t>> directory_identity(const std::filesystem::path& path);
 

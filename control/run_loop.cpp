@@ -46,22 +46,7 @@ void RunImpl::execute() {
   } catch (const std::exception& e) {
     std::unique_lock lock(mutex);
     std::string why = e.what();
-    try {
-      const auto files = io::list_checkpoints(directory / "checkpoints");
-      if (files.empty()) {
-        why += "; no checkpoint was written";
-      } else {
-        try {  // the newest that reads whole, not merely the newest name
-          why += "; last valid checkpoint: checkpoints/" +
-                 io::newest_valid_checkpoint(directory / "checkpoints").filename().string();
-        } catch (const io::CheckpointError&) {
-          why += "; no valid checkpoint is left (" + std::to_string(files.size()) +
-                 " file(s) in checkpoints/, none reads whole)";
-        }
-      }
-    } catch (const std::exception& listing) {
-      why += std::string("; the checkpoints cannot be listed: ") + listing.what();
-    }
+    why += checkpoints_left(directory / "checkpoints");
     set_state(lock, RunState::Failed, why);
   }
 }
