@@ -93,9 +93,24 @@ int run_here(const RunOptions& options, par::Driver* driver) {
                                               ? checkpoint_file / "checkpoints"
                                               : checkpoint_file;
         std::vector<std::string> rejected;
+        // A file of another run's scene among the run's checkpoints is passed over.
+        const std::filesystem::path run_dir = !options.out_dir.empty()
+                                                  ? std::filesystem::path(options.out_dir)
+                                              : dir == checkpoint_file ? dir.parent_path()
+                                                                       : checkpoint_file;
+        const auto of_this_run = [&](const std::filesystem::path& file) {
+          try {
+            control::check_checkpoint_belongs(
+                run_dir,
+                nlohmann::json::parse(io::read_checkpoint_header(file).metadata.scene_json));
+          } catch (const std::exception& e) {
+            throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
+          }
+        };
         // Under mpirun the ranks read and validate the particles (the factories' restore_file).
         checkpoint_file = io::newest_valid_checkpoint(
-            dir, &rejected, driver ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole);
+            dir, &rejected, driver ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole,
+            of_this_run);
         for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
       }
       const std::filesystem::path out_dir =

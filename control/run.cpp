@@ -88,6 +88,27 @@ Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptio
   impl_->write_run_file_locked();
 }
 
+void check_checkpoint_belongs(const std::filesystem::path& directory,
+                              const json& checkpoint_scene) {
+  const std::filesystem::path own = directory / "scene.json";
+  if (!std::filesystem::exists(own)) return;
+  json before;
+  try {
+    json document = scene::read_scene_file(own);
+    if (document.is_object() && document.contains("packing") && document["packing"].is_object())
+      document["packing"].erase("cache_dir");
+    before = run_spec_to_json(parse_run_spec(document));
+  } catch (const sim::SceneError&) {
+    return;  // no readable scene of its own: the checkpoint's is the run's
+  }
+  try {
+    check_change(before, run_spec_to_json(parse_run_spec(checkpoint_scene)));
+  } catch (const std::exception& e) {
+    throw std::runtime_error("not a checkpoint of the run in '" + directory.string() +
+                             "': " + e.what());
+  }
+}
+
 std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& directory,
                                RunOptions options, const std::vector<std::string>& overrides,
                                std::optional<std::filesystem::path> checkpoint) {
@@ -110,6 +131,11 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
       document = json::parse(header.metadata.scene_json);
     } catch (const json::exception& e) {
       throw std::runtime_error(source + ": attribute 'scene' is not a JSON document: " + e.what());
+    }
+    try {
+      check_checkpoint_belongs(directory, document);
+    } catch (const std::runtime_error& e) {
+      throw std::runtime_error(source + " is " + e.what());
     }
     impl->start_checkpoint = checkpoint;
     impl->time = header.shape.time;

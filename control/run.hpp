@@ -22,6 +22,12 @@ namespace sphles::control {
 struct RunImpl;  // control/run_impl.hpp
 
 /// One simulation with everything it writes. All methods are thread-safe.
+/// Throws std::runtime_error when `directory` holds a run (its scene.json) whose scene differs
+/// from `checkpoint_scene` in more than a live change may change: a checkpoint of another run
+/// (a 48² file dropped among a 32² run's), which would replace the run's particles and scene.
+void check_checkpoint_belongs(const std::filesystem::path& directory,
+                              const nlohmann::json& checkpoint_scene);
+
 class Run {
  public:
   /// A new run in `directory` (created; must not already hold a run). Writes scene.json and

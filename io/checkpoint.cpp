@@ -170,9 +170,9 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
   return files;
 }
 
-std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
-                                              std::vector<std::string>* rejected,
-                                              CheckpointCheck check) {
+std::filesystem::path newest_valid_checkpoint(
+    const std::filesystem::path& directory, std::vector<std::string>* rejected,
+    CheckpointCheck check, const std::function<void(const std::filesystem::path&)>& accept) {
   const auto files = list_checkpoints(directory);
   for (const auto& file : files) {
     try {
@@ -180,6 +180,7 @@ std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& direc
         read_checkpoint_header(file);
       else
         read_checkpoint(file);
+      if (accept) accept(file);
       return file;
     } catch (const CheckpointError& e) {
       if (rejected) rejected->push_back(e.what());

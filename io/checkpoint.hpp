@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <stdexcept>
@@ -89,11 +90,13 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
 /// particles themselves, io/checkpoint_collective.hpp).
 enum class CheckpointCheck { Whole, Header };
 
-/// The newest checkpoint in `directory` that reads and validates; `rejected` receives one line
-/// per newer file that did not. Throws CheckpointError when none is valid.
-std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
-                                              std::vector<std::string>* rejected = nullptr,
-                                              CheckpointCheck check = CheckpointCheck::Whole);
+/// The newest checkpoint in `directory` that reads and validates and that `accept` (when given)
+/// takes: it rejects a valid file by throwing CheckpointError with the reason. `rejected`
+/// receives one line per newer file that was not taken. Throws CheckpointError when none is.
+std::filesystem::path newest_valid_checkpoint(
+    const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr,
+    CheckpointCheck check = CheckpointCheck::Whole,
+    const std::function<void(const std::filesystem::path&)>& accept = {});
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);

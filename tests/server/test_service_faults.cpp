@@ -454,6 +454,47 @@ TEST(ServiceFaults, RestartRefusesWhatLiveChangesRefuseWithTheSameMessage) {
   EXPECT_DOUBLE_EQ(json::parse(record)["time"].get<double>(), 0.1);
 }
 
+// `sphles run --restart DIR` took a 24² checkpoint dropped among a 16² run's checkpoints and
+// rewrote the run's scene.json with its scene. A file of another run is passed over (and, named
+// explicitly, refused); the run's scene stays.
+TEST(ServiceFaults, RestartPassesOverACheckpointOfAnotherRun) {
+  const fs::path base = scratch("restart-foreign");
+  json own = tiny_scene(0.05, "own");
+  own["checkpoint"] = {{"every", 0.02}};
+  json other = own;
+  other["name"] = "other";
+  other["particles_per_side"] = 24;
+  other["time"]["end"] = 0.1;
+  std::ofstream(base / "own.json") << own.dump();
+  std::ofstream(base / "other.json") << other.dump();
+  const fs::path out = base / "own", elsewhere = base / "other";
+  ASSERT_EQ(run_sphles({"run", "own.json", "--out", out.string()}, base).code, 0);
+  ASSERT_EQ(run_sphles({"run", "other.json", "--out", elsewhere.string()}, base).code, 0);
+  const fs::path foreign = sphles::io::list_checkpoints(elsewhere / "checkpoints").front();
+  const fs::path mine = sphles::io::list_checkpoints(out / "checkpoints").front();
+  ASSERT_GT(foreign.filename().string(), mine.filename().string());  // the newer name
+  fs::copy_file(foreign, out / "checkpoints" / foreign.filename());
+
+  const ProcessResult r =
+      run_sphles({"run", "--restart", out.string(), "--set", "time.end=0.08"}, base);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(
+      r.err.find("skipped: checkpoint '" + (out / "checkpoints" / foreign.filename()).string() +
+                 "' is not a checkpoint of the run in"),
+      std::string::npos)
+      << r.err;
+  EXPECT_NE(r.err.find("particles_per_side"), std::string::npos) << r.err;
+  std::ifstream record(out / "run.json");
+  EXPECT_DOUBLE_EQ(json::parse(record)["time"].get<double>(), 0.08);
+  EXPECT_EQ(json::parse(std::ifstream(out / "scene.json"))["particles_per_side"], 16);
+
+  const ProcessResult named =
+      run_sphles({"run", "--restart", (out / "checkpoints" / foreign.filename()).string()}, base);
+  EXPECT_NE(named.code, 0) << named.err;
+  EXPECT_NE(named.err.find("is not a checkpoint of the run in"), std::string::npos) << named.err;
+  EXPECT_EQ(json::parse(std::ifstream(out / "scene.json"))["particles_per_side"], 16);
+}
+
 // `sphles serve --start-run SCENE` run again continues the run it started before and that was
 // stopped, from its newest checkpoint, instead of starting the scene again at t = 0 (so that
 // ./scripts/run.sh, run again, picks up where Ctrl-C stopped it); a different scene starts a new
