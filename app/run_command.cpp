@@ -72,6 +72,35 @@ int launched_ranks() {
   return 1;
 }
 
+/// The checkpoint --restart names: the file, or a run directory's (or checkpoints directory's)
+/// newest valid checkpoint of that run; the files passed over are listed on stderr.
+std::filesystem::path restart_checkpoint(const RunOptions& options, bool distributed) {
+  const std::filesystem::path given = options.restart;
+  if (!std::filesystem::is_directory(given)) return given;
+  const std::filesystem::path dir =
+      std::filesystem::exists(given / "checkpoints") ? given / "checkpoints" : given;
+  // A file of another run's scene among the run's checkpoints is passed over.
+  const std::filesystem::path run_dir = !options.out_dir.empty()
+                                            ? std::filesystem::path(options.out_dir)
+                                        : dir == given ? dir.parent_path()
+                                                       : given;
+  const auto of_this_run = [&](const std::filesystem::path& file) {
+    try {
+      control::check_checkpoint_belongs(
+          run_dir, nlohmann::json::parse(io::read_checkpoint_header(file).metadata.scene_json));
+    } catch (const std::exception& e) {
+      throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
+    }
+  };
+  std::vector<std::string> rejected;
+  // Under mpirun the ranks read and validate the particles (the factories' restore_file).
+  const std::filesystem::path file = io::newest_valid_checkpoint(
+      dir, &rejected, distributed ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole,
+      of_this_run);
+  for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
+  return file;
+}
+
 /// The run on this process; with a driver, its solver spans the MPI ranks (rank 0 only).
 int run_here(const RunOptions& options, par::Driver* driver) {
   std::unique_ptr<control::Run> run;
@@ -87,32 +116,7 @@ int run_here(const RunOptions& options, par::Driver* driver) {
     run_options.threads = options.threads;
     run_options.packing_cache_dir = options.packing_cache;
     if (!options.restart.empty()) {
-      std::filesystem::path checkpoint_file = options.restart;
-      if (std::filesystem::is_directory(checkpoint_file)) {
-        const std::filesystem::path dir = std::filesystem::exists(checkpoint_file / "checkpoints")
-                                              ? checkpoint_file / "checkpoints"
-                                              : checkpoint_file;
-        std::vector<std::string> rejected;
-        // A file of another run's scene among the run's checkpoints is passed over.
-        const std::filesystem::path run_dir = !options.out_dir.empty()
-                                                  ? std::filesystem::path(options.out_dir)
-                                              : dir == checkpoint_file ? dir.parent_path()
-                                                                       : checkpoint_file;
-        const auto of_this_run = [&](const std::filesystem::path& file) {
-          try {
-            control::check_checkpoint_belongs(
-                run_dir,
-                nlohmann::json::parse(io::read_checkpoint_header(file).metadata.scene_json));
-          } catch (const std::exception& e) {
-            throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
-          }
-        };
-        // Under mpirun the ranks read and validate the particles (the factories' restore_file).
-        checkpoint_file = io::newest_valid_checkpoint(
-            dir, &rejected, driver ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole,
-            of_this_run);
-        for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
-      }
+      const std::filesystem::path checkpoint_file = restart_checkpoint(options, driver != nullptr);
       const std::filesystem::path out_dir =
           !options.out_dir.empty()
               ? std::filesystem::path(options.out_dir)
