@@ -53,6 +53,22 @@ struct Totals {
   std::size_t bytes = 0;
 };
 
+/// Adds one frame to `totals`: the wall time of `render_frame` (which returns the PNG bytes), the
+/// renderer's split of it and the size of the PNG.
+template <class R, class RenderFrame>
+void add_frame(Totals& totals, const R& renderer, RenderFrame render_frame) {
+  const auto start = std::chrono::steady_clock::now();
+  const auto png = render_frame();
+  totals.wall_ms +=
+      std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+  const FrameTimings& t = renderer.last_timings();
+  totals.sum.prepare_ms += t.prepare_ms;
+  totals.sum.render_ms += t.render_ms;
+  totals.sum.read_back_ms += t.read_back_ms;
+  totals.sum.encode_ms += t.encode_ms;
+  totals.bytes += png.size();
+}
+
 Totals run(Renderer& renderer, const ColourMapping& mapping, int frames) {
   Totals totals;
   for (int frame = 0; frame < frames; ++frame) {
@@ -61,16 +77,8 @@ Totals run(Renderer& renderer, const ColourMapping& mapping, int frames) {
         synthetic_slice(SliceField::VorticitySquared, phase),
         synthetic_slice(SliceField::SubfilterStressNorm, -phase)};
     const FrameLabels labels{"bench", 0.01 * frame, static_cast<std::uint64_t>(100 * frame)};
-    const auto start = std::chrono::steady_clock::now();
-    const auto png = renderer.render_png(slices, std::span(&mapping, 1), labels);
-    totals.wall_ms +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    const FrameTimings& t = renderer.last_timings();
-    totals.sum.prepare_ms += t.prepare_ms;
-    totals.sum.render_ms += t.render_ms;
-    totals.sum.read_back_ms += t.read_back_ms;
-    totals.sum.encode_ms += t.encode_ms;
-    totals.bytes += png.size();
+    add_frame(totals, renderer,
+              [&] { return renderer.render_png(slices, std::span(&mapping, 1), labels); });
   }
   return totals;
 }
@@ -107,16 +115,7 @@ Totals run_particles(ParticleRenderer& renderer, const ColourMapping& mapping, i
   for (int frame = 0; frame < frames; ++frame) {
     const ParticleCloud cloud = data.cloud(0.1 * frame);
     const FrameLabels labels{"bench", 0.01 * frame, static_cast<std::uint64_t>(100 * frame)};
-    const auto start = std::chrono::steady_clock::now();
-    const auto png = renderer.render_png(cloud, mapping, labels);
-    totals.wall_ms +=
-        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-    const FrameTimings& t = renderer.last_timings();
-    totals.sum.prepare_ms += t.prepare_ms;
-    totals.sum.render_ms += t.render_ms;
-    totals.sum.read_back_ms += t.read_back_ms;
-    totals.sum.encode_ms += t.encode_ms;
-    totals.bytes += png.size();
+    add_frame(totals, renderer, [&] { return renderer.render_png(cloud, mapping, labels); });
   }
   return totals;
 }

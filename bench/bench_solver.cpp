@@ -87,38 +87,42 @@ void set_counters(benchmark::State& state, const Fixture& f) {
   state.counters["threads"] = omp_get_max_threads();
 }
 
-void BM_DensityPass(benchmark::State& state) {
+using PassKernel = sim::Kernel<sim::kernel_shape::WendlandC4, 3>;
+
+/// Times `pass(f, c, kernel, interactions)` on the fixture with state.range(0) threads, after an
+/// untimed density pass: it records the pairs inside the support that the force pass runs over,
+/// and since the solver keeps its interaction list from step to step, its pages are mapped once
+/// (a first pass in the timing would add 190 MB of page faults).
+template <class Pass>
+void bench_pass(benchmark::State& state, Pass pass) {
   omp_set_num_threads(static_cast<int>(state.range(0)));
   Fixture& f = fixture();
   const sim::SolverConfig& c = f.setup.solver;
-  sim::Kernel<sim::kernel_shape::WendlandC4, 3> kernel(c.support_radius);
+  const PassKernel kernel(c.support_radius);
   sim::InteractionList interactions;
-  // Untimed first pass: the solver keeps its interaction list from step to step, so its pages
-  // are mapped once; a first pass in the timing would add 190 MB of page faults.
   sim::density_pass<3>(kernel, c.box, f.search->list(), c.fluid, f.setup.particles, &interactions);
-  for (auto _ : state) {
+  for (auto _ : state) pass(f, c, kernel, interactions);
+  set_counters(state, f);
+}
+
+void BM_DensityPass(benchmark::State& state) {
+  bench_pass(state, [](Fixture& f, const sim::SolverConfig& c, const PassKernel& kernel,
+                       sim::InteractionList& interactions) {
     // As the solver runs it: the density pass also records the pairs inside the support.
     sim::density_pass<3>(kernel, c.box, f.search->list(), c.fluid, f.setup.particles,
                          &interactions);
     benchmark::DoNotOptimize(f.setup.particles.density.data());
-  }
-  set_counters(state, f);
+  });
 }
 
 void BM_ForcePass(benchmark::State& state) {
-  omp_set_num_threads(static_cast<int>(state.range(0)));
-  Fixture& f = fixture();
-  const sim::SolverConfig& c = f.setup.solver;
-  sim::Kernel<sim::kernel_shape::WendlandC4, 3> kernel(c.support_radius);
-  sim::InteractionList interactions;
-  sim::density_pass<3>(kernel, c.box, f.search->list(), c.fluid, f.setup.particles, &interactions);
-  for (auto _ : state) {
+  bench_pass(state, [](Fixture& f, const sim::SolverConfig& c, const PassKernel& kernel,
+                       sim::InteractionList& interactions) {
     // As the solver runs it: over the pairs inside the support the density pass recorded.
     sim::force_pass<3>(kernel, c.box, interactions, c.fluid, sim::view_velocity(f.setup.particles),
                        f.setup.particles);
     benchmark::DoNotOptimize(f.setup.particles.acceleration[0].data());
-  }
-  set_counters(state, f);
+  });
 }
 
 void BM_NeighbourBuild(benchmark::State& state) {

@@ -1,8 +1,11 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
-// Process CPU time for the timed benchmarks (bench_server, sphles_accuracy).
+// Process CPU time and wall time for the timed benchmarks (bench_server, sphles_accuracy,
+// sphles_stability).
 #pragma once
 
 #include <sys/resource.h>
+
+#include <chrono>
 
 namespace sphles::bench {
 
@@ -15,5 +18,16 @@ inline double process_cpu_seconds() {
   };
   return seconds(usage.ru_utime) + seconds(usage.ru_stime);
 }
+
+/// The wall time since construction [s], read by calling it.
+class WallClock {
+ public:
+  double operator()() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start_).count();
+  }
+
+ private:
+  std::chrono::steady_clock::time_point start_ = std::chrono::steady_clock::now();
+};
 
 }  // namespace sphles::bench

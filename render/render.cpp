@@ -172,7 +172,8 @@ ImageRect image_rect(int panel_width, int panel_height, const analysis::SlicePro
   return rect;
 }
 
-struct Renderer::Impl {
+template <>
+struct detail::OffscreenPngRenderer<Renderer>::Impl {
   detail::OffscreenWindow surface;  // first: destroyed after the panels' renderers
   std::vector<std::unique_ptr<Panel>> panels;
   FrameTimings timings;
@@ -193,29 +194,9 @@ struct Renderer::Impl {
   }
 };
 
-Renderer::Renderer(int width, int height) {
-  const std::lock_guard lock(vtk_scene_mutex());
-  impl_ = std::make_unique<Impl>(width, height);
-}
-Renderer::~Renderer() {
-  const std::lock_guard lock(vtk_scene_mutex());
-  impl_.reset();
-}
-int Renderer::width() const {
-  return impl_->surface.width();
-}
-int Renderer::height() const {
-  return impl_->surface.height();
-}
-const FrameTimings& Renderer::last_timings() const {
-  return impl_->timings;
-}
-void Renderer::set_compression_level(int level) {
-  impl_->surface.set_compression_level(level);
-}
-void Renderer::set_png_filter(std::optional<PngFilter> filter) {
-  impl_->surface.set_png_filter(filter);
-}
+template class detail::OffscreenPngRenderer<Renderer>;
+
+Renderer::Renderer(int width, int height) : OffscreenPngRenderer(width, height) {}
 
 std::vector<unsigned char> Renderer::render_png(std::span<const analysis::SliceProduct> slices,
                                                 std::span<const ColourMapping> mappings,

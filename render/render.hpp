@@ -24,6 +24,7 @@
 #include "analysis/products.hpp"
 #include "render/colour_map.hpp"
 #include "render/frame_timings.hpp"
+#include "render/offscreen_png_renderer.hpp"
 #include "render/png_encode.hpp"
 
 namespace sphles::render {
@@ -47,36 +48,19 @@ ImageRect image_rect(int panel_width, int panel_height, const analysis::SlicePro
 /// An off-screen OSMesa context with a VTK render window of fixed size, reused across frames.
 /// Not thread-safe: use one Renderer per thread (the OSMesa context is made current on the
 /// calling thread at the start of every frame).
-class Renderer {
+class Renderer : public detail::OffscreenPngRenderer<Renderer> {
  public:
   /// PNG zlib level and row filter used by default (png_encode.hpp).
   static constexpr int kDefaultCompressionLevel = kDefaultPngCompressionLevel;
   static constexpr PngFilter kDefaultPngFilter = render::kDefaultPngFilter;
 
   Renderer(int width, int height);
-  ~Renderer();
-  Renderer(const Renderer&) = delete;
-  Renderer& operator=(const Renderer&) = delete;
-
-  int width() const;
-  int height() const;
 
   /// Renders the slices side by side (panel i covers [i W / n, (i + 1) W / n)) and returns the
   /// PNG bytes. mappings has one entry for all panels or one per slice.
   std::vector<unsigned char> render_png(std::span<const analysis::SliceProduct> slices,
                                         std::span<const ColourMapping> mappings,
                                         const FrameLabels& labels);
-
-  void set_compression_level(int level);  // 0..9
-  /// PNG encoder: a filter (default kDefaultPngFilter) encodes the read-back pixels with libpng
-  /// directly; std::nullopt uses vtkPNGWriter (WriteToMemory, libpng's adaptive row filter).
-  /// Both give the same pixels; sizes and times differ (see bench/bench_render.cpp).
-  void set_png_filter(std::optional<PngFilter> filter);
-  const FrameTimings& last_timings() const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
 };
 
 /// One slice as a PNG of width x height pixels (thread_local Renderer per size).

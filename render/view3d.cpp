@@ -190,7 +190,8 @@ int particle_point_size(std::size_t particle_count, int width, int height, bool 
   return point_size(particle_count, make_layout(width, height, two_dimensional));
 }
 
-struct ParticleRenderer::Impl {
+template <>
+struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
   detail::OffscreenWindow surface;  // first: destroyed after the renderers and actors below
   FrameTimings timings;
 
@@ -341,29 +342,9 @@ struct ParticleRenderer::Impl {
   }
 };
 
-ParticleRenderer::ParticleRenderer(int width, int height) {
-  const std::lock_guard lock(vtk_scene_mutex());
-  impl_ = std::make_unique<Impl>(width, height);
-}
-ParticleRenderer::~ParticleRenderer() {
-  const std::lock_guard lock(vtk_scene_mutex());
-  impl_.reset();
-}
-int ParticleRenderer::width() const {
-  return impl_->surface.width();
-}
-int ParticleRenderer::height() const {
-  return impl_->surface.height();
-}
-const FrameTimings& ParticleRenderer::last_timings() const {
-  return impl_->timings;
-}
-void ParticleRenderer::set_compression_level(int level) {
-  impl_->surface.set_compression_level(level);
-}
-void ParticleRenderer::set_png_filter(std::optional<PngFilter> filter) {
-  impl_->surface.set_png_filter(filter);
-}
+template class detail::OffscreenPngRenderer<ParticleRenderer>;
+
+ParticleRenderer::ParticleRenderer(int width, int height) : OffscreenPngRenderer(width, height) {}
 
 std::vector<unsigned char> ParticleRenderer::render_png(const ParticleCloud& cloud,
                                                         const ColourMapping& mapping,

@@ -45,28 +45,14 @@ int particle_point_size(std::size_t particle_count, int width, int height, bool 
 /// is fixed: parallel projection, 3D clouds seen from azimuth 30° (about z, from the -y side) and
 /// elevation 20° with z up; 2D clouds from above (x right, y up). Not thread-safe: one per
 /// thread.
-class ParticleRenderer {
+class ParticleRenderer : public detail::OffscreenPngRenderer<ParticleRenderer> {
  public:
   ParticleRenderer(int width, int height);
-  ~ParticleRenderer();
-  ParticleRenderer(const ParticleRenderer&) = delete;
-  ParticleRenderer& operator=(const ParticleRenderer&) = delete;
-
-  int width() const;
-  int height() const;
 
   /// The cloud inside the box outline, with colour bar, title and axis labels, as PNG bytes.
   /// Throws std::invalid_argument for mismatched spans or a non-positive (or non-finite) box.
   std::vector<unsigned char> render_png(const ParticleCloud& cloud, const ColourMapping& mapping,
                                         const FrameLabels& labels);
-
-  void set_compression_level(int level);  // 0..9; default Renderer::kDefaultCompressionLevel
-  void set_png_filter(std::optional<PngFilter> filter);  // as Renderer::set_png_filter
-  const FrameTimings& last_timings() const;
-
- private:
-  struct Impl;
-  std::unique_ptr<Impl> impl_;
 };
 
 /// Oblique 3D view of the cloud inside the box outline, with colour bar, title (case, time, step,

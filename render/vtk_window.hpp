@@ -23,6 +23,7 @@
 
 #include "render/colour_map.hpp"
 #include "render/frame_timings.hpp"
+#include "render/offscreen_png_renderer.hpp"
 #include "render/osmesa_context.hpp"
 #include "render/png_encode.hpp"
 
@@ -115,6 +116,39 @@ R& thread_local_renderer(int width, int height) {
   if (renderers.size() >= kMaxCachedRenderers) renderers.erase(renderers.begin());
   renderers.push_back(std::make_unique<R>(width, height));
   return *renderers.back();
+}
+
+// The members OffscreenPngRenderer<R> shares, for the explicit instantiation after R's Impl
+// (render.cpp, view3d.cpp).
+template <class R>
+OffscreenPngRenderer<R>::OffscreenPngRenderer(int width, int height) {
+  const std::lock_guard lock(vtk_scene_mutex());
+  impl_ = std::make_unique<Impl>(width, height);
+}
+template <class R>
+OffscreenPngRenderer<R>::~OffscreenPngRenderer() {
+  const std::lock_guard lock(vtk_scene_mutex());
+  impl_.reset();
+}
+template <class R>
+int OffscreenPngRenderer<R>::width() const {
+  return impl_->surface.width();
+}
+template <class R>
+int OffscreenPngRenderer<R>::height() const {
+  return impl_->surface.height();
+}
+template <class R>
+const FrameTimings& OffscreenPngRenderer<R>::last_timings() const {
+  return impl_->timings;
+}
+template <class R>
+void OffscreenPngRenderer<R>::set_compression_level(int level) {
+  impl_->surface.set_compression_level(level);
+}
+template <class R>
+void OffscreenPngRenderer<R>::set_png_filter(std::optional<PngFilter> filter) {
+  impl_->surface.set_png_filter(filter);
 }
 
 }  // namespace sphles::render::detail

@@ -216,10 +216,7 @@ void finish_kolmogorov(RunResult& r) {
 }  // namespace
 
 RunResult run_one(const RunSpec& spec, const RunOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  auto wall = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
+  const bench::WallClock wall;
   RunResult r;
   r.spec = spec;
   const sim::Scene scene = scene::parse_scene(spec.scene);

@@ -2,7 +2,6 @@
 #include "bench/stability/sweep.hpp"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <iomanip>
@@ -10,6 +9,7 @@
 #include <ostream>
 #include <sstream>
 
+#include "bench/process_time.hpp"
 #include "scene/document.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
@@ -228,10 +228,7 @@ void record_blow_up(RunResult& r, const sim::BlowUpError& e,
 }  // namespace
 
 RunResult run_one(const RunSpec& spec, const RunOptions& options) {
-  const auto start = std::chrono::steady_clock::now();
-  auto wall = [&] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
+  const bench::WallClock wall;
   RunResult r;
   r.spec = spec;
   json document = spec.scene;

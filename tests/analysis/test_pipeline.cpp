@@ -50,17 +50,23 @@ TEST(Mailbox, KeepsNewestAndCountsDrops) {
   EXPECT_EQ(c.dropped, 2u);
 }
 
-// A producer thread and a consumer thread: every published value is either taken or dropped,
-// values arrive in increasing order, and the producer never waits for the consumer's work.
-TEST(Mailbox, ConcurrentProducerAndSlowConsumer) {
-  LatestValueMailbox<int> box;
-  std::vector<int> received;
-  std::thread consumer([&] {
+// A consumer that needs 200 µs per value: appends what it takes from `box` to `received` until
+// the box is closed.
+std::thread slow_consumer(LatestValueMailbox<int>& box, std::vector<int>& received) {
+  return std::thread([&box, &received] {
     while (auto v = box.take()) {
       received.push_back(*v);
       std::this_thread::sleep_for(std::chrono::microseconds(200));
     }
   });
+}
+
+// A producer thread and a consumer thread: every published value is either taken or dropped,
+// values arrive in increasing order, and the producer never waits for the consumer's work.
+TEST(Mailbox, ConcurrentProducerAndSlowConsumer) {
+  LatestValueMailbox<int> box;
+  std::vector<int> received;
+  std::thread consumer = slow_consumer(box, received);
   const auto start = std::chrono::steady_clock::now();
   for (int k = 1; k <= 20000; ++k) box.publish(k);
   const double publish_seconds =
@@ -83,12 +89,7 @@ TEST(Mailbox, ConcurrentProducerAndSlowConsumer) {
 TEST(Mailbox, PublishWaitingDeliversEveryValueToASlowConsumer) {
   LatestValueMailbox<int> box;
   std::vector<int> received;
-  std::thread consumer([&] {
-    while (auto v = box.take()) {
-      received.push_back(*v);
-      std::this_thread::sleep_for(std::chrono::microseconds(200));
-    }
-  });
+  std::thread consumer = slow_consumer(box, received);
   constexpr int kValues = 500;
   for (int k = 1; k <= kValues; ++k) box.publish_waiting(k);
   box.close();

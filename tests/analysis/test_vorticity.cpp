@@ -406,6 +406,20 @@ void report_fitted(const VorticityNumbers& fitted, const Expected& e) {
 constexpr double kMeanTolerance = 0.02;
 constexpr double kSliceMaxTolerance = 0.05;
 
+/// The grid, particle and MLS estimates of `snapshot` printed as `what`: the particle estimate
+/// within the tolerances of the filtered values `e`, the MLS fit within them of the point values.
+void expect_estimates_near(const char* what, const Snapshot& snapshot, const Expected& e) {
+  const VorticityNumbers grid = vorticity_numbers(snapshot, VorticityEstimate::Grid);
+  const VorticityNumbers particle = vorticity_numbers(snapshot, VorticityEstimate::Particle);
+  report(what, grid, particle, e);
+  EXPECT_NEAR(particle.mean / e.filtered_mean, 1.0, kMeanTolerance);
+  EXPECT_NEAR(particle.slice_max / e.filtered_max, 1.0, kSliceMaxTolerance);
+  const VorticityNumbers fitted = vorticity_numbers(snapshot, VorticityEstimate::Mls);
+  report_fitted(fitted, e);
+  EXPECT_NEAR(fitted.mean / e.point_mean, 1.0, kMeanTolerance);
+  EXPECT_NEAR(fitted.slice_max / e.point_max, 1.0, kSliceMaxTolerance);
+}
+
 // v = (sin x cos y cos z, -cos x sin y cos z, 0) (5.1), v0 = 1:
 //   ω = (-cos x sin y sin z, -sin x cos y sin z, 2 sin x sin y cos z), every component a mode of
 //   |k| = √3; ω² = cos²x sin²y sin²z + sin²x cos²y sin²z + 4 sin²x sin²y cos²z,
@@ -424,15 +438,7 @@ TEST(TaylorGreenVorticity, ThreeDimensionalAtTimeZero) {
       attenuation * (filtered_product_of_squares({1, -1, -1}, peak, 3, transform) +
                      filtered_product_of_squares({-1, 1, -1}, peak, 3, transform) +
                      4.0 * filtered_product_of_squares({-1, -1, 1}, peak, 3, transform));
-  const VorticityNumbers grid = vorticity_numbers(*snapshot, VorticityEstimate::Grid);
-  const VorticityNumbers particle = vorticity_numbers(*snapshot, VorticityEstimate::Particle);
-  report("3D TGV 32^3 packed, t = 0", grid, particle, e);
-  EXPECT_NEAR(particle.mean / e.filtered_mean, 1.0, kMeanTolerance);
-  EXPECT_NEAR(particle.slice_max / e.filtered_max, 1.0, kSliceMaxTolerance);
-  const VorticityNumbers fitted = vorticity_numbers(*snapshot, VorticityEstimate::Mls);
-  report_fitted(fitted, e);
-  EXPECT_NEAR(fitted.mean / e.point_mean, 1.0, kMeanTolerance);
-  EXPECT_NEAR(fitted.slice_max / e.point_max, 1.0, kSliceMaxTolerance);
+  expect_estimates_near("3D TGV 32^3 packed, t = 0", *snapshot, e);
 }
 
 // v = (sin x cos y, -cos x sin y) (6.2), v0 = 1: ω_z = 2 sin x sin y (|k| = √2), ω² = 4 sin²x
@@ -449,15 +455,7 @@ TEST(TaylorGreenVorticity, TwoDimensionalAtTimeZero) {
       1.0, 4.0, attenuation * 1.0,
       attenuation * 4.0 *
           filtered_product_of_squares({-1, -1, 0}, {kPi / 2, kPi / 2, 0.0}, 2, transform)};
-  const VorticityNumbers grid = vorticity_numbers(*snapshot, VorticityEstimate::Grid);
-  const VorticityNumbers particle = vorticity_numbers(*snapshot, VorticityEstimate::Particle);
-  report("2D TGV 64^2 packed, t = 0", grid, particle, e);
-  EXPECT_NEAR(particle.mean / e.filtered_mean, 1.0, kMeanTolerance);
-  EXPECT_NEAR(particle.slice_max / e.filtered_max, 1.0, kSliceMaxTolerance);
-  const VorticityNumbers fitted = vorticity_numbers(*snapshot, VorticityEstimate::Mls);
-  report_fitted(fitted, e);
-  EXPECT_NEAR(fitted.mean / e.point_mean, 1.0, kMeanTolerance);
-  EXPECT_NEAR(fitted.slice_max / e.point_max, 1.0, kSliceMaxTolerance);
+  expect_estimates_near("2D TGV 64^2 packed, t = 0", *snapshot, e);
 }
 
 // --- the option ------------------------------------------------------------------------------

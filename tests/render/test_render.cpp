@@ -61,6 +61,21 @@ int max_channel_difference(const Rgb& a, const Rgb& b) {
   return difference;
 }
 
+// The colour bar, right of `rect` up to the image's right edge, shows both end colours of the
+// map.
+void expect_colour_bar_ends(const Decoded& image, const ImageRect& rect) {
+  const Rgb low = viridis_table().front(), high = viridis_table().back();
+  bool found_low = false, found_high = false;
+  for (int y = rect.y; y < rect.y + rect.height; ++y) {
+    for (int x = rect.x + rect.width + 1; x < image.width; ++x) {
+      found_low = found_low || max_channel_difference(image.at(x, y), low) <= 1;
+      found_high = found_high || max_channel_difference(image.at(x, y), high) <= 1;
+    }
+  }
+  EXPECT_TRUE(found_low);
+  EXPECT_TRUE(found_high);
+}
+
 // Index of the table colour nearest to rgb.
 int nearest_table_index(const Rgb& rgb) {
   const auto& table = viridis_table();
@@ -126,16 +141,7 @@ TEST(Render, RampHasLookupTableColoursAtKnownPixels) {
   }
 
   // The colour bar (right of the image) shows both end colours of the map.
-  const Rgb low = viridis_table().front(), high = viridis_table().back();
-  bool found_low = false, found_high = false;
-  for (int y = rect.y; y < rect.y + rect.height; ++y) {
-    for (int x = rect.x + rect.width + 1; x < kWidth; ++x) {
-      found_low = found_low || max_channel_difference(image.at(x, y), low) <= 1;
-      found_high = found_high || max_channel_difference(image.at(x, y), high) <= 1;
-    }
-  }
-  EXPECT_TRUE(found_low);
-  EXPECT_TRUE(found_high);
+  expect_colour_bar_ends(image, rect);
 }
 
 TEST(Render, LogScaleMapsDecadesToEqualSteps) {
@@ -408,16 +414,7 @@ TEST(View3d, CentreOfBlockHasTheSlicesColourForItsValue) {
   EXPECT_EQ(image.at(rect.x + 3, rect.y + 3), (Rgb{255, 255, 255}));
 
   // The colour bar, right of the view rectangle, shows both end colours of the map.
-  const Rgb low = viridis_table().front(), high = viridis_table().back();
-  bool found_low = false, found_high = false;
-  for (int y = rect.y; y < rect.y + rect.height; ++y) {
-    for (int x = rect.x + rect.width + 1; x < kWidth; ++x) {
-      found_low = found_low || max_channel_difference(image.at(x, y), low) <= 1;
-      found_high = found_high || max_channel_difference(image.at(x, y), high) <= 1;
-    }
-  }
-  EXPECT_TRUE(found_low);
-  EXPECT_TRUE(found_high);
+  expect_colour_bar_ends(image, rect);
 }
 
 TEST(View3d, LogScaleAndNanUseTheSlicesMapping) {

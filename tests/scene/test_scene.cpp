@@ -11,6 +11,7 @@
 
 #include "scene/document.hpp"
 #include "scene/schema.hpp"
+#include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 
@@ -23,15 +24,6 @@ using scene::scene_to_json;
 namespace {
 
 using nlohmann::json;
-
-std::string error_of(const json& document) {
-  try {
-    parse_scene(document);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
-}
 
 TEST(Scene, DefaultsFollowSpecForTaylorGreen3D) {
   const Scene s = parse_scene(json::object());
@@ -109,7 +101,7 @@ struct BadScene {
 class BadSceneTest : public ::testing::TestWithParam<BadScene> {};
 
 TEST_P(BadSceneTest, ErrorNamesFieldAndReason) {
-  const std::string error = error_of(GetParam().document);
+  const std::string error = testing::scene_error(GetParam().document);
   ASSERT_FALSE(error.empty()) << "scene was accepted: " << GetParam().document.dump();
   EXPECT_NE(error.find(GetParam().expected), std::string::npos) << error;
 }

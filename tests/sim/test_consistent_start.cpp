@@ -11,6 +11,7 @@
 #include <numbers>
 
 #include "scene/document.hpp"
+#include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/physics/thesis_passes.hpp"
 #include "sim/scene.hpp"
@@ -22,18 +23,6 @@ namespace sphles::sim {
 using scene::parse_scene;
 using scene::scene_to_json;
 namespace {
-
-nlohmann::json taylor_green_2d(int per_side, double diameter_over_spacing) {
-  return {{"case", "tgv2d"},
-          {"particles_per_side", per_side},
-          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", diameter_over_spacing}}},
-          {"fluid",
-           {{"reference_density", 1.0},
-            {"dynamic_viscosity", 0.01},
-            {"sound_speed", 10.0},
-            {"reference_pressure", 1.0}}},
-          {"time", {{"end", 1.0}}}};
-}
 
 /// Largest |ρ_i / ρ0_i - 1| of the first density pass, ρ0 from the case's pressure (5.2).
 double max_density_error(const nlohmann::json& doc) {
@@ -55,7 +44,7 @@ double max_density_error(const nlohmann::json& doc) {
 // M_i = ρ0_i V_i makes the summed density the prescribed one to round-off; the thesis' lattice
 // masses M0 = ρ0 Δl² on the packed arrangement do not.
 TEST(ConsistentStart, SummationMassesGiveThePrescribedDensity) {
-  nlohmann::json doc = taylor_green_2d(32, 8);
+  nlohmann::json doc = testing::taylor_green_2d_scene(32, 8, 1.0);
   const double summation = max_density_error(doc);
   doc["initial"] = {{"mass", "lattice"}};
   const double lattice = max_density_error(doc);
@@ -65,7 +54,7 @@ TEST(ConsistentStart, SummationMassesGiveThePrescribedDensity) {
 }
 
 TEST(ConsistentStart, SceneKeyIsValidatedAndWritten) {
-  nlohmann::json doc = taylor_green_2d(16, 4);
+  nlohmann::json doc = testing::taylor_green_2d_scene(16, 4, 1.0);
   EXPECT_EQ(parse_scene(doc).initial.mass, InitialMass::Summation);
   EXPECT_EQ(scene_to_json(parse_scene(doc))["initial"]["mass"], "summation");
   doc["initial"] = {{"mass", "grid"}};
@@ -83,7 +72,8 @@ TEST(ConsistentStart, SceneKeyIsValidatedAndWritten) {
 /// operator applied to the Taylor-Green field v (ν∇²v = -2νv exactly) gives
 /// ν_eff = -Σ M v·a / (2 Σ M v²), the rate at which it removes energy, as a multiple of ν.
 double effective_viscosity_ratio(int per_side, double diameter_over_spacing, ViscousOperator op) {
-  const Scene scene = parse_scene(taylor_green_2d(per_side, diameter_over_spacing));
+  const Scene scene =
+      parse_scene(testing::taylor_green_2d_scene(per_side, diameter_over_spacing, 1.0));
   RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   setup.solver.scheme.viscous_operator = op;
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
@@ -181,7 +171,7 @@ TEST(ViscousOperator, CorrectedKeepsMomentaAndDeterminism) {
 }
 
 TEST(ViscousOperator, SceneKeyIsValidated) {
-  nlohmann::json doc = taylor_green_2d(16, 4);
+  nlohmann::json doc = testing::taylor_green_2d_scene(16, 4, 1.0);
   EXPECT_EQ(parse_scene(doc).scheme.viscous_operator, ViscousOperator::Thesis);
   doc["scheme"] = {{"viscous_operator", "corrected"}};
   EXPECT_EQ(parse_scene(doc).scheme.viscous_operator, ViscousOperator::Corrected);

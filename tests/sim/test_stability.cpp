@@ -13,6 +13,7 @@
 #include <string>
 
 #include "scene/document.hpp"
+#include "scene_test_support.hpp"
 #include "sim/health.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/neighbour_search.hpp"
@@ -316,19 +317,12 @@ Outcome run_classified(nlohmann::json document, double cfl, const HealthThreshol
 
 /// 2D Taylor-Green vortex, Wendland C4, D_K = 8Δl, c_s = 10, η = 0.01 (the sweep's base point).
 nlohmann::json tgv(int per_side, double end_time) {
-  return {{"case", "tgv2d"},
-          {"particles_per_side", per_side},
-          {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", 8}}},
-          {"fluid",
-           {{"reference_density", 1.0},
-            {"sound_speed", 10.0},
-            {"reference_pressure", 1.0},
-            {"dynamic_viscosity", 0.01}}},
-          // The thesis' start (the sweep of docs/stability.md): with the consistent start
-          // (initial.mass = summation), the D_K = 4Δl case below stays at 2.6 % rms density
-          // deviation instead of 5-6 %, and C_ac = 4 no longer blows up by t = 1.
-          {"initial", {{"mass", "lattice"}}},
-          {"time", {{"end", end_time}}}};
+  nlohmann::json doc = testing::taylor_green_2d_scene(per_side, 8, end_time);
+  // The thesis' start (the sweep of docs/stability.md): with the consistent start
+  // (initial.mass = summation), the D_K = 4Δl case below stays at 2.6 % rms density
+  // deviation instead of 5-6 %, and C_ac = 4 no longer blows up by t = 1.
+  doc["initial"] = {{"mass", "lattice"}};
+  return doc;
 }
 
 /// Thresholds of the sweep: runaway judged against the flow's own initial energy.

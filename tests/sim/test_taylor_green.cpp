@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "scene/document.hpp"
+#include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -20,17 +21,8 @@ namespace {
 /// Runs a 2D Taylor-Green vortex at Re = 100 to t = 2 and returns the largest relative error of
 /// e_v(t) against e_v(0) exp(-4νt) (SPEC §6.2) over all steps.
 double taylor_green_2d_error(int per_side, double diameter_over_spacing) {
-  const nlohmann::json doc = {
-      {"case", "tgv2d"},
-      {"particles_per_side", per_side},
-      {"kernel", {{"type", "wendland_c4"}, {"diameter_over_spacing", diameter_over_spacing}}},
-      {"fluid",
-       {{"reference_density", 1.0},
-        {"dynamic_viscosity", 0.01},
-        {"sound_speed", 10.0},
-        {"reference_pressure", 1.0}}},
-      {"time", {{"end", 2.0}}}};
-  const Scene scene = parse_scene(doc);
+  const Scene scene =
+      parse_scene(testing::taylor_green_2d_scene(per_side, diameter_over_spacing, 2.0));
   RunSetup setup = setup_run(scene, testing::validation_packing_cache());
   auto sim = make_simulation(setup.solver, std::move(setup.particles));
   const double nu = scene.fluid.kinematic_viscosity();

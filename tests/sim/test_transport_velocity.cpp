@@ -7,11 +7,11 @@
 
 #include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 
 #include "scene/document.hpp"
 #include "scene/json_reader.hpp"
+#include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
 #include "sim/solver.hpp"
@@ -23,9 +23,8 @@ using scene::parse_scene;
 using scene::scene_to_json;
 namespace {
 
-bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
-  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
-}
+using testing::same_bits;
+using testing::scene_error;
 
 testing::RandomFlow transport_velocity_flow(int dim, std::uint64_t seed) {
   auto flow = testing::random_flow(dim, dim == 3 ? 10 : 24, 4.0, 1.0, seed);
@@ -131,33 +130,8 @@ TEST(TransportVelocity, DiffersFromTheThesisModelAndDriftsWithTheTransportVeloci
 TEST(TransportVelocity, RestoreContinuesBitwise) {
   for (const int dim : {2, 3}) {
     auto flow = transport_velocity_flow(dim, 21);
-    auto uninterrupted = make_simulation(flow.config, flow.particles);
-    auto first_leg = make_simulation(flow.config, flow.particles);
-    for (int k = 0; k < 23; ++k) first_leg->step();
-    auto second_leg = restore_simulation(first_leg->config(), first_leg->state());
-    for (int k = 0; k < 23 + 40; ++k) uninterrupted->step();
-    for (int k = 0; k < 40; ++k) second_leg->step();
-    EXPECT_GT(uninterrupted->diagnostics().neighbour_builds, 2u);
-    EXPECT_EQ(second_leg->time(), uninterrupted->time());
-    const ParticleArrays& a = second_leg->particles();
-    const ParticleArrays& b = uninterrupted->particles();
-    EXPECT_EQ(a.id, b.id);
-    for (int d = 0; d < dim; ++d) {
-      EXPECT_TRUE(same_bits(a.position[d], b.position[d])) << dim << "D position " << d;
-      EXPECT_TRUE(same_bits(a.velocity[d], b.velocity[d])) << dim << "D velocity " << d;
-      EXPECT_TRUE(same_bits(a.acceleration[d], b.acceleration[d])) << dim << "D acceleration";
-    }
-    EXPECT_TRUE(same_bits(a.density, b.density));
+    testing::expect_restore_continues_bitwise(flow.config, flow.particles);
   }
-}
-
-std::string scene_error(const nlohmann::json& doc) {
-  try {
-    parse_scene(doc);
-  } catch (const SceneError& e) {
-    return e.what();
-  }
-  return "";
 }
 
 TEST(SchemeScene, ParsedWrittenAndBadNamesRejectedNamingTheField) {
