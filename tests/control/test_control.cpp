@@ -584,29 +584,31 @@ TEST(RunManager, QueuesBeyondTheSlotLimitAndRecoversRunsAfterARestart) {
     manager.shutdown();  // checkpoints and stops it
     EXPECT_EQ(long_run->status().state, RunState::Stopped);
   }
-  RunManager again(manager_options(data, 1));
-  ASSERT_EQ(again.list().size(), 3u);
-  const auto long_run = again.get(long_id);
-  EXPECT_EQ(long_run->status().state, RunState::Stopped);
-  const double stopped_at = long_run->status().time;
-  EXPECT_GT(stopped_at, 0.0);
-  again.resume(long_id);
-  ASSERT_TRUE(eventually([&] { return long_run->status().time > stopped_at; }));
-  again.stop(long_id);
-  // A new run gets a number after the recovered ones.
-  CreateRequest request;
-  request.preset = "kolmogorov2d";
-  request.start = false;
-  EXPECT_EQ(again.create(request)->id().substr(0, 4), "0004");
+  {
+    RunManager again(manager_options(data, 1));
+    ASSERT_EQ(again.list().size(), 3u);
+    const auto long_run = again.get(long_id);
+    EXPECT_EQ(long_run->status().state, RunState::Stopped);
+    const double stopped_at = long_run->status().time;
+    EXPECT_GT(stopped_at, 0.0);
+    again.resume(long_id);
+    ASSERT_TRUE(eventually([&] { return long_run->status().time > stopped_at; }));
+    again.stop(long_id);
+    // A new run gets a number after the recovered ones.
+    CreateRequest request;
+    request.preset = "kolmogorov2d";
+    request.start = false;
+    EXPECT_EQ(again.create(request)->id().substr(0, 4), "0004");
 
-  // Deleting: the run object refuses every transition afterwards, the directory is gone, and a
-  // restart neither lists it nor keeps a half-deleted leftover in trash/.
-  const fs::path long_directory = long_run->directory();
-  again.remove(long_id);
-  EXPECT_FALSE(fs::exists(long_directory));
-  EXPECT_THROW(again.get(long_id), UnknownRunError);
-  EXPECT_THROW(long_run->start(), StateError);
-  EXPECT_THROW(long_run->apply_changes({{"time", {{"end", 9.0}}}}), StateError);
+    // Deleting: the run object refuses every transition afterwards, the directory is gone, and a
+    // restart neither lists it nor keeps a half-deleted leftover in trash/.
+    const fs::path long_directory = long_run->directory();
+    again.remove(long_id);
+    EXPECT_FALSE(fs::exists(long_directory));
+    EXPECT_THROW(again.get(long_id), UnknownRunError);
+    EXPECT_THROW(long_run->start(), StateError);
+    EXPECT_THROW(long_run->apply_changes({{"time", {{"end", 9.0}}}}), StateError);
+  }  // the second server ends before the third starts: one server per data directory
   fs::create_directories(data / "trash" / "0009-interrupted");
   RunManager third(manager_options(data, 1));
   EXPECT_EQ(third.list().size(), 3u);  // 2 recovered + the kolmogorov run, not the deleted one
