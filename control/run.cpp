@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "control/live_changes.hpp"
+#include "control/run_files.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
 #include "scene/document.hpp"
@@ -112,6 +113,10 @@ void check_checkpoint_belongs(const std::filesystem::path& directory,
 std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& directory,
                                RunOptions options, const std::vector<std::string>& overrides,
                                std::optional<std::filesystem::path> checkpoint) {
+  // What writes a crash interrupted left (run.json.tmp, NAME.xdmf2.tmp, frames' and checkpoints'
+  // temporaries) is never a valid output. Nothing of this run writes yet: the server writes
+  // scene.json and run.json of a run it holds through temporaries too, so this runs here only.
+  remove_interrupted_writes(directory);
   auto impl = std::make_unique<RunImpl>();
   json document;
   std::string source;  // where the stored document came from, for error messages

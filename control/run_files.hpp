@@ -35,7 +35,7 @@ void seed_dissipation(const std::filesystem::path& path, double time,
 bool is_temporary_file(const std::string& name);
 
 /// Removes the temporaries that interrupted writes (a crash, SIGKILL, a full disk between the
-/// write and its rename) left in the run directory and its subdirectories.
+/// write and its rename) left in `dir` and its subdirectories. Only where nothing writes.
 void remove_interrupted_writes(const std::filesystem::path& dir);
 
 /// Moves a run directory to `trash`, replacing what is there; false when the directory is gone

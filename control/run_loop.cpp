@@ -495,8 +495,9 @@ void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& p
     current = spec;
   }
   const std::filesystem::path checkpoint_dir = directory / "checkpoints";
-  // Temporaries of writes a crash interrupted are never valid outputs (nor checkpoints).
-  remove_interrupted_writes(directory);
+  // Checkpoint temporaries of an interrupted write are never valid checkpoints; only this loop
+  // writes there (the rest of the directory is cleaned when the run is opened, Run::open).
+  remove_interrupted_writes(checkpoint_dir);
   const sim::Scene& scene0 = current.scene;
   set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
   // Read here, or by the ranks of a distributed solver (restore_from_file below).
