@@ -89,6 +89,55 @@ Run::Run(std::string id, RunSpec spec, std::filesystem::path directory, RunOptio
   impl_->write_run_file_locked();
 }
 
+namespace {
+
+/// Reads run.json into `impl` (state, reason, creation, wall time; with no explicit checkpoint
+/// also time and step); whether run.json must be written again.
+bool read_run_record(const std::filesystem::path& directory, RunImpl& impl,
+                     bool explicit_checkpoint) {
+  std::ifstream in(directory / "run.json");
+  if (!in) return true;
+  try {
+    const json run = json::parse(in);
+    impl.created = run.value("created", impl.created);
+    impl.reason = run.value("reason", std::string());
+    impl.state = run_state_from_name(run.value("state", std::string("stopped")));
+    impl.last_checkpoint = run.value("checkpoint", std::string());
+    // Wall time spent stepping, over every start of the run (not reset by a resume or a
+    // restart of the server; what was stepped after the newest record is not counted).
+    impl.wall_seconds = run.value("wall_seconds", 0.0);
+    if (!explicit_checkpoint) {
+      // Written at every state change and after every checkpoint.
+      impl.time = run.value("time", 0.0);
+      impl.step = run.value("step", std::uint64_t{0});
+    }
+    return explicit_checkpoint;
+  } catch (const std::exception& e) {
+    impl.reason = std::string("run.json unreadable: ") + e.what();
+    return true;
+  }
+}
+
+/// run.json follows each checkpoint, but a kill between a checkpoint's rename and run.json's
+/// write leaves it one checkpoint behind: the newest checkpoint (by its header; a resume reads
+/// it whole) decides where the run stands. Whether it moved the run on.
+bool follow_newest_checkpoint(const std::filesystem::path& directory, RunImpl& impl) {
+  try {
+    const std::filesystem::path newest = io::newest_valid_checkpoint(
+        directory / "checkpoints", nullptr, io::CheckpointCheck::Header);
+    const io::CheckpointHeader h = io::read_checkpoint_header(newest);
+    if (!(h.shape.time > impl.time)) return false;
+    impl.time = h.shape.time;
+    impl.step = h.step;
+    impl.last_checkpoint = newest.filename().string();
+    return true;
+  } catch (const std::exception&) {
+    return false;  // no checkpoint (or none readable): run.json's record stands
+  }
+}
+
+}  // namespace
+
 void check_checkpoint_belongs(const std::filesystem::path& directory,
                               const json& checkpoint_scene) {
   const std::filesystem::path own = directory / "scene.json";
@@ -150,7 +199,8 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
     if (!std::filesystem::exists(scene))
       throw std::runtime_error("'" + directory.string() +
                                "' is not a run directory (no scene.json)");
-    source = "'" + scene.string() + "'";
+    // Appended, not "'" + ...: GCC 12 reports a false -Wrestrict there (GCC bug 105329).
+    source.append("'").append(scene.string()).append("'");
     document = scene::read_scene_file(scene.string());
   }
   // Documents written before the packing cache became a program setting name it; it applied to
@@ -177,28 +227,8 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   impl->continue_from_checkpoint = true;
   impl->state = RunState::Stopped;
   impl->created = utc_now();
-  bool record_changed = true;  // run.json must be (re)written
-  if (std::ifstream in(directory / "run.json"); in) {
-    try {
-      const json run = json::parse(in);
-      impl->created = run.value("created", impl->created);
-      impl->reason = run.value("reason", std::string());
-      impl->state = run_state_from_name(run.value("state", std::string("stopped")));
-      impl->last_checkpoint = run.value("checkpoint", std::string());
-      // Wall time spent stepping, over every start of the run (not reset by a resume or a
-      // restart of the server; what was stepped after the newest record is not counted).
-      impl->wall_seconds = run.value("wall_seconds", 0.0);
-      if (!checkpoint) {
-        // Written at every state change and after every checkpoint: after a crash it holds the
-        // time of the newest checkpoint, where a resume continues.
-        impl->time = run.value("time", 0.0);
-        impl->step = run.value("step", std::uint64_t{0});
-      }
-      record_changed = checkpoint.has_value();
-    } catch (const std::exception& e) {
-      impl->reason = std::string("run.json unreadable: ") + e.what();
-    }
-  }
+  bool record_changed = read_run_record(directory, *impl, checkpoint.has_value());
+  if (!checkpoint && follow_newest_checkpoint(directory, *impl)) record_changed = true;
   if (impl->state == RunState::Created || impl->state == RunState::Queued) {
     // Never started: it starts afresh.
     record_changed = record_changed || impl->state == RunState::Queued;
