@@ -84,10 +84,10 @@ std::filesystem::path restart_checkpoint(const RunOptions& options, bool distrib
                                             ? std::filesystem::path(options.out_dir)
                                         : dir == given ? dir.parent_path()
                                                        : given;
-  const auto of_this_run = [&](const std::filesystem::path& file) {
+  const auto of_this_run = [&](const std::filesystem::path& file,
+                               const io::CheckpointHeader& header) {
     try {
-      control::check_checkpoint_belongs(
-          run_dir, nlohmann::json::parse(io::read_checkpoint_header(file).metadata.scene_json));
+      control::check_checkpoint_belongs(run_dir, nlohmann::json::parse(header.metadata.scene_json));
     } catch (const std::exception& e) {
       throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
     }

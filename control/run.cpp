@@ -123,9 +123,10 @@ bool read_run_record(const std::filesystem::path& directory, RunImpl& impl,
 /// it whole) decides where the run stands. Whether it moved the run on.
 bool follow_newest_checkpoint(const std::filesystem::path& directory, RunImpl& impl) {
   try {
+    io::CheckpointHeader h;
     const std::filesystem::path newest = io::newest_valid_checkpoint(
-        directory / "checkpoints", nullptr, io::CheckpointCheck::Header);
-    const io::CheckpointHeader h = io::read_checkpoint_header(newest);
+        directory / "checkpoints", nullptr, io::CheckpointCheck::Header,
+        [&h](const std::filesystem::path&, const io::CheckpointHeader& read) { h = read; });
     if (!(h.shape.time > impl.time)) return false;
     impl.time = h.shape.time;
     impl.step = h.step;
@@ -172,14 +173,9 @@ std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& dire
   if (checkpoint) {
     // A solver that reads its checkpoint on its ranks needs only the attributes here (no
     // process reads the whole file); one process validates all of it before it starts.
-    io::CheckpointHeader header;
-    if (options.solvers.restore_file) {
-      header = io::read_checkpoint_header(*checkpoint);
-    } else {
-      const io::Checkpoint c = io::read_checkpoint(*checkpoint);
-      header = {c.metadata, io::CheckpointShape::of(c.state), c.state.step,
-                c.state.neighbour_builds};
-    }
+    const io::CheckpointHeader header = options.solvers.restore_file
+                                            ? io::read_checkpoint_header(*checkpoint)
+                                            : io::header_of(io::read_checkpoint(*checkpoint));
     source = "checkpoint '" + checkpoint->string() + "'";
     try {
       document = json::parse(header.metadata.scene_json);

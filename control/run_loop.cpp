@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cstdio>
 #include <limits>
+#include <tuple>
 
 #include "analysis/pipeline.hpp"
 #include "analysis/snapshot.hpp"
@@ -74,15 +75,17 @@ io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>
                                       const std::filesystem::path& checkpoint_dir,
                                       logging::RunLog& log) {
   std::filesystem::path file;
+  io::Checkpoint checkpoint;
   if (explicit_file) {
     file = *explicit_file;
+    checkpoint = io::read_checkpoint(file);
   } else if (!io::list_checkpoints(checkpoint_dir).empty()) {
     std::vector<std::string> rejected;
-    file = io::newest_valid_checkpoint(checkpoint_dir, &rejected);
+    std::tie(file, checkpoint) = io::read_newest_valid_checkpoint(checkpoint_dir, &rejected);
     for (const std::string& why : rejected) log.warn("skipped: {}", why);
+  } else {
+    no_checkpoint_to_continue();
   }
-  if (file.empty()) no_checkpoint_to_continue();
-  io::Checkpoint checkpoint = io::read_checkpoint(file);
   log.progress("restart: {} at t = {:.17g}, step {}", file.string(), checkpoint.state.time,
                checkpoint.state.step);
   return checkpoint;

@@ -170,24 +170,49 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
   return files;
 }
 
-std::filesystem::path newest_valid_checkpoint(
-    const std::filesystem::path& directory, std::vector<std::string>* rejected,
-    CheckpointCheck check, const std::function<void(const std::filesystem::path&)>& accept) {
+CheckpointHeader header_of(const Checkpoint& c) {
+  return {c.metadata, CheckpointShape::of(c.state), c.state.step, c.state.neighbour_builds};
+}
+
+namespace {
+
+/// What `take` returns for the newest checkpoint of `directory` it does not reject with a
+/// CheckpointError; the rejections, newest first, into `rejected`.
+template <class Take>
+auto newest_taken(const std::filesystem::path& directory, std::vector<std::string>* rejected,
+                  Take take) {
   const auto files = list_checkpoints(directory);
   for (const auto& file : files) {
     try {
-      if (check == CheckpointCheck::Header)
-        read_checkpoint_header(file);
-      else
-        read_checkpoint(file);
-      if (accept) accept(file);
-      return file;
+      return take(file);
     } catch (const CheckpointError& e) {
       if (rejected) rejected->push_back(e.what());
     }
   }
   throw CheckpointError("checkpoint: no valid checkpoint in '" + directory.string() + "' (" +
                         std::to_string(files.size()) + " candidates)");
+}
+
+}  // namespace
+
+std::filesystem::path newest_valid_checkpoint(
+    const std::filesystem::path& directory, std::vector<std::string>* rejected,
+    CheckpointCheck check,
+    const std::function<void(const std::filesystem::path&, const CheckpointHeader&)>& accept) {
+  return newest_taken(directory, rejected, [&](const std::filesystem::path& file) {
+    const CheckpointHeader header = check == CheckpointCheck::Header
+                                        ? read_checkpoint_header(file)
+                                        : header_of(read_checkpoint(file));
+    if (accept) accept(file, header);
+    return file;
+  });
+}
+
+std::pair<std::filesystem::path, Checkpoint> read_newest_valid_checkpoint(
+    const std::filesystem::path& directory, std::vector<std::string>* rejected) {
+  return newest_taken(directory, rejected, [](const std::filesystem::path& file) {
+    return std::pair{file, read_checkpoint(file)};
+  });
 }
 
 std::string describe_checkpoint(const std::filesystem::path& path) {

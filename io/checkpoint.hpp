@@ -10,6 +10,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "io/checkpoint_data.hpp"
@@ -81,6 +82,8 @@ struct CheckpointHeader {
   std::uint64_t neighbour_builds = 0;
 };
 CheckpointHeader read_checkpoint_header(const std::filesystem::path& path);
+/// The header of a checkpoint read whole.
+CheckpointHeader header_of(const Checkpoint& checkpoint);
 
 /// Checkpoint files of a run directory (checkpoints/ckpt_*.h5), newest step first.
 std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path& directory);
@@ -91,12 +94,18 @@ std::vector<std::filesystem::path> list_checkpoints(const std::filesystem::path&
 enum class CheckpointCheck { Whole, Header };
 
 /// The newest checkpoint in `directory` that reads and validates and that `accept` (when given)
-/// takes: it rejects a valid file by throwing CheckpointError with the reason. `rejected`
-/// receives one line per newer file that was not taken. Throws CheckpointError when none is.
+/// takes, shown the file and the header just read: it rejects a valid file by throwing
+/// CheckpointError with the reason. `rejected` receives one line per newer file that was not
+/// taken. Throws CheckpointError when none is.
 std::filesystem::path newest_valid_checkpoint(
     const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr,
     CheckpointCheck check = CheckpointCheck::Whole,
-    const std::function<void(const std::filesystem::path&)>& accept = {});
+    const std::function<void(const std::filesystem::path&, const CheckpointHeader&)>& accept = {});
+
+/// The same with CheckpointCheck::Whole, returning the file and what was read (a resume needs
+/// both, and the file read once).
+std::pair<std::filesystem::path, Checkpoint> read_newest_valid_checkpoint(
+    const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr);
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);
