@@ -3,6 +3,7 @@
 
 #include <sys/stat.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <ctime>
 #include <fstream>
@@ -163,6 +164,73 @@ std::string outputs_summary(const json& outputs) {
   }
   line.pop_back();
   return line;
+}
+
+std::optional<MetricsSample> last_metrics(const std::filesystem::path& path) {
+  constexpr std::streamoff kTail = 1 << 16;  // far more than a row of full-precision numbers
+  std::ifstream in(path, std::ios::binary);
+  std::string header;
+  if (!std::getline(in, header)) return std::nullopt;
+  const auto split = [](const std::string& text) {
+    std::vector<std::string> cells;
+    std::size_t begin = 0;
+    for (std::size_t comma; (comma = text.find(',', begin)) != std::string::npos; begin = comma + 1)
+      cells.push_back(text.substr(begin, comma - begin));
+    cells.push_back(text.substr(begin));
+    return cells;
+  };
+  const std::vector<std::string> columns = split(header);
+  const std::streamoff body = in.tellg();
+  in.seekg(0, std::ios::end);
+  const std::streamoff end = in.tellg();
+  const std::streamoff from = std::max(body, end - kTail);
+  std::string tail(static_cast<std::size_t>(end - from), '\0');
+  in.seekg(from);
+  in.read(tail.data(), static_cast<std::streamsize>(tail.size()));
+  // The last row ending in a newline: a row without one is being written (or was cut short).
+  const std::size_t last_newline = tail.rfind('\n');
+  if (last_newline == std::string::npos || last_newline == 0) return std::nullopt;
+  const std::size_t start = tail.rfind('\n', last_newline - 1);
+  if (start == std::string::npos && from != body) return std::nullopt;
+  const std::size_t first = start == std::string::npos ? 0 : start + 1;
+  const std::vector<std::string> cells = split(tail.substr(first, last_newline - first));
+  // The columns of analysis::TimeSeriesWriter::kHeader, then the case's own.
+  constexpr std::size_t kFixed = 7;
+  if (header.rfind(analysis::TimeSeriesWriter::kHeader, 0) != 0 || columns.size() < kFixed ||
+      cells.size() != columns.size())
+    return std::nullopt;
+  std::vector<double> values;
+  std::uint64_t step = 0;
+  try {
+    for (const std::string& cell : cells) values.push_back(std::stod(cell));
+    step = std::stoull(cells[1]);
+  } catch (const std::exception&) {
+    return std::nullopt;  // not a row of numbers
+  }
+  MetricsSample m{values[0], step, values[2], values[3], values[4], values[5], values[6], {}};
+  for (std::size_t c = kFixed; c < columns.size(); ++c)
+    m.case_values.emplace_back(columns[c], values[c]);
+  return m;
+}
+
+std::map<std::string, ImageEvent> saved_images(const std::filesystem::path& dir) {
+  std::map<std::string, ImageEvent> images;
+  const std::filesystem::path frames = dir / "frames";
+  for (const auto& row : analysis::read_index(frames / "index.csv")) {
+    if (!row.contains("file") || row.at("file").empty()) continue;  // a row being appended
+    if (!std::filesystem::exists(frames / row.at("file"))) continue;
+    ImageEvent image;
+    image.field = row.at("field");
+    image.file = row.at("file");
+    try {
+      image.time = std::stod(row.at("time"));
+      image.step = std::stoull(row.at("step"));
+    } catch (const std::exception&) {
+      continue;  // not a row the renderer wrote
+    }
+    images[image.field] = std::move(image);
+  }
+  return images;
 }
 
 std::string utc_now() {

@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 
 #include <filesystem>
+#include <map>
 #include <optional>
 #include <string>
 #include <utility>
@@ -14,6 +15,7 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/timeseries.hpp"
+#include "control/run_types.hpp"
 
 namespace sphles::control {
 
@@ -56,6 +58,15 @@ nlohmann::json outputs_json(const std::filesystem::path& dir);
 
 /// One line: "written: 3 spectra, 3 snapshots, slices omega2 3 tau_sfs 3, ...".
 std::string outputs_summary(const nlohmann::json& outputs);
+
+/// The last whole row of a time series (timeseries.csv), its case columns in `case_values`;
+/// nullopt when it has none. Reads the header and the file's end only (a series may be large).
+std::optional<MetricsSample> last_metrics(const std::filesystem::path& path);
+
+/// The newest saved image of each field (frames/index.csv's last row per field), its PNG not yet
+/// read (`png` null, `file` its name under frames/): what a reopened run shows until it renders
+/// again. Rows whose file is gone are skipped.
+std::map<std::string, ImageEvent> saved_images(const std::filesystem::path& dir);
 
 /// The current UTC time as "2026-12-03T12:00:00Z".
 std::string utc_now();

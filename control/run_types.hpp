@@ -50,6 +50,8 @@ nlohmann::json run_spec_to_json(const RunSpec& spec);
 /// resumes from the newest checkpoint (also after a server restart).
 enum class RunState { Created, Queued, Running, Paused, Finished, Stopped, Failed };
 std::string_view run_state_name(RunState state);
+/// The state of a name run_state_name gives; throws std::runtime_error naming run.json otherwise.
+RunState run_state_from_name(const std::string& name);
 bool is_terminal(RunState state);  // finished, stopped, failed
 
 /// A state change the current state does not allow (HTTP 409).

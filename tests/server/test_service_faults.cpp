@@ -7,6 +7,7 @@
 #include <atomic>
 #include <future>
 #include <latch>
+#include <map>
 #include <set>
 #include <string>
 
@@ -421,6 +422,42 @@ TEST(ServiceFaults, AfterACrashARunIsListedAtItsNewestCheckpoint) {
   ASSERT_EQ(api.post("/api/runs/" + id + "/resume").status, 200);
   ASSERT_TRUE(wait_until([&] { return api.run(id)["time"].get<double>() > c.state.time; }));
   for (const fs::path& file : interrupted) EXPECT_FALSE(fs::exists(file)) << file;
+}
+
+// After a server restart, a finished run's spectrum, statistics and image answered 404 "has no
+// spectrum yet" although spectra/, stats/ and frames/ were on disk.
+TEST(ServiceFaults, AfterARestartEverythingOnDiskIsServed) {
+  const fs::path data = scratch("products-restart") / "data";
+  std::string id;
+  std::map<std::string, std::string> before;
+  const std::vector<std::string> products{"spectrum", "statistics", "images/omega2"};
+  {
+    TestServer server(data);
+    const Api api{server.port()};
+    id = api.create({{"scene", rendered_scene(0.1)}});
+    ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+    before["latest"] = api.run(id)["latest"].dump();
+    before["images"] = api.run(id)["available"]["images"].dump();
+    for (const std::string& p : products) {
+      const Reply r = api.get("/api/runs/" + id + "/" + p);
+      ASSERT_EQ(r.status, 200) << p << ": " << r.body;
+      before[p] = r.body;
+    }
+  }
+  TestServer server(data);
+  const Api api{server.port()};
+  const json run = api.run(id);
+  EXPECT_EQ(run["state"], "finished");
+  EXPECT_EQ(run["available"]["images"].dump(), before["images"]);
+  EXPECT_TRUE(run["available"]["spectrum"].get<bool>() && run["available"]["statistics"]) << run;
+  // The last row of its time series, as it was reported while the run ran.
+  EXPECT_EQ(run["latest"].dump(), before["latest"]);
+  // The same bytes: the spectrum and statistics read back exactly, the image is the saved PNG.
+  for (const std::string& p : products) {
+    const Reply r = api.get("/api/runs/" + id + "/" + p);
+    ASSERT_EQ(r.status, 200) << p << ": " << r.body;
+    EXPECT_EQ(r.body, before[p]) << p;
+  }
 }
 
 // `sphles run --restart CKPT --set particles_per_side=48` exited 0 and continued the stored
