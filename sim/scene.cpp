@@ -141,6 +141,16 @@ void check_scene(const Scene& s) {
             format_number(s.particle_spacing()) +
             " m with 'particles_per_side' = " + std::to_string(s.particles_per_side) + ")");
   }
+  // p_ref acts through the zero-order error 2 p_ref Σ_j ∇W_ij V_j (SPEC §2, (5.7)) like a second
+  // sound speed √(p_ref/ρ_ref), which the acoustic step (set by c_s) resolves up to ρ_ref c_s².
+  const double stiffness = s.fluid.reference_density * s.fluid.sound_speed * s.fluid.sound_speed;
+  if (s.fluid.reference_pressure > stiffness)
+    throw SceneError("fluid.reference_pressure",
+                     "scene: 'fluid.reference_pressure' must be at most rho_ref c_s^2 = " +
+                         format_number(stiffness) + " Pa, got " +
+                         format_number(s.fluid.reference_pressure) +
+                         ": its force acts as a sound speed sqrt(p_ref/rho_ref) faster than "
+                         "'fluid.sound_speed', which sets the time step");
   check_time_resolution(s);
 }
 

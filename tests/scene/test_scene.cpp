@@ -133,6 +133,10 @@ INSTANTIATE_TEST_SUITE_P(
                  "'packing.enabled' must be true or false, got number"},
         BadScene{{{"case", "tgv2d"}, {"flow", {{"uniform_velocity", {1, 2, 3}}}}},
                  "'flow.uniform_velocity' must be an array of 2 numbers"},
+        BadScene{{{"fluid", {{"reference_pressure", 1e308}}}},
+                 "'fluid.reference_pressure' must be at most rho_ref c_s^2 = 25 Pa, got 1e+308"},
+        BadScene{{{"case", "tgv2d"}, {"fluid", {{"reference_pressure", 100.001}}}},
+                 "'fluid.reference_pressure' must be at most rho_ref c_s^2 = 100 Pa"},
         BadScene{{{"particles_per_side", 6}, {"kernel", {{"diameter_over_spacing", 8}}}},
                  "box length 6.28319 m is smaller than the kernel diameter D_K = 8.37758 m"}),
     [](const ::testing::TestParamInfo<BadScene>& info) {

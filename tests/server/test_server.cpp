@@ -389,6 +389,10 @@ TEST(Server, ParameterChangesTakeEffect) {
   expect_error(
       api.patch("/api/runs/" + id + "/parameters", {{"fluid", {{"reference_pressure", "high"}}}}),
       400, "fluid.reference_pressure");
+  // Out of what can run: the run blew up at once when it was taken.
+  expect_error(
+      api.patch("/api/runs/" + id + "/parameters", {{"fluid", {{"reference_pressure", 1e308}}}}),
+      400, "fluid.reference_pressure");
   expect_error(api.patch("/api/runs/" + id + "/parameters", {{"nonsense", 1}}), 400, "nonsense");
   expect_error(send(server.port(), {http::verb::patch, "/api/runs/" + id + "/parameters", "[]"}),
                400);
