@@ -84,19 +84,11 @@ std::filesystem::path restart_checkpoint(const RunOptions& options, bool distrib
                                             ? std::filesystem::path(options.out_dir)
                                         : dir == given ? dir.parent_path()
                                                        : given;
-  const auto of_this_run = [&](const std::filesystem::path& file,
-                               const io::CheckpointHeader& header) {
-    try {
-      control::check_checkpoint_belongs(run_dir, nlohmann::json::parse(header.metadata.scene_json));
-    } catch (const std::exception& e) {
-      throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
-    }
-  };
   std::vector<std::string> rejected;
   // Under mpirun the ranks read and validate the particles (the factories' restore_file).
   const std::filesystem::path file = io::newest_valid_checkpoint(
       dir, &rejected, distributed ? io::CheckpointCheck::Header : io::CheckpointCheck::Whole,
-      of_this_run);
+      control::checkpoints_of_run(run_dir));
   for (const std::string& r : rejected) std::fprintf(stderr, "skipped: %s\n", r.c_str());
   return file;
 }

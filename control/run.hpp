@@ -8,6 +8,7 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <memory>
 #include <optional>
 #include <string>
@@ -16,6 +17,10 @@
 #include <nlohmann/json.hpp>
 
 #include "control/run_types.hpp"
+
+namespace sphles::io {
+struct CheckpointHeader;  // io/checkpoint.hpp
+}
 
 namespace sphles::control {
 
@@ -27,6 +32,11 @@ struct RunImpl;  // control/run_impl.hpp
 /// (a 48² file dropped among a 32² run's), which would replace the run's particles and scene.
 void check_checkpoint_belongs(const std::filesystem::path& directory,
                               const nlohmann::json& checkpoint_scene);
+
+/// check_checkpoint_belongs as the `accept` of io::newest_valid_checkpoint (io::CheckpointAccept):
+/// a checkpoint of another run among the run's is passed over, with the reason.
+std::function<void(const std::filesystem::path&, const io::CheckpointHeader&)> checkpoints_of_run(
+    std::filesystem::path directory);
 
 class Run {
  public:

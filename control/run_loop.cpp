@@ -17,6 +17,7 @@
 #include "control/live_changes.hpp"
 #include "control/progress.hpp"
 #include "control/render_sink.hpp"
+#include "control/run.hpp"
 #include "control/run_files.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
@@ -70,7 +71,7 @@ std::unique_ptr<sim::Simulation> restore_solver(const RunOptions& options, const
 }
 
 /// The state a resumed run continues from: the explicit file, else the newest valid checkpoint
-/// (the invalid ones skipped with a warning).
+/// of the run (the invalid ones and other runs' skipped with a warning).
 io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>& explicit_file,
                                       const std::filesystem::path& checkpoint_dir,
                                       logging::RunLog& log) {
@@ -81,7 +82,9 @@ io::Checkpoint read_resume_checkpoint(const std::optional<std::filesystem::path>
     checkpoint = io::read_checkpoint(file);
   } else if (!io::list_checkpoints(checkpoint_dir).empty()) {
     std::vector<std::string> rejected;
-    std::tie(file, checkpoint) = io::read_newest_valid_checkpoint(checkpoint_dir, &rejected);
+    // A file of another run's scene among the run's checkpoints is passed over.
+    std::tie(file, checkpoint) = io::read_newest_valid_checkpoint(
+        checkpoint_dir, &rejected, checkpoints_of_run(checkpoint_dir.parent_path()));
     for (const std::string& why : rejected) log.warn("skipped: {}", why);
   } else {
     no_checkpoint_to_continue();
@@ -107,6 +110,7 @@ std::unique_ptr<sim::Simulation> restore_from_file(
   for (const std::filesystem::path& file : files) {
     try {
       const io::CheckpointHeader header = io::read_checkpoint_header(file);
+      if (!explicit_file) checkpoints_of_run(checkpoint_dir.parent_path())(file, header);
       log.progress("restart: {} at t = {:.17g}, step {} (read by the ranks)", file.string(),
                    header.shape.time, header.step);
       auto simulation = options.solvers.restore_file(scene, file);

@@ -55,7 +55,11 @@ bool follow_newest_checkpoint(const std::filesystem::path& directory, RunImpl& i
     io::CheckpointHeader h;
     const std::filesystem::path newest = io::newest_valid_checkpoint(
         directory / "checkpoints", nullptr, io::CheckpointCheck::Header,
-        [&h](const std::filesystem::path&, const io::CheckpointHeader& read) { h = read; });
+        [&h, of_this_run = checkpoints_of_run(directory)](const std::filesystem::path& file,
+                                                          const io::CheckpointHeader& read) {
+          of_this_run(file, read);
+          h = read;
+        });
     if (!(h.shape.time > impl.time)) return false;
     impl.time = h.shape.time;
     impl.step = h.step;
@@ -87,6 +91,18 @@ void check_checkpoint_belongs(const std::filesystem::path& directory,
     throw std::runtime_error("not a checkpoint of the run in '" + directory.string() +
                              "': " + e.what());
   }
+}
+
+std::function<void(const std::filesystem::path&, const io::CheckpointHeader&)> checkpoints_of_run(
+    std::filesystem::path directory) {
+  return [directory = std::move(directory)](const std::filesystem::path& file,
+                                            const io::CheckpointHeader& header) {
+    try {
+      check_checkpoint_belongs(directory, json::parse(header.metadata.scene_json));
+    } catch (const std::exception& e) {
+      throw io::CheckpointError("checkpoint '" + file.string() + "' is " + e.what());
+    }
+  };
 }
 
 std::unique_ptr<Run> Run::open(std::string id, const std::filesystem::path& directory,

@@ -195,10 +195,10 @@ auto newest_taken(const std::filesystem::path& directory, std::vector<std::strin
 
 }  // namespace
 
-std::filesystem::path newest_valid_checkpoint(
-    const std::filesystem::path& directory, std::vector<std::string>* rejected,
-    CheckpointCheck check,
-    const std::function<void(const std::filesystem::path&, const CheckpointHeader&)>& accept) {
+std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
+                                              std::vector<std::string>* rejected,
+                                              CheckpointCheck check,
+                                              const CheckpointAccept& accept) {
   return newest_taken(directory, rejected, [&](const std::filesystem::path& file) {
     const CheckpointHeader header = check == CheckpointCheck::Header
                                         ? read_checkpoint_header(file)
@@ -209,9 +209,12 @@ std::filesystem::path newest_valid_checkpoint(
 }
 
 std::pair<std::filesystem::path, Checkpoint> read_newest_valid_checkpoint(
-    const std::filesystem::path& directory, std::vector<std::string>* rejected) {
-  return newest_taken(directory, rejected, [](const std::filesystem::path& file) {
-    return std::pair{file, read_checkpoint(file)};
+    const std::filesystem::path& directory, std::vector<std::string>* rejected,
+    const CheckpointAccept& accept) {
+  return newest_taken(directory, rejected, [&](const std::filesystem::path& file) {
+    std::pair<std::filesystem::path, Checkpoint> read{file, read_checkpoint(file)};
+    if (accept) accept(file, header_of(read.second));
+    return read;
   });
 }
 

@@ -97,15 +97,17 @@ enum class CheckpointCheck { Whole, Header };
 /// takes, shown the file and the header just read: it rejects a valid file by throwing
 /// CheckpointError with the reason. `rejected` receives one line per newer file that was not
 /// taken. Throws CheckpointError when none is.
-std::filesystem::path newest_valid_checkpoint(
-    const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr,
-    CheckpointCheck check = CheckpointCheck::Whole,
-    const std::function<void(const std::filesystem::path&, const CheckpointHeader&)>& accept = {});
+using CheckpointAccept = std::function<void(const std::filesystem::path&, const CheckpointHeader&)>;
+std::filesystem::path newest_valid_checkpoint(const std::filesystem::path& directory,
+                                              std::vector<std::string>* rejected = nullptr,
+                                              CheckpointCheck check = CheckpointCheck::Whole,
+                                              const CheckpointAccept& accept = {});
 
 /// The same with CheckpointCheck::Whole, returning the file and what was read (a resume needs
 /// both, and the file read once).
 std::pair<std::filesystem::path, Checkpoint> read_newest_valid_checkpoint(
-    const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr);
+    const std::filesystem::path& directory, std::vector<std::string>* rejected = nullptr,
+    const CheckpointAccept& accept = {});
 
 /// A human-readable listing of a checkpoint file (for `sphles inspect`). Throws CheckpointError.
 std::string describe_checkpoint(const std::filesystem::path& path);

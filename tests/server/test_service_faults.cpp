@@ -542,6 +542,46 @@ TEST(ServiceFaults, RestartPassesOverACheckpointOfAnotherRun) {
   EXPECT_EQ(json::parse(std::ifstream(out / "scene.json"))["particles_per_side"], 16);
 }
 
+// The server's resume took the newest file among a run's checkpoints whatever run wrote it (and
+// the listing showed its time). A file of another run is passed over there too, saying why.
+TEST(ServiceFaults, AResumeOnTheServerPassesOverACheckpointOfAnotherRun) {
+  const fs::path base = scratch("resume-foreign");
+  const fs::path data = base / "data";
+  json other = tiny_scene(0.1, "other");
+  other["particles_per_side"] = 24;
+  std::ofstream(base / "other.json") << other.dump();
+  ASSERT_EQ(run_sphles({"run", "other.json", "--out", (base / "other").string()}, base).code, 0);
+  const fs::path foreign = sphles::io::list_checkpoints(base / "other" / "checkpoints").front();
+  std::string id;
+  {
+    TestServer server(data);
+    const Api api{server.port()};
+    id = api.create({{"scene", tiny_scene(0.05, "own")}});
+    ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  }
+  const fs::path run_dir = data / "runs" / id;
+  const fs::path mine = sphles::io::list_checkpoints(run_dir / "checkpoints").front();
+  ASSERT_GT(foreign.filename().string(), mine.filename().string());  // the newer name
+  fs::copy_file(foreign, run_dir / "checkpoints" / foreign.filename());
+
+  TestServer server(data);
+  const Api api{server.port()};
+  EXPECT_DOUBLE_EQ(api.run(id)["time"].get<double>(), 0.05);  // not the other run's 0.1
+  ASSERT_EQ(api.patch("/api/runs/" + id + "/parameters", {{"time", {{"end", 0.08}}}}).status, 200);
+  const Reply started = api.post("/api/runs/" + id + "/start");
+  ASSERT_EQ(started.status, 200) << started.body;
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  EXPECT_DOUBLE_EQ(api.run(id)["time"].get<double>(), 0.08);
+  EXPECT_EQ(api.run(id)["particles_per_side"], 16);
+  const std::string log = api.get("/api/runs/" + id + "/log").body;
+  EXPECT_NE(
+      log.find("skipped: checkpoint '" + (run_dir / "checkpoints" / foreign.filename()).string() +
+               "' is not a checkpoint of the run in"),
+      std::string::npos)
+      << log;
+  EXPECT_NE(log.find("restart: " + mine.string()), std::string::npos) << log;
+}
+
 // `sphles serve --start-run SCENE` run again continues the run it started before and that was
 // stopped, from its newest checkpoint, instead of starting the scene again at t = 0 (so that
 // ./scripts/run.sh, run again, picks up where Ctrl-C stopped it); a different scene starts a new
