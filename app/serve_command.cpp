@@ -133,6 +133,13 @@ void add_serve_options(CLI::App& serve, ServeOptions& o) {
                   "interface, rank 0 is sent this host's name)")
       ->type_name("IP")
       ->capture_default_str();
+  serve
+      .add_option("--stop-grace", o.manager.run_options.stop_grace_seconds,
+                  "seconds a stop waits for a run's next step and checkpoint; an MPI job that "
+                  "has not answered by then is ended, and the run stops at its last checkpoint")
+      ->type_name("SECONDS")
+      ->check(CLI::Range(0.1, 86400.0))
+      ->capture_default_str();
   serve.add_option("--max-ranks", o.manager.max_ranks, "MPI ranks one run may ask for")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
@@ -175,7 +182,9 @@ void finish_serve_options(ServeOptions& o) {
       job.ranks = ranks;
       job.threads = run.threads;
       job.log_file = directory / "job.log";
-      run.solvers = launch::job_solvers(std::move(job));
+      launch::JobSolvers solvers = launch::job_solvers(std::move(job));
+      run.solvers = std::move(solvers.solvers);
+      run.end_solver_job = std::move(solvers.end_job);
     };
   }
 }

@@ -5,13 +5,13 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "analysis/frame_reader.hpp"
 #include "control/live_changes.hpp"
 #include "control/run_files.hpp"
 #include "control/run_impl.hpp"
 #include "io/checkpoint.hpp"
 #include "scene/document.hpp"
 #include "scene/json_reader.hpp"
+#include "sim/format.hpp"
 
 namespace sphles::control {
 
@@ -158,6 +158,7 @@ void RunImpl::start_locked() {
   join_solver();  // the previous solver thread has ended (terminal state); reap it
   lock.lock();
   stop_requested = false;
+  solver_given_up = false;
   set_state(lock, RunState::Running);
   thread = std::thread([this] { execute(); });
 }
@@ -209,27 +210,57 @@ void Run::resume() {
   start();  // re-checks the state under the transition lock
 }
 
-void RunImpl::stop_locked(const std::string& why) {
+bool RunImpl::stop_locked(const std::string& why) {
   std::unique_lock lock(mutex);
   refuse_if_retired();
   if (is_terminal(state))
     throw StateError("run " + id + " is already " + std::string(run_state_name(state)));
   if (state == RunState::Created || state == RunState::Queued) {
     set_state(lock, RunState::Stopped, why);
-    return;
+    return true;
   }
   stop_requested = true;
   stop_reason = why;
   attention = true;
   changed.notify_all();
-  changed.wait(lock, [&] { return is_terminal(state); });
+  const auto ended = [&] { return is_terminal(state); };
+  const auto seconds = [](double s) {
+    return std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+        std::chrono::duration<double>(s));
+  };
+  // A set-up cannot be left half-way: a solver's job still being launched (a batch queue that
+  // has not started it) or setting up is given up at once, as a local packing is cancelled.
+  const bool setting_up = phase != "stepping";
+  bool done = setting_up && options.end_solver_job
+                  ? false
+                  : changed.wait_for(lock, seconds(options.stop_grace_seconds), ended);
+  if (!done && options.end_solver_job) {
+    solver_given_up = true;
+    const std::string cause = setting_up ? "a stop during its set-up"
+                                         : "it did not reach its next step within " +
+                                               sim::format_number(options.stop_grace_seconds) +
+                                               " s of a stop";
+    lock.unlock();
+    options.end_solver_job(cause);
+    lock.lock();
+    done = changed.wait_for(lock, seconds(kJobEndSeconds), ended);
+  }
   lock.unlock();
-  join_solver();
+  if (done) join_solver();
+  return done;
 }
 
-void Run::stop(const std::string& reason) {
+bool Run::stop(const std::string& reason) {
+  {
+    // A stop already under way: answered at once, so that repeated stops of one run never hold
+    // run-control callers while it ends.
+    std::lock_guard lock(impl_->mutex);
+    if (impl_->stop_requested && !is_terminal(impl_->state) && impl_->state != RunState::Created &&
+        impl_->state != RunState::Queued)
+      return false;
+  }
   std::lock_guard transition(impl_->transition_mutex);
-  impl_->stop_locked(reason);
+  return impl_->stop_locked(reason);
 }
 
 void Run::retire() {

@@ -72,9 +72,13 @@ class Run {
   void pause();   // running → paused (takes effect between steps)
   void resume();  // paused → running
   /// running/paused/queued/created → stopped: the solver thread finishes its step (or abandons
-  /// the packing of its initial state), writes a checkpoint and exits. Blocks until it has.
-  /// Transitions are serialised: a second stop waits for the first, then finds the run stopped.
-  void stop(const std::string& reason = "stopped by request");
+  /// the packing of its initial state), writes a checkpoint and exits. Waits for that at most
+  /// RunOptions::stop_grace_seconds; a solver's MPI job that has not answered by then (or is
+  /// still being set up) is given up (RunOptions::end_solver_job) and the run stops at its last
+  /// checkpoint. Returns whether the run has ended; false: it is still stopping (a local step
+  /// longer than the grace period, or a stop already under way, which answers at once).
+  /// Transitions are serialised: a second stop after the first finds the run stopped.
+  bool stop(const std::string& reason = "stopped by request");
   /// Blocks until the run is finished, stopped or failed (or was never started).
   void wait();
   /// Runs on the calling thread until the end (command line). Returns the final state.

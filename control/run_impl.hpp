@@ -55,6 +55,12 @@ struct RunImpl {
   std::string created;
   bool stop_requested = false;
   std::string stop_reason;
+  /// A stop gave up on the solver's MPI job (RunOptions::end_solver_job): the failure that
+  /// follows is the stop's, not the run's.
+  bool solver_given_up = false;
+  /// After a solver's job is given up: how long it may take to end (a poll, then SIGTERM and
+  /// SIGKILL 5 s apart, launch/job.cpp) [s].
+  static constexpr double kJobEndSeconds = 15.0;
   std::optional<std::filesystem::path> start_checkpoint;  // explicit restart file
   bool continue_from_checkpoint = false;
   bool retired = false;  // being deleted: every transition and change is refused
@@ -160,7 +166,7 @@ struct RunImpl {
   /// The transitions the run accepts now (RunStatus::actions); caller holds `mutex`.
   std::vector<std::string_view> actions_locked() const;
   void start_locked();
-  void stop_locked(const std::string& why);
+  bool stop_locked(const std::string& why);
   void join_solver();
 
   class Loop;  // the run loop and the outputs it feeds (control/run_loop.cpp)

@@ -108,7 +108,8 @@ class RunManager {
   void start(const std::string& id);  // created/stopped → running or queued
   void pause(const std::string& id);
   void resume(const std::string& id);  // paused → running; stopped → running or queued
-  void stop(const std::string& id);
+  /// Whether the run has ended (Run::stop); false: it is still stopping.
+  bool stop(const std::string& id);
   /// Deletes a run that is not active (created, finished, stopped, failed) with its directory;
   /// throws UnknownRunError or StateError (active runs must be stopped first). The directory is
   /// first moved to {data}/trash/ in one rename, so an interrupted delete never leaves a partial

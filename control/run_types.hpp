@@ -172,6 +172,13 @@ struct RunOptions {
   /// factories above put the solver into an MPI job (`mpirun sphles run`; the service's runs
   /// created with ranks > 1, launch/job.hpp).
   int ranks = 1;
+  /// How long a stop waits for the solver to reach its next step and write the checkpoint
+  /// before it gives up on a solver that does not answer (end_solver_job) or, without one,
+  /// answers that the run is still stopping [s].
+  double stop_grace_seconds = 30.0;
+  /// Gives up on the solver's MPI job (launch::JobSolvers::end_job): the call the solver thread
+  /// waits on fails within a poll and the job is ended. Empty: the solver is this process.
+  std::function<void(const std::string& why)> end_solver_job;
 };
 
 /// A run name as a single path component: letters, digits, '-', '_' and '.' (others become '-'),

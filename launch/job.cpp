@@ -98,12 +98,39 @@ class JobEnded : public std::runtime_error {
   using std::runtime_error::runtime_error;
 };
 
+/// The service gave up on the job (JobSolvers::end_job): it is ended without waiting for it.
+class JobAbandoned : public JobEnded {
+ public:
+  using JobEnded::JobEnded;
+};
+
+/// Set by another thread when the service gives up on a job; read by the thread waiting on it.
+class Abandonment {
+ public:
+  void set(const std::string& why) {
+    std::lock_guard lock(mutex_);
+    if (!set_) why_ = why;
+    set_ = true;
+  }
+  /// Throws JobAbandoned when set.
+  void check() const {
+    std::lock_guard lock(mutex_);
+    if (set_) throw JobAbandoned("the service ended it: " + why_);
+  }
+
+ private:
+  mutable std::mutex mutex_;
+  bool set_ = false;
+  std::string why_;
+};
+
 /// One launched job: its process (the launcher, in a process group of its own) and the channel
 /// to its rank 0, which carries the run's requests to the job's solver. Used by one thread at a
 /// time (the run's solver thread).
 class Job final : public remote::Transport {
  public:
-  explicit Job(LaunchOptions options) : o_(std::move(options)) {
+  Job(LaunchOptions options, std::shared_ptr<const Abandonment> abandonment)
+      : o_(std::move(options)), abandonment_(std::move(abandonment)) {
     command_ = launch_command(o_);
     try {
       const unsigned short port = channel_.listen(o_.listen_address);
@@ -116,6 +143,7 @@ class Job final : public remote::Transport {
       const auto started = Clock::now();
       channel_.accept(
           [&] {
+            abandonment_->check();
             check_alive("before its rank 0 connected");
             if (std::chrono::duration<double>(Clock::now() - started).count() >
                 o_.connect_timeout_seconds)
@@ -123,8 +151,12 @@ class Job final : public remote::Transport {
                              std::to_string(o_.connect_timeout_seconds) + " s");
           },
           kPollSeconds);
-      const Message hello =
-          channel_.receive([&] { check_alive("before it said hello"); }, kPollSeconds);
+      const Message hello = channel_.receive(
+          [&] {
+            abandonment_->check();
+            check_alive("before it said hello");
+          },
+          kPollSeconds);
       if (hello.kind != MessageKind::Hello) throw ProtocolError("the job's first message");
       Decoder d(hello.body);
       if (d.string() != token) throw ProtocolError("a connection without the job's token");
@@ -171,6 +203,7 @@ class Job final : public remote::Transport {
       channel_.send(MessageKind::Request, body);
       reply = channel_.receive(
           [&] {
+            abandonment_->check();
             check_alive("while the service waited for it");
             if (cancelled && cancelled())
               throw sim::SetupCancelled(what + ": cancelled, the MPI job ended");
@@ -180,6 +213,10 @@ class Job final : public remote::Transport {
       broken_ = true;
       end_process();
       throw;
+    } catch (const JobAbandoned& e) {
+      broken_ = true;
+      end_process();
+      throw sim::SimulationError(diagnosis(what, e.what()));
     } catch (const std::exception& e) {
       broken_ = true;
       wait_for_exit(kExitStatusWaitSeconds);
@@ -279,6 +316,7 @@ class Job final : public remote::Transport {
   }
 
   LaunchOptions o_;
+  std::shared_ptr<const Abandonment> abandonment_;
   std::string command_;
   Channel channel_;
   pid_t pid_ = -1;
@@ -296,16 +334,31 @@ class JobHolder {
     std::lock_guard lock(mutex_);
     std::shared_ptr<Job> job = job_.lock();
     if (!job) {
-      job = std::make_shared<Job>(options_);
+      // A new job starts with a new abandonment: giving up on one job is not giving up on the
+      // next (a resume after a stop).
+      auto abandonment = std::make_shared<Abandonment>();
+      {
+        std::lock_guard current(abandonment_mutex_);
+        abandonment_ = abandonment;
+      }
+      job = std::make_shared<Job>(options_, abandonment);
       job_ = job;
     }
     return job;
+  }
+
+  /// Gives up on the current job (also while it is being launched, which holds `mutex_`).
+  void end_job(const std::string& why) {
+    std::lock_guard lock(abandonment_mutex_);
+    if (abandonment_) abandonment_->set(why);
   }
 
  private:
   LaunchOptions options_;
   std::mutex mutex_;
   std::weak_ptr<Job> job_;
+  std::mutex abandonment_mutex_;
+  std::shared_ptr<Abandonment> abandonment_;
 };
 
 }  // namespace
@@ -330,10 +383,11 @@ std::string launch_command(const LaunchOptions& o) {
   return command;
 }
 
-sim::SolverFactories job_solvers(LaunchOptions options) {
+JobSolvers job_solvers(LaunchOptions options) {
   validate(options);
   auto holder = std::make_shared<JobHolder>(std::move(options));
-  return remote::remote_solvers([holder] { return holder->current_job(); });
+  return {remote::remote_solvers([holder] { return holder->current_job(); }),
+          [holder](const std::string& why) { holder->end_job(why); }};
 }
 
 void serve_job(const std::string& host, unsigned short port, const std::string& token,

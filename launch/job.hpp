@@ -9,7 +9,9 @@
 // restart made while a solver of the job exists reuses it, and the job ends when the run's last
 // solver goes (stop, end, failure). A job that ends unasked (a rank killed or out of memory:
 // mpirun then ends every rank) fails the step or request in progress with a SimulationError
-// naming the launcher's exit status and the last lines of the job's log.
+// naming the launcher's exit status and the last lines of the job's log. A job that stops
+// answering (a rank frozen, a batch queue that never starts it) is given up by the service
+// (JobSolvers::end_job) when a stop's grace period has passed.
 #pragma once
 
 #include <filesystem>
@@ -45,9 +47,18 @@ void validate(const LaunchOptions& options);
 /// The shell command that starts the job (without the connection arguments).
 std::string launch_command(const LaunchOptions& options);
 
-/// Solver factories for control::RunOptions::solvers that put the
-/// solver into a job launched with `options`. The two share the job.
-sim::SolverFactories job_solvers(LaunchOptions options);
+struct JobSolvers {
+  /// Solver factories for control::RunOptions::solvers that put the solver into a job launched
+  /// with `options`; they share the job.
+  sim::SolverFactories solvers;
+  /// Gives up on the job (control::RunOptions::end_solver_job): the call waiting on it, or the
+  /// launch waiting for its rank 0, fails within a poll (0.2 s) with a sim::SimulationError
+  /// saying `why`, and the job's process group is ended (SIGTERM, SIGKILL 5 s later). A job
+  /// launched afterwards is not affected. Thread-safe; nothing happens when no job runs.
+  std::function<void(const std::string& why)> end_job;
+};
+
+JobSolvers job_solvers(LaunchOptions options);
 
 /// The job's side, on rank 0 (app/worker_command.cpp): connects to the service, proves the
 /// token, and carries out requests with the given solver factories until told to finish or the

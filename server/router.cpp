@@ -49,7 +49,7 @@ const std::vector<Route>& route_table() {
       {{V::post, "/api/runs/{id}/start", true}, transition<&M::start>},
       {{V::post, "/api/runs/{id}/pause", true}, transition<&M::pause>},
       {{V::post, "/api/runs/{id}/resume", true}, transition<&M::resume>},
-      {{V::post, "/api/runs/{id}/stop", true}, transition<&M::stop>},
+      {{V::post, "/api/runs/{id}/stop", true}, stop_run},
       {{V::patch, "/api/runs/{id}/parameters", true}, change_parameters, true},
       {{V::get, "/api/runs/{id}/timeseries", false}, timeseries},
       {{V::get, "/api/runs/{id}/log", false}, run_log},

@@ -106,6 +106,11 @@ Response transition(const Services& s, const Context& c) {
   return json_response(c.request, run_summary_json(*find_run(s, id)));
 }
 
+/// POST /api/runs/{id}/stop: 200 with the stopped run's summary, 202 with the summary of a run
+/// still stopping (its solver's step outlasted the stop's grace period, or a stop was under
+/// way already).
+Response stop_run(const Services& s, const Context& c);
+
 // --- run_history.cpp -------------------------------------------------------------------------
 
 Response timeseries(const Services& s, const Context& c);

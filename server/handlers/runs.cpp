@@ -44,6 +44,13 @@ Response get_run(const Services& s, const Context& c) {
   return json_response(c.request, detail);
 }
 
+Response stop_run(const Services& s, const Context& c) {
+  const std::string& id = c.params[0];
+  const bool ended = s.manager.stop(id);
+  return json_response(c.request, run_summary_json(*find_run(s, id)),
+                       ended ? http::status::ok : http::status::accepted);
+}
+
 Response delete_run(const Services& s, const Context& c) {
   const std::string& id = c.params[0];
   s.manager.remove(id);  // 404 unknown, 409 active; the directory goes with it

@@ -5,11 +5,15 @@
 // and a solver in a real 2-rank job (mpirun, `sphles worker`) steps bitwise like one process.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <future>
 #include <limits>
 #include <random>
 #include <thread>
@@ -263,7 +267,8 @@ TEST(JobSolverFactories, ALauncherThatFailsIsDiagnosedFromItsStatusAndLog) {
   const std::filesystem::path log = dir / "job.log";
   const sim::Scene scene = small_tgv2d();
   sim::SolverFactories solvers =
-      job_solvers(options_for("/bin/sh -c 'echo cannot place {ranks} ranks >&2; exit 3'", log));
+      job_solvers(options_for("/bin/sh -c 'echo cannot place {ranks} ranks >&2; exit 3'", log))
+          .solvers;
   try {
     solvers.make(scene, sim::setup_run(scene).particles);
     FAIL() << "no throw";
@@ -279,8 +284,11 @@ TEST(JobSolverFactories, AJobWithAnotherRankCountIsRefused) {
   const auto dir = fresh_directory("launch_ranks");
   const sim::Scene scene = small_tgv2d();
   // A launcher that ignores the rank count: one rank where the run asked for two.
-  sim::SolverFactories solvers = job_solvers(options_for(
-      "mpiexec --oversubscribe --bind-to none -n 1 env SPHLES_IGNORED={ranks}", dir / "job.log"));
+  sim::SolverFactories solvers =
+      job_solvers(
+          options_for("mpiexec --oversubscribe --bind-to none -n 1 env SPHLES_IGNORED={ranks}",
+                      dir / "job.log"))
+          .solvers;
   try {
     solvers.make(scene, sim::setup_run(scene).particles);
     FAIL() << "no throw";
@@ -297,7 +305,7 @@ TEST(JobSolverFactories, AJobReachesAServiceListeningOnEveryInterface) {
   LaunchOptions o =
       options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log");
   o.listen_address = "0.0.0.0";  // rank 0 connects to this host's name
-  sim::SolverFactories solvers = job_solvers(o);
+  sim::SolverFactories solvers = job_solvers(o).solvers;
   const auto remote = solvers.make(scene, sim::setup_run(scene).particles);
   remote->step();
   EXPECT_EQ(remote->step_count(), 1u);
@@ -309,8 +317,9 @@ TEST(JobSolverFactories, KolmogorovDiagnosticsAreSummedInTheJobBitwiseLikeOnePro
       {{"preset", "kolmogorov2d"}, {"particles_per_side", 48}, {"packing", {{"enabled", false}}}});
   const sim::RunSetup setup = sim::setup_run(scene);
   auto local = sim::make_simulation(setup.solver, setup.particles);
-  sim::SolverFactories solvers = job_solvers(
-      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  sim::SolverFactories solvers =
+      job_solvers(options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"))
+          .solvers;
   const auto remote = solvers.make(scene, setup.particles);
   for (int s = 0; s < 10; ++s) {
     local->step();
@@ -348,8 +357,9 @@ TEST(JobSolverFactories, ARunSetUpByTheJobsRanksIsTheRunSetUpHere) {
   scene.packing.enabled = true;
   const sim::RunSetup setup = sim::setup_run(scene, {.packing_cache_dir = dir / "here"});
   auto local = sim::make_simulation(setup.solver, setup.particles);
-  sim::SolverFactories solvers = job_solvers(
-      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  sim::SolverFactories solvers =
+      job_solvers(options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"))
+          .solvers;
   ASSERT_TRUE(solvers.set_up);
   sim::PackingReport report;
   std::unique_ptr<sim::Simulation> remote =
@@ -381,8 +391,9 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   const sim::Scene scene = small_tgv2d();
   sim::RunSetup setup = sim::setup_run(scene);
   auto local = sim::make_simulation(setup.solver, setup.particles);
-  sim::SolverFactories solvers = job_solvers(
-      options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"));
+  sim::SolverFactories solvers =
+      job_solvers(options_for("mpiexec --oversubscribe --bind-to none -n {ranks}", dir / "job.log"))
+          .solvers;
   std::unique_ptr<sim::Simulation> remote = solvers.make(scene, setup.particles);
   EXPECT_EQ(remote->diagnostics().kinetic_energy, local->diagnostics().kinetic_energy);
   for (int s = 0; s < 20; ++s) {
@@ -472,6 +483,93 @@ TEST(JobSolverFactories, ASolverInATwoRankJobStepsBitwiseLikeOneProcess) {
   std::ifstream in(dir / "job.log");
   const std::string log((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_NE(log.find("rank 0 of 2 done"), std::string::npos) << log;
+}
+
+/// Whether a process is gone (or a zombie nobody reaped yet).
+bool gone(pid_t pid) {
+  std::ifstream stat("/proc/" + std::to_string(pid) + "/stat");
+  std::string text;
+  if (!std::getline(stat, text)) return true;
+  const std::size_t paren = text.rfind(')');
+  return paren != std::string::npos && paren + 2 < text.size() && text[paren + 2] == 'Z';
+}
+
+bool all_gone_within(const std::vector<pid_t>& pids, std::chrono::seconds limit) {
+  const auto until = std::chrono::steady_clock::now() + limit;
+  for (;;) {
+    if (std::all_of(pids.begin(), pids.end(), gone)) return true;
+    if (std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+}
+
+double seconds_since(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+// A batch queue that never starts the job: the launch waited the whole connect timeout (and a
+// stop of the run with it). Given up, it fails at once and the launcher is ended.
+TEST(JobSolverFactories, AJobThatNeverConnectsIsGivenUpAtOnce) {
+  const auto dir = fresh_directory("launch_never");
+  const sim::Scene scene = small_tgv2d();
+  const std::filesystem::path pid_file = dir / "launcher.pid";
+  JobSolvers job = job_solvers(options_for(
+      "sh -c 'echo $$ > \"" + pid_file.string() + "\"; sleep 300' {ranks}", dir / "job.log"));
+  auto made = std::async(std::launch::async,
+                         [&] { return job.solvers.make(scene, sim::setup_run(scene).particles); });
+  ASSERT_EQ(made.wait_for(std::chrono::seconds(1)), std::future_status::timeout);
+  pid_t launcher = 0;
+  std::ifstream(pid_file) >> launcher;
+  ASSERT_GT(launcher, 0);
+  const auto asked = std::chrono::steady_clock::now();
+  job.end_job("a test gave up on it");
+  try {
+    made.get();
+    FAIL() << "no throw";
+  } catch (const sim::SimulationError& e) {
+    EXPECT_NE(std::string(e.what()).find("the service ended it: a test gave up on it"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_LT(seconds_since(asked), 10.0);
+  EXPECT_TRUE(all_gone_within({launcher}, std::chrono::seconds(5)));
+}
+
+// A frozen rank (SIGSTOP, as a hung node): the step waited for it for good. Given up, the step
+// fails within the job's end (a poll, SIGTERM, SIGKILL 5 s later) and no rank is left.
+TEST(JobSolverFactories, AJobWithAFrozenRankIsGivenUpAndEnded) {
+  const auto dir = fresh_directory("launch_frozen");
+  const sim::Scene scene = small_tgv2d();
+  const std::filesystem::path pids = dir / "ranks.pid";
+  // Each rank notes its process id, then becomes the worker.
+  JobSolvers job = job_solvers(
+      options_for("mpiexec --oversubscribe --bind-to none -n {ranks} sh -c 'echo $$ >> \"" +
+                      pids.string() + "\"; exec \"$0\" \"$@\"'",
+                  dir / "job.log"));
+  std::unique_ptr<sim::Simulation> remote =
+      job.solvers.make(scene, sim::setup_run(scene).particles);
+  remote->step();
+  std::vector<pid_t> ranks;
+  std::ifstream in(pids);
+  for (pid_t pid = 0; in >> pid;) ranks.push_back(pid);
+  ASSERT_EQ(ranks.size(), 2u);
+  ASSERT_EQ(::kill(ranks.back(), SIGSTOP), 0);
+  auto stepped = std::async(std::launch::async, [&] { remote->step(); });
+  EXPECT_EQ(stepped.wait_for(std::chrono::seconds(2)), std::future_status::timeout);
+  const auto asked = std::chrono::steady_clock::now();
+  job.end_job("it did not answer");
+  try {
+    stepped.get();
+    FAIL() << "no throw";
+  } catch (const sim::SimulationError& e) {
+    EXPECT_NE(std::string(e.what()).find("the service ended it: it did not answer"),
+              std::string::npos)
+        << e.what();
+  }
+  EXPECT_LT(seconds_since(asked), 15.0);
+  EXPECT_TRUE(all_gone_within(ranks, std::chrono::seconds(10)));
+  for (const pid_t pid : ranks)
+    if (!gone(pid)) ::kill(pid, SIGKILL);  // not left behind by a failed test
 }
 
 }  // namespace

@@ -51,6 +51,16 @@ std::vector<int> concurrently(int count, const std::function<Reply()>& request) 
   return statuses;
 }
 
+/// One of concurrent stops stops the run (200); each other one answers at once, 202 while the
+/// first is under way or 409 once it is done.
+void expect_one_stop(const std::vector<int>& statuses) {
+  ASSERT_FALSE(statuses.empty());
+  EXPECT_EQ(statuses.front(), 200) << "0 means no answer within 30 s";
+  EXPECT_EQ(std::count(statuses.begin(), statuses.end(), 200), 1);
+  for (std::size_t k = 1; k < statuses.size(); ++k)
+    EXPECT_TRUE(statuses[k] == 202 || statuses[k] == 409) << statuses[k];
+}
+
 bool running_with_steps(const Api& api, const std::string& id, std::uint64_t steps) {
   const json run = api.run(id);
   return run["state"] == "running" && run["step"].get<std::uint64_t>() > steps;
@@ -72,14 +82,13 @@ TEST(ServiceFaults, DuplicateStopsOfOneRunAllAnswer) {
   ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 20); }));
   const std::vector<int> statuses =
       concurrently(3, [&] { return api.post("/api/runs/" + id + "/stop"); });
-  EXPECT_EQ(statuses, (std::vector<int>{200, 409, 409})) << "0 means no answer within 30 s";
+  expect_one_stop(statuses);
   EXPECT_EQ(api.run(id)["state"], "stopped");
   EXPECT_EQ(api.get("/api/health").status, 200);
   // And the run can be resumed and stopped again (the thread was joined exactly once).
   ASSERT_EQ(api.post("/api/runs/" + id + "/resume").status, 200);
   ASSERT_TRUE(wait_until([&] { return running_with_steps(api, id, 40); }));
-  EXPECT_EQ(concurrently(4, [&] { return api.post("/api/runs/" + id + "/stop"); }),
-            (std::vector<int>{200, 409, 409, 409}));
+  expect_one_stop(concurrently(4, [&] { return api.post("/api/runs/" + id + "/stop"); }));
 }
 
 // Two concurrent starts of a finished run (time.end raised) answered 500 "No such process" or
@@ -183,7 +192,7 @@ TEST(ServiceFaults, StopsDuringPackingAnswerAndTheRunCanStartAgain) {
   ASSERT_EQ(api.run(id)["step"], 0u);
   const std::vector<int> statuses =
       concurrently(3, [&] { return api.post("/api/runs/" + id + "/stop"); });
-  EXPECT_EQ(statuses, (std::vector<int>{200, 409, 409})) << "0 means no answer within 30 s";
+  expect_one_stop(statuses);
   const json run = api.run(id);
   EXPECT_EQ(run["state"], "stopped");
   EXPECT_NE(run["reason"].get<std::string>().find("packing cancelled"), std::string::npos) << run;
