@@ -937,6 +937,21 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
         << e;
     EXPECT_EQ(api.get("/api/runs").body_json().size(), 0u);
   }
+  // Every rank is a process holding the program and the MPI runtime (about 97 MiB): 1024 ranks
+  // of a 128³ run were admitted at 1.8 MB each.
+  {
+    const auto server = serve("ranks-many", 0.0, 0.0);
+    json many = request;
+    many["scene"]["particles_per_side"] = 128;
+    many["ranks"] = 1024;
+    const json e = Api{server->port()}.post("/api/estimate", many).body_json();
+    ASSERT_TRUE(e["per_rank"].is_object()) << e;
+    EXPECT_GT(e["per_rank"]["memory_bytes"].get<double>(), 90.0 * 1024 * 1024) << e;
+    EXPECT_EQ(e["admitted"], false) << e;
+    EXPECT_NE(e["refusal"]["message"].get<std::string>().find("mpi_ranks"),
+              std::string::npos)
+        << e;
+  }
 }
 
 }  // namespace
