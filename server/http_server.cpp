@@ -64,6 +64,7 @@ struct HttpServer::Impl {
   // holds and which must outlive it.
   SessionContext shared;
   std::optional<net::executor_work_guard<net::io_context::executor_type>> keep_working;
+  std::optional<net::executor_work_guard<net::io_context::executor_type>> keep_bulk;
   std::optional<net::executor_work_guard<net::io_context::executor_type>> keep_controlling;
   std::vector<std::thread> worker_threads;
   net::io_context ioc;
@@ -97,10 +98,12 @@ void HttpServer::start() {
   s.accepting = true;
   s.keep_running.emplace(s.ioc.get_executor());
   s.keep_working.emplace(s.shared.work.get_executor());
+  s.keep_bulk.emplace(s.shared.bulk.get_executor());
   s.keep_controlling.emplace(s.shared.control.get_executor());
   s.listener.start();
   spawn(s.threads, options.io_threads, s.ioc, "sphles-io", "I/O thread");
   spawn(s.worker_threads, options.worker_threads, s.shared.work, "sphles-worker", "worker thread");
+  spawn(s.worker_threads, options.bulk_threads, s.shared.bulk, "sphles-bulk", "bulk read thread");
   spawn(s.worker_threads, options.control_threads, s.shared.control, "sphles-control",
         "control thread");
 }
@@ -134,6 +137,7 @@ void HttpServer::stop() {
   s.shared.table.wait_until_closed(std::chrono::steady_clock::now() + std::chrono::seconds(2));
   // Requests in progress finish (their responses are dropped below).
   s.keep_working.reset();
+  s.keep_bulk.reset();
   s.keep_controlling.reset();
   for (std::thread& t : s.worker_threads) t.join();
   s.worker_threads.clear();

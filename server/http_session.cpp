@@ -27,6 +27,7 @@ SessionContext::SessionContext(control::RunManager& manager, ServerOptions opts)
       streams(StreamQuota{options.max_public_streams, options.max_public_streams_per_address}),
       products(options.responses.max_bytes),
       table(options, streams),
+      bulk_reads(options.max_bulk_reads_per_address),
       router(
           manager, streams, products,
           RouterOptions{options.token, options.web_root, options.responses,
@@ -128,28 +129,43 @@ void HttpSession::on_request() {
   // thread's handler): if even an error response cannot be made, the connection closes as the
   // last owner of the session goes.
   const bool read = request.method() == http::verb::get || request.method() == http::verb::head;
-  net::post(read ? server_.work : server_.control, [self = shared_from_this(),
-                                                    request = std::move(request)] {
-    try {
-      ConnectionTable& table = self->server_.table;
-      auto response = std::make_shared<Response>(self->server_.router.handle(request));
-      std::size_t bytes = response->body().owned_bytes();
-      if (!table.reserve_response(bytes)) {
-        *response = error_response(
-            ApiError(503, "the server holds " + std::to_string(table.pending_response_bytes()) +
-                              " bytes of responses not yet sent (its limit is " +
-                              std::to_string(self->server_.options.max_pending_response_bytes) +
-                              "); try again shortly"),
-            request.version(), request.keep_alive());
-        bytes = 0;
-      }
-      net::post(self->executor_, [self, response, bytes] {
-        self->reserved_ = bytes;
-        self->send(std::move(*response));
+  const bool bulk = read && server_.router.is_bulk(request);
+  std::shared_ptr<void> slot;
+  if (bulk && !(slot = server_.bulk_reads.acquire(address_))) {
+    Response busy = error_response(
+        ApiError(429, std::to_string(server_.bulk_reads.per_address()) +
+                          " large reads (time series, files, logs) from " + address_ +
+                          " are in progress, the most one address may have at once; retry when "
+                          "one has been answered"),
+        request.version(), request.keep_alive());
+    busy.set(http::field::retry_after, "1");
+    return send(std::move(busy));
+  }
+  net::post(
+      bulk   ? server_.bulk
+      : read ? server_.work
+             : server_.control,
+      [self = shared_from_this(), request = std::move(request), slot = std::move(slot)] {
+        try {
+          ConnectionTable& table = self->server_.table;
+          auto response = std::make_shared<Response>(self->server_.router.handle(request));
+          std::size_t bytes = response->body().owned_bytes();
+          if (!table.reserve_response(bytes)) {
+            *response = error_response(
+                ApiError(503, "the server holds " + std::to_string(table.pending_response_bytes()) +
+                                  " bytes of responses not yet sent (its limit is " +
+                                  std::to_string(self->server_.options.max_pending_response_bytes) +
+                                  "); try again shortly"),
+                request.version(), request.keep_alive());
+            bytes = 0;
+          }
+          net::post(self->executor_, [self, response, bytes] {
+            self->reserved_ = bytes;
+            self->send(std::move(*response));
+          });
+        } catch (...) {
+        }
       });
-    } catch (...) {
-    }
-  });
 }
 
 void HttpSession::upgrade(Request request) {

@@ -23,6 +23,7 @@
 
 #include "control/run_manager.hpp"
 #include "server/connection_table.hpp"
+#include "server/peer_slots.hpp"
 #include "server/product_cache.hpp"
 #include "server/responses.hpp"
 #include "server/router.hpp"
@@ -43,9 +44,12 @@ struct SessionContext {
   ProductCache products;
   ConnectionTable table;
   // Request handlers, off the I/O threads: reads on `work`, run control (which may block: a stop
-  // writes a checkpoint) on `control`, so that reads never queue behind it.
+  // writes a checkpoint) on `control`, so that reads never queue behind it, and the large reads
+  // of a run's files on `bulk`, at most PeerSlots' per address at once.
   boost::asio::io_context work;
   boost::asio::io_context control;
+  boost::asio::io_context bulk;
+  PeerSlots bulk_reads;
   Router router;
 };
 

@@ -51,15 +51,15 @@ const std::vector<Route>& route_table() {
       {{V::post, "/api/runs/{id}/resume", true}, transition<&M::resume>},
       {{V::post, "/api/runs/{id}/stop", true}, stop_run},
       {{V::patch, "/api/runs/{id}/parameters", true}, change_parameters, true},
-      {{V::get, "/api/runs/{id}/timeseries", false}, timeseries},
-      {{V::get, "/api/runs/{id}/log", false}, run_log},
-      {{V::get, "/api/runs/{id}/analysis", false}, analysis_history},
+      {{V::get, "/api/runs/{id}/timeseries", false, true}, timeseries},
+      {{V::get, "/api/runs/{id}/log", false, true}, run_log},
+      {{V::get, "/api/runs/{id}/analysis", false, true}, analysis_history},
       {{V::get, "/api/runs/{id}/reference", false}, reference},
-      {{V::get, "/api/runs/{id}/resolved", false}, resolved},
+      {{V::get, "/api/runs/{id}/resolved", false, true}, resolved},
       {{V::get, "/api/runs/{id}/files", false}, list_files},
-      {{V::get, "/api/runs/{id}/files/{name}", false}, get_file},
-      {{V::get, "/api/runs/{id}/files/{dir}/{name}", false}, get_file},
-      {{V::get, "/api/runs/{id}/archive", false}, get_archive},
+      {{V::get, "/api/runs/{id}/files/{name}", false, true}, get_file},
+      {{V::get, "/api/runs/{id}/files/{dir}/{name}", false, true}, get_file},
+      {{V::get, "/api/runs/{id}/archive", false, true}, get_archive},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},
@@ -211,6 +211,16 @@ Router::Router(control::RunManager& manager, StreamRegistry& streams, ProductCac
   } catch (const std::exception&) {
     // Served per request instead (and the error reported there).
   }
+}
+
+bool Router::is_bulk(const Request& request) const {
+  const std::optional<Target> target = split_target(request.target());
+  const auto segments = target ? path_segments(target->path) : std::nullopt;
+  if (!segments) return false;
+  std::vector<std::string> unused;
+  for (const Route& r : route_table())
+    if (r.info.bulk && match(r.info.path, *segments, unused)) return true;
+  return false;
 }
 
 const std::vector<RouteInfo>& Router::routes() {

@@ -36,6 +36,9 @@ struct RouteInfo {
   boost::beast::http::verb method;
   std::string_view path;  // OpenAPI path template, e.g. "/api/runs/{id}/frames/{file}"
   bool mutating;          // needs the token when the server has one
+  /// A large read of a run's files, built on the bulk threads under a per-address bound
+  /// (ServerOptions::bulk_threads).
+  bool bulk = false;
 };
 
 struct RouterOptions {
@@ -54,6 +57,9 @@ class Router {
   /// One complete request → one response (keep-alive and HTTP version as the request's).
   /// Never throws: failures of run control become JSON errors, anything else a 500.
   Response handle(const Request& request) const;
+
+  /// Whether the request is a GET or HEAD of a bulk route (RouteInfo::bulk).
+  bool is_bulk(const Request& request) const;
 
   /// Every API route; each appears in server/openapi.json (tested).
   static const std::vector<RouteInfo>& routes();

@@ -528,6 +528,49 @@ TEST(ServerLimits, TimeSeriesPast64MiBIsServedWhole) {
   EXPECT_EQ(tail["data"][1].size(), 2u);
 }
 
+// Sixteen clients without a token on one address fetching a 60 MiB time series again and again
+// made the health check, the run list and a run's detail take 10-12 s: they queued behind the
+// large reads. Large reads have threads of their own and a bound per address (429 beyond).
+TEST(ServerLimits, LargeReadsOfOneAddressCannotStarveTheOthers) {
+  TestServer server(scratch("bulk-reads") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", tiny_scene()}, {"start", false}});
+  write_timeseries(server.data_directory / "runs" / id / "timeseries.csv", 0, 60u << 20);
+  std::atomic<bool> done{false};
+  std::atomic<int> answered{0}, refused{0}, other{0};
+  std::vector<std::thread> readers;
+  for (int k = 0; k < 16; ++k)
+    readers.emplace_back([&] {
+      while (!done) {
+        const Counted c = get_counted(server.port(), "/api/runs/" + id + "/timeseries");
+        if (c.status == 200)
+          ++answered;
+        else if (c.status == 429 && c.head.find("Retry-After: 1") != std::string::npos)
+          ++refused;
+        else
+          ++other;
+      }
+    });
+  std::this_thread::sleep_for(500ms);
+  double slowest = 0.0;
+  for (int round = 0; round < 10; ++round)
+    for (const std::string& target :
+         std::vector<std::string>{"/api/health", "/api/runs", "/api/runs/" + id}) {
+      const auto start = std::chrono::steady_clock::now();
+      const Reply r = api.get(target);
+      slowest = std::max(
+          slowest, std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+      EXPECT_EQ(r.status, 200) << target;
+    }
+  // The large reads go on, two at a time, until one has been answered.
+  ASSERT_TRUE(wait_until([&] { return answered > 0; }, 60s));
+  done = true;
+  for (std::thread& t : readers) t.join();
+  EXPECT_LT(slowest, 0.5) << "seconds of the slowest small read (3.0 s before)";
+  EXPECT_GT(refused.load(), 0);
+  EXPECT_EQ(other.load(), 0);
+}
+
 TEST(ServerLimits, LongFramesIndexIsPagedBetweenSteps) {
   constexpr int kSteps = 4000;
   const std::vector<std::string> fields = {"omega2", "tau_sfs", "combined"};
