@@ -948,9 +948,7 @@ TEST(ServiceFaults, RunsWithRanksAreAdmittedByTheMemoryWhereTheRanksRun) {
     ASSERT_TRUE(e["per_rank"].is_object()) << e;
     EXPECT_GT(e["per_rank"]["memory_bytes"].get<double>(), 90.0 * 1024 * 1024) << e;
     EXPECT_EQ(e["admitted"], false) << e;
-    EXPECT_NE(e["refusal"]["message"].get<std::string>().find("mpi_ranks"),
-              std::string::npos)
-        << e;
+    EXPECT_NE(e["refusal"]["message"].get<std::string>().find("mpi_ranks"), std::string::npos) << e;
   }
 }
 
