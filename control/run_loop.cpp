@@ -180,18 +180,21 @@ class RunImpl::Loop {
 
   /// The end of a run, stopped or finished: the last progress line and metrics, a checkpoint
   /// (every run can be continued and never has to start again from t = 0), the consumers
-  /// drained (finished) or cut short (stopped); throws what a consumer failed with.
+  /// drained; throws what a consumer failed with. A stopped run drains them too: a restart
+  /// continues after the checkpoint's time, so an analysis time or frame already reached and
+  /// not yet written would be missing for good (at most the snapshot waiting and the one being
+  /// analysed, Delivery::Lossless).
   void finish() {
     run_.log->progress("{}", progress_->update(simulation_->diagnostics(), true));
     flush_metrics();
     save_checkpoint();
     if (pipeline_) {
-      pipeline_->close(/*drain=*/!stopped_);
+      pipeline_->close(/*drain=*/true);
       const analysis::PipelineCounters c = pipeline_->counters();
       run_.log->progress("analysis: {} snapshots published, {} analysed, {} dropped, {:.1f} s busy",
                          c.published, c.analysed, c.dropped, c.busy_seconds);
     }
-    if (renderer_) renderer_->close(/*drain=*/!stopped_);
+    if (renderer_) renderer_->close(/*drain=*/true);
     publish_progress(true);
     if (pipeline_ && !pipeline_->error().empty())
       throw std::runtime_error("analysis failed: " + pipeline_->error());

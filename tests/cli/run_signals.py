@@ -6,7 +6,9 @@ For each of SIGINT, SIGTERM and SIGUSR1, a long 2D Taylor-Green run of one proce
 once it has written 20 rows of its time series; it must exit 1, say "stopped at" and which
 signal stopped it, leave a complete checkpoint (no temporary file beside it) and continue from
 that checkpoint with `--restart`. tests/mpi/check_mpi_run.py uses `stop_by_signal` for a 2-rank
-run stopped through mpiexec.
+run stopped through mpiexec. A run with analysis and rendered frames interrupted by SIGINT
+writes the products and frames of every analysis time it reached (none is dropped), and its
+restart writes the rest: every analysis time once.
 Usage: run_signals.py SPHLES SCENE WORKDIR
 """
 import csv
@@ -71,6 +73,60 @@ def stop_by_signal(launch, sphles, scene, out, signum, env):
     return t_stop
 
 
+def analysis_times(path, column):
+    with open(path) as f:
+        return [float(row[column]) for row in csv.DictReader(f)]
+
+
+def outputs_across_interrupt(sphles, out, env):
+    """SIGINT, then --restart: every analysis time has its spectrum and its frames, once."""
+    every = 0.01
+    command = [sphles, "run", "tgv2d", "--threads", "1", "--out", out,
+               "--set", "particles_per_side=40", "--set", "time.end=1000",
+               "--set", "packing.enabled=false",
+               "--set", f'analysis={{"every":{every},"products":["energy","spectrum","vorticity","slices"]}}',
+               "--set", 'render={"fields":["omega2"],"width":1600,"height":800}']
+    print("+", " ".join(command), flush=True)
+    process = subprocess.Popen(command, env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE, text=True)
+    spectra = os.path.join(out, "spectra", "index.csv")
+    deadline = time.monotonic() + 120
+    while rows(spectra) < 10:
+        if process.poll() is not None or time.monotonic() > deadline:
+            process.kill()
+            sys.exit("the analysed run did not get going:\n" + process.communicate()[1])
+        time.sleep(0.1)
+    process.send_signal(signal.SIGINT)
+    _, err = process.communicate(timeout=300)
+    if process.returncode != 1 or " 0 dropped" not in err:
+        sys.exit(f"interrupted analysed run: rc {process.returncode}, expected 0 dropped:\n{err}")
+    with open(os.path.join(out, "timeseries.csv")) as f:
+        t_stop = float(list(csv.DictReader(f))[-1]["t"])
+    reached = int(t_stop / every + 1e-9) + 1
+    expected = [k * every for k in range(reached)]
+
+    def check(t_end, what):
+        got = analysis_times(spectra, "t")
+        want = [k * every for k in range(int(t_end / every + 1e-9) + 1)]
+        if len(got) != len(want) or any(abs(a - b) > 1e-9 for a, b in zip(got, want)):
+            sys.exit(f"{what}: spectra at {got[-5:]} ({len(got)}), expected {len(want)} "
+                     f"times up to {want[-1]}")
+        frames = analysis_times(os.path.join(out, "frames", "index.csv"), "time")
+        for field_times in (frames[0::2], frames[1::2]):
+            if len(field_times) != len(want):
+                sys.exit(f"{what}: {len(frames)} frames for {len(want)} analysis times")
+
+    check(expected[-1], f"stopped at t = {t_stop}")
+    end = t_stop + 3 * every
+    done = subprocess.run([sphles, "run", "--restart", out, "--set", f"time.end={end}"], env=env,
+                          capture_output=True, text=True, timeout=300)
+    if done.returncode != 0:
+        sys.exit(f"the restart of the analysed run failed:\n{done.stderr}")
+    check(end, "after the restart")
+    print(f"interrupted at t = {t_stop}: {reached} analysis times with spectra and frames; "
+          f"the restart added the rest, each once", flush=True)
+
+
 def main():
     sphles, scene, work = sys.argv[1:4]
     shutil.rmtree(work, ignore_errors=True)
@@ -78,6 +134,7 @@ def main():
     env = dict(os.environ, OMP_NUM_THREADS="1")
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1):
         stop_by_signal([], sphles, scene, os.path.join(work, signum.name), signum, env)
+    outputs_across_interrupt(sphles, os.path.join(work, "analysed"), env)
 
 
 if __name__ == "__main__":
