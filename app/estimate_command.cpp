@@ -79,7 +79,9 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
   }
   std::printf("particles            %.6g (%.4g neighbours each)\n", e.particles,
               e.neighbours_per_particle);
-  std::printf("memory at the peak   %s\n", control::format_bytes(e.memory_bytes).c_str());
+  std::printf("memory at the peak   %s (%s with the program itself)\n",
+              control::format_bytes(e.memory_bytes).c_str(),
+              control::format_bytes(e.process_peak_bytes).c_str());
   for (const control::MemoryPart& p : e.memory)
     std::printf("  %-18s %10s  %s\n", p.name.c_str(), control::format_bytes(p.bytes).c_str(),
                 p.detail.c_str());
@@ -124,10 +126,19 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
         "%.3g s, scaled by the particle count)\n",
         format_duration(time->seconds_per_step).c_str(), time->threads, time->calibration_steps,
         time->calibration_side, spec.scene.dimension(), time->calibration_seconds);
+    if (time->frames > 0.0)
+      std::printf(
+          "analysis per time    %s, rendering %s (measured on the same copy, scaled by the "
+          "particle count); %g analysis times\n",
+          format_duration(time->analysis_seconds_per_frame).c_str(),
+          format_duration(time->render_seconds_per_frame).c_str(), time->frames);
     std::printf(
-        "time to the end      %s to t = %g s at the initial step (the step may shrink "
-        "as the flow develops); packing, analysis and rendering not included\n",
-        format_duration(time->seconds_to_end).c_str(), spec.scene.end_time);
+        "time to the end      %s to t = %g s at the initial step (the step may shrink as the "
+        "flow develops): the solver %s%s; packing not included\n",
+        format_duration(time->seconds_to_end).c_str(), spec.scene.end_time,
+        format_duration(time->solver_seconds).c_str(),
+        time->frames > 0.0 ? ", the analysis and rendering beside it (the slower sets the pace)"
+                           : "");
   }
   return too_big;
 }

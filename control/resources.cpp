@@ -346,6 +346,7 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   }
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
+  e.process_peak_bytes = e.memory_bytes + kProgramBytes;
   if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, n, run_parts, setup_parts);
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes *
@@ -390,6 +391,7 @@ nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
           {"neighbours_per_particle", e.neighbours_per_particle},
           {"analysis_grid_points", e.analysis_grid_points},
           {"memory_bytes", e.memory_bytes},
+          {"process_peak_bytes", e.process_peak_bytes},
           {"memory", parts},
           {"checkpoint_file_bytes", e.checkpoint_file_bytes},
           {"checkpoint_disk_bytes", e.checkpoint_disk_bytes},

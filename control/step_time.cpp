@@ -2,10 +2,18 @@
 #include "control/step_time.hpp"
 
 #include <omp.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <string>
+#include <thread>
 
+#include "analysis/products.hpp"
+#include "analysis/snapshot.hpp"
+#include "analysis/writer.hpp"
+#include "render/frame_images.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/solver.hpp"
 
@@ -50,14 +58,60 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
   const auto start = Clock::now();
   for (int k = 0; k < e.calibration_steps; ++k) simulation->step();
   e.calibration_seconds = seconds_since(start);
-  e.seconds_per_step =
-      e.calibration_seconds / e.calibration_steps * resources.particles / e.calibration_particles;
-  e.seconds_to_end = e.seconds_per_step * resources.steps;
+  const double scale = resources.particles / e.calibration_particles;
+  e.seconds_per_step = e.calibration_seconds / e.calibration_steps * scale;
+  e.solver_seconds = e.seconds_per_step * resources.steps;
+  e.seconds_to_end = e.solver_seconds;
+  if (!spec.analysis.enabled()) return e;
+  // The analysis thread runs with one OpenMP thread (AnalysisPipeline's default), as here.
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  analysis::AnalysisConfig config = spec.analysis;
+  // As the run loop takes it: the 3D view's points carried along when the view is rendered.
+  const render::View3dConfig& view3d = spec.render.view3d;
+  analysis::ViewPointsRequest view;
+  if (spec.render.enabled() && view3d.enabled)
+    view = {static_cast<std::uint64_t>(view3d.max_points), view3d.field};
+  const analysis::SnapshotPtr snapshot =
+      analysis::make_snapshot(*simulation, config, 0.0, nullptr, view);
+  analysis::AnalysisFrame frame = analysis::analyse(snapshot, config);  // plans the FFTs
+  auto timed = Clock::now();
+  frame = analysis::analyse(snapshot, config);
+  {
+    // Written as the run writes it (real files, removed again): the particle and grid files of
+    // a frame can take as long as computing it.
+    std::error_code ignored;
+    const std::filesystem::path scratch = std::filesystem::temp_directory_path(ignored) /
+                                          ("sphles-estimate-" + std::to_string(::getpid()));
+    analysis::RunDirectoryWriter(scratch).write(frame);
+    std::filesystem::remove_all(scratch, ignored);
+  }
+  e.analysis_seconds_per_frame = seconds_since(timed) * scale;
+  if (spec.render.enabled()) {
+    const std::string case_name(sim::case_name(spec.scene.case_type));
+    render::render_frame_images(frame, spec.render, case_name, view3d.enabled);  // set-up
+    timed = Clock::now();
+    render::render_frame_images(frame, spec.render, case_name, view3d.enabled);
+    e.render_seconds_per_frame = seconds_since(timed);
+  }
+  omp_set_num_threads(threads);
+  e.frames = resources.analysis_frames;
+  // The slower of the solver and the analysis chain sets the pace; the other one shares the
+  // cores with it while it works (all of its time when the solver's threads take every core).
+  const double output = e.frames * (e.analysis_seconds_per_frame + e.render_seconds_per_frame);
+  const double cores = std::max(1u, std::thread::hardware_concurrency());
+  const double shared = std::min(1.0, threads / cores);
+  e.seconds_to_end =
+      std::max(e.solver_seconds, output) + std::min(e.solver_seconds, output) * shared;
   return e;
 }
 
 nlohmann::json step_time_to_json(const StepTimeEstimate& e) {
   return {{"seconds_per_step", e.seconds_per_step},
+          {"solver_seconds", e.solver_seconds},
+          {"analysis_seconds_per_frame", e.analysis_seconds_per_frame},
+          {"render_seconds_per_frame", e.render_seconds_per_frame},
+          {"frames", e.frames},
           {"seconds_to_end", e.seconds_to_end},
           {"calibration",
            {{"particles_per_side", e.calibration_side},

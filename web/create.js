@@ -219,7 +219,10 @@ export async function onEstimate() {
     if (e.time) {
       const c = e.time.calibration;
       rows.push(['per step', `${fmtDuration(e.time.seconds_per_step)} on ${c.threads} threads`]);
-      rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver only; from ${c.steps} steps of ${c.particles_per_side}^n particles)`]);
+      if (e.time.frames > 0) {
+        rows.push(['per analysis time', `${fmtDuration(e.time.analysis_seconds_per_frame)} analysis, ${fmtDuration(e.time.render_seconds_per_frame)} rendering`]);
+      }
+      rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver ${fmtDuration(e.time.solver_seconds)} from ${c.steps} steps of ${c.particles_per_side}^n particles${e.time.frames > 0 ? `; ${e.time.frames} analysis times beside it` : ''}; packing not included)`]);
     }
     result.replaceChildren(...rows.map(([k, v]) => {
       const div = document.createElement('div');

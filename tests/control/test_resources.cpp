@@ -440,6 +440,27 @@ TEST(StepTimeEstimate, CalibratesASmallCopyAndScalesByTheParticleCount) {
   EXPECT_EQ(j["calibration"]["particles_per_side"], 16);
   EXPECT_DOUBLE_EQ(j["seconds_to_end"].get<double>(), t.seconds_to_end);
 
+  EXPECT_EQ(t.frames, 0.0);  // no analysis: the solver alone
+  EXPECT_EQ(t.analysis_seconds_per_frame, 0.0);
+  EXPECT_DOUBLE_EQ(resources.process_peak_bytes, resources.memory_bytes + kProgramBytes);
+
+  // With analysis and rendering: one frame's products and images are timed too, and the run's
+  // frames set the pace when they take longer than the solver.
+  const RunSpec analysed = spec_of(
+      with(with(with(with({{"case", "tgv2d"}}, "particles_per_side", 32), "packing.enabled", false),
+                "analysis",
+                {{"every", 0.1}, {"products", {"energy", "spectrum", "vorticity", "slices"}}}),
+           "render", {{"fields", {"omega2"}}, {"width", 320}, {"height", 160}}));
+  const ResourceEstimate with_frames = estimate_resources(analysed);
+  const StepTimeEstimate a = estimate_step_time(analysed, with_frames, 3);
+  EXPECT_EQ(a.frames, with_frames.analysis_frames);
+  EXPECT_GT(a.analysis_seconds_per_frame, 0.0);
+  EXPECT_GT(a.render_seconds_per_frame, 0.0);
+  const double output = a.frames * (a.analysis_seconds_per_frame + a.render_seconds_per_frame);
+  EXPECT_GE(a.seconds_to_end, std::max(a.solver_seconds, output));
+  EXPECT_LE(a.seconds_to_end, a.solver_seconds + output * (1.0 + 1e-12));
+  EXPECT_DOUBLE_EQ(step_time_to_json(a)["frames"].get<double>(), a.frames);
+
   // A large run is timed at 24³ (packing off) and scaled by 96³ / 24³ = 64.
   const ResourceEstimate big = estimate_resources(big3d);
   const StepTimeEstimate b = estimate_step_time(big3d, big, 1);
