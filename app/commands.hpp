@@ -7,6 +7,7 @@
 #include <signal.h>
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
 #include <optional>
 #include <string>
 #include <vector>
@@ -57,7 +58,8 @@ void add_estimate_command(CLI::App& app, int& exit_code);
 /// per step and to the end (control/step_time.hpp), unless the run cannot fit in memory; with
 /// `ranks` > 1 also what each rank holds. Returns check_machine_memory's refusal, if any.
 std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_json,
-                                          bool with_time, int ranks = 1);
+                                          bool with_time, int ranks = 1,
+                                          const std::filesystem::path& packing_cache = {});
 
 /// The reason a run's estimated peak memory exceeds this machine's, or nothing.
 std::optional<std::string> check_machine_memory(const control::ResourceEstimate& estimate);

@@ -63,11 +63,12 @@ std::optional<std::string> check_machine_memory(const control::ResourceEstimate&
 }
 
 std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_json,
-                                          bool with_time, int ranks) {
+                                          bool with_time, int ranks,
+                                          const std::filesystem::path& packing_cache) {
   const control::ResourceEstimate e = control::estimate_resources(spec, ranks);
   const std::optional<std::string> too_big = check_machine_memory(e);
   std::optional<control::StepTimeEstimate> time;
-  if (with_time && !too_big) time = control::estimate_step_time(spec, e);
+  if (with_time && !too_big) time = control::estimate_step_time(spec, e, 10, packing_cache);
   if (as_json) {
     nlohmann::json j = control::resource_estimate_to_json(e);
     j["machine_memory_bytes"] = control::machine_memory_bytes();
@@ -134,8 +135,10 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
           format_duration(time->render_seconds_per_frame).c_str(), time->frames);
     std::printf(
         "time to the end      %s to t = %g s at the initial step (the step may shrink as the "
-        "flow develops): the solver %s%s; packing not included\n",
+        "flow develops): packing %s, the solver %s%s\n",
         format_duration(time->seconds_to_end).c_str(), spec.scene.end_time,
+        time->packing_seconds > 0.0 ? format_duration(time->packing_seconds).c_str()
+                                    : "none (off or cached)",
         format_duration(time->solver_seconds).c_str(),
         time->frames > 0.0 ? ", the analysis and rendering beside it (the slower sets the pace)"
                            : "");

@@ -210,7 +210,8 @@ int dry_run(const RunOptions& options) {
     if (options.threads > 0) omp_set_num_threads(options.threads);
     const control::RunSpec spec =
         control::parse_run_spec(load_scene_document(options.scene_file, options.overrides));
-    if (const auto too_big = print_estimate(spec, /*as_json=*/false, /*with_time=*/true)) {
+    if (const auto too_big =
+            print_estimate(spec, /*as_json=*/false, /*with_time=*/true, 1, options.packing_cache)) {
       std::fprintf(stderr, "sphles run: %s\n", too_big->c_str());
       return kExitUsage;
     }

@@ -127,7 +127,8 @@ nlohmann::json RunManager::estimate(const CreateRequest& request) const {
     return answer;
   }
   if (options_.run_options.threads > 0) omp_set_num_threads(options_.run_options.threads);
-  answer["time"] = step_time_to_json(estimate_step_time(spec, resources));
+  answer["time"] = step_time_to_json(
+      estimate_step_time(spec, resources, 10, options_.run_options.packing_cache_dir));
   return answer;
 }
 

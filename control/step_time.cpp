@@ -15,6 +15,7 @@
 #include "analysis/writer.hpp"
 #include "render/frame_images.hpp"
 #include "sim/initial_conditions.hpp"
+#include "sim/packing.hpp"
 #include "sim/solver.hpp"
 
 namespace sphles::control {
@@ -35,8 +36,31 @@ std::size_t calibration_side(const RunSpec& spec) {
   return std::min(static_cast<std::size_t>(scene.particles_per_side), small);
 }
 
+namespace {
+
+/// The packing of the run's lattice on this machine: none when it is cached, else the packing
+/// of the same lattice at the calibration size, not cached, scaled by `scale`.
+double packing_seconds(const RunSpec& spec, nlohmann::json small_document, double scale,
+                       const std::filesystem::path& cache_dir) {
+  const sim::Scene& scene = spec.scene;
+  if (!scene.packing.enabled) return 0.0;
+  sim::SetupOptions options;
+  options.packing_cache_dir = cache_dir;
+  const sim::PackingCacheFile cached = sim::packing_cache_file(scene, options);
+  std::error_code ignored;
+  if (!cached.path.empty() && std::filesystem::exists(cached.path, ignored)) return 0.0;
+  small_document["packing"] = run_spec_to_json(spec)["packing"];
+  small_document["packing"]["cache"] = false;
+  const RunSpec small = parse_run_spec(small_document);
+  const auto start = Clock::now();
+  sim::setup_run(small.scene);
+  return seconds_since(start) * scale;
+}
+
+}  // namespace
+
 StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate& resources,
-                                    int steps) {
+                                    int steps, const std::filesystem::path& packing_cache_dir) {
   StepTimeEstimate e;
   e.calibration_side = calibration_side(spec);
   e.calibration_steps = std::max(steps, 1);
@@ -61,7 +85,8 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
   const double scale = resources.particles / e.calibration_particles;
   e.seconds_per_step = e.calibration_seconds / e.calibration_steps * scale;
   e.solver_seconds = e.seconds_per_step * resources.steps;
-  e.seconds_to_end = e.solver_seconds;
+  e.packing_seconds = packing_seconds(spec, document, scale, packing_cache_dir);
+  e.seconds_to_end = e.packing_seconds + e.solver_seconds;
   if (!spec.analysis.enabled()) return e;
   // The analysis thread runs with one OpenMP thread (AnalysisPipeline's default), as here.
   const int threads = omp_get_max_threads();
@@ -101,8 +126,8 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
   const double output = e.frames * (e.analysis_seconds_per_frame + e.render_seconds_per_frame);
   const double cores = std::max(1u, std::thread::hardware_concurrency());
   const double shared = std::min(1.0, threads / cores);
-  e.seconds_to_end =
-      std::max(e.solver_seconds, output) + std::min(e.solver_seconds, output) * shared;
+  e.seconds_to_end = e.packing_seconds + std::max(e.solver_seconds, output) +
+                     std::min(e.solver_seconds, output) * shared;
   return e;
 }
 
@@ -112,6 +137,7 @@ nlohmann::json step_time_to_json(const StepTimeEstimate& e) {
           {"analysis_seconds_per_frame", e.analysis_seconds_per_frame},
           {"render_seconds_per_frame", e.render_seconds_per_frame},
           {"frames", e.frames},
+          {"packing_seconds", e.packing_seconds},
           {"seconds_to_end", e.seconds_to_end},
           {"calibration",
            {{"particles_per_side", e.calibration_side},

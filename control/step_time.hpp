@@ -5,6 +5,7 @@
 #pragma once
 
 #include <cstddef>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 
 #include "control/resources.hpp"
@@ -21,6 +22,9 @@ struct StepTimeEstimate {
   double analysis_seconds_per_frame = 0.0;
   double render_seconds_per_frame = 0.0;
   double frames = 0.0;  // analysis times to the end (ResourceEstimate::analysis_frames)
+  /// Packing the initial lattice: 0 when the packing cache holds it (or packing is off), else
+  /// the calibration lattice packed (without the cache) and scaled by the particle count [s].
+  double packing_seconds = 0.0;
   /// The run to its end: the solver, and the analysis and rendering of every frame on their own
   /// threads, which hold the solver when they fall behind (lossless outputs, analysis/
   /// pipeline.hpp): the larger of the two [s].
@@ -43,14 +47,16 @@ std::size_t calibration_side(const RunSpec& spec);
 /// fixed neighbours; caches make large runs somewhat slower per particle). With analysis, then
 /// times the run's analysis products of the calibration state (the second of two, the first
 /// makes the FFT plans) and their images, scaled the same way (the grid has 2^dim nodes per
-/// particle). The packing is not timed.
+/// particle). A packing the cache in `packing_cache_dir` (empty: the default) does not hold is
+/// timed the same way, and comes before everything else.
 /// Throws sim::SceneError if the scene cannot be set up.
 StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate& resources,
-                                    int steps = 10);
+                                    int steps = 10,
+                                    const std::filesystem::path& packing_cache_dir = {});
 
 /// {"seconds_per_step", "solver_seconds", "analysis_seconds_per_frame",
-///  "render_seconds_per_frame", "frames", "seconds_to_end", "calibration": {"particles_per_side",
-///  "particles", "steps", "seconds", "setup_seconds", "threads"}}.
+///  "render_seconds_per_frame", "frames", "packing_seconds", "seconds_to_end", "calibration":
+///  {"particles_per_side", "particles", "steps", "seconds", "setup_seconds", "threads"}}.
 nlohmann::json step_time_to_json(const StepTimeEstimate& estimate);
 
 }  // namespace sphles::control

@@ -222,7 +222,7 @@ export async function onEstimate() {
       if (e.time.frames > 0) {
         rows.push(['per analysis time', `${fmtDuration(e.time.analysis_seconds_per_frame)} analysis, ${fmtDuration(e.time.render_seconds_per_frame)} rendering`]);
       }
-      rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver ${fmtDuration(e.time.solver_seconds)} from ${c.steps} steps of ${c.particles_per_side}^n particles${e.time.frames > 0 ? `; ${e.time.frames} analysis times beside it` : ''}; packing not included)`]);
+      rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver ${fmtDuration(e.time.solver_seconds)} from ${c.steps} steps of ${c.particles_per_side}^n particles${e.time.frames > 0 ? `; ${e.time.frames} analysis times beside it` : ''}; packing ${e.time.packing_seconds > 0 ? fmtDuration(e.time.packing_seconds) : 'none (off or cached)'})`]);
     }
     result.replaceChildren(...rows.map(([k, v]) => {
       const div = document.createElement('div');

@@ -466,6 +466,23 @@ TEST(StepTimeEstimate, CalibratesASmallCopyAndScalesByTheParticleCount) {
   const StepTimeEstimate b = estimate_step_time(big3d, big, 1);
   EXPECT_EQ(b.calibration_particles, 24.0 * 24.0 * 24.0);
   EXPECT_DOUBLE_EQ(b.seconds_per_step, b.calibration_seconds * 64.0);
+
+  // A packing the cache does not hold is timed (the calibration lattice, not cached) and comes
+  // first; a cached one costs nothing.
+  const fs::path cache =
+      fs::temp_directory_path() / ("sphles_step_cache_" + std::to_string(::getpid()));
+  fs::remove_all(cache);
+  const RunSpec packed = spec_of(with({{"case", "tgv2d"}}, "particles_per_side", 32));
+  const ResourceEstimate packed_resources = estimate_resources(packed);
+  const StepTimeEstimate p = estimate_step_time(packed, packed_resources, 1, cache);
+  EXPECT_GT(p.packing_seconds, 0.0);
+  EXPECT_DOUBLE_EQ(p.seconds_to_end, p.packing_seconds + p.solver_seconds);
+  EXPECT_FALSE(fs::exists(cache)) << "the estimate wrote into the packing cache";
+  sim::SetupOptions options;
+  options.packing_cache_dir = cache;
+  sim::setup_run(packed.scene, options);  // now cached
+  EXPECT_EQ(estimate_step_time(packed, packed_resources, 1, cache).packing_seconds, 0.0);
+  fs::remove_all(cache);
 }
 
 }  // namespace
