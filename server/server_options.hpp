@@ -32,11 +32,12 @@ struct ServerOptions {
   /// The large reads of a run's files (time series, analysis history, log, files, archive,
   /// resolved scales: RouteInfo::bulk) are built on threads of their own, so that the health
   /// check, the run list and a run's detail never queue behind them; each peer address may
-  /// have `max_bulk_reads_per_address` of them in progress, beyond which it is answered 429.
+  /// have `max_bulk_reads_per_address` of them in progress or waiting, beyond which it is
+  /// answered 429.
   int bulk_threads = 2;
-  std::size_t max_bulk_reads_per_address = 2;
-  std::size_t body_limit = 1u << 20;     // request bodies above: 413
-  std::size_t header_limit = 16u << 10;  // request headers above: 431
+  std::size_t max_bulk_reads_per_address = 8;  // a dashboard polls 4-5 of them at once
+  std::size_t body_limit = 1u << 20;           // request bodies above: 413
+  std::size_t header_limit = 16u << 10;        // request headers above: 431
   /// A request's header must be complete this long after the connection was ready for it
   /// (accepted, or its previous response sent), or the connection closes: idle keep-alive
   /// connections and slowloris clients (a byte now and then) both end here.

@@ -210,8 +210,12 @@ TEST(Server, EstimateMeasuresARunWithoutCreatingIt) {
   ASSERT_TRUE(e["time"].is_object()) << e;
   EXPECT_EQ(e["time"]["calibration"]["particles_per_side"], 16);
   EXPECT_GT(e["time"]["seconds_per_step"].get<double>(), 0.0);
-  EXPECT_DOUBLE_EQ(e["time"]["seconds_to_end"].get<double>(),
+  EXPECT_DOUBLE_EQ(e["time"]["solver_seconds"].get<double>(),
                    e["time"]["seconds_per_step"].get<double>() * e["steps"].get<double>());
+  // The server's runs analyse for live viewing by default: their frames are timed too.
+  EXPECT_GT(e["time"]["frames"].get<double>(), 0.0) << e;
+  EXPECT_GT(e["time"]["analysis_seconds_per_frame"].get<double>(), 0.0) << e;
+  EXPECT_GE(e["time"]["seconds_to_end"].get<double>(), e["time"]["solver_seconds"].get<double>());
   // A run create would refuse is described with create's reason and not timed.
   r = api.post("/api/estimate", {{"preset", "tgv3d"}, {"patch", {{"particles_per_side", 2048}}}});
   ASSERT_EQ(r.status, 200) << r.body;
