@@ -2,9 +2,12 @@
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstdio>
+#include <optional>
+#include <set>
 #include <string>
 
 #include "app/commands.hpp"
+#include "scene/json_reader.hpp"
 
 namespace {
 
@@ -52,6 +55,18 @@ int main(int argc, char** argv) {
   cli.add_subcommand("help", "print this help")->callback([&cli] {
     std::fputs(cli.help().c_str(), stdout);
   });
+  // A first word that is no command (a typo, "sphles rn"): CLI11 would only say that a
+  // subcommand is required. Name it and the command it is nearest to.
+  if (argc > 1 && argv[1][0] != '-') {
+    std::set<std::string> commands;
+    for (const CLI::App* command : cli.get_subcommands({})) commands.insert(command->get_name());
+    if (!commands.contains(argv[1])) {
+      const std::optional<std::string> near = sphles::scene::closest_key(argv[1], commands);
+      std::fprintf(stderr, "sphles: unknown command '%s'%s; 'sphles help' lists the commands\n",
+                   argv[1], near ? (" (did you mean '" + *near + "'?)").c_str() : "");
+      return app::kExitUsage;
+    }
+  }
   try {
     cli.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -378,6 +378,16 @@ TEST_F(CliTest, TyposGetASuggestion) {
   r = run_sphles("estimate kolmogorov");
   EXPECT_EQ(r.exit_code, 2);
   EXPECT_NE(r.output.find("did you mean 'kolmogorov2d'?"), std::string::npos) << r.output;
+  // A mistyped command is named, with the command it is nearest to.
+  r = run_sphles("rn tgv2d");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown command 'rn' (did you mean 'run'?)"), std::string::npos)
+      << r.output;
+  r = run_sphles("xyzzyq");
+  EXPECT_EQ(r.exit_code, 2);
+  EXPECT_NE(r.output.find("unknown command 'xyzzyq'; 'sphles help' lists the commands"),
+            std::string::npos)
+      << r.output;
   // Far from every key: no suggestion.
   r = run_sphles("run " + good + " --set zzzzzzzz=1");
   EXPECT_EQ(r.exit_code, 2);
