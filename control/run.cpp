@@ -60,6 +60,15 @@ std::string directory_name(const std::string& name) {
   return out.empty() ? "run" : out;
 }
 
+void check_run_name(const std::string& name) {
+  if (directory_name(name) != name)
+    throw sim::SceneError(
+        "name", "scene: 'name' must be 1 to " + std::to_string(kMaxDirectoryName) +
+                    " letters, digits, '-', '_' or '.', not starting with '.' (it names the "
+                    "run's directory), got '" +
+                    name.substr(0, 2 * kMaxDirectoryName) + "'");
+}
+
 // ---------------------------------------------------------------------------------------------
 
 Run::Run(std::string id, std::filesystem::path directory, RunOptions options,
@@ -326,6 +335,8 @@ std::vector<std::string> Run::apply_changes(const json& patch) {
   after.merge_patch(patch);
   CheckedChange change = check_change(before, after);
   if (change.fields.empty()) return {};
+  if (std::find(change.fields.begin(), change.fields.end(), "name") != change.fields.end())
+    check_run_name(change.spec.scene.name);
   if (r.options.admit) r.options.admit(change.spec, r.options.ranks);  // throws AdmissionError
   const bool end_changes =
       std::find(change.fields.begin(), change.fields.end(), "time.end") != change.fields.end();

@@ -247,7 +247,9 @@ RunSpec RunManager::spec_of(const CreateRequest& request) {
   for (const std::string& assignment : request.overrides)
     scene::apply_override(document, assignment);
   if (request.name) document["name"] = *request.name;
-  return parse_run_spec(with_live_defaults(document));
+  RunSpec spec = parse_run_spec(with_live_defaults(document));
+  check_run_name(spec.scene.name);
+  return spec;
 }
 
 std::shared_ptr<Run> RunManager::find_stopped_like(const CreateRequest& request) const {

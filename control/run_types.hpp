@@ -186,5 +186,8 @@ struct RunOptions {
 /// scenes and clients become directory names only through this.
 inline constexpr std::size_t kMaxDirectoryName = 40;
 std::string directory_name(const std::string& name);
+/// Throws sim::SceneError for field "name" unless `name` is its own directory_name (what the
+/// service accepts: a name it would not have to rewrite).
+void check_run_name(const std::string& name);
 
 }  // namespace sphles::control

@@ -176,6 +176,11 @@ TEST(Server, CreateRejectsBadRequestsNamingTheField) {
   expect_error(api.post("/api/runs", {{"preset", "no-such-preset"}}), 400, "preset");
   expect_error(api.post("/api/runs", {{"scene", "tgv2d"}}), 400, "scene");
   expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"start", "yes"}}), 400, "start");
+  // A name the run's directory would have to rewrite ("my run!" became id 0003-my-run-).
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"name", "my run!"}}), 400, "name");
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene(1.0, ".hidden")}}), 400, "name");
+  expect_error(api.post("/api/runs", {{"scene", tiny_scene(1.0, std::string(41, 'a'))}}), 400,
+               "name");
   expect_error(api.post("/api/runs", {{"scene", tiny_scene()}, {"overrides", {1}}}), 400,
                "overrides[0]");
   json bad_scene = tiny_scene();
@@ -404,6 +409,7 @@ TEST(Server, ParameterChangesTakeEffect) {
       api.patch("/api/runs/" + id + "/parameters", {{"fluid", {{"reference_pressure", 1e308}}}}),
       400, "fluid.reference_pressure");
   expect_error(api.patch("/api/runs/" + id + "/parameters", {{"nonsense", 1}}), 400, "nonsense");
+  expect_error(api.patch("/api/runs/" + id + "/parameters", {{"name", "new name?"}}), 400, "name");
   expect_error(send(server.port(), {http::verb::patch, "/api/runs/" + id + "/parameters", "[]"}),
                400);
   expect_error(send(server.port(),
