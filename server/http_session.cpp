@@ -242,13 +242,18 @@ void HttpSession::note_request() {
   }
 }
 
-/// One line per answered request at info (5xx at warn): peer, request, status, bytes written,
-/// time from the complete request to the written response.
+/// One line per answered request: peer, request, status, bytes written, time from the complete
+/// request to the written response. Reads that succeed (a dashboard's polls: most of the lines)
+/// at debug; changes and refusals at info; 5xx at warn.
 void HttpSession::log_request(unsigned status, std::size_t bytes) {
   const double ms =
       std::chrono::duration<double, std::milli>(Clock::now() - request_started_).count();
-  server_.log->log(status >= 500 ? spdlog::level::warn : spdlog::level::info,
-                   "{} \"{}\" {} {} B {:.1f} ms", address_, request_line_, status, bytes, ms);
+  const bool read = request_line_.starts_with("GET ") || request_line_.starts_with("HEAD ");
+  const spdlog::level::level_enum level = status >= 500          ? spdlog::level::warn
+                                          : read && status < 400 ? spdlog::level::debug
+                                                                 : spdlog::level::info;
+  server_.log->log(level, "{} \"{}\" {} {} B {:.1f} ms", address_, request_line_, status, bytes,
+                   ms);
 }
 
 }  // namespace sphles::server
