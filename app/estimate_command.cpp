@@ -78,6 +78,8 @@ std::optional<std::string> print_estimate(const control::RunSpec& spec, bool as_
     std::puts(j.dump(2).c_str());
     return too_big;
   }
+  for (const sim::SceneWarning& w : e.warnings)
+    std::printf("warning (%s)         %s\n", w.field.c_str(), w.message.c_str());
   std::printf("particles            %.6g (%.4g neighbours each)\n", e.particles,
               e.neighbours_per_particle);
   std::printf("memory at the peak   %s (%s with the program itself)\n",

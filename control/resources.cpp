@@ -347,6 +347,7 @@ ResourceEstimate estimate_resources(const RunSpec& spec, int ranks) {
   e.memory = total(setup_parts) > total(run_parts) ? setup_parts : run_parts;
   e.memory_bytes = total(e.memory);
   e.process_peak_bytes = e.memory_bytes + kProgramBytes;
+  e.warnings = sim::scene_warnings(s);
   if (ranks > 1) e.per_rank = rank_estimate(s, a, ranks, n, run_parts, setup_parts);
   e.checkpoint_disk_bytes =
       e.checkpoint_file_bytes *
@@ -383,6 +384,13 @@ nlohmann::json rank_estimate_to_json(const RankEstimate& r) {
 
 }  // namespace
 
+nlohmann::json scene_warnings_to_json(const std::vector<sim::SceneWarning>& warnings) {
+  nlohmann::json list = nlohmann::json::array();
+  for (const sim::SceneWarning& w : warnings)
+    list.push_back({{"field", w.field}, {"message", w.message}});
+  return list;
+}
+
 nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
   const auto finite = [](double x) { return std::isfinite(x) ? nlohmann::json(x) : nullptr; };
   const nlohmann::json parts = parts_to_json(e.memory);
@@ -392,6 +400,7 @@ nlohmann::json resource_estimate_to_json(const ResourceEstimate& e) {
           {"analysis_grid_points", e.analysis_grid_points},
           {"memory_bytes", e.memory_bytes},
           {"process_peak_bytes", e.process_peak_bytes},
+          {"warnings", scene_warnings_to_json(e.warnings)},
           {"memory", parts},
           {"checkpoint_file_bytes", e.checkpoint_file_bytes},
           {"checkpoint_disk_bytes", e.checkpoint_disk_bytes},

@@ -16,6 +16,7 @@
 
 #include "control/run.hpp"
 #include "sim/scene.hpp"
+#include "sim/scene_warnings.hpp"
 
 namespace sphles::control {
 
@@ -68,6 +69,8 @@ struct ResourceEstimate {
   /// What `sphles run` of it holds at its peak: memory_bytes and the program's own footprint
   /// (kProgramBytes) [B].
   double process_peak_bytes = 0.0;
+  /// What makes the run's answer meaningless although it runs (sim::scene_warnings).
+  std::vector<sim::SceneWarning> warnings;
   /// The components that coexist at the peak: the peak of the set-up (packing) or of the run,
   /// whichever is larger.
   std::vector<MemoryPart> memory;
@@ -90,6 +93,9 @@ struct ResourceEstimate {
 /// The estimate for a parsed spec, on `ranks` MPI ranks. Cheap (no allocation proportional to
 /// the run).
 ResourceEstimate estimate_resources(const RunSpec& spec, int ranks = 1);
+
+/// [{"field", "message"}] of sim::scene_warnings.
+nlohmann::json scene_warnings_to_json(const std::vector<sim::SceneWarning>& warnings);
 
 /// {"memory_bytes", "memory": [{"name", "bytes", "detail"}], "checkpoint_file_bytes", ...,
 ///  "time_step": {"initial", "limit", "acoustic", "viscous", "force", "fixed"}, "steps"}, and

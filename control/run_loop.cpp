@@ -23,6 +23,7 @@
 #include "io/checkpoint.hpp"
 #include "sim/cadence.hpp"
 #include "sim/initial_conditions.hpp"
+#include "sim/scene_warnings.hpp"
 
 namespace sphles::control {
 
@@ -516,6 +517,8 @@ void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& p
   // writes there (the rest of the directory is cleaned when the run is opened, Run::open).
   remove_interrupted_writes(checkpoint_dir);
   const sim::Scene& scene0 = current.scene;
+  for (const sim::SceneWarning& w : sim::scene_warnings(scene0))
+    log->warn("scene: {} ('{}')", w.message, w.field);
   set_phase(resumed ? "restoring" : scene0.packing.enabled ? "packing" : "setting up");
   // Read here, or by the ranks of a distributed solver (restore_from_file below).
   const bool ranks_read = resumed && static_cast<bool>(options.solvers.restore_file);

@@ -7,6 +7,7 @@
 #include <new>
 
 #include "analysis/reference.hpp"
+#include "control/resources.hpp"
 #include "control/run_manager.hpp"
 #include "sim/scene.hpp"
 
@@ -98,6 +99,8 @@ nlohmann::json run_detail_json(const control::Run& run, const StreamCounters& st
   nlohmann::json document = run.document();
   nlohmann::json detail = run_summary_json(run, status, document);
   detail["scene"] = std::move(document);
+  // What makes the run's answer meaningless although it runs (sim/scene_warnings.hpp).
+  detail["warnings"] = control::scene_warnings_to_json(sim::scene_warnings(run.spec().scene));
   detail["latest"] = status.latest ? metrics_json(*status.latest) : nlohmann::json(nullptr);
   detail["changeable"] = control::Run::changeable_fields();
   detail["counters"] = {{"analysis_published", status.analysis_published},

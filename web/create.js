@@ -224,6 +224,8 @@ export async function onEstimate() {
       }
       rows.push(['to the end', `${fmtDuration(e.time.seconds_to_end)} (solver ${fmtDuration(e.time.solver_seconds)} from ${c.steps} steps of ${c.particles_per_side}^n particles${e.time.frames > 0 ? `; ${e.time.frames} analysis times beside it` : ''}; packing ${e.time.packing_seconds > 0 ? fmtDuration(e.time.packing_seconds) : 'none (off or cached)'})`]);
     }
+    // What makes the answer meaningless although the run would run (sim/scene_warnings.hpp).
+    for (const w of e.warnings ?? []) rows.unshift([`warning: ${w.field}`, w.message]);
     result.replaceChildren(...rows.map(([k, v]) => {
       const div = document.createElement('div');
       const dt = document.createElement('dt');
@@ -235,7 +237,9 @@ export async function onEstimate() {
       return div;
     }));
     result.hidden = false;
-    if (e.admitted) showStatus('create-status', 'Estimate: the server would accept this run.', 'ok');
+    if (e.admitted && e.warnings?.length) {
+      showStatus('create-status', `The server would accept this run, but: ${e.warnings[0].message}`, 'error');
+    } else if (e.admitted) showStatus('create-status', 'Estimate: the server would accept this run.', 'ok');
     else showStatus('create-status', `The server would refuse this run: ${e.refusal?.message ?? ''}`, 'error');
   } catch (e) {
     showStatus('create-status', errorText(e), 'error');

@@ -10,10 +10,12 @@
 #include <fstream>
 
 #include "scene/document.hpp"
+#include "scene/presets.hpp"
 #include "scene/schema.hpp"
 #include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
 #include "sim/scene.hpp"
+#include "sim/scene_warnings.hpp"
 
 namespace sphles::sim {
 
@@ -91,6 +93,52 @@ TEST(Scene, DottedKeysSplitEveryDot) {
   EXPECT_EQ(dotted_keys("a..b"), (Keys{"a", "", "b"}));
   EXPECT_EQ(dotted_keys("a."), (Keys{"a", ""}));
   EXPECT_EQ(dotted_keys(".a"), (Keys{"", "a"}));
+}
+
+/// The fields of a scene's warnings (sim/scene_warnings.hpp), and the first message.
+std::pair<std::vector<std::string>, std::string> warnings_of(const json& document) {
+  std::vector<std::string> fields;
+  std::string first;
+  for (const SceneWarning& w : scene_warnings(parse_scene(document))) {
+    fields.push_back(w.field);
+    if (first.empty()) first = w.message;
+  }
+  return {fields, first};
+}
+
+// A scene that runs but whose answer means nothing says so: kolmogorov2d scaled down to 48² has
+// D_K = 8Δl = 7 mm, wider than half the forcing wavelength (6 mm): e_v collapsed to 4 % of the
+// laminar value with no word in run.log or the dashboard.
+TEST(SceneWarnings, AKernelWiderThanTheCasesScaleAMachNumberAndAViscousStep) {
+  using Fields = std::vector<std::string>;
+  auto [fields, message] = warnings_of({{"preset", "kolmogorov2d"}, {"particles_per_side", 48}});
+  EXPECT_EQ(fields, Fields{"particles_per_side"});
+  EXPECT_NE(message.find("below the forcing's wavenumber k_y 1047.2 1/m"), std::string::npos)
+      << message;
+  EXPECT_NE(message.find("'particles_per_side' >= 112 resolves it"), std::string::npos) << message;
+  EXPECT_TRUE(warnings_of({{"preset", "kolmogorov2d"}, {"particles_per_side", 112}}).first.empty());
+  // The 3D TGV at 16³: k_SPH = 1 below the vortices' √3 (accuracy.md: no resolved energy).
+  std::tie(fields, message) = warnings_of({{"case", "tgv3d"}, {"particles_per_side", 16}});
+  EXPECT_EQ(fields, Fields{"particles_per_side"});
+  EXPECT_NE(message.find(">= 28 resolves it"), std::string::npos) << message;
+  EXPECT_TRUE(warnings_of({{"case", "tgv3d"}, {"particles_per_side", 28}}).first.empty());
+  // Ma = 4 / 10 beyond 0.3; a viscous limit that sets the step.
+  std::tie(fields, message) =
+      warnings_of({{"case", "tgv2d"}, {"flow", {{"velocity_amplitude", 4}}}});
+  EXPECT_EQ(fields, Fields{"fluid.sound_speed"});
+  EXPECT_NE(message.find("v/c_s = 0.4 exceeds 0.3"), std::string::npos) << message;
+  std::tie(fields, message) =
+      warnings_of({{"case", "tgv2d"}, {"fluid", {{"dynamic_viscosity", 50.0}}}});
+  EXPECT_EQ(fields, Fields{"fluid.dynamic_viscosity"});
+  EXPECT_NE(message.find("the viscous limit sets the time step"), std::string::npos) << message;
+  // Every shipped scene and preset at its own size means something.
+  for (const auto& entry : std::filesystem::directory_iterator(SPHLES_SOURCE_DIR "/scenes")) {
+    json document = scene::read_scene_file(entry.path());
+    for (const char* section : {"analysis", "render", "reference"}) document.erase(section);
+    EXPECT_TRUE(warnings_of(document).first.empty()) << entry.path();
+  }
+  for (const std::string& preset : scene::preset_names())
+    EXPECT_TRUE(warnings_of({{"preset", preset}}).first.empty()) << preset;
 }
 
 struct BadScene {
@@ -255,7 +303,8 @@ TEST_F(CliTest, LogLevelIsValidatedAndSetsWhatIsLogged) {
   EXPECT_NE(r.output.find("--log-level: loud not in {trace,debug,info,warn,error,off}"),
             std::string::npos)
       << r.output;
-  const auto tiny = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 16,
+  // 24²: the smallest 2D TGV whose kernel resolves its vortices (no scene warning).
+  const auto tiny = write("tiny.json", R"({"case": "tgv2d", "particles_per_side": 24,
       "packing": {"enabled": false}, "time": {"end": 0.02}})");
   r = run_sphles("run " + tiny + " --threads 1 --out " + (dir_ / "info").string());
   EXPECT_EQ(r.exit_code, 0) << r.output;

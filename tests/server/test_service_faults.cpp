@@ -458,6 +458,10 @@ TEST(ServiceFaults, AfterARestartEverythingOnDiskIsServed) {
   const json run = api.run(id);
   EXPECT_EQ(run["state"], "finished");
   EXPECT_EQ(run["available"]["images"].dump(), before["images"]);
+  // The tiny scene's kernel is wider than its vortices: the detail and run.log say so.
+  ASSERT_EQ(run["warnings"].size(), 1u) << run;
+  EXPECT_EQ(run["warnings"][0]["field"], "particles_per_side");
+  EXPECT_NE(api.get("/api/runs/" + id + "/log").body.find("scene: the kernel"), std::string::npos);
   EXPECT_TRUE(run["available"]["spectrum"].get<bool>() && run["available"]["statistics"]) << run;
   // The last row of its time series, as it was reported while the run ran.
   EXPECT_EQ(run["latest"].dump(), before["latest"]);
