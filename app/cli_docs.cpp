@@ -2,12 +2,15 @@
 // sphles docs man|bash-completion: the manual page and the bash completion, generated from the
 // CLI11 declarations of the commands (the same ones that parse the command line), so they never
 // disagree with it. The build writes both next to the program and installs them.
+#include <algorithm>
 #include <cstdio>
+#include <set>
 #include <string>
 #include <vector>
 
 #include "app/commands.hpp"
 #include "scene/presets.hpp"
+#include "scene/schema.hpp"
 #include "sim/scene.hpp"
 
 namespace sphles::app {
@@ -97,6 +100,21 @@ std::string man_page(const CLI::App& app) {
   return m;
 }
 
+namespace {
+
+/// The values an option's validator lists in its type name ("LEVEL:{trace,debug}" -> "trace
+/// debug"), empty when it lists none.
+std::string listed_values(const CLI::Option& option) {
+  const std::string type = option.get_type_name();
+  const std::size_t open = type.find('{'), close = type.find('}', open);
+  if (open == std::string::npos || close == std::string::npos) return "";
+  std::string values = type.substr(open + 1, close - open - 1);
+  std::replace(values.begin(), values.end(), ',', ' ');
+  return values;
+}
+
+}  // namespace
+
 std::string bash_completion(const CLI::App& app, const std::vector<std::string>& presets) {
   std::string commands;
   for (const CLI::App* c : visible_commands(app))
@@ -116,6 +134,18 @@ std::string bash_completion(const CLI::App& app, const std::vector<std::string>&
       "    return\n"
       "  fi\n"
       "  case \"${COMP_WORDS[1]}\" in\n";
+  // An option's listed values (--log-level's levels), and the scene's keys after --set.
+  std::string value_cases;
+  std::set<std::string> with_values;
+  for (const CLI::App* c : visible_commands(app))
+    for (const CLI::Option* o : options_of(*c, false))
+      if (const std::string values = listed_values(*o); !values.empty())
+        for (const std::string& l : o->get_lnames())
+          if (with_values.insert(l).second)
+            value_cases += "    --" + l + ") COMPREPLY=( $(compgen -W \"" + values +
+                           "\" -- \"$cur\") ); return ;;\n";
+  std::string keys;
+  for (const std::string& field : scene::scene_schema_fields()) keys += " " + field + "=";
   for (const CLI::App* c : visible_commands(app)) {
     std::string opts = "--help", dirs, files;
     bool scenes = false;
@@ -134,6 +164,11 @@ std::string bash_completion(const CLI::App& app, const std::vector<std::string>&
          "\" scenes=" + (scenes ? "1" : "0") + " ;;\n";
   }
   s += "    *) return ;;\n"
+       "  esac\n"
+       "  case \"$prev\" in\n" +
+       value_cases + "    --set) compopt -o nospace 2>/dev/null; COMPREPLY=( $(compgen -W \"" +
+       keys +
+       "\" -- \"$cur\") ); return ;;\n"
        "  esac\n"
        "  if [[ \" $dirs \" == *\" $prev \"* ]]; then\n"
        "    COMPREPLY=( $(compgen -d -- \"$cur\") )\n"

@@ -404,10 +404,15 @@ TEST_F(CliTest, ManualPageAndCompletionFollowTheCommandLine) {
                    "complete_words sphles serve --launch\n"
                    "complete_words sphles run kolmogorov\n"
                    "complete_words sphles estimate --js\n"
-                   "complete_words sphles wor\n",
+                   "complete_words sphles wor\n"
+                   "complete_words sphles run tgv2d --log-level d\n"
+                   "complete_words sphles run tgv2d --set kernel.ty\n",
                dir_ / "c.sh");
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_EQ(r.output, "[serve]\n[--threads]\n[--launcher]\n[kolmogorov2d]\n[--json]\n[]\n");
+  // --log-level completes its levels (it offered preset names), --set the scene's keys.
+  EXPECT_EQ(r.output,
+            "[serve]\n[--threads]\n[--launcher]\n[kolmogorov2d]\n[--json]\n[]\n[debug]\n"
+            "[kernel.type=]\n");
 }
 
 // A typo in a scene key or a preset name is answered with what it was probably meant to be.
