@@ -87,6 +87,9 @@ json build_schema() {
 /// The schema with null allowed beside every value, and no key required.
 json patch_of(const json& node) {
   json out = node;
+  // A patch changes what it names and leaves the rest: no key has a default (a typed client
+  // generated from a schema with defaults makes every key mandatory).
+  out.erase("default");
   if (out.contains("properties"))
     for (auto& [key, child] : out["properties"].items()) child = patch_of(child);
   if (out.contains("additionalProperties") && out["additionalProperties"].is_object())
@@ -152,6 +155,21 @@ class Validator {
 const json& scene_schema() {
   static const json schema = build_schema();
   return schema;
+}
+
+json scene_document_schema() {
+  const std::function<void(json&)> strip = [&strip](json& node) {
+    if (node.is_object()) {
+      node.erase("default");
+      for (auto& [key, child] : node.items()) strip(child);
+    } else if (node.is_array()) {
+      for (json& child : node) strip(child);
+    }
+  };
+  json document = scene_schema();
+  strip(document);
+  document["title"] = "sphles scene document";
+  return document;
 }
 
 json scene_patch_schema() {

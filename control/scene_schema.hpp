@@ -19,6 +19,10 @@ const nlohmann::json& scene_schema();
 /// The same for a JSON merge patch of a scene (PATCH /api/runs/{id}/parameters): every value may
 /// also be null (a removal).
 nlohmann::json scene_patch_schema();
+/// The scene schema as the schema of a document to create a run from: every key optional (a
+/// left-out key takes its default), so no "default" keywords (a typed client generated with
+/// openapi-typescript's defaults makes a key with a default mandatory).
+nlohmann::json scene_document_schema();
 
 /// A violation of a schema: the dotted field valijson names ("(top level)" for the document)
 /// and what is wrong with it.

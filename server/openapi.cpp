@@ -25,6 +25,7 @@ const std::string& served_openapi_document() {
     nlohmann::json& schemas = d["components"]["schemas"];
     schemas["Scene"] = as_component(control::scene_schema());
     schemas["ScenePatch"] = as_component(control::scene_patch_schema());
+    schemas["SceneDocument"] = as_component(control::scene_document_schema());
     return d.dump(2);
   }();
   return document;
