@@ -576,7 +576,9 @@ TEST(RunManager, QueuesBeyondTheSlotLimitAndRecoversRunsAfterARestart) {
 
     CreateRequest long_request;
     long_request.scene = tiny_scene(50.0);
-    long_request.name = "long one";
+    long_request.name = "long one";  // a name the run's directory would rewrite: refused
+    EXPECT_THROW(manager.create(long_request), sim::SceneError);
+    long_request.name = "long-one";
     const auto long_run = manager.create(long_request);
     long_id = long_run->id();
     EXPECT_EQ(long_id.substr(4), "-long-one");

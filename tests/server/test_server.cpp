@@ -72,8 +72,14 @@ TEST(Server, OpenApiDocumentListsEveryRoute) {
   const json& scene = doc["components"]["schemas"]["Scene"];
   EXPECT_EQ(scene["properties"]["kernel"]["properties"]["type"]["enum"][0], "wendland_c2");
   EXPECT_FALSE(scene.contains("$schema"));
+  // A scene to create a run from leaves out what it does not set: the schema without defaults.
   EXPECT_EQ(doc["components"]["schemas"]["CreateRequest"]["properties"]["scene"]["$ref"],
-            "#/components/schemas/Scene");
+            "#/components/schemas/SceneDocument");
+  const json& document = doc["components"]["schemas"]["SceneDocument"];
+  EXPECT_EQ(document["properties"]["kernel"]["properties"]["type"]["enum"],
+            scene["properties"]["kernel"]["properties"]["type"]["enum"]);
+  EXPECT_FALSE(document["properties"]["kernel"]["properties"]["type"].contains("default"));
+  EXPECT_EQ(scene["properties"]["kernel"]["properties"]["type"]["default"], "wendland_c4");
   const Reply schema = Api{server.port()}.get("/api/schema/scene");
   ASSERT_EQ(schema.status, 200);
   EXPECT_EQ(
