@@ -12,7 +12,7 @@ packages=(
   libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libvalijson-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
-  python3 python3-matplotlib python3-h5py python3-websocket
+  python3 python3-matplotlib python3-h5py python3-websocket python3-pip python3-setuptools
   paraview xvfb xauth qemu-user
 )
 
