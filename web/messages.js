@@ -82,8 +82,9 @@ function addSamples(list) {
   const last = samples[samples.length - 1];
   if (last && app.summary && last.step >= (app.summary.step ?? -1)) {
     const end = app.summary.end_time;
+    // Metrics come from steps: the set-up's phase ("packing …") is over.
     mergeSummary({
-      id: app.selectedId, time: last.time, step: last.step,
+      id: app.selectedId, time: last.time, step: last.step, phase: 'stepping',
       progress: end > 0 ? Math.min(1, last.time / end) : app.summary.progress,
     });
   }

@@ -315,6 +315,14 @@ async function run() {
     return /\d/.test(t) ? t : null;
   }, 15_000);
   pass(`ETA shown while running: ${eta}`);
+  // Once it steps, the set-up's phase ("packing the initial lattice…") is no longer shown, and a
+  // panel without an image yet shows its caption, not a broken-image icon.
+  const phase = await waitFor('the set-up phase cleared while stepping', async () =>
+    ((await text(page, '#run-phase')) === '' ? 'cleared' : null), 15_000);
+  const emptyPanels = await page.evaluate(() => [...document.querySelectorAll('.images img:not([src])')]
+    .filter((img) => getComputedStyle(img).visibility !== 'hidden').length);
+  if (emptyPanels !== 0) fail(`${emptyPanels} image panels without an image are visible`);
+  pass(`set-up phase ${phase} while stepping; empty image panels hidden`);
 
   // The run's log: run.log's lines, the start among them, and new lines while it runs.
   const logLines = await waitFor('the run log with its start', async () => {
