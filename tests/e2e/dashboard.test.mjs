@@ -235,6 +235,7 @@ async function run() {
   // A scheme and its options from the form: the transport-velocity formulation with the
   // Galilean-invariant ALE form of its extra stress; checked in the run's scene below.
   await page.selectOption('#create-scheme', 'transport_velocity');
+  await page.fill('#create-dk', '7');  // the kernel's D_K/Δl, offered beside η
   await page.selectOption('#create-ale', 'full');
   // The particle snapshot product, chosen beside the live ones.
   await page.check('#create-products input[data-product="particles"]');
@@ -568,7 +569,10 @@ async function run() {
   const scheme = detail.scene?.scheme ?? {};
   if (scheme.type !== 'transport_velocity' || scheme.ale_correction !== 'full')
     fail(`the run's scheme is not the form's choice: ${JSON.stringify(scheme)}`);
-  pass('scheme and ALE correction chosen in the form are the run\'s');
+  if (detail.scene?.kernel?.diameter_over_spacing !== 7)
+    fail(`the run's D_K/Δl is not the form's 7: ${detail.scene?.kernel?.diameter_over_spacing}`);
+  if (!(await page.locator('#create-eta').count())) fail('the form offers no viscosity η');
+  pass('scheme, ALE correction and D_K/Δl chosen in the form are the run\'s; η is offered');
   const products = detail.scene?.analysis?.products ?? [];
   if (!products.includes('particles') || !products.includes('spectrum'))
     fail(`the run's analysis products are not the form's choice: ${JSON.stringify(products)}`);
