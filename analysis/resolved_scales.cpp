@@ -21,19 +21,6 @@ constexpr double kShellTolerance = 1e-9;
 // round-off of the transforms (10⁻³⁰ of the energy) rather than flow.
 constexpr double kEmptyShell = 1e-12;
 
-double cell(const std::map<std::string, std::string>& row, const std::string& key,
-            const std::filesystem::path& file) {
-  const auto it = row.find(key);
-  if (it == row.end() || it->second.empty())
-    throw std::runtime_error("'" + file.string() + "': a row has no '" + key + "'");
-  try {
-    return std::stod(it->second);
-  } catch (const std::exception&) {
-    throw std::runtime_error("'" + file.string() + "': '" + key + "' is not a number: '" +
-                             it->second + "'");
-  }
-}
-
 ShellSpectrum blend(const ShellSpectrum& a, const ShellSpectrum& b, double time) {
   ShellSpectrum s = a;
   s.time = time;
@@ -57,9 +44,9 @@ std::vector<ShellSpectrum> read_run_spectra(const std::filesystem::path& run_dir
   for (const auto& row : read_index(index)) {
     if (row.size() < 3) continue;  // a row being appended
     ShellSpectrum s;
-    s.time = cell(row, "t", index);
-    s.delta_k = cell(row, "delta_k", index);
-    s.kernel_wavenumber = cell(row, "k_kernel", index);
+    s.time = index_number(row, "t", index);
+    s.delta_k = index_number(row, "delta_k", index);
+    s.kernel_wavenumber = index_number(row, "k_kernel", index);
     const std::filesystem::path file = run_directory / "spectra" / row.at("file");
     std::ifstream in(file);
     if (!in) throw std::runtime_error("'" + file.string() + "' cannot be read");

@@ -68,6 +68,21 @@ std::vector<std::map<std::string, std::string>> read_index(const std::filesystem
   return rows;
 }
 
+double index_number(const std::map<std::string, std::string>& row, const std::string& column,
+                    const std::filesystem::path& file) {
+  const auto it = row.find(column);
+  if (it == row.end() || it->second.empty())
+    throw std::runtime_error("'" + file.string() + "': a row has no '" + column + "'");
+  try {
+    std::size_t used = 0;
+    const double value = std::stod(it->second, &used);
+    if (used == it->second.size()) return value;
+  } catch (const std::exception&) {
+  }
+  throw std::runtime_error("'" + file.string() + "': '" + column + "' is not a number: '" +
+                           it->second + "'");
+}
+
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
                std::size_t columns) {
   if (values.size() != rows * columns) throw std::invalid_argument("write_npy: shape mismatch");

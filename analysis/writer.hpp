@@ -28,6 +28,12 @@ namespace sphles::analysis {
 /// has no rows; a row shorter than the header (being appended) lacks the missing cells.
 std::vector<std::map<std::string, std::string>> read_index(const std::filesystem::path& path);
 
+/// The number in `column` of a row read_index gave from `file` (the writer writes "nan" for what
+/// a frame lacks). Throws std::runtime_error naming the file and the column when the cell is
+/// missing, empty or not wholly a number.
+double index_number(const std::map<std::string, std::string>& row, const std::string& column,
+                    const std::filesystem::path& file);
+
 /// Writes a 2D float64 array as NumPy .npy (format 1.0) with shape (rows, columns).
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
                std::size_t columns);

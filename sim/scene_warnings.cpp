@@ -55,7 +55,8 @@ std::vector<SceneWarning> scene_warnings(const Scene& s) {
   // The Taylor-Green cases start at their fastest (the initial amplitude plus the uniform
   // velocity); a Kolmogorov flow's speed is not known before it runs (its laminar profile, which
   // sets no bound, is unstable).
-  const double speed = estimate_initial_time_step(s).max_speed;
+  const TimeStepEstimate initial = estimate_initial_time_step(s);
+  const double speed = initial.max_speed;
   const double mach = speed / s.fluid.sound_speed;
   if (s.case_type != CaseType::Kolmogorov2D && mach > kMaxMachNumber)
     warnings.push_back({"fluid.sound_speed",
@@ -64,7 +65,7 @@ std::vector<SceneWarning> scene_warnings(const Scene& s) {
                             ": density fluctuations of order Ma^2 make the flow compressible; "
                             "'fluid.sound_speed' >= " +
                             format_number(speed / kMaxMachNumber) + " m/s keeps it below"});
-  const TimeStepLimits limits = estimate_initial_time_step(s).limits;
+  const TimeStepLimits& limits = initial.limits;
   if (limits.fixed == 0.0 && limits.binding() == "viscous")
     warnings.push_back(
         {"fluid.dynamic_viscosity",

@@ -123,19 +123,27 @@ def compare_products(one, two):
           f"for byte, snapshots.csv to 1e-12, {len(slices)} slices bit for bit")
 
 
-def worker_ranks(sphles):
-    """pid -> rank of every `sphles worker` process of this test's program."""
-    ranks = {}
+def command_lines():
+    """(pid, argv as bytes) of every process this test may see, read from /proc."""
     for pid in filter(str.isdigit, os.listdir("/proc")):
         try:
             with open(f"/proc/{pid}/cmdline", "rb") as f:
-                argv = f.read().split(b"\0")
+                yield int(pid), f.read().rstrip(b"\0").split(b"\0")
+        except OSError:
+            continue
+
+
+def worker_ranks(sphles):
+    """pid -> rank of every `sphles worker` process of this test's program."""
+    ranks = {}
+    for pid, argv in command_lines():
+        try:
             if len(argv) < 2 or os.path.realpath(argv[0].decode()) != sphles \
                     or argv[1] != b"worker":
                 continue
             with open(f"/proc/{pid}/environ", "rb") as f:
                 env = dict(e.split(b"=", 1) for e in f.read().split(b"\0") if b"=" in e)
-            ranks[int(pid)] = int(env.get(b"OMPI_COMM_WORLD_RANK", b"-1"))
+            ranks[pid] = int(env.get(b"OMPI_COMM_WORLD_RANK", b"-1"))
         except (OSError, ValueError):
             continue
     return ranks

@@ -22,7 +22,7 @@ import subprocess
 import sys
 import time
 
-from check_service_mpi import request, wait_for, wait_no_workers, worker_ranks
+from check_service_mpi import command_lines, request, wait_for, wait_no_workers, worker_ranks
 
 GRACE = 3.0
 JOB_END = 15.0  # control::RunImpl::kJobEndSeconds
@@ -46,17 +46,9 @@ def start_server(sphles, work, name, launcher):
 
 
 def launchers(marker):
-    """Process ids whose command line starts with `marker` (read from /proc: no procps needed)."""
-    found = []
-    for pid in filter(str.isdigit, os.listdir("/proc")):
-        try:
-            with open(f"/proc/{pid}/cmdline", "rb") as f:
-                command = f.read().replace(b"\0", b" ").decode(errors="replace")
-        except OSError:
-            continue
-        if command.startswith(marker):
-            found.append(int(pid))
-    return found
+    """Process ids whose command line starts with `marker`."""
+    return [pid for pid, argv in command_lines()
+            if b" ".join(argv).decode(errors="replace").startswith(marker)]
 
 
 def timed(call):
