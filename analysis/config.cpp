@@ -119,9 +119,11 @@ json analysis_config_to_json(const AnalysisConfig& c) {
   return j;
 }
 
-RunConfig parse_run_config(const json& document) {
-  if (!document.is_object())
-    throw_scene_error("(top level)", "must be an object, got " + scene::describe_type(document));
+RunConfig parse_run_config(const json& input) {
+  if (!input.is_object())
+    throw_scene_error("(top level)", "must be an object, got " + scene::describe_type(input));
+  // A preset's analysis section is the base of the document's (scene/presets.json).
+  const json document = scene::expand_preset(input);
   json solver_part = document;
   const json* analysis = nullptr;
   json analysis_section;

@@ -3,16 +3,18 @@
 // which apply the scene schema, and written back in full.
 #include "control/run.hpp"
 #include "render/config.hpp"
+#include "scene/document.hpp"
 #include "scene/json_reader.hpp"
 
 namespace sphles::control {
 
 using nlohmann::json;
 
-RunSpec parse_run_spec(const json& document) {
-  if (!document.is_object())
-    sim::throw_scene_error("(top level)",
-                           "must be an object, got " + scene::describe_type(document));
+RunSpec parse_run_spec(const json& input) {
+  if (!input.is_object())
+    sim::throw_scene_error("(top level)", "must be an object, got " + scene::describe_type(input));
+  // A preset's render and reference sections are the base of the document's too.
+  const json document = scene::expand_preset(input);
   json rest = document;
   json render_section;
   const bool has_render = document.contains("render");

@@ -186,21 +186,25 @@ void check_scheme(const SchemeConfig& c) {
 
 }  // namespace
 
+json expand_preset(const json& input) {
+  const auto it = input.find("preset");
+  if (!input.is_object() || it == input.end()) return input;
+  if (!it->is_string()) throw_scene_error("preset", "must be a string, got " + describe_type(*it));
+  json document = preset_document(it->get<std::string>());
+  document.merge_patch(input);
+  return document;
+}
+
 SceneAndPolicy parse_scene_and_policy(const json& input) {
   if (!input.is_object())
     throw_scene_error("(top level)", "must be an object, got " + describe_type(input));
-  // A preset is the base document; the scene's own keys patch it.
-  json document = input;
-  std::string preset;
-  if (const auto it = input.find("preset"); it != input.end()) {
-    if (!it->is_string())
-      throw_scene_error("preset", "must be a string, got " + describe_type(*it));
-    preset = it->get<std::string>();
-    document = preset_document(preset);
-    json patch = input;
-    patch.erase("preset");
-    document.merge_patch(patch);
-  }
+  // A preset is the base document; the scene's own keys patch it. The preset's sections of the
+  // other modules (analysis/, render/, spectral/ read them) are not the solver's to read.
+  json document = expand_preset(input);
+  if (input.contains("preset"))
+    for (const char* section : {"analysis", "render", "reference"})
+      if (!input.contains(section)) document.erase(section);
+  const std::string preset = document.value("preset", std::string());
   ObjectReader top(document, "");
   CaseType type = CaseType::TaylorGreen3D;
   top.choice("case", kCaseNames, type);

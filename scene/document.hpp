@@ -24,6 +24,12 @@ struct SceneAndPolicy {
 /// Parses and validates a scene; throws sim::SceneError. A "preset" key starts from that preset's
 /// document (scene/presets.hpp), and the other keys override it (JSON merge patch).
 SceneAndPolicy parse_scene_and_policy(const nlohmann::json& document);
+
+/// The document with its "preset" expanded: the preset's document (every section of it:
+/// solver, analysis, render, reference) patched by the document's own keys (RFC 7396), the
+/// "preset" key kept; the document itself when it names none. Idempotent, so each reader of a
+/// section may call it.
+nlohmann::json expand_preset(const nlohmann::json& document);
 /// The same checks; the run policy is validated and left out (a solver's own reader).
 sim::Scene parse_scene(const nlohmann::json& document);
 

@@ -550,6 +550,21 @@ TEST_F(CliTest, PresetsAreListedAndRunnableByName) {
   EXPECT_EQ(written["particles_per_side"], 10);
   r = run_sphles("run tgv3d-case99");
   EXPECT_EQ(r.exit_code, 2);
+  // A preset's analysis section is the base of the run's: kolmogorov2d analyses every 0.25 s,
+  // and a --set of its cadence keeps its products.
+  const auto kolmogorov = dir_ / "kolmogorov";
+  r = run_sphles(
+      "run kolmogorov2d --set particles_per_side=16 --set time.end=0.2 "
+      "--set packing.enabled=false --set analysis.every=0.1 --out " +
+      kolmogorov.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  const json analysed = json::parse(std::ifstream(kolmogorov / "scene.json"));
+  EXPECT_EQ(analysed["analysis"]["every"], 0.1);
+  EXPECT_EQ(analysed["analysis"]["products"],
+            json::array({"energy", "spectrum", "vorticity", "slices", "sfs_stats"}));
+  for (const char* file : {"spectra/E_t0.2000.csv", "slices/omega2_t0.2000.npy",
+                           "slices/tau_sfs_t0.1000.npy", "stats/snapshots.csv"})
+    EXPECT_TRUE(std::filesystem::exists(kolmogorov / file)) << file;
 }
 
 TEST_F(CliTest, CalibrateFindsForcingForTargetUrms) {
