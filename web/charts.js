@@ -211,6 +211,33 @@ export function dissipationChart(container) {
   });
 }
 
+/** The budget of a forced flow (budget.js): per-step injection and film friction, the
+ *  analysis times' viscous dissipation and the rest (sub-filter and numerical). */
+export function budgetChart(container) {
+  return new Chart(container, {
+    xLabel: 't [s]',
+    yLabel: 'ε [m²/s³]',
+    series: [
+      { label: 'injection ⟨χ sin(k_y y) vₓ⟩' },
+      { label: 'film μ⟨|v|²⟩' },
+      { label: 'viscous ν⟨ω²⟩', points: true, width: 1 },
+      { label: 'rest: sub-filter and numerical', points: true, width: 1 },
+      { label: 'deᵥ/dt', stroke: '#999999', width: 1 },
+    ],
+  });
+}
+
+export function rmsChart(container) {
+  return new Chart(container, {
+    xLabel: 't [s]',
+    yLabel: 'u_rms [m/s]',
+    series: [
+      { label: 'u_rms' },
+      { label: 'experiment 0.11 m/s', stroke: '#555555', dash: [6, 4], width: 1.5 },
+    ],
+  });
+}
+
 export function spectrumChart(container) {
   return new Chart(container, {
     xLabel: 'k [1/m]',

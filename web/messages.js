@@ -52,11 +52,16 @@ export function onStreamMessage(id, m) {
   }
 }
 
+// The forced flow's columns (sim/case_diagnostics.hpp), kept when a sample has them.
+const CASE_COLUMNS = ['energy_injection', 'film_dissipation', 'u_rms'];
+
 function toSample(s) {
-  return {
+  const sample = {
     time: finite(s.time), step: s.step, kinetic_energy: finite(s.kinetic_energy),
     dissipation: finite(s.dissipation),
   };
+  for (const c of CASE_COLUMNS) if (c in s) sample[c] = finite(s[c]);
+  return sample;
 }
 
 function addSamples(list) {
@@ -97,9 +102,13 @@ export function addTimeseries(series) {
   const step = col('step');
   const energy = col('kinetic_energy');
   const dissipation = col('dissipation');
+  const extra = CASE_COLUMNS.filter((c) => (series.columns ?? []).includes(c)).map((c) => [c, col(c)]);
   const rows = [];
-  for (let i = 0; i < time.length; i++)
-    rows.push({ time: time[i], step: step[i], kinetic_energy: energy[i], dissipation: dissipation[i] });
+  for (let i = 0; i < time.length; i++) {
+    const row = { time: time[i], step: step[i], kinetic_energy: energy[i], dissipation: dissipation[i] };
+    for (const [c, values] of extra) row[c] = values[i];
+    rows.push(row);
+  }
   addSamples(rows);
 }
 

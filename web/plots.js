@@ -5,8 +5,9 @@
 import { api } from './api.js';
 import {
   plottingAvailable, formatNumber, energyChart, dissipationChart, spectrumChart, statisticsChart,
-  spectrumData, drawJointHistogram, drawAlignmentHistogram,
+  budgetChart, rmsChart, spectrumData, drawJointHistogram, drawAlignmentHistogram,
 } from './charts.js';
+import { EXPERIMENT, isForced, budgetPoints, budgetAverages, budgetCaption } from './budget.js';
 import { $, app, setText, showStatus, isCancelled, errorText, columnOf } from './state.js';
 
 const REDRAW_MS = 250;
@@ -18,6 +19,8 @@ export function ensureCharts() {
     dissipation: dissipationChart($('chart-dissipation')),
     spectrum: spectrumChart($('chart-spectrum')),
     stats: statisticsChart($('chart-stats')),
+    budget: budgetChart($('chart-budget')),
+    urms: rmsChart($('chart-urms')),
   };
 }
 
@@ -165,6 +168,33 @@ function redraw() {
     { x: s.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
   ] : []);
   c.stats.setData(app.stats.map((p) => p.time), [app.stats.map((p) => p.max), app.stats.map((p) => p.mean)]);
+  drawBudget(c, samples);
+}
+
+/** A forced flow shows its budget and u_rms in place of −deᵥ/dt, which there is no dissipation. */
+function drawBudget(c, samples) {
+  const forced = isForced(samples);
+  $('fig-dissipation').hidden = forced;
+  $('fig-budget').hidden = !forced;
+  $('fig-urms').hidden = !forced;
+  if (!forced) return;
+  const points = budgetPoints(samples, app.analysis);
+  const change = samples.map((s) => (Number.isFinite(s.dissipation) ? -s.dissipation : null));
+  const budget = mergeOnTime(
+    { x: samples.map((s) => s.time),
+      ys: [samples.map((s) => s.energy_injection), samples.map((s) => s.film_dissipation), change] },
+    { x: points.map((p) => p.time), ys: [points.map((p) => p.viscous), points.map((p) => p.rest)] });
+  const [injection, film, changeRows, viscous, rest] = budget.ys;
+  c.budget.setData(budget.x, [injection, film, viscous, rest, changeRows]);
+  const box = app.detail?.scene?.box_length;
+  const thesisBox = Math.abs((box ?? 0) - EXPERIMENT.box) < 1e-9;
+  const times = samples.map((s) => s.time);
+  c.urms.setData(times, [samples.map((s) => s.u_rms), times.map(() => (thesisBox ? EXPERIMENT.urms : null))]);
+  const averages = budgetAverages(samples, points);
+  setText('cap-budget', budgetCaption(averages, box));
+  $('chart-budget').dataset.viscousPoints = String(points.length);
+  $('chart-budget').dataset.restMean = String(averages?.rest ?? '');
+  setText('cap-urms', averages ? `mean ${formatNumber(averages.urms)} m/s over t ∈ [${formatNumber(averages.from)}, ${formatNumber(averages.to)}] s` : '');
 }
 
 /** The run's reference curve (GET reference): the analytic 2D decay, the 3D DNS or the laminar

@@ -633,6 +633,35 @@ async function run() {
   if (after.some((r) => r.id === created.id)) fail(`run ${created.id} is still listed after delete`);
   pass(`deleted run ${created.id}: gone from the dashboard and GET /api/runs`);
 
+  // A forced flow shows its energy budget and u_rms in place of −deᵥ/dt (SPEC §6.3): the
+  // injection, the film's friction, ν⟨ω²⟩ at the analysis times and the rest the scheme takes.
+  currentStep = 'a forced flow';
+  const forced = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ preset: 'kolmogorov2d', name: 'e2e-kolmogorov',
+      patch: { particles_per_side: 24, box_length: 0.012, forcing: { periods: 2 },
+        packing: { enabled: false }, time: { end: 0.2 },
+        analysis: { every: 0.02, products: ['energy', 'vorticity'] }, render: { fields: [] } } }),
+  });
+  if (forced.status !== 201) fail(`creating the forced run: HTTP ${forced.status} ${await forced.text()}`);
+  const forcedId = (await forced.json()).id;
+  const forcedItem = page.locator(`#run-list li[data-id="${forcedId}"] button`);
+  await waitFor('the forced run in the list', async () => (await forcedItem.count()) === 1, 10_000);
+  await forcedItem.click();
+  await waitFor('state "finished"', async () => (await text(page, '#run-state')) === 'finished', 30_000);
+  const budgetPoints = await waitFor('ν⟨ω²⟩ at ten analysis times in the budget', async () => {
+    const n = Number(await page.locator('#chart-budget').getAttribute('data-viscous-points'));
+    return n >= 10 ? n : null;
+  }, 15_000);
+  if (!(await page.locator('#fig-dissipation').isHidden())) fail('the forced flow still shows −deᵥ/dt as its dissipation');
+  if (!(await page.locator('#fig-urms').isVisible())) fail('the forced flow shows no u_rms');
+  const rest = Number(await page.locator('#chart-budget').getAttribute('data-rest-mean'));
+  const budgetCaption = await text(page, '#cap-budget');
+  if (!Number.isFinite(rest) || !/injection .* film .* viscous .* rest .*u_rms/.test(budgetCaption))
+    fail(`the budget's caption has no averages: "${budgetCaption}" (rest ${rest})`);
+  if (Number(await page.locator('#chart-urms').getAttribute('data-points')) < 10) fail('the u_rms plot has no points');
+  pass(`a forced flow shows its budget (${budgetPoints} analysis times; ${budgetCaption.slice(0, 90)}…) and u_rms`);
+
   // A failed run shows its diagnosis as an error: 3 MPI ranks cannot split a 12² box with a halo
   // as wide as the kernel's list radius, which the job refuses, naming why.
   currentStep = 'a failing run';
