@@ -5,9 +5,6 @@
 Usage: check_client.py SPHLES_BINARY WORK_DIR. Exits non-zero with the failed check."""
 
 import os
-import re
-import shutil
-import subprocess
 import sys
 import time
 
@@ -15,6 +12,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(HERE, "..", "..", "clients", "python"))
 
 import numpy as np  # noqa: E402
+from service import start_server, stop_server  # noqa: E402
 from sphles_client import ApiError, Client  # noqa: E402
 
 TOKEN = "client-test-token"
@@ -31,25 +29,9 @@ def check(condition, what):
     print(f"ok: {what}")
 
 
-def start_server(binary, work):
-    data = os.path.join(work, "data")
-    shutil.rmtree(work, ignore_errors=True)
-    os.makedirs(work)
-    server = subprocess.Popen(
-        [binary, "serve", "--port", "0", "--data", data, "--threads", "1", "--token", TOKEN,
-         "--log-level", "warn"],
-        stdout=subprocess.PIPE, stderr=open(os.path.join(work, "serve.log"), "w"), text=True)
-    line = server.stdout.readline()
-    match = re.search(r"listening on (http://\S+?)/?$", line.strip())
-    if not match:
-        server.kill()
-        sys.exit(f"check_client: no 'listening on' line: {line!r}")
-    return server, match.group(1), data
-
-
 def main():
     binary, work = sys.argv[1], sys.argv[2]
-    server, url, data = start_server(binary, work)
+    server, url, data = start_server(binary, work, token=TOKEN, name="check_client")
     try:
         anonymous = Client(url)
         client = Client(url, token=TOKEN)
@@ -144,8 +126,7 @@ def main():
         client.delete(run_id)
         check(all(r["id"] != run_id for r in client.runs()), "deleted")
     finally:
-        server.terminate()
-        server.wait(timeout=60)
+        stop_server(server)
     print("check_client: all checks passed")
 
 

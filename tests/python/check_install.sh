@@ -16,3 +16,5 @@ case "$installed" in
   *) echo "imported $installed, not the installed package" >&2; exit 1 ;;
 esac
 PYTHONPATH="$work/site" "$python" -c 'from sphles_client import Client, ApiError; Client("http://127.0.0.1:1")'
+# The offline reader is installed beside it.
+PYTHONPATH="$work/site" "$python" -c 'import sphles_run, sys; sys.exit(not sphles_run.__file__.startswith(sys.argv[1]))' "$work/site/"
