@@ -36,6 +36,10 @@ void add_reference_command(CLI::App& app, int& exit_code);
 /// a reference run (analysis/resolved_scales.hpp).
 void add_compare_command(CLI::App& app, int& exit_code);
 
+/// sphles movie RUN [--field F] [--fps N] [--quality Q] [--out FILE]: a run's saved frames as
+/// a WebM video (render/movie.hpp).
+void add_movie_command(CLI::App& app, int& exit_code);
+
 /// sphles inspect FILE: validates a checkpoint or snapshot and prints its contents.
 void add_inspect_command(CLI::App& app, int& exit_code);
 

@@ -43,6 +43,7 @@ int main(int argc, char** argv) {
   app::add_presets_command(cli, exit_code);
   app::add_reference_command(cli, exit_code);
   app::add_compare_command(cli, exit_code);
+  app::add_movie_command(cli, exit_code);
   app::add_schema_command(cli, exit_code);
   app::add_estimate_command(cli, exit_code);
   app::add_inspect_command(cli, exit_code);

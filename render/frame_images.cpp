@@ -1,5 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "render/frame_images.hpp"
+#include "render/vtk_window.hpp"
 
 #include <chrono>
 
@@ -56,8 +57,8 @@ std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame
     if (frame.dimension == 3) cloud.z = view.position[2];
     cloud.values = view.values;
     cloud.box_length = frame.particles->snapshot->box.length[0];
-    cloud.field_name = std::string(analysis::slice_field_name(view.field));
-    cloud.units = std::string(analysis::slice_field_units(view.field));
+    cloud.field_name = detail::field_symbol(view.field);
+    cloud.units = detail::field_units(view.field);
     FrameImage image{"view3d", render_particles_png(cloud, config.view3d.colour, labels,
                                                     config.view3d.width, config.view3d.height)};
     image.milliseconds = elapsed_ms(start);

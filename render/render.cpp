@@ -130,14 +130,13 @@ struct Panel {
     image->Modified();
     image_actor->SetPosition(rect.x, rect.y);
 
-    bar.update(range, mapping.log_scale,
-               std::string(analysis::slice_field_name(slice.field)) + " [" + slice.units + "]",
+    bar.update(range, mapping.log_scale, detail::field_label(slice.field),
                rect.x + rect.width + kBarGap, rect.y, kBarWidth, rect.height);
 
     const std::string title_text =
         labels.case_name + "   t = " + format_number(labels.time) + " s   step " +
-        std::to_string(labels.step) + "\n" + std::string(analysis::slice_field_name(slice.field)) +
-        " at " + axis_name(slice.normal_axis) + " = " + format_number(slice.position) + " m";
+        std::to_string(labels.step) + "\n" + detail::field_symbol(slice.field) + " at " +
+        axis_name(slice.normal_axis) + " = " + format_number(slice.position) + " m";
     set_text(title, title_text, panel_width / 2.0, panel_height - 6.0);
 
     const double u_length = slice.width * slice.spacing, v_length = slice.height * slice.spacing;

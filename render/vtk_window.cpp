@@ -2,6 +2,8 @@
 // Off-screen VTK window on OSMesa, read-back and PNG encoding, text actors and the colour bar.
 #include "render/vtk_window.hpp"
 
+#include <filesystem>
+
 #include <vtkCoordinate.h>
 #include <vtkImageData.h>
 #include <vtkTextProperty.h>
@@ -30,13 +32,67 @@ std::string format_number(double value) {
   return buffer;
 }
 
+namespace {
+
+/// The font of the pictures' text: DejaVu Sans (Debian's fonts-dejavu-core, found at configure
+/// time), whose glyphs include the Greek letters and superscripts of the labels; VTK's embedded
+/// Arial, which has neither, when the file is missing.
+const char* unicode_font() {
+  static const char* const font = [] {
+    const char* path = SPHLES_TEXT_FONT;
+    return path[0] != '\0' && std::filesystem::is_regular_file(path) ? path : nullptr;
+  }();
+  return font;
+}
+
+}  // namespace
+
+void set_font(vtkTextProperty* property) {
+  if (const char* font = unicode_font()) {
+    property->SetFontFamily(VTK_FONT_FILE);
+    property->SetFontFile(font);
+  } else {
+    set_font(property);
+  }
+}
+
+std::string field_symbol(analysis::SliceField field) {
+  if (unicode_font() == nullptr) return std::string(analysis::slice_field_name(field));
+  switch (field) {
+    case analysis::SliceField::VorticitySquared:
+      return "\u03c9\u00b2";  // ω²
+    case analysis::SliceField::SubfilterStressNorm:
+      return "|\u03c4_SFS|";  // |τ_SFS|
+    case analysis::SliceField::EddyViscosity:
+      return "\u03bd_t";  // ν_t
+  }
+  return std::string(analysis::slice_field_name(field));
+}
+
+std::string field_units(analysis::SliceField field) {
+  if (unicode_font() == nullptr) return std::string(analysis::slice_field_units(field));
+  switch (field) {
+    case analysis::SliceField::VorticitySquared:
+      return "s\u207b\u00b2";  // s⁻²
+    case analysis::SliceField::SubfilterStressNorm:
+      return "Pa";
+    case analysis::SliceField::EddyViscosity:
+      return "m\u00b2/s";  // m²/s
+  }
+  return std::string(analysis::slice_field_units(field));
+}
+
+std::string field_label(analysis::SliceField field) {
+  return field_symbol(field) + " [" + field_units(field) + "]";
+}
+
 vtkSmartPointer<vtkTextActor> make_text(int justification, int vertical_justification,
                                         int font_size) {
   auto text = vtkSmartPointer<vtkTextActor>::New();
   text->SetTextScaleModeToNone();
   text->GetPositionCoordinate()->SetCoordinateSystemToViewport();
   vtkTextProperty* property = text->GetTextProperty();
-  property->SetFontFamilyToArial();
+  set_font(property);
   property->SetFontSize(font_size);
   property->SetColor(0.0, 0.0, 0.0);
   property->SetJustification(justification);
@@ -61,7 +117,7 @@ ColourBar::ColourBar() {
   actor_->GetPosition2Coordinate()->SetCoordinateSystemToViewport();
   for (vtkTextProperty* property :
        {actor_->GetTitleTextProperty(), actor_->GetLabelTextProperty()}) {
-    property->SetFontFamilyToArial();
+    set_font(property);
     property->SetColor(0.0, 0.0, 0.0);
     property->SetBold(false);
     property->SetItalic(false);

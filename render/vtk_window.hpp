@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "analysis/config.hpp"
 #include "render/colour_map.hpp"
 #include "render/frame_timings.hpp"
 #include "render/offscreen_png_renderer.hpp"
@@ -45,7 +46,18 @@ double elapsed_ms(Clock::time_point since);
 /// "%.4g".
 std::string format_number(double value);
 
-/// Black Arial text at a viewport position (pixels), not scaled with the window.
+/// The pictures' font on a text property: DejaVu Sans when installed, else VTK's Arial.
+void set_font(vtkTextProperty* property);
+
+/// A field's name and units as the pictures print them, in the notation of the docs (UTF-8,
+/// drawn in DejaVu Sans): "ω² [s⁻²]", "|τ_SFS| [Pa]", "ν_t [m²/s]"; the ASCII names (omega2
+/// [1/s^2]) without that font. The files keep the ASCII names that scripts match.
+std::string field_label(analysis::SliceField field);
+/// The name alone: "ω²", "|τ_SFS|", "ν_t"; the units alone: "s⁻²", "Pa", "m²/s".
+std::string field_symbol(analysis::SliceField field);
+std::string field_units(analysis::SliceField field);
+
+/// Black text (set_font) at a viewport position (pixels), not scaled with the window.
 vtkSmartPointer<vtkTextActor> make_text(int justification, int vertical_justification,
                                         int font_size);
 /// Sets the text (only if it changed: a new text rebuilds its texture) and the position.

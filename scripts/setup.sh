@@ -9,11 +9,12 @@ packages=(
   build-essential cmake ninja-build pkg-config clang-format universal-ctags
   libeigen3-dev librandom123-dev libhdf5-dev libhdf5-openmpi-dev hdf5-tools libfftw3-dev libfftw3-mpi-dev
   libvtk9-dev libosmesa6-dev libopenmpi-dev openmpi-bin libpng-dev
+  libavcodec-dev libavformat-dev libavutil-dev libswscale-dev
   libboost-dev libboost-system-dev nlohmann-json3-dev libcli11-dev libspdlog-dev libvalijson-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   chromium chromium-driver
   python3 python3-matplotlib python3-h5py python3-websocket python3-pip python3-setuptools
-  paraview xvfb xauth qemu-user
+  paraview xvfb xauth qemu-user fonts-dejavu-core
 )
 
 missing=()

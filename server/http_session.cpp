@@ -129,12 +129,12 @@ void HttpSession::on_request() {
   // thread's handler): if even an error response cannot be made, the connection closes as the
   // last owner of the session goes.
   const bool read = request.method() == http::verb::get || request.method() == http::verb::head;
-  const bool bulk = read && server_.router.is_bulk(request);
+  const bool bulk = server_.router.is_bulk(request);
   std::shared_ptr<void> slot;
   if (bulk && !(slot = server_.bulk_reads.acquire(address_))) {
     Response busy = error_response(
         ApiError(429, std::to_string(server_.bulk_reads.per_address()) +
-                          " large reads (time series, files, logs) from " + address_ +
+                          " large reads (time series, files, logs, movies) from " + address_ +
                           " are in progress, the most one address may have at once; retry when "
                           "one has been answered"),
         request.version(), request.keep_alive());

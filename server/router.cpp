@@ -60,6 +60,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/runs/{id}/files/{name}", false, true}, get_file},
       {{V::get, "/api/runs/{id}/files/{dir}/{name}", false, true}, get_file},
       {{V::get, "/api/runs/{id}/archive", false, true}, get_archive},
+      {{V::post, "/api/runs/{id}/movies", true, true}, make_movie, true},
       {{V::get, "/api/runs/{id}/spectrum", false}, spectrum},
       {{V::get, "/api/runs/{id}/statistics", false}, statistics},
       {{V::get, "/api/runs/{id}/images/{field}", false}, latest_image},
@@ -217,9 +218,12 @@ bool Router::is_bulk(const Request& request) const {
   const std::optional<Target> target = split_target(request.target());
   const auto segments = target ? path_segments(target->path) : std::nullopt;
   if (!segments) return false;
+  const http::verb method =
+      request.method() == http::verb::head ? http::verb::get : request.method();
   std::vector<std::string> unused;
   for (const Route& r : route_table())
-    if (r.info.bulk && match(r.info.path, *segments, unused)) return true;
+    if (r.info.bulk && r.info.method == method && match(r.info.path, *segments, unused))
+      return true;
   return false;
 }
 

@@ -36,8 +36,8 @@ struct RouteInfo {
   boost::beast::http::verb method;
   std::string_view path;  // OpenAPI path template, e.g. "/api/runs/{id}/frames/{file}"
   bool mutating;          // needs the token when the server has one
-  /// A large read of a run's files, built on the bulk threads under a per-address bound
-  /// (ServerOptions::bulk_threads).
+  /// A large read of a run's files, or a movie encoded from them: made on the bulk threads
+  /// under a per-address bound (ServerOptions::bulk_threads), never on the run-control pool.
   bool bulk = false;
 };
 
@@ -58,7 +58,8 @@ class Router {
   /// Never throws: failures of run control become JSON errors, anything else a 500.
   Response handle(const Request& request) const;
 
-  /// Whether the request is a GET or HEAD of a bulk route (RouteInfo::bulk).
+  /// Whether the request is one of a bulk route (RouteInfo::bulk; HEAD as GET): the large
+  /// reads and the movies, which the bulk threads make.
   bool is_bulk(const Request& request) const;
 
   /// Every API route; each appears in server/openapi.json (tested).

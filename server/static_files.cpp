@@ -50,7 +50,7 @@ bool is_within(const fs::path& root, const fs::path& path) {
 }
 
 std::string_view mime_type(const fs::path& file) {
-  static constexpr std::array<std::pair<std::string_view, std::string_view>, 25> kTypes{{
+  static constexpr std::array<std::pair<std::string_view, std::string_view>, 26> kTypes{{
       {".html", "text/html; charset=utf-8"},
       {".htm", "text/html; charset=utf-8"},
       {".js", "text/javascript; charset=utf-8"},
@@ -75,6 +75,7 @@ std::string_view mime_type(const fs::path& file) {
       {".h5", "application/x-hdf5"},
       {".xdmf", "application/xml"},
       {".vti", "application/xml"},
+      {".webm", "video/webm"},
       {".pvd", "application/xml"},
       {".npy", "application/octet-stream"},
   }};

@@ -129,6 +129,9 @@ Response get_frame(const Services& s, const Context& c);
 Response list_files(const Services& s, const Context& c);
 Response get_file(const Services& s, const Context& c);
 Response get_archive(const Services& s, const Context& c);
+/// POST /api/runs/{id}/movies: the run's saved frames of a field as movies/FIELD.webm
+/// (render/movie.hpp), 201 with its path, url, frames, size and duration.
+Response make_movie(const Services& s, const Context& c);
 
 // --- references.cpp --------------------------------------------------------------------------
 

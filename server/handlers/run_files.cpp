@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "control/run_files.hpp"
+#include "render/movie.hpp"
 #include "server/handlers/handlers.hpp"
 #include "server/run_archive.hpp"
 
@@ -70,7 +71,75 @@ fs::path run_root(const control::Run& run) {
   return root;
 }
 
+/// The options of POST movies: {"field": one of the saved image series (default omega2),
+/// "fps": 0.1-120 (default 10), "quality": 0-63 (default 32)}; 400 naming the key otherwise.
+render::MovieOptions movie_request(const nlohmann::json& body, std::string& field) {
+  if (!body.is_object()) throw ApiError(400, "the body must be a JSON object", "(body)");
+  render::MovieOptions options;
+  field = "omega2";
+  for (const auto& [key, value] : body.items()) {
+    if (key == "field") {
+      static const std::vector<std::string> kFields{"omega2", "tau_sfs", "nu_t", "combined",
+                                                    "view3d"};
+      if (!value.is_string() ||
+          std::find(kFields.begin(), kFields.end(), value.get<std::string>()) == kFields.end())
+        throw ApiError(400, "'field' must be omega2, tau_sfs, nu_t, combined or view3d", "field");
+      field = value.get<std::string>();
+    } else if (key == "fps") {
+      if (!value.is_number() || !(value.get<double>() >= 0.1 && value.get<double>() <= 120.0))
+        throw ApiError(400, "'fps' must be a number from 0.1 to 120", "fps");
+      options.frames_per_second = value.get<double>();
+    } else if (key == "quality") {
+      if (!value.is_number_integer() || value.get<int>() < 0 || value.get<int>() > 63)
+        throw ApiError(400, "'quality' must be an integer from 0 (best) to 63 (smallest)",
+                       "quality");
+      options.quality = value.get<int>();
+    } else {
+      throw ApiError(400, "unknown key '" + key + "' (field, fps, quality)", key);
+    }
+  }
+  return options;
+}
+
 }  // namespace
+
+Response make_movie(const Services& s, const Context& c) {
+  const auto run = find_run(s, c.params[0]);
+  std::string field;
+  const render::MovieOptions options = movie_request(json_body(c.request), field);
+  const fs::path root = run_root(*run);
+  std::vector<fs::path> frames;
+  try {
+    frames = render::saved_frames(root, field);
+  } catch (const std::runtime_error& e) {
+    throw ApiError(404,
+                   "run '" + run->id() + "' has no saved frames of '" + field +
+                       "' to make a movie of (the scene's render section saves them)",
+                   "field");
+  }
+  const std::string relative = "movies/" + field + ".webm";
+  std::error_code ec;
+  fs::create_directories(root / "movies", ec);
+  render::MovieSummary made;
+  try {
+    made = render::write_movie(frames, root / relative, options);
+  } catch (const std::exception& e) {
+    throw ApiError(500, "the movie of run '" + run->id() + "' failed: " + e.what());
+  }
+  const std::string url = "/api/runs/" + run->id() + "/files/" + relative;
+  Response res = json_response(c.request,
+                               {{"path", relative},
+                                {"url", url},
+                                {"field", field},
+                                {"frames", made.frames},
+                                {"width", made.width},
+                                {"height", made.height},
+                                {"duration_seconds", made.duration_seconds},
+                                {"bytes", made.bytes}},
+                               boost::beast::http::status::created);
+  res.set(boost::beast::http::field::location, url);
+  return res;
+}
 
 Response latest_image(const Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);

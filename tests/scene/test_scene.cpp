@@ -586,5 +586,35 @@ TEST_F(CliTest, CalibrateFindsForcingForTargetUrms) {
   EXPECT_NE(r.output.find("--target-urms is required"), std::string::npos) << r.output;
 }
 
+TEST_F(CliTest, MovieEncodesTheSavedFramesAndNamesWhatIsMissing) {
+  const auto scene = write("rendered.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "kernel": {"diameter_over_spacing": 4}, "time": {"end": 0.1},
+      "packing": {"enabled": false},
+      "analysis": {"every": 0.025, "products": ["slices"], "slice": {"fields": ["omega2"]}},
+      "render": {"fields": ["omega2"], "width": 128, "height": 64}})");
+  const auto out = dir_ / "out";
+  ProcessResult r = run_sphles("run " + scene + " --out " + out.string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_sphles("movie " + out.string() + " --fps 4");
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("5 frames of omega2, 64x64 px, 1.2 s at 4 frames/s"), std::string::npos)
+      << r.output;
+  const auto video = out / "movies" / "omega2.webm";
+  ASSERT_TRUE(std::filesystem::exists(video));
+  std::ifstream in(video, std::ios::binary);
+  char magic[4] = {};
+  in.read(magic, 4);
+  EXPECT_EQ(std::string(magic, 4), std::string("\x1A\x45\xDF\xA3"));  // EBML (WebM)
+  r = run_sphles("movie " + out.string() + " --field tau_sfs");
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_NE(r.output.find("no saved frame of field 'tau_sfs'"), std::string::npos) << r.output;
+  r = run_sphles("movie " + (dir_ / "nothing").string());
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("is not a run directory"), std::string::npos) << r.output;
+  r = run_sphles("movie " + out.string() + " --fps 0");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--fps"), std::string::npos) << r.output;
+}
+
 }  // namespace
 }  // namespace sphles::sim

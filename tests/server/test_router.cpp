@@ -227,3 +227,18 @@ TEST_F(RouterTest, CreateThenGetARun) {
 }
 
 }  // namespace
+
+// The bulk threads take the large reads and the movies (their method and path), never a
+// request the control pool or the read pool answers.
+TEST_F(RouterTest, LargeReadsAndMoviesAreBulkRequests) {
+  const auto bulk = [&](http::verb method, const std::string& target) {
+    sphles::server::Request request{method, target, 11};
+    return router_->is_bulk(request);
+  };
+  EXPECT_TRUE(bulk(http::verb::get, "/api/runs/0001-a/timeseries?max_points=10"));
+  EXPECT_TRUE(bulk(http::verb::head, "/api/runs/0001-a/files/spectra/index.csv"));
+  EXPECT_TRUE(bulk(http::verb::post, "/api/runs/0001-a/movies"));
+  EXPECT_FALSE(bulk(http::verb::get, "/api/runs/0001-a/movies"));  // no such route: a 405
+  EXPECT_FALSE(bulk(http::verb::post, "/api/runs/0001-a/stop"));
+  EXPECT_FALSE(bulk(http::verb::get, "/api/runs/0001-a"));
+}

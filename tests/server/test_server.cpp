@@ -556,6 +556,40 @@ TEST(Server, ResolvedScalesAgainstTheReferenceRunOfTheFlow) {
   EXPECT_NE(none.body.find("sphles reference"), std::string::npos) << none.body;
 }
 
+// A run's saved frames as a video a browser plays (POST movies): movies/FIELD.webm of the run,
+// listed and downloaded as video/webm; bad options are 400s naming the key, a field without
+// saved frames a 404.
+TEST(Server, MakesAMovieOfTheSavedFrames) {
+  TestServer server(scratch("movie") / "data");
+  const Api api{server.port()};
+  const std::string id = api.create({{"scene", rendered_scene(0.3)}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
+  const std::string movies = "/api/runs/" + id + "/movies";
+  const Reply made = api.post(movies, {{"field", "omega2"}, {"fps", 5}});
+  ASSERT_EQ(made.status, 201) << made.body;
+  const json m = made.body_json();
+  EXPECT_EQ(m["path"], "movies/omega2.webm");
+  EXPECT_EQ(m["frames"], 7);  // t = 0, 0.05, ..., 0.3
+  EXPECT_EQ(m["width"], 64);  // a single field's frame is height x height
+  EXPECT_EQ(m["height"], 64);
+  EXPECT_DOUBLE_EQ(m["duration_seconds"].get<double>(), 1.4);
+  EXPECT_EQ(made.header("location"), m["url"]);
+  const Reply video = api.get(m["url"].get<std::string>());
+  ASSERT_EQ(video.status, 200);
+  EXPECT_EQ(video.header("content-type"), "video/webm");
+  EXPECT_EQ(video.body.size(), m["bytes"].get<std::size_t>());
+  EXPECT_EQ(video.body.substr(0, 4), std::string("\x1A\x45\xDF\xA3"));  // EBML (WebM) header
+  EXPECT_NE(video.body.find("webm"), std::string::npos);                // its DocType
+  EXPECT_NE(api.get("/api/runs/" + id + "/files").body.find("movies/omega2.webm"),
+            std::string::npos);
+  expect_error(api.post(movies, {{"fps", 0}}), 400, "fps");
+  expect_error(api.post(movies, {{"quality", 2.5}}), 400, "quality");
+  expect_error(api.post(movies, {{"speed", 2}}), 400, "speed");
+  expect_error(api.post(movies, {{"field", "pressure"}}), 400, "field");
+  expect_error(api.post(movies, {{"field", "tau_sfs"}}), 404, "field");  // rendered: omega2 only
+  expect_error(api.post("/api/runs/nope/movies", json::object()), 404);
+}
+
 // The analysis history: one row per analysis frame from stats/snapshots.csv, so that a page loaded
 // late (or after a restart) plots the dissipation estimates and |τ_SFS| of every frame, not only
 // those streamed since it connected.
