@@ -91,6 +91,12 @@ void add_serve_options(CLI::App& serve, ServeOptions& o) {
                   "compared with (default: data/reference/ of the source tree)")
       ->type_name("DIR")
       ->check(CLI::ExistingDirectory);
+  serve
+      .add_option("--scenes", o.server.scenes_dir,
+                  "scene files the dashboard's New run form offers beside the presets (default: "
+                  "scenes/ of the source tree)")
+      ->type_name("DIR")
+      ->check(CLI::ExistingDirectory);
   serve.add_option("--max-running", o.manager.max_running, "runs stepping at once")
       ->check(CLI::Range(1, 1024))
       ->capture_default_str();

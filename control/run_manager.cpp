@@ -467,24 +467,55 @@ void RunManager::shutdown() {
   references_->shutdown();  // the running reference stops after its step, with a checkpoint
 }
 
+namespace {
+
+/// A preset's or scene file's entry: what the form shows, and the whole scene as a run of the
+/// service would have it (the live defaults when it has no analysis and render sections).
+json scene_entry(const std::string& name, const json& document) {
+  const RunSpec spec = parse_run_spec(with_live_defaults(document));
+  const sim::Scene& s = spec.scene;
+  return {{"name", name},
+          {"case", sim::case_name(s.case_type)},
+          {"dimension", s.dimension()},
+          {"particles_per_side", s.particles_per_side},
+          {"kernel", sim::kernel_name(s.kernel)},
+          {"kernel_diameter_over_spacing", s.kernel_diameter_over_spacing},
+          {"subfilter_model", sim::subfilter_model_name(s.subfilter.model)},
+          {"end_time", s.end_time},
+          {"description", description(name, s)},
+          {"scene", run_spec_to_json(spec)}};
+}
+
+}  // namespace
+
 json RunManager::presets() {
   json list = json::array();
-  for (const std::string& name : scene::preset_names()) {
-    const sim::Scene s = scene::parse_scene({{"preset", name}});
-    json entry = {
-        {"name", name},
-        {"case", sim::case_name(s.case_type)},
-        {"dimension", s.dimension()},
-        {"particles_per_side", s.particles_per_side},
-        {"kernel", sim::kernel_name(s.kernel)},
-        {"kernel_diameter_over_spacing", s.kernel_diameter_over_spacing},
-        {"subfilter_model", sim::subfilter_model_name(s.subfilter.model)},
-        {"end_time", s.end_time},
-        {"description", description(name, s)},
-        {"scene", run_spec_to_json(parse_run_spec(with_live_defaults({{"preset", name}})))}};
-    list.push_back(std::move(entry));
-  }
+  for (const std::string& name : scene::preset_names())
+    list.push_back(scene_entry(name, {{"preset", name}}));
   return list;
+}
+
+json RunManager::scene_files(const std::filesystem::path& directory) {
+  std::vector<std::filesystem::path> files;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(directory, ec))
+    if (entry.path().extension() == ".json" && entry.is_regular_file(ec))
+      files.push_back(entry.path());
+  std::sort(files.begin(), files.end());
+  json scenes = json::array();
+  json skipped = json::array();
+  for (const auto& file : files) {
+    try {
+      const json document = scene::read_scene_file(file);
+      const std::string stem = file.stem().string();
+      json entry = scene_entry(document.value("name", stem), document);
+      entry["file"] = file.filename().string();
+      scenes.push_back(std::move(entry));
+    } catch (const std::exception& e) {
+      skipped.push_back({{"file", file.filename().string()}, {"error", e.what()}});
+    }
+  }
+  return {{"scenes", std::move(scenes)}, {"skipped", std::move(skipped)}};
 }
 
 }  // namespace sphles::control

@@ -137,6 +137,11 @@ class RunManager {
   /// "subfilter_model", "description", "scene": {...}}].
   static nlohmann::json presets();
 
+  /// The scene files (*.json) of `directory` (the source tree's scenes/), by file name, in the
+  /// presets' shape plus "file" (the file's name); a file that is no valid scene is left out
+  /// and named in "skipped": {"scenes": [...], "skipped": [{"file", "error"}]}.
+  static nlohmann::json scene_files(const std::filesystem::path& directory);
+
  private:
   class SlotObserver;
   /// The scheduler's wake-up, shared with the runs' observer so that a run's thread that reports

@@ -32,7 +32,9 @@ SessionContext::SessionContext(control::RunManager& manager, ServerOptions opts)
           manager, streams, products,
           RouterOptions{options.token, options.web_root, options.responses,
                         options.reference_dir.empty() ? std::filesystem::path(SPHLES_REFERENCE_DIR)
-                                                      : options.reference_dir}) {}
+                                                      : options.reference_dir,
+                        options.scenes_dir.empty() ? std::filesystem::path(SPHLES_SCENES_DIR)
+                                                   : options.scenes_dir}) {}
 
 HttpSession::HttpSession(tcp::socket&& socket, SessionContext& server)
     : stream_(std::move(socket)), executor_(stream_.get_executor()), server_(server) {}

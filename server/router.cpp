@@ -40,6 +40,7 @@ const std::vector<Route>& route_table() {
       {{V::get, "/api/openapi.json", false}, openapi},
       {{V::get, "/api/asyncapi.json", false}, asyncapi},
       {{V::get, "/api/presets", false}, presets},
+      {{V::get, "/api/scenes", false}, scene_files},
       {{V::get, "/api/schema/scene", false}, scene_schema},
       {{V::get, "/api/runs", false}, list_runs},
       {{V::post, "/api/runs", true}, create_run, true},
@@ -204,6 +205,7 @@ Router::Router(control::RunManager& manager, StreamRegistry& streams, ProductCac
                              options.token,
                              options.limits,
                              options.reference_dir,
+                             options.scenes_dir,
                              StaticFiles(options.web_root),
                              {},
                              {}}) {

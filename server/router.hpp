@@ -46,6 +46,7 @@ struct RouterOptions {
   std::filesystem::path web_root;
   ResponseLimits limits;                // bytes of one answer, rows of one history page
   std::filesystem::path reference_dir;  // data/reference: the DNS of GET reference
+  std::filesystem::path scenes_dir;     // scenes/: the scene files of GET scenes
 };
 
 class Router {

@@ -22,6 +22,8 @@ struct ServerOptions {
   std::filesystem::path web_root;     // static files; need not exist
   /// Reference data (data/reference/: the 3D TGV DNS); empty: the source tree's, as built.
   std::filesystem::path reference_dir;
+  /// Scene files the dashboard offers (GET /api/scenes); empty: the source tree's scenes/.
+  std::filesystem::path scenes_dir;
   int io_threads = 2;
   /// Requests are handled off the I/O threads: reads (GET, HEAD) on `worker_threads`, everything
   /// else on `control_threads`. Run-control calls may block for a while (a stop waits for the

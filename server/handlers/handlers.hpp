@@ -46,6 +46,7 @@ struct Services {
   std::string token;  // empty: no token needed
   ResponseLimits limits;
   std::filesystem::path reference_dir;  // data/reference: the DNS of GET reference
+  std::filesystem::path scenes_dir;     // scenes/: the scene files of GET scenes
   StaticFiles web;
   std::string presets;  // RunManager::presets(), serialised once
   mutable SeriesIndexCache series;
@@ -84,6 +85,8 @@ Response openapi(const Services& s, const Context& c);
 Response asyncapi(const Services& s, const Context& c);
 Response scene_schema(const Services& s, const Context& c);
 Response presets(const Services& s, const Context& c);
+/// GET /api/scenes: the scene files of the scenes directory, read at each request.
+Response scene_files(const Services& s, const Context& c);
 /// A file of web/ for a path outside /api (GET and HEAD only, else 405 with Allow).
 Response serve_static(const Services& s, const Request& request, std::string_view path);
 

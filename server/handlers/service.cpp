@@ -1,6 +1,6 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 // The service itself (docs/api.md "Routes"): health, the API's own documents, the scene schema,
-// the presets, and the dashboard's files from web/ for every path outside /api.
+// the presets and scene files, and the dashboard's files from web/ for every path outside /api.
 #include <optional>
 #include <utility>
 
@@ -34,6 +34,10 @@ Response presets(const Services& s, const Context& c) {
   if (!s.presets.empty())
     return make_response(c.request, http::status::ok, s.presets, "application/json");
   return json_response(c.request, control::RunManager::presets());
+}
+
+Response scene_files(const Services& s, const Context& c) {
+  return json_response(c.request, control::RunManager::scene_files(s.scenes_dir));
 }
 
 Response serve_static(const Services& s, const Request& request, std::string_view path) {

@@ -5,6 +5,8 @@
 #include "control/scene_schema.hpp"
 #include "server_test_support.hpp"
 
+#include <set>
+
 namespace {
 
 using namespace sphles_server_test;
@@ -127,6 +129,46 @@ TEST(Server, ListsPresets) {
     kolmogorov |= p["name"] == "kolmogorov2d";
   }
   EXPECT_TRUE(kolmogorov);
+}
+
+// The scene files the form offers beside the presets (GET /api/scenes): every file of the
+// shipped scenes/ is a valid scene; a directory's files by name, each ready to create a run,
+// one that is no scene named with its error.
+TEST(Server, ListsSceneFiles) {
+  {
+    TestServer shipped(scratch("scenes_shipped") / "data");
+    const json listed = Api{shipped.port()}.get("/api/scenes").body_json();
+    EXPECT_TRUE(listed["skipped"].empty()) << listed["skipped"];
+    std::set<std::string> files;
+    for (const json& e : listed["scenes"]) files.insert(e["file"].get<std::string>());
+    EXPECT_TRUE(files.contains("tgv3d-accurate.json") && files.contains("tgv2d-peers.json") &&
+                files.contains("kolmogorov2d-reduced.json"))
+        << listed;
+  }
+  const fs::path dir = scratch("scenes_own");
+  fs::create_directories(dir / "scenes");
+  std::ofstream(dir / "scenes" / "b-small.json") << tiny_scene(0.1, "small").dump();
+  std::ofstream(dir / "scenes" / "a-broken.json")
+      << R"({"case": "tgv2d", "particles_per_side": 1})";
+  std::ofstream(dir / "scenes" / "notes.txt") << "not a scene";
+  TestServer server(dir / "data", "", 2, [&](ServerOptions& o) { o.scenes_dir = dir / "scenes"; });
+  const Api api{server.port()};
+  const Reply r = api.get("/api/scenes");
+  ASSERT_EQ(r.status, 200) << r.body;
+  const json listed = r.body_json();
+  ASSERT_EQ(listed["scenes"].size(), 1u) << listed;
+  const json& small = listed["scenes"][0];
+  EXPECT_EQ(small["file"], "b-small.json");
+  EXPECT_EQ(small["name"], "small");
+  EXPECT_EQ(small["particles_per_side"], 16);
+  EXPECT_EQ(small["scene"]["time"]["end"], 0.1);
+  ASSERT_EQ(listed["skipped"].size(), 1u);
+  EXPECT_EQ(listed["skipped"][0]["file"], "a-broken.json");
+  EXPECT_NE(listed["skipped"][0]["error"].get<std::string>().find("particles_per_side"),
+            std::string::npos)
+      << listed;
+  const std::string id = api.create({{"scene", small["scene"]}});
+  ASSERT_TRUE(wait_until([&] { return api.run(id)["state"] == "finished"; }));
 }
 
 TEST(Server, CreateListGetRun) {
