@@ -133,7 +133,7 @@ void RenderSink::render_one(const analysis::AnalysisFrame& frame) {
     ++counters_.frames_skipped;
     return;
   }
-  const bool view3d_due = config.view3d.enabled && frame.particles && frame.particles->view &&
+  const bool view3d_due = config.view3d.enabled && render::has_view3d_input(frame, config.view3d) &&
                           (last_view3d_time_ < 0.0 ||
                            frame.time >= last_view3d_time_ + config.view3d.every * (1.0 - 1e-9));
   if (view3d_due) last_view3d_time_ = frame.time;

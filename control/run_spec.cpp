@@ -30,6 +30,11 @@ RunSpec parse_run_spec(const json& input) {
   spec.analysis = std::move(run.analysis);
   spec.render = render::parse_render_config(has_render ? &render_section : nullptr, spec.analysis);
   spec.reference = spectral::parse_reference_config(document);
+  if (spec.render.view3d.enabled && spec.render.view3d.kind == render::View3dKind::Isosurface &&
+      spec.scene.dimension() != 3)
+    sim::throw_scene_error("render.view3d.kind",
+                           "is isosurface, which needs a 3D case; a 2D case draws its "
+                           "particles (kind \"particles\") or its slices");
   // The readers are the document's one validation: every key, type, bound, name and array rule
   // of the schema, with their own messages (SceneSchema.TheReadersEnforceEveryKeywordOfTheSchema
   // walks the schema to check it).

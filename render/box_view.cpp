@@ -32,6 +32,15 @@ View make_view(bool two_dimensional) {
 
 }  // namespace
 
+ImageRect box_view_rect(int width, int height) {
+  ImageRect rect;
+  rect.x = kBoxMarginLeft;
+  rect.y = kBoxMarginBottom;
+  rect.width = std::max(1, width - kBoxMarginLeft - kBoxMarginRight);
+  rect.height = std::max(1, height - kBoxMarginTop - kBoxMarginBottom);
+  return rect;
+}
+
 std::array<double, 2> Layout::project(const Vec3& p) const {
   return {0.5 * rect.width + pixels_per_length * dot(p, view.right),
           0.5 * rect.height + pixels_per_length * dot(p, view.up)};
@@ -39,7 +48,7 @@ std::array<double, 2> Layout::project(const Vec3& p) const {
 
 Layout make_layout(int width, int height, bool two_dimensional) {
   Layout layout;
-  layout.rect = particle_view_rect(width, height);
+  layout.rect = box_view_rect(width, height);
   layout.view = make_view(two_dimensional);
   layout.two_dimensional = two_dimensional;
   // Half extents of the projected box (unit side, centred), over its corners.
@@ -83,7 +92,7 @@ void EdgeLabel::place(const std::string& text, const Layout& layout, const Vec3&
 }
 
 void set_scene_viewport(vtkRenderer* scene, int width, int height) {
-  const ImageRect rect = particle_view_rect(width, height);
+  const ImageRect rect = box_view_rect(width, height);
   scene->SetViewport(static_cast<double>(rect.x) / width, static_cast<double>(rect.y) / height,
                      static_cast<double>(rect.x + rect.width) / width,
                      static_cast<double>(rect.y + rect.height) / height);

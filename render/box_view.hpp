@@ -47,8 +47,11 @@ struct Layout {
   std::array<double, 2> project(const Vec3& p) const;
 };
 
+/// The view rectangle of a frame (render::particle_view_rect): the margins above removed.
+ImageRect box_view_rect(int width, int height);
+
 /// 3D boxes seen from azimuth 30° (about z, from the -y side) and elevation 20° with z up;
-/// 2D boxes from above (x right, y up); the box fitted inside particle_view_rect.
+/// 2D boxes from above (x right, y up); the box fitted inside box_view_rect.
 Layout make_layout(int width, int height, bool two_dimensional);
 
 // An edge label: text anchored beyond the middle of an edge, away from the centre.

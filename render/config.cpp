@@ -68,11 +68,15 @@ void render_keys(IO& io, C& c) {
   colour_keys(io, c.colour);
   IO view = io.object("view3d");
   view.boolean("enabled", c.view3d.enabled);
+  view.choice("kind", kView3dKindNames, c.view3d.kind);
   view.choice("field", analysis::kSliceFieldNames, c.view3d.field);
   view.number("every", c.view3d.every);
   view.integer("width", c.view3d.width);
   view.integer("height", c.view3d.height);
   view.integer("max_points", c.view3d.max_points);
+  view.number("quantile", c.view3d.quantile);
+  view.optional_number("level", c.view3d.level);
+  view.boolean("slice_plane", c.view3d.slice_plane);
   mapping_keys(view.object("colour"), c.view3d.colour);
   view.finish();
   io.finish();
@@ -109,8 +113,19 @@ RenderConfig parse_render_config(const json* section, const analysis::AnalysisCo
                               name + " to 'analysis.slice.fields'");
     }
   const View3dConfig& view = c.view3d;
-  if (view.enabled && (!analysis.wants(analysis::Product::Particles) ||
-                       !analysis.particle_fields.contains(view.field))) {
+  const bool isosurface = view.kind == View3dKind::Isosurface;
+  if (view.enabled && isosurface &&
+      (!analysis.wants(analysis::Product::Fields) || !analysis.grid_fields.contains(view.field))) {
+    const std::string field(analysis::slice_field_name(view.field));
+    throw_scene_error("render.view3d",
+                      "draws the iso-surface of " + field +
+                          " on the analysis grid, which the analysis does not compute: add "
+                          "\"fields\" to 'analysis.products' and " +
+                          field + " to 'analysis.grid_fields'");
+  }
+  if (view.enabled && !isosurface &&
+      (!analysis.wants(analysis::Product::Particles) ||
+       !analysis.particle_fields.contains(view.field))) {
     const std::string field(analysis::slice_field_name(view.field));
     throw_scene_error("render.view3d", "shows " + field +
                                            " per particle, which the analysis does not "

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <set>
 
 #include "analysis/config.hpp"
@@ -20,9 +21,16 @@ inline ColourMapping log_mapping() {
   return mapping;
 }
 
-/// A 3D view of the particles coloured by a per-particle field, at a lower cadence than slices.
+/// What a 3D view draws: the particles coloured by a per-particle field, or the iso-surface of
+/// a gridded field (the analysis' "fields" product).
+enum class View3dKind { Particles, Isosurface };
+inline constexpr sim::NameTable<View3dKind, 2> kView3dKindNames{
+    {{{View3dKind::Particles, "particles"}, {View3dKind::Isosurface, "isosurface"}}}};
+
+/// A 3D view at a lower cadence than slices.
 struct View3dConfig {
   bool enabled = false;
+  View3dKind kind = View3dKind::Particles;
   analysis::SliceField field = analysis::SliceField::VorticitySquared;
   double every = 0.0;  // simulated time between 3D views [s]; 0 = with every analysis frame
   int width = 800, height = 800;
@@ -30,6 +38,11 @@ struct View3dConfig {
   /// At most this many particles are drawn: every k-th by id, k = ceil(N / max_points)
   /// (analysis::view_stride); only those are sent from the ranks of a distributed run.
   std::int64_t max_points = 1'000'000;
+  /// Iso-surfaces: the level as a quantile of the field's grid values, or a value [the field's
+  /// units] when given; and whether the slice plane (analysis.slice) is drawn.
+  double quantile = 0.9;
+  std::optional<double> level;
+  bool slice_plane = true;
 };
 
 struct RenderConfig {

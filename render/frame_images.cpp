@@ -4,6 +4,7 @@
 
 #include <chrono>
 
+#include "render/isosurface.hpp"
 #include "render/view3d.hpp"
 
 namespace sphles::render {
@@ -13,7 +14,50 @@ using Clock = std::chrono::steady_clock;
 double elapsed_ms(Clock::time_point since) {
   return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
 }
+const analysis::GridScalarField* grid_field(const analysis::AnalysisFrame& frame,
+                                            analysis::SliceField field) {
+  if (!frame.fields || frame.dimension != 3) return nullptr;
+  for (const analysis::GridScalarField& f : frame.fields->scalars)
+    if (f.field == field) return &f;
+  return nullptr;
+}
+
+/// The particles (at most render.view3d.max_points, selected by id where the particles live:
+/// analysis::ViewPoints) or the field's iso-surface on the analysis grid.
+std::vector<unsigned char> render_view3d(const analysis::AnalysisFrame& frame,
+                                         const View3dConfig& view, const FrameLabels& labels) {
+  if (view.kind == View3dKind::Isosurface) {
+    IsoField field;
+    field.grid = frame.fields->grid;
+    field.values = grid_field(frame, view.field)->values;
+    field.field_name = detail::field_symbol(view.field);
+    field.units = detail::field_units(view.field);
+    if (view.slice_plane && !frame.slices.empty()) {
+      field.plane_axis = frame.slices.front().normal_axis;
+      field.plane_position = frame.slices.front().position;
+    }
+    return render_isosurface_png(field, view.colour, {view.quantile, view.level}, labels,
+                                 view.width, view.height);
+  }
+  const analysis::ViewPoints& points = *frame.particles->view;
+  ParticleCloud cloud;
+  cloud.x = points.position[0];
+  cloud.y = points.position[1];
+  if (frame.dimension == 3) cloud.z = points.position[2];
+  cloud.values = points.values;
+  cloud.box_length = frame.particles->snapshot->box.length[0];
+  cloud.field_name = detail::field_symbol(points.field);
+  cloud.units = detail::field_units(points.field);
+  return render_particles_png(cloud, view.colour, labels, view.width, view.height);
+}
+
 }  // namespace
+
+bool has_view3d_input(const analysis::AnalysisFrame& frame, const View3dConfig& view) {
+  if (view.kind == View3dKind::Isosurface) return grid_field(frame, view.field) != nullptr;
+  return frame.particles && frame.particles->view && frame.particles->view->field == view.field &&
+         frame.particles->snapshot;
+}
 
 std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame,
                                             const RenderConfig& config,
@@ -45,22 +89,9 @@ std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame
     image.milliseconds = elapsed_ms(start);
     images.push_back(std::move(image));
   }
-  // The view's points (at most render.view3d.max_points, selected by id where the particles
-  // live: analysis::ViewPoints).
-  if (include_view3d && config.view3d.enabled && frame.particles && frame.particles->view &&
-      frame.particles->view->field == config.view3d.field && frame.particles->snapshot) {
-    const analysis::ViewPoints& view = *frame.particles->view;
+  if (include_view3d && config.view3d.enabled && has_view3d_input(frame, config.view3d)) {
     const auto start = Clock::now();
-    ParticleCloud cloud;
-    cloud.x = view.position[0];
-    cloud.y = view.position[1];
-    if (frame.dimension == 3) cloud.z = view.position[2];
-    cloud.values = view.values;
-    cloud.box_length = frame.particles->snapshot->box.length[0];
-    cloud.field_name = detail::field_symbol(view.field);
-    cloud.units = detail::field_units(view.field);
-    FrameImage image{"view3d", render_particles_png(cloud, config.view3d.colour, labels,
-                                                    config.view3d.width, config.view3d.height)};
+    FrameImage image{"view3d", render_view3d(frame, config.view3d, labels)};
     image.milliseconds = elapsed_ms(start);
     images.push_back(std::move(image));
   }

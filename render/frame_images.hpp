@@ -17,9 +17,13 @@ struct FrameImage {
   double milliseconds = 0.0;  // wall time to render and encode
 };
 
+/// Whether `frame` holds what the 3D view draws: the particles' view points of its field, or
+/// its field on the analysis grid (an iso-surface).
+bool has_view3d_input(const analysis::AnalysisFrame& frame, const View3dConfig& view);
+
 /// Renders the slices of `frame` that `config` asks for (in the order omega2, tau_sfs, nu_t,
-/// combined) and, with `include_view3d`, the 3D particle view. A requested slice missing from
-/// the frame is skipped (the analysis had it switched off at that time).
+/// combined) and, with `include_view3d`, the 3D view (particles or iso-surface). A requested slice
+/// missing from the frame is skipped (the analysis had it switched off at that time).
 std::vector<FrameImage> render_frame_images(const analysis::AnalysisFrame& frame,
                                             const RenderConfig& config,
                                             const std::string& case_name, bool include_view3d);

@@ -62,8 +62,8 @@ double iso_value(std::span<const double> values, const IsoLevel& level) {
   for (const double v : values)
     if (std::isfinite(v)) finite.push_back(v);
   if (finite.empty()) return std::nan("");
-  const auto rank = static_cast<std::size_t>(
-      std::clamp(level.quantile, 0.0, 1.0) * static_cast<double>(finite.size() - 1));
+  const auto rank = static_cast<std::size_t>(std::clamp(level.quantile, 0.0, 1.0) *
+                                             static_cast<double>(finite.size() - 1));
   std::nth_element(finite.begin(), finite.begin() + static_cast<std::ptrdiff_t>(rank),
                    finite.end());
   return finite[rank];
@@ -154,8 +154,7 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
     double* out = nodes->GetPointer(0);
     for (int k = 0; k < n; ++k)
       for (int j = 0; j < n; ++j)
-        for (int i = 0; i < n; ++i)
-          *out++ = field.values[field.grid.index(i % m, j % m, k % m)];
+        for (int i = 0; i < n; ++i) *out++ = field.values[field.grid.index(i % m, j % m, k % m)];
     nodes->Modified();
     image->Modified();
   }
@@ -194,8 +193,8 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
     detail::place_axis_labels(axis_labels, layout);
 
     const ImageRect& rect = layout.rect;
-    const std::string name = field.units.empty() ? field.field_name
-                                                 : field.field_name + " [" + field.units + "]";
+    const std::string name =
+        field.units.empty() ? field.field_name : field.field_name + " [" + field.units + "]";
     bar.update(range, log_scale, name, rect.x + rect.width + kBoxBarGap, rect.y + kLabelRoomY,
                kBoxBarWidth, rect.height - 2 * kLabelRoomY);
     const int m = field.grid.points_per_side;

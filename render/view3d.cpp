@@ -9,7 +9,6 @@
 #include "render/view3d.hpp"
 
 #include <vtkActor.h>
-#include <vtkCamera.h>
 #include <vtkCellArray.h>
 #include <vtkFloatArray.h>
 #include <vtkIdTypeArray.h>
@@ -25,9 +24,9 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <numbers>
 #include <stdexcept>
 
+#include "render/box_view.hpp"
 #include "render/vtk_window.hpp"
 
 namespace sphles::render {
@@ -43,82 +42,16 @@ using detail::make_text;
 using detail::set_text;
 using detail::vtk_scene_mutex;
 
-// Frame layout [px]: title above the view rectangle, colour bar to its right; the box is fitted
-// kLabelRoomX / kLabelRoomY inside the rectangle, leaving room for the axis labels around it.
-constexpr int kMarginTop = 56;
-constexpr int kMarginBottom = 12;
-constexpr int kMarginLeft = 12;
-constexpr int kMarginRight = 130;
-constexpr int kBarGap = 14;
-constexpr int kBarWidth = 110;
-constexpr int kLabelRoomX = 60;  // "z [m]" beside a vertical edge
-constexpr int kLabelRoomY = 36;
-constexpr double kLabelOffset = 16.0;  // label anchor beyond its edge [px]
+using detail::EdgeLabel;
+using detail::kBoxBarGap;
+using detail::kBoxBarWidth;
+using detail::kLabelRoomY;
+using detail::kOutlineColour;
+using detail::Layout;
+using detail::make_layout;
+using detail::Vec3;
 
-constexpr double kAzimuthDegrees = 30.0;
-constexpr double kElevationDegrees = 20.0;
-constexpr std::array<double, 3> kOutlineColour = {0.3, 0.3, 0.3};
 constexpr int kMinPointSize = 2, kMaxPointSize = 4;
-
-using Vec3 = std::array<double, 3>;
-
-double dot(const Vec3& a, const Vec3& b) {
-  return a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-}
-
-// Unit vectors of the fixed camera: from the focal point to the camera, and screen right and up.
-struct View {
-  Vec3 direction, right, up;
-};
-
-View make_view(bool two_dimensional) {
-  if (two_dimensional) return {{0.0, 0.0, 1.0}, {1.0, 0.0, 0.0}, {0.0, 1.0, 0.0}};
-  const double azimuth = kAzimuthDegrees * std::numbers::pi / 180.0;
-  const double elevation = kElevationDegrees * std::numbers::pi / 180.0;
-  const double ca = std::cos(azimuth), sa = std::sin(azimuth);
-  const double ce = std::cos(elevation), se = std::sin(elevation);
-  // Azimuth 0 looks along +y from the -y side with z up; positive azimuth moves the camera
-  // towards +x. right = z x direction, up = direction x right.
-  return {{sa * ce, -ca * ce, se}, {ca, sa, 0.0}, {-sa * se, ca * se, ce}};
-}
-
-// Where the box lands on screen: the view rectangle, the scale and the screen projection.
-struct Layout {
-  ImageRect rect;
-  View view;
-  bool two_dimensional = false;
-  double pixels_per_length = 1.0;  // screen pixels per box length L
-
-  // Pixel position in the view rectangle of the point p (in units of L, relative to the box
-  // centre).
-  std::array<double, 2> project(const Vec3& p) const {
-    return {0.5 * rect.width + pixels_per_length * dot(p, view.right),
-            0.5 * rect.height + pixels_per_length * dot(p, view.up)};
-  }
-};
-
-Layout make_layout(int width, int height, bool two_dimensional) {
-  Layout layout;
-  layout.rect = particle_view_rect(width, height);
-  layout.view = make_view(two_dimensional);
-  layout.two_dimensional = two_dimensional;
-  // Half extents of the projected box (unit side, centred), over its corners.
-  double half_u = 0.0, half_v = 0.0;
-  const double half_z = two_dimensional ? 0.0 : 0.5;
-  for (const double cx : {-0.5, 0.5}) {
-    for (const double cy : {-0.5, 0.5}) {
-      for (const double cz : {-half_z, half_z}) {
-        const Vec3 corner{cx, cy, cz};
-        half_u = std::max(half_u, std::abs(dot(corner, layout.view.right)));
-        half_v = std::max(half_v, std::abs(dot(corner, layout.view.up)));
-      }
-    }
-  }
-  const double inner_width = std::max(1, layout.rect.width - 2 * kLabelRoomX);
-  const double inner_height = std::max(1, layout.rect.height - 2 * kLabelRoomY);
-  layout.pixels_per_length = std::min(inner_width / (2.0 * half_u), inner_height / (2.0 * half_v));
-  return layout;
-}
 
 // Screen area of the projected box [px^2]: a unit cube covers |d_x| + |d_y| + |d_z| in the
 // plane normal to the view direction d, a unit square in the plane z = 0 covers |d_z|.
@@ -136,32 +69,6 @@ int point_size(std::size_t particle_count, const Layout& layout) {
   return std::clamp(static_cast<int>(std::lround(spacing)), kMinPointSize, kMaxPointSize);
 }
 
-// An edge label: text anchored kLabelOffset beyond the middle of an edge, away from the centre.
-struct EdgeLabel {
-  vtkSmartPointer<vtkTextActor> actor = make_text(VTK_TEXT_CENTERED, VTK_TEXT_CENTERED, kFontSize);
-
-  void place(const std::string& text, const Layout& layout, const Vec3& from, const Vec3& to) {
-    const Vec3 middle{0.5 * (from[0] + to[0]), 0.5 * (from[1] + to[1]), 0.5 * (from[2] + to[2])};
-    const auto anchor = layout.project(middle);
-    const auto centre = layout.project({0.0, 0.0, 0.0});
-    double out_x = anchor[0] - centre[0], out_y = anchor[1] - centre[1];
-    const double norm = std::hypot(out_x, out_y);
-    if (norm > 0.0) {
-      out_x /= norm;
-      out_y /= norm;
-    }
-    vtkTextProperty* property = actor->GetTextProperty();
-    property->SetJustification(out_x > 0.5    ? VTK_TEXT_LEFT
-                               : out_x < -0.5 ? VTK_TEXT_RIGHT
-                                              : VTK_TEXT_CENTERED);
-    property->SetVerticalJustification(out_y > 0.5    ? VTK_TEXT_BOTTOM
-                                       : out_y < -0.5 ? VTK_TEXT_TOP
-                                                      : VTK_TEXT_CENTERED);
-    set_text(actor, text, std::round(anchor[0] + kLabelOffset * out_x),
-             std::round(anchor[1] + kLabelOffset * out_y));
-  }
-};
-
 void validate(const ParticleCloud& cloud) {
   const std::size_t count = cloud.values.size();
   if (cloud.x.size() != count || cloud.y.size() != count ||
@@ -178,12 +85,7 @@ void validate(const ParticleCloud& cloud) {
 }  // namespace
 
 ImageRect particle_view_rect(int width, int height) {
-  ImageRect rect;
-  rect.x = kMarginLeft;
-  rect.y = kMarginBottom;
-  rect.width = std::max(1, width - kMarginLeft - kMarginRight);
-  rect.height = std::max(1, height - kMarginTop - kMarginBottom);
-  return rect;
+  return detail::box_view_rect(width, height);
 }
 
 int particle_point_size(std::size_t particle_count, int width, int height, bool two_dimensional) {
@@ -218,11 +120,7 @@ struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
     frame->AddActor2D(title);
     frame->AddActor2D(bar.actor());
 
-    const ImageRect rect = particle_view_rect(width, height);
-    scene->SetViewport(static_cast<double>(rect.x) / width, static_cast<double>(rect.y) / height,
-                       static_cast<double>(rect.x + rect.width) / width,
-                       static_cast<double>(rect.y + rect.height) / height);
-    scene->SetBackground(1.0, 1.0, 1.0);
+    detail::set_scene_viewport(scene, width, height);
     scene->AutomaticLightCreationOff();
 
     points->SetDataTypeToFloat();
@@ -303,37 +201,14 @@ struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
 
     outline->SetBounds(0.0, length, 0.0, length, 0.0, two_dimensional ? 0.0 : length);
 
-    // Camera: parallel projection, the box centre at the middle of the view rectangle.
-    const Vec3 centre{0.5 * length, 0.5 * length, two_dimensional ? 0.0 : 0.5 * length};
-    const double distance = 4.0 * length;
-    const View& view = layout.view;
-    vtkCamera* camera = scene->GetActiveCamera();
-    camera->ParallelProjectionOn();
-    camera->SetFocalPoint(centre[0], centre[1], centre[2]);
-    camera->SetPosition(centre[0] + distance * view.direction[0],
-                        centre[1] + distance * view.direction[1],
-                        centre[2] + distance * view.direction[2]);
-    camera->SetViewUp(view.up[0], view.up[1], view.up[2]);
-    camera->SetParallelScale(0.5 * layout.rect.height / layout.pixels_per_length * length);
-    camera->SetClippingRange(distance - length, distance + length);
-
-    // Axis names beside three silhouette edges (in units of L, relative to the box centre).
-    if (two_dimensional) {
-      axis_labels[0].place("x [m]", layout, {-0.5, -0.5, 0.0}, {0.5, -0.5, 0.0});
-      axis_labels[1].place("y [m]", layout, {-0.5, -0.5, 0.0}, {-0.5, 0.5, 0.0});
-      axis_labels[2].actor->VisibilityOff();
-    } else {
-      axis_labels[0].place("x [m]", layout, {-0.5, -0.5, -0.5}, {0.5, -0.5, -0.5});
-      axis_labels[1].place("y [m]", layout, {0.5, -0.5, -0.5}, {0.5, 0.5, -0.5});
-      axis_labels[2].place("z [m]", layout, {-0.5, -0.5, -0.5}, {-0.5, -0.5, 0.5});
-      axis_labels[2].actor->VisibilityOn();
-    }
+    detail::place_camera(scene, layout, length);
+    detail::place_axis_labels(axis_labels, layout);
 
     const ImageRect& rect = layout.rect;
     const std::string bar_title =
         input.units.empty() ? input.field_name : input.field_name + " [" + input.units + "]";
-    bar.update(range, log_scale, bar_title, rect.x + rect.width + kBarGap, rect.y + kLabelRoomY,
-               kBarWidth, rect.height - 2 * kLabelRoomY);
+    bar.update(range, log_scale, bar_title, rect.x + rect.width + kBoxBarGap, rect.y + kLabelRoomY,
+               kBoxBarWidth, rect.height - 2 * kLabelRoomY);
     const std::string title_text = labels.case_name + "   t = " + format_number(labels.time) +
                                    " s   step " + std::to_string(labels.step) + "\n" +
                                    input.field_name + " on " + std::to_string(count) +

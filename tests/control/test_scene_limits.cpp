@@ -91,6 +91,19 @@ TEST(SceneLimits, ExtremeRequestsAreRefusedNamingTheField) {
       {"8192 px 3D view",
        {{"preset", "tgv3d"}, {"render", {{"view3d", {{"height", 8192}}}}}},
        "'render.view3d.height' must be in [64, 4096], got 8192"},
+      {"iso-surface of a field the analysis does not grid",
+       {{"preset", "tgv3d"}, {"render", {{"view3d", {{"enabled", true}, {"kind", "isosurface"}}}}}},
+       "'render.view3d' draws the iso-surface of omega2 on the analysis grid, which the analysis "
+       "does not compute: add \"fields\" to 'analysis.products' and omega2 to "
+       "'analysis.grid_fields'"},
+      {"iso-surface of a 2D case",
+       {{"preset", "tgv2d"},
+        {"analysis", {{"every", 0.5}, {"products", {"fields"}}, {"grid_fields", {"omega2"}}}},
+        {"render", {{"view3d", {{"enabled", true}, {"kind", "isosurface"}}}}}},
+       "'render.view3d.kind' is isosurface, which needs a 3D case"},
+      {"iso-surface quantile 1",
+       {{"preset", "tgv3d"}, {"render", {{"view3d", {{"quantile", 1.0}}}}}},
+       "'render.view3d.quantile' must be in [0.01, 0.9999], got 1"},
   };
   for (const Refused& c : cases) {
     const std::string error = error_of(c.document);
@@ -213,8 +226,9 @@ TEST(SceneLimits, CadenceBoundFollowsTheTimeStepAndThePointsToTheEnd) {
   const json with_products = analysed(base, {{"every", 1.0}, {"products", kProducts}});
   expect_bound(with_products, "analysis.every", minimum, std::nextafter(minimum, 0.0),
                "analysis.every");
-  // Without products there are no snapshots, and no step is cut short.
-  EXPECT_EQ(error_of(analysed(base, {{"every", 1e-9}})), "");
+  // Without products there are no snapshots, and no step is cut short (the preset's products
+  // are the base of the scene's analysis section: emptied here).
+  EXPECT_EQ(error_of(analysed(base, {{"every", 1e-9}, {"products", json::array()}})), "");
 
   // Short run: at most kMaxShortCadencePoints cut steps are accepted (the run manager's live
   // analysis default is 60 frames per run, whatever its length).

@@ -31,8 +31,8 @@ std::vector<double> distance_squared() {
   for (int k = 0; k < kNodes; ++k)
     for (int j = 0; j < kNodes; ++j)
       for (int i = 0; i < kNodes; ++i)
-        values[grid.index(i, j, k)] = std::pow(i * h - c, 2) + std::pow(j * h - c, 2) +
-                                      std::pow(k * h - c, 2);
+        values[grid.index(i, j, k)] =
+            std::pow(i * h - c, 2) + std::pow(j * h - c, 2) + std::pow(k * h - c, 2);
   return values;
 }
 
@@ -66,8 +66,8 @@ TEST(IsoSurface, ASpheresDrawnAreaGrowsAsItsRadiusSquared) {
   for (const double radius : {0.15, 0.3}) {
     IsoLevel level;
     level.value = radius * radius;
-    const auto png = sphles::render::render_isosurface_png(field, linear, level,
-                                                          {"sphere", 1.0, 10}, 400, 400);
+    const auto png =
+        sphles::render::render_isosurface_png(field, linear, level, {"sphere", 1.0, 10}, 400, 400);
     areas.push_back(surface_pixels(png, 400 - 130));
   }
   ASSERT_GT(areas[0], 100) << "the small sphere is drawn";
