@@ -171,6 +171,8 @@ const runPath = (id) => `/api/runs/${encodeURIComponent(id)}`;
 export const api = {
   health: () => call('get', '/api/health'),
   presets: () => call('get', '/api/presets'),
+  /** The scene files the server offers beside the presets: {scenes: [...], skipped: [...]}. */
+  scenes: () => call('get', '/api/scenes'),
   sceneSchema: () => call('get', '/api/schema/scene'),
   /** The run list (polled every few seconds): abandoned after 4 s, so that the next poll runs. */
   runs: () => call('get', '/api/runs', { timeoutMs: 4000 }),
@@ -202,6 +204,22 @@ export const api = {
    * @param {string} id
    */
   files: (id) => call('get', '/api/runs/{id}/files', ofRun(id)),
+  /**
+   * The run's saved frames of a field as a WebM video (movies/FIELD.webm): {path, url, frames, …}.
+   * Encoding takes seconds on the server: no timeout.
+   * @param {string} id
+   * @param {Body<'/api/runs/{id}/movies', 'post'>} body
+   */
+  movie: (id, body) => call('post', '/api/runs/{id}/movies', { ...ofRun(id), body }),
+  /**
+   * A text file in a subdirectory of the run as GET files lists it (spectra/index.csv, a
+   * spectrum's E_t….csv), as text.
+   * @param {string} id
+   * @param {string} dir
+   * @param {string} name
+   */
+  runFileText: (id, dir, name) => call('get', '/api/runs/{id}/files/{dir}/{name}',
+    { params: { id, dir, name }, text: true }),
   /**
    * The run's reference e_v(t) and -de_v/dt (404 with the reason when it has none), to its end
    * time or to `until` seconds if earlier.

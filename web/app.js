@@ -9,7 +9,8 @@ import { api, getToken, setToken } from './api.js';
 import { plottingAvailable } from './charts.js';
 import { $, app, showStatus, isActive } from './state.js';
 import { toggleCompared } from './plots.js';
-import { onScrub, goLive } from './frames.js';
+import { onCompareSlide } from './compare.js';
+import { onScrub, goLive, makeMovie } from './frames.js';
 import { onApplyParameters, resetParamForm } from './live_parameters.js';
 import { listenToRunList } from './runs.js';
 import { refreshLog, refreshFiles } from './run_files.js';
@@ -50,6 +51,8 @@ function main() {
   for (const b of document.querySelectorAll('.controls button[data-action]')) b.addEventListener('click', onAction);
   $('frame-scrubber').addEventListener('input', onScrub);
   $('btn-live').addEventListener('click', goLive);
+  $('btn-movie').addEventListener('click', makeMovie);
+  $('compare-slider').addEventListener('input', onCompareSlide);
   $('param-form').addEventListener('submit', onApplyParameters);
   $('param-reset').addEventListener('click', resetParamForm);
   window.addEventListener('hashchange', () => {

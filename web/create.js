@@ -29,6 +29,11 @@ export async function loadPresets() {
     showStatus('create-status', `Could not load presets: ${errorText(e)}`, 'error');
   }
   app.presets = Array.isArray(presets) ? presets.slice() : [];
+  // The scene files (scenes/ of the server) after the presets: each is a whole scene document,
+  // created as {scene} like a clone. A server without them offers the presets alone.
+  const scenes = await api.scenes().catch(() => null);
+  for (const s of scenes?.scenes ?? [])
+    app.presets.push({ ...s, builtinScene: true, description: `scenes/${s.file}: ${s.description}` });
   renderPresetOptions();
   // The first choice is a flow sphles has references for from its first plot (the DNS' e_v,
   // the spectral reference's E(k) and resolved scales): the 3D vortex at Re = 1600; else the 2D

@@ -3,7 +3,7 @@
 
 import { api } from './api.js';
 import { formatNumber } from './charts.js';
-import { IMAGE_FIELDS, $, app, setText } from './state.js';
+import { IMAGE_FIELDS, $, app, setText, showStatus, errorText } from './state.js';
 
 export function onImage(id, header, blob) {
   if (id !== app.selectedId || !IMAGE_FIELDS.includes(header.field)) {
@@ -40,6 +40,8 @@ function showImage(field, url, header, how) {
     setText(`cap-${field}`, 'image could not be decoded');
   };
   img.src = url;
+  // The 3D view's panel shows once the run has one (render.view3d).
+  if (field === 'view3d') $('fig-view3d').hidden = false;
 }
 
 export function addFrames(list) {
@@ -69,6 +71,7 @@ export function renderFrames() {
   scrubber.disabled = n === 0;
   scrubber.max = String(Math.max(0, n - 1));
   if (app.live) scrubber.value = String(Math.max(0, n - 1));
+  $('btn-movie').disabled = n === 0;
   $('btn-live').setAttribute('aria-pressed', app.live ? 'true' : 'false');
   $('btn-live').disabled = app.live;
   const label = $('frame-label');
@@ -107,4 +110,36 @@ export function goLive() {
   app.live = true;
   renderFrames();
   for (const f of IMAGE_FIELDS) showLiveImage(f);
+}
+
+/** The selected run's saved frames of the chosen field as a video (POST movies), shown under
+ *  the images once the server has encoded it. */
+export async function makeMovie() {
+  const id = app.selectedId;
+  const field = $('movie-field').value;
+  const button = $('btn-movie');
+  button.disabled = true;
+  showStatus('movie-status', `Encoding the saved ${field} frames…`);
+  try {
+    const made = await api.movie(id, { field });
+    if (id !== app.selectedId) return;
+    const video = $('movie');
+    video.src = `${made.url}?t=${Date.now()}`;  // a new encoding of the same file is a new video
+    video.hidden = false;
+    video.dataset.frames = String(made.frames);
+    showStatus('movie-status', `${made.frames} frames, ${made.width}×${made.height} px, ` +
+      `${formatNumber(made.duration_seconds)} s (${formatNumber(made.bytes / 1024)} KiB, ${made.path}).`, 'ok');
+  } catch (e) {
+    if (id === app.selectedId) showStatus('movie-status', `No movie: ${errorText(e)}`, 'error');
+  } finally {
+    button.disabled = app.frames.length === 0;
+  }
+}
+
+/** A run selected anew shows no movie of the one before. */
+export function clearMovie() {
+  const video = $('movie');
+  video.removeAttribute('src');
+  video.hidden = true;
+  showStatus('movie-status', '');
 }

@@ -2,7 +2,7 @@
 // The selected run's stream messages (docs/api.md) and the history fetched beside them: metrics
 // samples, spectra, sub-filter stress statistics and the analysis estimates of the dissipation.
 
-import { ApiError } from './api.js';
+import { ApiError, api } from './api.js';
 import { formatNumber } from './charts.js';
 import { app, setText, showStatus, errorText, finite, columnOf } from './state.js';
 import { scheduleRedraw } from './plots.js';
@@ -28,6 +28,10 @@ export function onStreamMessage(id, m) {
       pollSoon();
       refreshLog();
       refreshFiles();
+      // Frames without a spectrum or statistics product reach the page through the history
+      // only: at its end a run's last frames are read again (the budget's ν⟨ω²⟩ needs them).
+      if (!['running', 'queued', 'created'].includes(m.state))
+        api.analysisHistory(id).then((h) => { if (id === app.selectedId) addAnalysisHistory(h); }).catch(() => {});
       break;
     }
     case 'metrics':

@@ -9,8 +9,10 @@ import {
 } from './charts.js';
 import { EXPERIMENT, isForced, budgetPoints, budgetAverages, budgetCaption } from './budget.js';
 import { $, app, setText, showStatus, isCancelled, errorText, columnOf } from './state.js';
+import { loadComparedRun, spectrumView, redrawWith } from './compare.js';
 
 const REDRAW_MS = 250;
+redrawWith(scheduleRedraw);
 
 export function ensureCharts() {
   if (app.charts || !plottingAvailable()) return;
@@ -49,7 +51,8 @@ function mergeOnTime(a, b) {
   return { x, ys };
 }
 
-/** Overlays (or removes) a run's time series and latest spectrum on the plots. */
+/** Overlays (or removes) a run's time series on the plots, and its spectrum at the compare
+ *  slider's time (compare.js). */
 export async function toggleCompared(id, on) {
   if (!on) {
     app.compared.delete(id);
@@ -57,13 +60,13 @@ export async function toggleCompared(id, on) {
     return;
   }
   const run = app.runs.find((r) => r.id === id);
-  const entry = { label: run?.name || id, time: [], energy: [], dissipation: [], spectrum: null };
+  const entry = { label: run?.name || id, time: [], energy: [], dissipation: [] };
   app.compared.set(id, entry);
   try {
     const [series, detail] = await Promise.all([api.timeseries(id), api.run(id)]);
     const col = columnOf(series);
     Object.assign(entry, { time: col('time'), energy: col('kinetic_energy'), dissipation: col('dissipation') });
-    if (detail.available?.spectrum) entry.spectrum = await api.spectrum(id).catch(() => null);
+    await loadComparedRun(id, entry, detail);
   } catch (e) {
     showStatus('control-status', `Could not load ${entry.label} for comparison: ${errorText(e)}`, 'error');
   }
@@ -125,7 +128,7 @@ function redraw() {
     mergeOnTime(mergeOnTime({ x: samples.map((s) => s.time), ys: [samples.map((s) => s.kinetic_energy)] }, refRows), resRows),
     (r) => ({ x: r.time, y: r.energy }));
   const labels = comparedRuns().map((r) => r.label);
-  for (const chart of [c.energy, c.dissipation, c.spectrum]) chart.setExtraSeries(labels);
+  for (const chart of [c.energy, c.dissipation]) chart.setExtraSeries(labels);
   c.energy.setData(energy.x, energy.ys);
   $('chart-energy').dataset.referencePoints = String(ref ? ref.time.length : 0);
   $('chart-energy').dataset.resolvedPoints = String(res.length);
@@ -142,13 +145,17 @@ function redraw() {
   (r) => ({ x: r.time, y: r.dissipation }));
   c.dissipation.setData(eps.x, eps.ys);
 
-  // Only the selected run's spectrum: none yet (a run just selected) empties the plot.
-  const s = app.spectrum;
+  // The spectra at the compare slider's time (compare.js): the selected run's (its latest, live,
+  // with nothing compared) and each compared run's nearest; none yet (a run just selected)
+  // empties the plot.
+  const view = spectrumView();
+  const s = view.own;
   const hasSpectrum = s && Array.isArray(s.k) && Array.isArray(s.energy);
-  // The reference's E(k) at the latest compared time, dashed (GET resolved).
+  // The reference's E(k), dashed (GET resolved): the server has it at the run's latest time
+  // only, so not at another time on the slider.
   // Shells the reference leaves empty (round-off, 10⁻³⁰ of its peak) are not drawn: they
   // would stretch the log axis over tens of decades.
-  const refSpectrum = hasSpectrum ? app.resolved?.reference_spectrum : null;
+  const refSpectrum = hasSpectrum && view.referenceShown ? app.resolved?.reference_spectrum : null;
   const refPeak = refSpectrum ? Math.max(...refSpectrum.energy) : 0;
   const refKeep = refSpectrum
     ? refSpectrum.k.map((k, i) => i).filter((i) => refSpectrum.k[i] > 0 && refSpectrum.energy[i] > 1e-12 * refPeak)
@@ -156,16 +163,18 @@ function redraw() {
   const own = mergeOnTime(hasSpectrum ? spectrumData(s.k, s.energy) : spectrumData([], []),
     { x: refKeep.map((i) => refSpectrum.k[i]), ys: [refKeep.map((i) => refSpectrum.energy[i])] });
   $('chart-spectrum').dataset.referencePoints = String(refKeep.length);
-  const d = withCompared(own, (r) => {
-    const k = r.spectrum?.k ?? [];
-    const e = r.spectrum?.energy ?? [];
-    const keep = k.map((kk, i) => i).filter((i) => k[i] > 0);
-    return { x: keep.map((i) => k[i]), y: keep.map((i) => (e[i] > 0 ? e[i] : null)) };
-  });
+  c.spectrum.setExtraSeries(view.compared.map((r) => r.label));
+  let d = own;
+  for (const r of view.compared) {
+    const keep = r.k.map((kk, i) => i).filter((i) => r.k[i] > 0);
+    d = mergeOnTime(d, { x: keep.map((i) => r.k[i]), ys: [keep.map((i) => (r.energy[i] > 0 ? r.energy[i] : null))] });
+  }
   c.spectrum.setData(d.x, d.ys);
-  c.spectrum.setMarkers(hasSpectrum ? [
-    { x: s.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },
-    { x: s.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
+  // The run's wavenumbers do not change with time: the latest spectrum's.
+  const marks = app.spectrum;
+  c.spectrum.setMarkers(hasSpectrum && marks ? [
+    { x: marks.kernel_wavenumber, label: 'k_kern = 2π/D_K', colour: '#b22222', row: 0 },
+    { x: marks.resolution_wavenumber, label: 'k_res = π/Δl', colour: '#555555', row: 1 },
   ] : []);
   c.stats.setData(app.stats.map((p) => p.time), [app.stats.map((p) => p.max), app.stats.map((p) => p.mean)]);
   drawBudget(c, samples);

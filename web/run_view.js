@@ -6,7 +6,7 @@ import { api, cancelRunRequests, getToken } from './api.js';
 import { RunStream } from './stream.js';
 import { IMAGE_FIELDS, $, app, setText, showStatus, isCancelled, errorText, isActive } from './state.js';
 import { ensureCharts, scheduleRedraw, loadReference } from './plots.js';
-import { onImage, addFrames, renderFrames, showLatestSavedFrames } from './frames.js';
+import { onImage, addFrames, renderFrames, showLatestSavedFrames, clearMovie } from './frames.js';
 import { renderRunList } from './runs.js';
 import { refreshLog, refreshFiles } from './run_files.js';
 import { applyDetail, mergeSummary, renderHeader } from './run_header.js';
@@ -69,6 +69,8 @@ export function selectRun(id) {
     delete img.dataset.step;
     setText(`cap-${f}`, 'no image yet');
   }
+  clearMovie();
+  $('fig-view3d').hidden = true;
   showStatus('control-status', '');
   showStatus('param-status', '');
   setText('run-log', 'no log yet');

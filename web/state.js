@@ -7,7 +7,7 @@ import { ApiError } from './api.js';
 
 // The page's image panels (index.html: img-FIELD, cap-FIELD); the create form takes the fields
 // the server renders live from its presets.
-export const IMAGE_FIELDS = ['omega2', 'tau_sfs'];
+export const IMAGE_FIELDS = ['omega2', 'tau_sfs', 'view3d'];
 
 export const $ = (id) => document.getElementById(id);
 
@@ -16,7 +16,7 @@ export const app = {
   presets: [],
   sceneSchema: null,  // GET /api/schema/scene: the form's options, bounds and tooltips
   validateScene: null,  // ajv's validator of that schema, when the page has ajv
-  compared: new Map(),  // run id → {label, time, energy, dissipation, spectrum} overlaid on the plots
+  compared: new Map(),  // run id → {label, time, energy, dissipation, detail, resolved} overlaid on the plots
   selectedId: null,
   autoSelect: true,    // pick a run for the user (on opening the page, until one is closed)
   runsGeneration: 0,   // run deletions by this page: older run lists are stale

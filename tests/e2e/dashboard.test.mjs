@@ -141,11 +141,12 @@ async function waitFor(what, fn, timeoutMs) {
 const text = (page, selector) => page.locator(selector).textContent();
 
 /** A 16³ 3D Taylor-Green run of viscosity `eta` (ρ = 1: Re = 1/eta) to t = 0.5 with spectra at
- *  t = 0, 0.25 and 0.5, created through the API, finished and selected in the run list; its id. */
-async function selectFinishedTgv3d(base, name, eta) {
+ *  t = 0, 0.25 and 0.5, created through the API, finished and selected in the run list; its id.
+ *  `kernel`: its scene's kernel section, if not the default. */
+async function selectFinishedTgv3d(base, name, eta, kernel = undefined) {
   const created = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },
-    body: JSON.stringify({ scene: { case: 'tgv3d', name, particles_per_side: 16,
+    body: JSON.stringify({ scene: { case: 'tgv3d', name, particles_per_side: 16, kernel,
       fluid: { dynamic_viscosity: eta }, packing: { enabled: false }, time: { end: 0.5 },
       analysis: { every: 0.25, products: ['spectrum'] } } }),
   });
@@ -198,6 +199,12 @@ async function run() {
     const all = await page.locator('#create-preset option').allTextContents();
     return all.length ? all : null;
   }, 10_000);
+  // Every scene file of scenes/ is offered beside the presets (GET /api/scenes).
+  const sceneFiles = (await (await fetch(`${base}/api/scenes`)).json()).scenes.map((s) => s.name);
+  const missingScenes = sceneFiles.filter((name) => !labels.some((l) => l.startsWith(`scene: ${name} (`)));
+  if (sceneFiles.length < 9 || missingScenes.length)
+    fail(`the form does not offer the scene files ${missingScenes.join(', ')} (offers: ${labels.join(', ')})`);
+  pass(`the form offers the ${sceneFiles.length} scene files of scenes/ beside the presets`);
   // The form's choices and bounds are the scene schema's (GET /api/schema/scene): the kernel
   // select offers exactly the schema's kernel names, and a number field its bounds.
   const schema = await (await fetch(`${base}/api/schema/scene`)).json();
@@ -461,8 +468,9 @@ async function run() {
   pass('time.end and η changed from the parameter form');
 
   // Run comparison: a second, finished run ticked "compare" overlays its e_v(t), ε(t) and E(k) on
-  // the selected run's plots; unticked, the overlay goes. (Created now that the first run is
-  // stopped: the test server runs one run at a time.)
+  // the selected run's plots, E(k) at the time of the compare slider, with a table of both runs;
+  // unticked, the overlay goes. (Created now that the first run is stopped: the test server runs
+  // one run at a time.)
   currentStep = 'comparing runs';
   const other = await fetch(`${base}/api/runs`, {
     method: 'POST', headers: { 'Content-Type': 'application/json' },
@@ -475,17 +483,71 @@ async function run() {
     (await (await fetch(`${base}/api/runs/${otherId}`)).json()).state === 'finished', 60_000);
   const compareBox = page.locator(`#run-list li[data-id="${otherId}"] .compare input`);
   await waitFor('its compare box in the list', async () => (await compareBox.count()) === 1, 10_000);
+  if (await page.locator('#compare-time').isVisible()) fail('the compare slider shows with nothing compared');
   await compareBox.check();
-  const overlaid = await waitFor('the compared run on the e_v, ε and E(k) plots', async () => {
-    const points = await Promise.all(['#chart-energy', '#chart-dissipation', '#chart-spectrum'].map(
+  const overlaid = await waitFor('the compared run on the e_v and ε plots', async () => {
+    const points = await Promise.all(['#chart-energy', '#chart-dissipation'].map(
       async (sel) => Number(await page.locator(sel).getAttribute('data-compare-points'))));
     return points.every((n) => n > 0) ? points : null;
   }, 15_000);
   if ((await text(page, '#run-title')) !== 'e2e-tgv2d') fail('ticking compare changed the selected run');
+  // E(k) at equal times: at the slider's right end (the selected run's latest spectrum, seconds
+  // in) the compared run, finished at t = 0.3, has not got there and is not drawn ...
+  const spectrumShown = () => page.locator('#chart-spectrum').evaluate((el) => ({ ...el.dataset }));
+  const slider = page.locator('#compare-slider');
+  await waitFor('the compare slider over the run\'s spectra at "latest", the compared run not reached', async () => {
+    const shown = await spectrumShown();
+    return (await page.locator('#compare-time').isVisible()) && (await slider.isEnabled()) &&
+      shown.compareTimes === 'none' && /^latest/.test(await text(page, '#compare-label')) &&
+      /not reached/.test(await text(page, '#cap-compare'));
+  }, 10_000);
+  // ... and at t = 0.1 s, moved there from the keyboard, both runs' spectra of that time are.
+  await slider.focus();
+  await slider.press('Home');
+  await waitFor('the slider at t = 0.1 s', async () => {
+    if (/^t = 0\.1 s$/.test(await text(page, '#compare-label'))) return true;
+    await slider.press('ArrowRight');
+    await page.waitForTimeout(300);  // the redraw that labels it
+    return false;
+  }, 10_000);
+  const near01 = (v) => v !== '' && Math.abs(Number(v) - 0.1) < 1e-6;
+  const atTime = await waitFor('both runs\' spectra of t = 0.1 s on the E(k) plot', async () => {
+    const shown = await spectrumShown();
+    return near01(shown.ownTime) && shown.compareTimes.split(',').every(near01) &&
+      Number(shown.comparePoints) > 0 && Number(shown.points) > 0 ? shown : null;
+  }, 10_000);
+  // The table: one row per run, the selected one first, with its live-changed η; neither flow
+  // has a reference run, and the table says so rather than showing a number.
+  const tableRows = () => page.locator('#compare-table tbody tr').evaluateAll((trs) => trs.map((tr) => ({
+    id: tr.dataset.id, name: tr.querySelector('th').textContent,
+    ...Object.fromEntries([...tr.querySelectorAll('td')].map((td) =>
+      [td.dataset.field, { text: td.textContent, value: td.dataset.value ?? null, title: td.title }])),
+  })));
+  const rows = await waitFor('the comparison table with both runs', async () => {
+    const r = await tableRows();
+    return r.length === 2 && r.every((row) => row.kernel.text !== '–') && r[0].eta.value === '0.02' ? r : null;
+  }, 10_000);
+  const kernelOf = async (id) => (await (await fetch(`${base}/api/runs/${id}`)).json()).scene.kernel.type;
+  const runsNow = await (await fetch(`${base}/api/runs`)).json();
+  const firstId = runsNow.find((r) => r.name === 'e2e-tgv2d').id;
+  if (rows[0].id !== firstId || rows[1].id !== otherId || rows[0].n.text !== `${PARTICLES_PER_SIDE}²` ||
+      rows[1].n.text !== '16²' || rows[0].kernel.text !== await kernelOf(firstId) ||
+      rows[1].kernel.text !== await kernelOf(otherId) || rows[0].dk.value !== '7')
+    fail(`the comparison table's rows: ${JSON.stringify(rows.map((r) => [r.id, r.n.text, r.kernel.text, r.dk.text]))}`);
+  if (!rows.every((r) => r.misfit.text === '–' && /no reference run/.test(r.misfit.title)))
+    fail(`the table gives errors without a reference: ${JSON.stringify(rows.map((r) => r.misfit))}`);
+  if (screenshot) {
+    const shot = screenshot.replace(/(\.png)?$/, '-compare.png');
+    await page.locator('section:has(#plots-heading)').screenshot({ path: shot });
+    log(`screenshot: ${shot}`);
+  }
   await compareBox.uncheck();
-  await waitFor('the overlay gone', async () =>
-    Number(await page.locator('#chart-energy').getAttribute('data-compare-points')) === 0, 10_000);
-  pass(`run comparison: e2e-compare overlaid (${overlaid.join(', ')} points on e_v, ε, E(k)) and removed`);
+  await waitFor('the overlay, the slider and the table gone', async () =>
+    Number(await page.locator('#chart-energy').getAttribute('data-compare-points')) === 0 &&
+    await page.locator('#compare-time').isHidden() && await page.locator('#compare-panel').isHidden(), 10_000);
+  pass(`run comparison: e2e-compare overlaid (${overlaid.join(', ')} points on e_v, ε); E(k) at equal times ` +
+    `(not reached at the latest, ${atTime.comparePoints} points at t = 0.1 s); a table of both runs ` +
+    `(${rows.map((r) => `${r.name} ${r.n.text} ${r.kernel.text}`).join(', ')}); removed`);
   const otherRemoved = await fetch(`${base}/api/runs/${otherId}`, { method: 'DELETE' });
   if (otherRemoved.status !== 204 && otherRemoved.status !== 200) fail(`deleting the compared run: HTTP ${otherRemoved.status}`);
 
@@ -493,7 +555,8 @@ async function run() {
   // shipped in data/reference/: the reference's E(k) dashed on the spectrum plot, E_res(t) beside
   // e_v(t) and the table of the shell ratios.
   currentStep = 'resolved scales';
-  const re1600Id = await selectFinishedTgv3d(base, 'e2e-re1600', 6.25e-4);
+  // D_K = 4 Δl: k_SPH = 2, where the reference holds the flow's energy, so that E_res has errors.
+  const re1600Id = await selectFinishedTgv3d(base, 'e2e-re1600', 6.25e-4, { diameter_over_spacing: 4 });
   const resolved = await waitFor('the reference spectrum and the resolved-scales table', async () => {
     const refPoints = Number(await page.locator('#chart-spectrum').getAttribute('data-reference-points'));
     const shells = Number(await page.locator('#resolved-table').getAttribute('data-shells'));
@@ -503,6 +566,19 @@ async function run() {
   const against = await text(page, '#cap-resolved');
   if (!against.includes('tgv3d_re1600')) fail(`the resolved scales name no Re = 1600 reference: "${against}"`);
   pass(`resolved scales of a Re = 1600 run ${against}: ${resolved.refPoints} reference E(k) points, ${resolved.shells} shell ratios, E_res(t) at ${resolved.energyPoints} times beside e_v`);
+  // Compared with the stopped 2D run, the table gives this run's errors against its reference.
+  const firstBox = page.locator(`#run-list li[data-id="${firstId}"] .compare input`);
+  await firstBox.check();
+  const errors = await waitFor('the Re = 1600 run\'s errors in the comparison table', async () => {
+    const r = await tableRows();
+    const fields = ['misfit', 'max_error', 'ratio'];
+    return r.length === 2 && r[0].id === re1600Id && r[0].n.text === '16³' &&
+      fields.every((f) => Number.isFinite(Number(r[0][f].value)) && r[0][f].value !== null) &&
+      fields.every((f) => r[1][f].text === '–') ? fields.map((f) => `${f} ${r[0][f].text}`) : null;
+  }, 10_000);
+  await firstBox.uncheck();
+  await waitFor('the comparison table gone', async () => page.locator('#compare-panel').isHidden(), 10_000);
+  pass(`comparison table against the reference: ${errors.join(', ')}`);
   const re1600Removed = await fetch(`${base}/api/runs/${re1600Id}`, { method: 'DELETE' });
   if (re1600Removed.status !== 204 && re1600Removed.status !== 200) fail(`deleting the Re = 1600 run: HTTP ${re1600Removed.status}`);
 
@@ -559,6 +635,19 @@ async function run() {
   if (members.length !== fileCount || !members.every((m) => m.startsWith(`${runId}/`)) || !members.includes(`${runId}/timeseries.csv`))
     fail(`${archiveHref}: ${members.length} members (${members.slice(0, 5).join(', ')}…) for ${fileCount} listed files`);
   pass(`the whole run downloads as one tar archive (${tar.length} B, ${members.length} members under ${runId}/)`);
+
+  // Movie: the saved ω² frames as a WebM video that the browser itself decodes.
+  currentStep = 'making a movie';
+  await page.click('#btn-movie');
+  const movie = await waitFor('the movie to load in the page', async () => page.evaluate(() => {
+    const v = document.getElementById('movie');
+    return !v.hidden && v.readyState >= 1 && v.duration > 0 && v.videoWidth > 0
+      ? { frames: Number(v.dataset.frames), duration: v.duration, width: v.videoWidth, height: v.videoHeight }
+      : null;
+  }), 20_000);
+  if (!(movie.frames >= 2) || Math.abs(movie.duration - movie.frames / 10) > 0.2)
+    fail(`the movie's duration ${movie.duration} s does not match ${movie.frames} frames at 10 frames/s`);
+  pass(`the Movie button makes a video Chromium plays: ${movie.frames} frames, ${movie.width}×${movie.height} px, ${movie.duration.toFixed(1)} s`);
 
   // Delete: after the confirmation the run leaves the list and the server.
   currentStep = 'deleting';
@@ -661,6 +750,33 @@ async function run() {
     fail(`the budget's caption has no averages: "${budgetCaption}" (rest ${rest})`);
   if (Number(await page.locator('#chart-urms').getAttribute('data-points')) < 10) fail('the u_rms plot has no points');
   pass(`a forced flow shows its budget (${budgetPoints} analysis times; ${budgetCaption.slice(0, 90)}…) and u_rms`);
+
+  // A 3D run with an iso-surface view: its panel appears with the rendered picture.
+  currentStep = 'an iso-surface view';
+  const iso = await fetch(`${base}/api/runs`, {
+    method: 'POST', headers: { 'Content-Type': 'application/json' },
+    body: JSON.stringify({ preset: 'tgv3d', name: 'e2e-isosurface',
+      patch: { particles_per_side: 12, kernel: { diameter_over_spacing: 4 }, packing: { enabled: false },
+        time: { end: 0.2 },
+        analysis: { every: 0.1, products: ['slices', 'fields'], grid_fields: ['omega2'],
+          slice: { axis: 'x', position: Math.PI, fields: ['omega2'] } },
+        render: { fields: ['omega2'], combined: false,
+          view3d: { enabled: true, kind: 'isosurface', field: 'omega2', width: 320, height: 320 } } } }),
+  });
+  if (iso.status !== 201) fail(`creating the iso-surface run: HTTP ${iso.status} ${await iso.text()}`);
+  const isoId = (await iso.json()).id;
+  const isoItem = page.locator(`#run-list li[data-id="${isoId}"] button`);
+  await waitFor('the iso-surface run in the list', async () => (await isoItem.count()) === 1, 10_000);
+  await isoItem.click();
+  const isoStep = await waitFor('the 3D view panel with its picture', async () => {
+    if (await page.locator('#fig-view3d').isHidden()) return null;
+    const loaded = await page.evaluate(() => {
+      const img = document.getElementById('img-view3d');
+      return img.complete && img.naturalWidth === 320 ? img.dataset.step : null;
+    });
+    return loaded || null;
+  }, 30_000);
+  pass(`an iso-surface run shows its 3D view (320×320 px, step ${isoStep})`);
 
   // A failed run shows its diagnosis as an error: 3 MPI ranks cannot split a 12² box with a halo
   // as wide as the kernel's list radius, which the job refuses, naming why.
