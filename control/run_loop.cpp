@@ -13,6 +13,7 @@
 #include "analysis/pipeline.hpp"
 #include "analysis/snapshot.hpp"
 #include "analysis/timeseries.hpp"
+#include "analysis/units.hpp"
 #include "analysis/writer.hpp"
 #include "control/live_changes.hpp"
 #include "control/progress.hpp"
@@ -154,6 +155,8 @@ class RunImpl::Loop {
                     resumed),
         dissipation_(current.analysis.dissipation_window) {
     received();
+    analysis::write_units_file(run.directory, analysis::RunKind::Particles,
+                               sim::case_diagnostic_names(current.scene));
     // A resumed run refills the trailing window from its time series, so that ε(t) continues
     // as in an uninterrupted run.
     if (resumed)

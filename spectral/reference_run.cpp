@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "analysis/spectrum.hpp"
+#include "analysis/units.hpp"
 #include "analysis/writer.hpp"
 #include "io/checkpoint.hpp"
 #include "io/hdf5_file.hpp"
@@ -449,6 +450,7 @@ class ReferenceRun {
   void open_outputs() {
     on_root([&] {
       write_json_atomically(dir_ / "scene.json", scene_document_);
+      analysis::write_units_file(dir_, analysis::RunKind::Reference, {});
       writer_.emplace(dir_);
       if (options_.restart) {
         truncate_rows_after(series_, solver_.time());

@@ -175,6 +175,21 @@ class RunDirectory:
         max_density_deviation, max_speed."""
         return self._csv("timeseries.csv")
 
+    def units(self, relative="timeseries.csv"):
+        """{column: unit} of a CSV file of the run (its path in the run directory, e.g.
+        "spectra/E_t0.5000.csv"), from the run's units.csv: SI in ASCII ("m^2/s^3"), "1" for a
+        pure number, "-" for text."""
+        table = self._csv("units.csv")
+        out = {}
+        for pattern, column, unit in zip(table["file"], table["column"], table["unit"]):
+            head, star, tail = pattern.partition("*")
+            if (relative == pattern or (star and relative.startswith(head)
+                                        and relative.endswith(tail))):
+                out[column] = unit
+        if not out:
+            raise ValueError(f"{os.path.join(self.path, 'units.csv')}: no columns of {relative}")
+        return out
+
     def analysis(self):
         """stats/snapshots.csv, every analysis frame's scalars, as arrays by column: t, step,
         e_v, e_v_grid, mean_omega2, the dissipation three ways, tau_sfs_max, ..."""

@@ -78,6 +78,12 @@ def check_series(run, path):
     amplitude = run.scene["flow"]["velocity_amplitude"]
     check(abs(e_v0 - amplitude ** 2 / 4) < 1e-3, f"e_v(0) = {e_v0:.6f} = v0²/4 of the 2D TGV")
     check(np.array_equal(series["step"], np.arange(len(rows))), "steps 0, 1, ... as integers")
+    units = run.units("timeseries.csv")
+    check(list(units) == header and units["e_v"] == "m^2/s^2" and units["t"] == "s",
+          f"units.csv gives every time-series column its unit: {units}")
+    spectrum_units = run.units("spectra/E_t0.0500.csv")
+    check(spectrum_units["k"] == "1/m" and spectrum_units["E"] == "m^3/s^2",
+          "and a spectrum file's, matched by its time pattern")
     frames = run.analysis()
     check(frames["e_v"][0] == e_v0 and len(frames["t"]) == 5,
           "stats/snapshots.csv: 5 frames, its e_v(0) the time series'")

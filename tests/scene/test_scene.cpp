@@ -2,6 +2,8 @@
 // Scene files: defaults, overrides and the documented errors, in-process and through the real
 // sphles program (exit code 2 and a message naming the field).
 #include <gtest/gtest.h>
+#include <algorithm>
+#include <sstream>
 
 #include <sys/wait.h>
 #include <array>
@@ -614,6 +616,68 @@ TEST_F(CliTest, MovieEncodesTheSavedFramesAndNamesWhatIsMissing) {
   r = run_sphles("movie " + out.string() + " --fps 0");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("--fps"), std::string::npos) << r.output;
+}
+
+/// Every column of every CSV file under `run` (but units.csv) has its row in run/units.csv,
+/// the file matched with '*' standing for a time.
+void expect_units_for_every_column(const std::filesystem::path& run) {
+  std::ifstream units_file(run / "units.csv");
+  ASSERT_TRUE(units_file) << run;
+  std::vector<std::array<std::string, 3>> units;
+  std::string line;
+  std::getline(units_file, line);
+  EXPECT_EQ(line, "file,column,unit");
+  while (std::getline(units_file, line)) {
+    const auto a = line.find(','), b = line.find(',', a + 1);
+    units.push_back({line.substr(0, a), line.substr(a + 1, b - a - 1), line.substr(b + 1)});
+    EXPECT_FALSE(units.back()[2].empty()) << line;
+  }
+  const auto matches = [](const std::string& pattern, const std::string& file) {
+    const auto star = pattern.find('*');
+    if (star == std::string::npos) return pattern == file;
+    const std::string head = pattern.substr(0, star), tail = pattern.substr(star + 1);
+    return file.size() >= head.size() + tail.size() && file.starts_with(head) &&
+           file.ends_with(tail);
+  };
+  int columns = 0;
+  for (const auto& entry : std::filesystem::recursive_directory_iterator(run)) {
+    const std::string file = std::filesystem::relative(entry.path(), run).string();
+    if (entry.path().extension() != ".csv" || file == "units.csv") continue;
+    std::ifstream csv(entry.path());
+    std::string header;
+    std::getline(csv, header);
+    std::stringstream cells(header);
+    for (std::string column; std::getline(cells, column, ',');) {
+      ++columns;
+      EXPECT_TRUE(std::any_of(units.begin(), units.end(),
+                              [&](const auto& u) { return u[1] == column && matches(u[0], file); }))
+          << file << ": column '" << column << "' has no unit in units.csv";
+    }
+  }
+  EXPECT_GT(columns, 40) << run;
+}
+
+TEST_F(CliTest, UnitsCsvGivesTheUnitOfEveryColumnOfTheRunsCsvFiles) {
+  const auto scene = write("everything.json", R"({"case": "tgv2d", "particles_per_side": 16,
+      "kernel": {"diameter_over_spacing": 4}, "time": {"end": 0.1},
+      "packing": {"enabled": false},
+      "analysis": {"every": 0.05, "products": ["energy", "spectrum", "vorticity", "slices",
+          "sfs_stats", "particles", "fields"], "slice": {"fields": ["omega2", "tau_sfs"]},
+          "grid_fields": ["omega2"]},
+      "render": {"fields": ["omega2"], "width": 128, "height": 64}})");
+  ProcessResult r = run_sphles("run " + scene + " --out " + (dir_ / "all").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  expect_units_for_every_column(dir_ / "all");
+  r = run_sphles(
+      "run kolmogorov2d --set particles_per_side=16 --set time.end=0.1 "
+      "--set packing.enabled=false --set analysis.every=0.05 --out " +
+      (dir_ / "forced").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  expect_units_for_every_column(dir_ / "forced");
+  r = run_sphles("reference tgv2d --set reference.points_per_side=16 --set time.end=0.1 --out " +
+                 (dir_ / "reference").string());
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  expect_units_for_every_column(dir_ / "reference");
 }
 
 }  // namespace
