@@ -2,6 +2,7 @@
 #include "render/box_view.hpp"
 
 #include <vtkCamera.h>
+#include <vtkProperty.h>
 
 #include <algorithm>
 #include <cmath>
@@ -91,13 +92,7 @@ void EdgeLabel::place(const std::string& text, const Layout& layout, const Vec3&
            std::round(anchor[1] + kLabelOffset * out_y));
 }
 
-void set_scene_viewport(vtkRenderer* scene, int width, int height) {
-  const ImageRect rect = box_view_rect(width, height);
-  scene->SetViewport(static_cast<double>(rect.x) / width, static_cast<double>(rect.y) / height,
-                     static_cast<double>(rect.x + rect.width) / width,
-                     static_cast<double>(rect.y + rect.height) / height);
-  scene->SetBackground(1.0, 1.0, 1.0);
-}
+namespace {
 
 void place_camera(vtkRenderer* scene, const Layout& layout, double length) {
   const bool flat = layout.two_dimensional;
@@ -127,6 +122,41 @@ void place_axis_labels(std::array<EdgeLabel, 3>& labels, const Layout& layout) {
     labels[2].place("z [m]", layout, {-0.5, -0.5, -0.5}, {-0.5, -0.5, 0.5});
     labels[2].actor->VisibilityOn();
   }
+}
+
+}  // namespace
+
+BoxScene::BoxScene(vtkRenderWindow* window, int width, int height) {
+  frame->SetBackground(1.0, 1.0, 1.0);
+  frame->AddActor2D(title);
+  frame->AddActor2D(bar.actor());
+  const ImageRect rect = box_view_rect(width, height);
+  scene->SetViewport(static_cast<double>(rect.x) / width, static_cast<double>(rect.y) / height,
+                     static_cast<double>(rect.x + rect.width) / width,
+                     static_cast<double>(rect.y + rect.height) / height);
+  scene->SetBackground(1.0, 1.0, 1.0);
+  outline_mapper->SetInputConnection(outline->GetOutputPort());
+  outline_mapper->ScalarVisibilityOff();
+  outline_actor->SetMapper(outline_mapper);
+  outline_actor->GetProperty()->LightingOff();
+  outline_actor->GetProperty()->SetColor(kOutlineColour[0], kOutlineColour[1], kOutlineColour[2]);
+  outline_actor->GetProperty()->SetLineWidth(1.0);
+  scene->AddActor(outline_actor);
+  for (const EdgeLabel& label : axis_labels) scene->AddActor2D(label.actor);
+  window->AddRenderer(frame);  // drawn first; the scene clears only its viewport
+  window->AddRenderer(scene);
+}
+
+void BoxScene::update(const Layout& layout, double length, const std::array<double, 2>& range,
+                      bool log_scale, const std::string& bar_title, const std::string& title_text,
+                      int width, int height) {
+  outline->SetBounds(0.0, length, 0.0, length, 0.0, layout.two_dimensional ? 0.0 : length);
+  place_camera(scene, layout, length);
+  place_axis_labels(axis_labels, layout);
+  const ImageRect& rect = layout.rect;
+  bar.update(range, log_scale, bar_title, rect.x + rect.width + kBoxBarGap, rect.y + kLabelRoomY,
+             kBoxBarWidth, rect.height - 2 * kLabelRoomY);
+  set_text(title, title_text, width / 2.0, height - 6.0);
 }
 
 }  // namespace sphles::render::detail

@@ -7,6 +7,10 @@
 #include <array>
 #include <string>
 
+#include <vtkActor.h>
+#include <vtkOutlineSource.h>
+#include <vtkPolyDataMapper.h>
+#include <vtkRenderWindow.h>
 #include <vtkRenderer.h>
 #include <vtkSmartPointer.h>
 #include <vtkTextActor.h>
@@ -60,11 +64,27 @@ struct EdgeLabel {
   void place(const std::string& text, const Layout& layout, const Vec3& from, const Vec3& to);
 };
 
-/// The scene renderer's viewport on the layout's rectangle, white.
-void set_scene_viewport(vtkRenderer* scene, int width, int height);
-/// Parallel projection, the box [0, L]^3 (or the square at z = 0) centred in the rectangle.
-void place_camera(vtkRenderer* scene, const Layout& layout, double length);
-/// "x [m]", "y [m]" (and "z [m]") beside three silhouette edges.
-void place_axis_labels(std::array<EdgeLabel, 3>& labels, const Layout& layout);
+/// What a 3D view draws around its content: a full-window renderer (white, the title and the
+/// colour bar) drawn first, and the scene renderer on the view rectangle with the box outline
+/// and axis labels, into which the view adds its own actors.
+struct BoxScene {
+  vtkSmartPointer<vtkRenderer> frame = vtkSmartPointer<vtkRenderer>::New();
+  vtkSmartPointer<vtkTextActor> title = make_text(VTK_TEXT_CENTERED, VTK_TEXT_TOP, kTitleFontSize);
+  ColourBar bar;
+  vtkSmartPointer<vtkRenderer> scene = vtkSmartPointer<vtkRenderer>::New();
+  vtkSmartPointer<vtkOutlineSource> outline = vtkSmartPointer<vtkOutlineSource>::New();
+  vtkSmartPointer<vtkPolyDataMapper> outline_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
+  vtkSmartPointer<vtkActor> outline_actor = vtkSmartPointer<vtkActor>::New();
+  std::array<EdgeLabel, 3> axis_labels;
+
+  /// Both renderers on `window` (width x height px).
+  BoxScene(vtkRenderWindow* window, int width, int height);
+
+  /// The box [0, L]^3 (or the square at z = 0), the camera (parallel projection, the box centred
+  /// in the rectangle), the axis labels, the colour bar beside the box and the title.
+  void update(const Layout& layout, double length, const std::array<double, 2>& range,
+              bool log_scale, const std::string& bar_title, const std::string& title_text,
+              int width, int height);
+};
 
 }  // namespace sphles::render::detail

@@ -9,7 +9,6 @@
 #include <vtkDoubleArray.h>
 #include <vtkFlyingEdges3D.h>
 #include <vtkImageData.h>
-#include <vtkOutlineSource.h>
 #include <vtkPlaneSource.h>
 #include <vtkPointData.h>
 #include <vtkPolyDataMapper.h>
@@ -30,13 +29,7 @@ namespace {
 using detail::Clock;
 using detail::elapsed_ms;
 using detail::format_number;
-using detail::kBoxBarGap;
-using detail::kBoxBarWidth;
-using detail::kLabelRoomY;
 using detail::kOutlineColour;
-using detail::kTitleFontSize;
-using detail::make_text;
-using detail::set_text;
 
 constexpr double kPlaneOpacity = 0.25;
 constexpr std::array<double, 3> kPlaneColour = {0.55, 0.55, 0.6};
@@ -81,31 +74,18 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
   detail::OffscreenWindow surface;  // first: destroyed after the renderers and actors below
   FrameTimings timings;
 
-  vtkSmartPointer<vtkRenderer> frame = vtkSmartPointer<vtkRenderer>::New();
-  vtkSmartPointer<vtkTextActor> title = make_text(VTK_TEXT_CENTERED, VTK_TEXT_TOP, kTitleFontSize);
-  detail::ColourBar bar;
-
-  vtkSmartPointer<vtkRenderer> scene = vtkSmartPointer<vtkRenderer>::New();
+  detail::BoxScene box{surface.window(), surface.width(), surface.height()};
   vtkSmartPointer<vtkImageData> image = vtkSmartPointer<vtkImageData>::New();
   vtkSmartPointer<vtkDoubleArray> nodes = vtkSmartPointer<vtkDoubleArray>::New();
   vtkSmartPointer<vtkFlyingEdges3D> contour = vtkSmartPointer<vtkFlyingEdges3D>::New();
   vtkSmartPointer<vtkPolyDataMapper> surface_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
   vtkSmartPointer<vtkActor> surface_actor = vtkSmartPointer<vtkActor>::New();
-  vtkSmartPointer<vtkOutlineSource> outline = vtkSmartPointer<vtkOutlineSource>::New();
-  vtkSmartPointer<vtkPolyDataMapper> outline_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
-  vtkSmartPointer<vtkActor> outline_actor = vtkSmartPointer<vtkActor>::New();
   vtkSmartPointer<vtkPlaneSource> plane = vtkSmartPointer<vtkPlaneSource>::New();
   vtkSmartPointer<vtkPolyDataMapper> plane_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
   vtkSmartPointer<vtkActor> plane_actor = vtkSmartPointer<vtkActor>::New();
   vtkSmartPointer<vtkActor> plane_edge = vtkSmartPointer<vtkActor>::New();
-  std::array<detail::EdgeLabel, 3> axis_labels;
 
   Impl(int width, int height) : surface(width, height) {
-    frame->SetBackground(1.0, 1.0, 1.0);
-    frame->AddActor2D(title);
-    frame->AddActor2D(bar.actor());
-    detail::set_scene_viewport(scene, width, height);
-
     nodes->SetName("value");
     image->GetPointData()->SetScalars(nodes);
     contour->SetInputData(image);
@@ -117,11 +97,6 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
     surface_actor->GetProperty()->SetSpecular(0.25);
     surface_actor->GetProperty()->SetSpecularPower(20.0);
 
-    outline_mapper->SetInputConnection(outline->GetOutputPort());
-    outline_actor->SetMapper(outline_mapper);
-    outline_actor->GetProperty()->LightingOff();
-    outline_actor->GetProperty()->SetColor(kOutlineColour[0], kOutlineColour[1], kOutlineColour[2]);
-
     plane_mapper->SetInputConnection(plane->GetOutputPort());
     for (vtkActor* actor : {plane_actor.Get(), plane_edge.Get()}) {
       actor->SetMapper(plane_mapper);
@@ -132,13 +107,9 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
     plane_edge->GetProperty()->SetRepresentationToWireframe();
     plane_edge->GetProperty()->SetColor(kOutlineColour[0], kOutlineColour[1], kOutlineColour[2]);
 
-    scene->AddActor(outline_actor);
-    scene->AddActor(surface_actor);
-    scene->AddActor(plane_edge);
-    scene->AddActor(plane_actor);  // translucent: drawn after the opaque actors
-    for (const detail::EdgeLabel& label : axis_labels) scene->AddActor2D(label.actor);
-    surface.window()->AddRenderer(frame);
-    surface.window()->AddRenderer(scene);
+    box.scene->AddActor(surface_actor);
+    box.scene->AddActor(plane_edge);
+    box.scene->AddActor(plane_actor);  // translucent: drawn after the opaque actors
   }
 
   /// The field on (M + 1)^3 nodes: the last layer of each axis is the periodic image of the
@@ -187,23 +158,17 @@ struct detail::OffscreenPngRenderer<IsoSurfaceRenderer>::Impl {
     const Rgb& rgb = index < 0 ? detail::kNanColour : viridis_table()[index];
     surface_actor->GetProperty()->SetColor(rgb[0] / 255.0, rgb[1] / 255.0, rgb[2] / 255.0);
     surface_actor->SetVisibility(std::isfinite(value));
-    outline->SetBounds(0.0, length, 0.0, length, 0.0, length);
     place_plane(field);
-    detail::place_camera(scene, layout, length);
-    detail::place_axis_labels(axis_labels, layout);
-
-    const ImageRect& rect = layout.rect;
     const std::string name =
         field.units.empty() ? field.field_name : field.field_name + " [" + field.units + "]";
-    bar.update(range, log_scale, name, rect.x + rect.width + kBoxBarGap, rect.y + kLabelRoomY,
-               kBoxBarWidth, rect.height - 2 * kLabelRoomY);
     const int m = field.grid.points_per_side;
     const std::string title_text =
         labels.case_name + "   t = " + format_number(labels.time) + " s   step " +
         std::to_string(labels.step) + "\n" + field.field_name + " = " + format_number(value) +
         (field.units.empty() ? "" : " " + field.units) + quantile_text(level) + " on " +
         std::to_string(m) + "\u00b3 grid nodes";
-    set_text(title, title_text, surface.width() / 2.0, surface.height() - 6.0);
+    box.update(layout, length, range, log_scale, name, title_text, surface.width(),
+               surface.height());
   }
 };
 

@@ -12,7 +12,6 @@
 #include <vtkCellArray.h>
 #include <vtkFloatArray.h>
 #include <vtkIdTypeArray.h>
-#include <vtkOutlineSource.h>
 #include <vtkPointData.h>
 #include <vtkPoints.h>
 #include <vtkPolyData.h>
@@ -37,16 +36,8 @@ using detail::elapsed_ms;
 using detail::format_number;
 using detail::kFontSize;
 using detail::kNanColour;
-using detail::kTitleFontSize;
-using detail::make_text;
-using detail::set_text;
 using detail::vtk_scene_mutex;
 
-using detail::EdgeLabel;
-using detail::kBoxBarGap;
-using detail::kBoxBarWidth;
-using detail::kLabelRoomY;
-using detail::kOutlineColour;
 using detail::Layout;
 using detail::make_layout;
 using detail::Vec3;
@@ -97,31 +88,16 @@ struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
   detail::OffscreenWindow surface;  // first: destroyed after the renderers and actors below
   FrameTimings timings;
 
-  // Full window: background, title and colour bar.
-  vtkSmartPointer<vtkRenderer> frame = vtkSmartPointer<vtkRenderer>::New();
-  vtkSmartPointer<vtkTextActor> title = make_text(VTK_TEXT_CENTERED, VTK_TEXT_TOP, kTitleFontSize);
-  detail::ColourBar bar;
-
-  // View rectangle: points, box outline and axis labels.
-  vtkSmartPointer<vtkRenderer> scene = vtkSmartPointer<vtkRenderer>::New();
+  detail::BoxScene box{surface.window(), surface.width(), surface.height()};
   vtkSmartPointer<vtkPoints> points = vtkSmartPointer<vtkPoints>::New();
   vtkSmartPointer<vtkUnsignedCharArray> colours = vtkSmartPointer<vtkUnsignedCharArray>::New();
   vtkSmartPointer<vtkPolyData> cloud = vtkSmartPointer<vtkPolyData>::New();
   vtkSmartPointer<vtkPolyDataMapper> cloud_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
   vtkSmartPointer<vtkActor> cloud_actor = vtkSmartPointer<vtkActor>::New();
-  vtkSmartPointer<vtkOutlineSource> outline = vtkSmartPointer<vtkOutlineSource>::New();
-  vtkSmartPointer<vtkPolyDataMapper> outline_mapper = vtkSmartPointer<vtkPolyDataMapper>::New();
-  vtkSmartPointer<vtkActor> outline_actor = vtkSmartPointer<vtkActor>::New();
-  std::array<EdgeLabel, 3> axis_labels;
   std::vector<int> indices;  // colour index per particle
 
   Impl(int width, int height) : surface(width, height) {
-    frame->SetBackground(1.0, 1.0, 1.0);
-    frame->AddActor2D(title);
-    frame->AddActor2D(bar.actor());
-
-    detail::set_scene_viewport(scene, width, height);
-    scene->AutomaticLightCreationOff();
+    box.scene->AutomaticLightCreationOff();
 
     points->SetDataTypeToFloat();
     colours->SetNumberOfComponents(3);
@@ -137,19 +113,7 @@ struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
     cloud_actor->GetProperty()->LightingOff();
     cloud_actor->GetProperty()->SetRepresentationToPoints();
 
-    outline_mapper->SetInputConnection(outline->GetOutputPort());
-    outline_mapper->ScalarVisibilityOff();
-    outline_actor->SetMapper(outline_mapper);
-    outline_actor->GetProperty()->LightingOff();
-    outline_actor->GetProperty()->SetColor(kOutlineColour[0], kOutlineColour[1], kOutlineColour[2]);
-    outline_actor->GetProperty()->SetLineWidth(1.0);
-
-    scene->AddActor(outline_actor);
-    scene->AddActor(cloud_actor);
-    for (const EdgeLabel& label : axis_labels) scene->AddActor2D(label.actor);
-
-    surface.window()->AddRenderer(frame);  // drawn first; the scene clears only its viewport
-    surface.window()->AddRenderer(scene);
+    box.scene->AddActor(cloud_actor);
   }
 
   // Colour index per particle and the range: CPU only, done before taking the VTK lock.
@@ -199,21 +163,14 @@ struct detail::OffscreenPngRenderer<ParticleRenderer>::Impl {
     cloud->Modified();
     cloud_actor->GetProperty()->SetPointSize(static_cast<float>(point_size(count, layout)));
 
-    outline->SetBounds(0.0, length, 0.0, length, 0.0, two_dimensional ? 0.0 : length);
-
-    detail::place_camera(scene, layout, length);
-    detail::place_axis_labels(axis_labels, layout);
-
-    const ImageRect& rect = layout.rect;
     const std::string bar_title =
         input.units.empty() ? input.field_name : input.field_name + " [" + input.units + "]";
-    bar.update(range, log_scale, bar_title, rect.x + rect.width + kBoxBarGap, rect.y + kLabelRoomY,
-               kBoxBarWidth, rect.height - 2 * kLabelRoomY);
     const std::string title_text = labels.case_name + "   t = " + format_number(labels.time) +
                                    " s   step " + std::to_string(labels.step) + "\n" +
                                    input.field_name + " on " + std::to_string(count) +
                                    " particles, box " + format_number(length) + " m";
-    set_text(title, title_text, surface.width() / 2.0, surface.height() - 6.0);
+    box.update(layout, length, range, log_scale, bar_title, title_text, surface.width(),
+               surface.height());
   }
 };
 
