@@ -92,6 +92,11 @@ class Client:
     def presets(self):
         return self._request("GET", "/api/presets")
 
+    def scenes(self):
+        """The server's scene files (scenes/): {"scenes": [{..., "file", "scene"}], "skipped":
+        [{"file", "error"}]}; create a run of one with create(scene=entry["scene"])."""
+        return self._request("GET", "/api/scenes")
+
     def runs(self):
         return self._request("GET", "/api/runs")
 
@@ -277,6 +282,20 @@ class Client:
             with open(destination, "wb") as out:
                 out.write(content)
         return content
+
+    def movie(self, run_id, field="omega2", fps=None, quality=None, destination=None):
+        """The run's saved frames of ``field`` (omega2, tau_sfs, nu_t, combined, view3d) encoded
+        by the server as movies/FIELD.webm; its description ({"path", "url", "frames", "width",
+        "height", "duration_seconds", "bytes"}), and the video written to ``destination``."""
+        body = {"field": field}
+        if fps is not None:
+            body["fps"] = fps
+        if quality is not None:
+            body["quality"] = quality
+        made = self._request("POST", self._run(run_id) + "/movies", body)
+        if destination is not None:
+            self.download(run_id, made["path"], destination)
+        return made
 
     def slice(self, run_id, field, time=None):
         """A saved slice of ``field`` (omega2, tau_sfs, ...) as a 2D NumPy array: the latest, or

@@ -20,6 +20,7 @@ SCENE = {"name": "client", "case": "tgv2d", "particles_per_side": 16,
          "packing": {"enabled": False}, "time": {"end": 0.3},
          "analysis": {"every": 0.1, "products": ["energy", "spectrum", "vorticity", "slices"],
                       "slice": {"fields": ["omega2"]}},
+         "render": {"fields": ["omega2"], "combined": False, "width": 128, "height": 64},
          "checkpoint": {"every": 0.1}}
 
 
@@ -109,6 +110,21 @@ def main():
               f"the latest ω² slice as a {omega2.shape} array")
         first = client.slice(run_id, "omega2", time=0.0)
         check(not np.array_equal(first, omega2), "the slice nearest t = 0 is another")
+
+        try:
+            client.movie(run_id, field="tau_sfs")
+            check(False, "a movie of a series the run did not save")
+        except ApiError as e:
+            check(e.status == 404 and e.field == "field", f"404 naming the field: {e}")
+        video = os.path.join(work, "omega2.webm")
+        movie = client.movie(run_id, fps=5, destination=video)
+        with open(video, "rb") as f:
+            head = f.read(4)
+        check(movie["path"] == "movies/omega2.webm" and movie["frames"] >= 2
+              and head == b"\x1a\x45\xdf\xa3" and os.path.getsize(video) == movie["bytes"],
+              f"a movie of the saved ω² frames ({movie['frames']} frames, WebM) downloaded")
+        check(any(s["file"] == "tgv3d-accurate.json" for s in client.scenes()["scenes"]),
+              "the server's scene files listed")
 
         files = {f["path"]: f for f in client.files(run_id)}
         checkpoint = max(p for p in files if p.startswith("checkpoints/") and p.endswith(".h5"))
