@@ -3,8 +3,9 @@
 
 #include <algorithm>
 #include <array>
-#include <fstream>
 #include <stdexcept>
+
+#include "analysis/writer.hpp"
 
 namespace sphles::analysis {
 
@@ -145,15 +146,7 @@ void write_units_file(const std::filesystem::path& run_directory, RunKind kind,
     text += u.unit;
     text += '\n';
   }
-  const std::filesystem::path path = run_directory / "units.csv";
-  const std::filesystem::path temporary = run_directory / "units.csv.tmp";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    out << text;
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write '" + temporary.string() + "'");
-  }
-  std::filesystem::rename(temporary, path);
+  replace_atomically(run_directory / "units.csv", text);
 }
 
 }  // namespace sphles::analysis

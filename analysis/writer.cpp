@@ -17,17 +17,6 @@ namespace {
 /// What a CSV cell holds for a value the frame does not have (numpy and pandas read it as NaN).
 const std::string kNan = "nan";
 
-void replace_atomically(const std::filesystem::path& path, const std::string& content) {
-  const std::filesystem::path temporary = path.string() + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
-    out.write(content.data(), static_cast<std::streamsize>(content.size()));
-    out.flush();
-    if (!out) throw std::runtime_error("cannot write '" + temporary.string() + "'");
-  }
-  std::filesystem::rename(temporary, path);
-}
-
 /// Appends a line to a CSV index, writing the header when the file is new.
 void append_line(const std::filesystem::path& path, const std::string& header,
                  const std::string& line) {
@@ -46,6 +35,17 @@ std::string number(double x) {
 }
 
 }  // namespace
+
+void replace_atomically(const std::filesystem::path& path, const std::string& content) {
+  const std::filesystem::path temporary = path.string() + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    out.write(content.data(), static_cast<std::streamsize>(content.size()));
+    out.flush();
+    if (!out) throw std::runtime_error("cannot write '" + temporary.string() + "'");
+  }
+  std::filesystem::rename(temporary, path);
+}
 
 std::vector<std::map<std::string, std::string>> read_index(const std::filesystem::path& path) {
   std::vector<std::map<std::string, std::string>> rows;

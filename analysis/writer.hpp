@@ -34,6 +34,10 @@ std::vector<std::map<std::string, std::string>> read_index(const std::filesystem
 double index_number(const std::map<std::string, std::string>& row, const std::string& column,
                     const std::filesystem::path& file);
 
+/// Writes `content` to `path` through a temporary file (PATH.tmp) renamed over it: no reader sees
+/// half a file, and a crash leaves the old file or the new one.
+void replace_atomically(const std::filesystem::path& path, const std::string& content);
+
 /// Writes a 2D float64 array as NumPy .npy (format 1.0) with shape (rows, columns).
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
                std::size_t columns);

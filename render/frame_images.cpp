@@ -1,19 +1,17 @@
 // SPDX-License-Identifier: GPL-3.0-or-later
 #include "render/frame_images.hpp"
-#include "render/vtk_window.hpp"
-
-#include <chrono>
 
 #include "render/isosurface.hpp"
 #include "render/view3d.hpp"
+#include "render/vtk_window.hpp"
 
 namespace sphles::render {
 
 namespace {
-using Clock = std::chrono::steady_clock;
-double elapsed_ms(Clock::time_point since) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - since).count();
-}
+
+using detail::Clock;
+using detail::elapsed_ms;
+
 const analysis::GridScalarField* grid_field(const analysis::AnalysisFrame& frame,
                                             analysis::SliceField field) {
   if (!frame.fields || frame.dimension != 3) return nullptr;

@@ -27,7 +27,6 @@ namespace sphles::render {
 namespace {
 
 using detail::Clock;
-using detail::elapsed_ms;
 using detail::format_number;
 using detail::kOutlineColour;
 
@@ -180,18 +179,12 @@ std::vector<unsigned char> IsoSurfaceRenderer::render_png(const IsoField& field,
                                                           const FrameLabels& labels) {
   validate(field);
   Impl& impl = *impl_;
-  auto start = Clock::now();
+  const auto start = Clock::now();
   const std::array<double, 2> range = colour_range(field.values, mapping);
   const double value = iso_value(field.values, level);
-  std::unique_lock lock(detail::vtk_scene_mutex());
-  impl.surface.make_current();
-  impl.update(field, range, mapping.log_scale, value, level, labels);
-  impl.timings.prepare_ms = elapsed_ms(start);
-  start = Clock::now();
-  impl.surface.window()->Render();
-  impl.timings.render_ms = elapsed_ms(start);
-  lock.unlock();
-  return impl.surface.read_back_png(impl.timings);
+  return impl.surface.draw_png(
+      impl.timings, [&] { impl.update(field, range, mapping.log_scale, value, level, labels); },
+      start);
 }
 
 std::vector<unsigned char> render_isosurface_png(const IsoField& field,

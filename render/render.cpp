@@ -33,15 +33,12 @@
 namespace sphles::render {
 namespace {
 
-using detail::Clock;
-using detail::elapsed_ms;
 using detail::format_number;
 using detail::kFontSize;
 using detail::kNanColour;
 using detail::kTitleFontSize;
 using detail::make_text;
 using detail::set_text;
-using detail::vtk_scene_mutex;
 
 // Panel margins [px] around the image: title above, axis labels left and below, colour bar right.
 constexpr int kMarginTop = 56;
@@ -206,26 +203,17 @@ std::vector<unsigned char> Renderer::render_png(std::span<const analysis::SliceP
   }
   Impl& impl = *impl_;
   const int width = impl.surface.width(), height = impl.surface.height();
-  std::unique_lock lock(vtk_scene_mutex());
-  auto start = Clock::now();
-  impl.surface.make_current();
-  impl.set_panel_count(slices.size());
-  const int count = static_cast<int>(slices.size());
-  for (int i = 0; i < count; ++i) {
-    // Pixel extent of panel i, as VTK rounds the viewport [i/n, (i+1)/n).
-    const int x0 = static_cast<int>(static_cast<double>(i) / count * width + 0.5);
-    const int x1 = static_cast<int>(static_cast<double>(i + 1) / count * width + 0.5);
-    impl.panels[i]->update(slices[i], mappings[mappings.size() == 1 ? 0 : i], labels, x1 - x0,
-                           height);
-  }
-  impl.timings.prepare_ms = elapsed_ms(start);
-
-  start = Clock::now();
-  impl.surface.window()->Render();
-  impl.timings.render_ms = elapsed_ms(start);
-  lock.unlock();
-
-  return impl.surface.read_back_png(impl.timings);
+  return impl.surface.draw_png(impl.timings, [&] {
+    impl.set_panel_count(slices.size());
+    const int count = static_cast<int>(slices.size());
+    for (int i = 0; i < count; ++i) {
+      // Pixel extent of panel i, as VTK rounds the viewport [i/n, (i+1)/n).
+      const int x0 = static_cast<int>(static_cast<double>(i) / count * width + 0.5);
+      const int x1 = static_cast<int>(static_cast<double>(i + 1) / count * width + 0.5);
+      impl.panels[i]->update(slices[i], mappings[mappings.size() == 1 ? 0 : i], labels, x1 - x0,
+                             height);
+    }
+  });
 }
 
 std::vector<unsigned char> render_slice_png(const analysis::SliceProduct& slice,

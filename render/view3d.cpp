@@ -32,11 +32,9 @@ namespace sphles::render {
 namespace {
 
 using detail::Clock;
-using detail::elapsed_ms;
 using detail::format_number;
 using detail::kFontSize;
 using detail::kNanColour;
-using detail::vtk_scene_mutex;
 
 using detail::Layout;
 using detail::make_layout;
@@ -183,19 +181,10 @@ std::vector<unsigned char> ParticleRenderer::render_png(const ParticleCloud& clo
                                                         const FrameLabels& labels) {
   validate(cloud);
   Impl& impl = *impl_;
-  auto start = Clock::now();
+  const auto start = Clock::now();
   const std::array<double, 2> range = impl.map_colours(cloud, mapping);
-  std::unique_lock lock(vtk_scene_mutex());
-  impl.surface.make_current();
-  impl.update(cloud, range, mapping.log_scale, labels);
-  impl.timings.prepare_ms = elapsed_ms(start);
-
-  start = Clock::now();
-  impl.surface.window()->Render();
-  impl.timings.render_ms = elapsed_ms(start);
-  lock.unlock();
-
-  return impl.surface.read_back_png(impl.timings);
+  return impl.surface.draw_png(
+      impl.timings, [&] { impl.update(cloud, range, mapping.log_scale, labels); }, start);
 }
 
 std::vector<unsigned char> render_particles_png(const ParticleCloud& cloud,

@@ -104,6 +104,25 @@ class OffscreenWindow {
   /// timings.read_back_ms and timings.encode_ms.
   std::vector<unsigned char> read_back_png(FrameTimings& timings);
 
+  /// One frame: under vtk_scene_mutex() makes the context current, runs `update` (the scene's
+  /// changes) and renders; then reads back and encodes without the lock. timings.prepare_ms
+  /// counts from `start` (the CPU work a renderer does before taking the lock), or from the
+  /// lock's taking when none is given.
+  template <class Update>
+  std::vector<unsigned char> draw_png(FrameTimings& timings, Update&& update,
+                                      std::optional<Clock::time_point> start = std::nullopt) {
+    std::unique_lock lock(vtk_scene_mutex());
+    const Clock::time_point from = start.value_or(Clock::now());
+    make_current();
+    update();
+    timings.prepare_ms = elapsed_ms(from);
+    const auto rendering = Clock::now();
+    window_->Render();
+    timings.render_ms = elapsed_ms(rendering);
+    lock.unlock();
+    return read_back_png(timings);
+  }
+
  private:
   int width_, height_;
   OsmesaContext context_;
