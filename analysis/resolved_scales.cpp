@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "analysis/writer.hpp"
+#include "sim/kernels.hpp"
 
 namespace sphles::analysis {
 
@@ -119,6 +120,8 @@ ResolvedScales resolved_scales(const ShellSpectrum& run, const ShellSpectrum& re
     if (k > kernel_wavenumber * (1.0 + kShellTolerance)) break;
     r.shell.push_back(k);
     const double ref = p < reference.energy.size() ? reference.energy[p] : 0.0;
+    r.shell_energy.push_back(run.energy[p]);
+    r.reference_shell_energy.push_back(ref);
     // A shell the reference leaves empty (the Taylor-Green vortex's odd shells early on) has
     // no ratio.
     r.shell_ratio.push_back(ref * dk > kEmptyShell * reference_total
@@ -158,6 +161,18 @@ ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
     h.flux.push_back(-(b.resolved_energy - a.resolved_energy) / dt);
     h.reference_flux.push_back(-(b.reference_resolved_energy - a.reference_resolved_energy) / dt);
   }
+  for (const ResolvedScales& r : h.samples)
+    if (r.shell.size() > h.mean_shell.size()) h.mean_shell = r.shell;
+  for (std::size_t p = 0; p < h.mean_shell.size(); ++p) {
+    double run_sum = 0.0, reference_sum = 0.0;
+    for (const ResolvedScales& r : h.samples)
+      if (p < r.shell_ratio.size() && !std::isnan(r.shell_ratio[p])) {
+        run_sum += r.shell_energy[p];
+        reference_sum += r.reference_shell_energy[p];
+      }
+    h.mean_shell_ratio.push_back(reference_sum > 0.0 ? run_sum / reference_sum
+                                                     : std::numeric_limits<double>::quiet_NaN());
+  }
   if (!h.flux.empty()) {
     const auto peak = std::max_element(h.flux.begin(), h.flux.end()) - h.flux.begin();
     const auto ref_peak = std::max_element(h.reference_flux.begin(), h.reference_flux.end()) -
@@ -170,12 +185,35 @@ ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
   return h;
 }
 
+namespace {
+
+nlohmann::json ratios_or_null(const std::vector<double>& ratios) {
+  nlohmann::json out = nlohmann::json::array();
+  for (double r : ratios) out.push_back(std::isnan(r) ? nlohmann::json() : nlohmann::json(r));
+  return out;
+}
+
+}  // namespace
+
+std::vector<ShellSpectrum> kernel_filtered(std::vector<ShellSpectrum> reference,
+                                           const sim::Scene& run_scene) {
+  const double support_radius = 0.5 * run_scene.kernel_diameter();
+  std::vector<double> transfer;  // Ŵ(k)² per shell, the same shells at every time
+  for (ShellSpectrum& s : reference) {
+    for (std::size_t p = transfer.size(); p < s.wavenumber.size(); ++p) {
+      const double w = sim::kernel_transfer(run_scene.kernel, run_scene.dimension(), support_radius,
+                                            s.wavenumber[p]);
+      transfer.push_back(w * w);
+    }
+    for (std::size_t p = 0; p < s.energy.size(); ++p) s.energy[p] *= transfer[p];
+  }
+  return reference;
+}
+
 nlohmann::json resolved_history_to_json(const ResolvedHistory& h) {
   nlohmann::json samples = nlohmann::json::array();
   for (const ResolvedScales& s : h.samples) {
-    nlohmann::json ratios = nlohmann::json::array();
-    for (double r : s.shell_ratio)
-      ratios.push_back(std::isnan(r) ? nlohmann::json() : nlohmann::json(r));
+    const nlohmann::json ratios = ratios_or_null(s.shell_ratio);
     samples.push_back({{"t", s.time},
                        {"k_kernel", s.kernel_wavenumber},
                        {"k_sph", s.sph_wavenumber},
@@ -193,7 +231,9 @@ nlohmann::json resolved_history_to_json(const ResolvedHistory& h) {
           {"flux", {{"t", h.flux_time}, {"run", h.flux}, {"reference", h.reference_flux}}},
           {"flux_peak", {{"t", h.flux_peak_time}, {"value", h.flux_peak}}},
           {"reference_flux_peak",
-           {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}}};
+           {{"t", h.reference_flux_peak_time}, {"value", h.reference_flux_peak}}},
+          {"mean_shell_ratio",
+           {{"shell", h.mean_shell}, {"ratio", ratios_or_null(h.mean_shell_ratio)}}}};
 }
 
 }  // namespace sphles::analysis

@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "analysis/spectrum.hpp"
+#include "sim/scene.hpp"
 
 namespace sphles::analysis {
 
@@ -38,6 +39,14 @@ std::vector<ShellSpectrum> read_run_spectra(const std::filesystem::path& run_dir
 /// result (no shells) when `time` lies outside the reference's times.
 ShellSpectrum spectrum_at(const std::vector<ShellSpectrum>& reference, double time);
 
+/// The reference as the run's kernel filters the flow: each shell's E_ref(k) times Ŵ(k)², with Ŵ
+/// the transfer function of the scene's kernel at its D_K (sim::kernel_transfer). An SPH-LES
+/// carries the kernel-filtered velocity (SPEC §1), so the filtered reference is what a perfect
+/// scheme of that kernel would give; the shell ratios against it separate what the scheme
+/// loses from what the kernel's filter removes by design.
+std::vector<ShellSpectrum> kernel_filtered(std::vector<ShellSpectrum> reference,
+                                           const sim::Scene& run_scene);
+
 struct ResolvedScales {
   double time = 0.0;
   double kernel_wavenumber = 0.0;  // k_kern
@@ -47,6 +56,7 @@ struct ResolvedScales {
   double reference_energy = 0.0;    // Σ_k E_ref(k) Δk
   std::vector<double> shell;        // k_p of the shells 0 < k_p <= k_kern
   std::vector<double> shell_ratio;  // E(k_p)/E_ref(k_p); NaN where the reference's shell is empty
+  std::vector<double> shell_energy, reference_shell_energy;  // E(k_p) and E_ref(k_p)
 };
 
 /// The measures at one time, with the run's k_kern. Throws std::invalid_argument when the two
@@ -67,6 +77,12 @@ struct ResolvedHistory {
   std::vector<double> flux_time, flux, reference_flux;
   double flux_peak_time = 0.0, reference_flux_peak_time = 0.0;
   double flux_peak = 0.0, reference_flux_peak = 0.0;
+  /// Each shell's energy summed over the samples where it has a ratio, over the reference's
+  /// (NaN where none has): a single shell at a single time swings with the phase of the
+  /// roll-up, the ratio over a window (e.g. t = 7.5 … 9.5 around the Taylor-Green dissipation
+  /// peak) measures the energy kept; weighting by energy keeps the early times, when a high
+  /// shell holds almost nothing, from dominating a long window.
+  std::vector<double> mean_shell, mean_shell_ratio;
 };
 
 /// The measures at every time of `run` the reference covers, from t_min to t_max.
@@ -77,7 +93,8 @@ ResolvedHistory resolved_history(const std::vector<ShellSpectrum>& run,
 /// The history as JSON: "samples" (t, k_kernel, k_sph, resolved_energy, reference_resolved_energy,
 /// energy_above_kernel, reference_energy_above_kernel, shell, shell_ratio; NaN ratios as null),
 /// "resolved_energy_l2_misfit", "resolved_energy_max_relative_error", "flux" {t, run,
-/// reference}, "flux_peak" and "reference_flux_peak" {t, value}.
+/// reference}, "flux_peak" and "reference_flux_peak" {t, value}, "mean_shell_ratio" {shell,
+/// ratio} (NaN means as null).
 nlohmann::json resolved_history_to_json(const ResolvedHistory& history);
 
 }  // namespace sphles::analysis

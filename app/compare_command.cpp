@@ -15,6 +15,7 @@
 #include "app/commands.hpp"
 #include "scene/document.hpp"
 #include "scene/json_reader.hpp"
+#include "sim/kernels.hpp"
 
 namespace sphles::app {
 
@@ -23,6 +24,7 @@ namespace {
 struct CompareOptions {
   std::string run, reference;
   double from = 0.0, to = 1e300;
+  std::string filter = "none";  // "kernel": the reference filtered by the run's kernel
   bool json = false;
 };
 
@@ -56,12 +58,12 @@ double total_energy_misfit(const std::filesystem::path& run, const std::filesyst
 
 int compare_command(CompareOptions o) {
   try {
+    nlohmann::json document = scene::read_scene_file(std::filesystem::path(o.run) / "scene.json");
+    document.erase("reference");
+    document.erase("render");
+    const sim::Scene scene = analysis::parse_run_config(document).scene;
     if (o.reference.empty()) {
       // The shipped reference of the run's flow (data/reference/).
-      nlohmann::json document = scene::read_scene_file(std::filesystem::path(o.run) / "scene.json");
-      document.erase("reference");
-      document.erase("render");
-      const sim::Scene scene = analysis::parse_run_config(document).scene;
       const auto found = analysis::find_reference_run(scene, SPHLES_REFERENCE_DIR);
       if (!found)
         throw std::runtime_error("no shipped reference matches the flow of '" + o.run + "' (case " +
@@ -73,18 +75,34 @@ int compare_command(CompareOptions o) {
       o.reference = found->string();
     }
     const auto run = analysis::read_run_spectra(o.run);
-    const auto ref = analysis::read_run_spectra(o.reference);
+    const bool filtered = o.filter == "kernel";
+    const auto ref = filtered
+                         ? analysis::kernel_filtered(analysis::read_run_spectra(o.reference), scene)
+                         : analysis::read_run_spectra(o.reference);
     const analysis::ResolvedHistory h = analysis::resolved_history(run, ref, o.from, o.to);
     if (h.samples.empty())
       throw std::runtime_error("no time of '" + o.run + "' in [" + std::to_string(o.from) + ", " +
                                std::to_string(o.to) + "] lies within the reference's times");
     if (o.json) {
-      std::printf("%s\n", analysis::resolved_history_to_json(h).dump(2).c_str());
+      nlohmann::json out = analysis::resolved_history_to_json(h);
+      out["filter"] = o.filter;
+      std::printf("%s\n", out.dump(2).c_str());
       return kExitOk;
     }
     const auto& first = h.samples.front();
-    std::printf("%s against %s: k_kern = %g, k_SPH = %g (SPEC §9)\n", o.run.c_str(),
-                o.reference.c_str(), first.kernel_wavenumber, first.sph_wavenumber);
+    std::printf("%s against %s%s: k_kern = %g, k_SPH = %g (SPEC §9)\n", o.run.c_str(),
+                o.reference.c_str(), filtered ? " filtered by the run's kernel" : "",
+                first.kernel_wavenumber, first.sph_wavenumber);
+    if (filtered) {
+      std::printf("the reference's E(k) times W(k)^2 of %s at D_K = %g:",
+                  std::string(sim::kernel_name(scene.kernel)).c_str(), scene.kernel_diameter());
+      for (double k : first.shell) {
+        const double w =
+            sim::kernel_transfer(scene.kernel, scene.dimension(), 0.5 * scene.kernel_diameter(), k);
+        std::printf(" %g: %.3f", k, w * w);
+      }
+      std::printf("\n");
+    }
     std::printf("%8s %11s %11s %7s %11s %11s  E(k)/E_ref(k) at k =", "t", "E_res", "E_res,ref",
                 "ratio", ">k_kern", ">k_kern,ref");
     for (double k : first.shell) std::printf(" %5g", k);
@@ -97,6 +115,10 @@ int compare_command(CompareOptions o) {
         std::isnan(r) ? std::printf("     -") : std::printf(" %5.2f", r);
       std::printf("\n");
     }
+    std::printf("%8s %77s", "mean", "");
+    for (double r : h.mean_shell_ratio)
+      std::isnan(r) ? std::printf("     -") : std::printf(" %5.2f", r);
+    std::printf("  (each shell over the %zu times)\n", h.samples.size());
     std::printf("E_res misfit: L2 %.2f %%, max %.2f %% over %zu times\n", 100.0 * h.l2_misfit,
                 100.0 * h.max_relative_error, h.samples.size());
     if (!h.flux.empty())
@@ -122,7 +144,8 @@ void add_compare_command(CLI::App& app, int& exit_code) {
   cmd->footer(
       "At the run's spectra times: the resolved energy E_res = sum of E(k) over k <= k_SPH = "
       "k_kern/2, the shell ratios E(k)/E_ref(k) up to k_kern, the energy above k_kern, and over "
-      "time the misfit of E_res and the peak of -dE_res/dt (SPEC §9; docs/reference.md). REF is a "
+      "time the misfit of E_res and the peak of -dE_res/dt, and each shell's ratio averaged over "
+      "the times compared (SPEC §9; docs/reference.md). REF is a "
       "`sphles reference` run directory of the same flow; without it, the one shipped in "
       "data/reference/ for the run's case and Reynolds number.");
   cmd->add_option("run", o->run, "run directory with spectra/")->required()->type_name("RUN");
@@ -131,6 +154,11 @@ void add_compare_command(CLI::App& app, int& exit_code) {
       ->type_name("REF");
   cmd->add_option("--from", o->from, "first time compared")->type_name("T");
   cmd->add_option("--to", o->to, "last time compared")->type_name("T");
+  cmd->add_option("--filter", o->filter,
+                  "none: the reference as computed; kernel: its E(k) times W(k)^2 of the run's "
+                  "kernel, the spectrum a perfect SPH-LES of that kernel would carry")
+      ->check(CLI::IsMember({"none", "kernel"}))
+      ->type_name("none|kernel");
   cmd->add_flag("--json", o->json, "print JSON instead of a table");
   cmd->callback([o, &exit_code] { exit_code = compare_command(*o); });
 }

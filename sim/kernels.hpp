@@ -184,4 +184,10 @@ decltype(auto) with_kernel(KernelType type, int dim, double support_radius, F&& 
   return visit_kernel_shape(type, for_dim, KernelRegistry{});
 }
 
+/// The kernel's Fourier transform normalised to Ŵ(0) = 1, at wavenumber k for support radius H:
+/// the transfer function of the filter an SPH-LES applies to the flow (SPEC §1: the particles
+/// carry the kernel-filtered velocity, so their spectrum is Ŵ(k)² E(k) of the flow's). Radial
+/// integrals of the shape, 4π ∫ W r² sin(kr)/(kr) dr in 3D and 2π ∫ W r J₀(kr) dr in 2D.
+double kernel_transfer(KernelType type, int dim, double support_radius, double wavenumber);
+
 }  // namespace sphles::sim

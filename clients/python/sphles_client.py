@@ -193,12 +193,15 @@ class Client:
         answer = self._request("GET", self._run(run_id) + "/reference")
         return {"label": answer["label"], "source": answer["source"], **self._columns(answer)}
 
-    def resolved(self, run_id):
+    def resolved(self, run_id, filter="none"):
         """The run's resolved scales against the reference run of its flow (SPEC §9): the
         answer of GET /api/runs/{id}/resolved as a dict ("samples" with E_res, shell ratios
-        and the energy above k_kern per time, "resolved_energy_l2_misfit", "reference",
-        "reference_spectrum"); ApiError 404 (saying why) when there is none."""
-        return self._request("GET", self._run(run_id) + "/resolved")
+        and the energy above k_kern per time, "resolved_energy_l2_misfit",
+        "mean_shell_ratio", "reference", "reference_spectrum"); ``filter="kernel"`` judges
+        against the reference filtered by the run's kernel (E_ref(k) Ŵ(k)²). ApiError 404
+        (saying why) when there is none, 400 naming ``filter`` for another value."""
+        query = "" if filter == "none" else "?filter=" + urllib.parse.quote(str(filter))
+        return self._request("GET", self._run(run_id) + "/resolved" + query)
 
     # -- spectral references computed by the server -------------------------------------------
 

@@ -97,6 +97,11 @@ Response reference(const Services& s, const Context& c) {
 Response resolved(const Services& s, const Context& c) {
   const auto run = find_run(s, c.params[0]);
   const sim::Scene scene = run->spec().scene;
+  // ?filter=kernel judges against the reference filtered by the run's kernel (compare --filter).
+  const auto filter_it = c.query.find("filter");
+  const std::string filter = filter_it == c.query.end() ? "none" : filter_it->second;
+  if (filter != "none" && filter != "kernel")
+    throw ApiError(400, "'filter' must be none or kernel, got '" + filter + "'", "filter");
   const auto reference = reference_run_of(s, scene);
   if (!reference)
     throw ApiError(404, "run '" + run->id() +
@@ -109,6 +114,7 @@ Response resolved(const Services& s, const Context& c) {
   analysis::ResolvedHistory h;
   try {
     ref = analysis::read_run_spectra(*reference);
+    if (filter == "kernel") ref = analysis::kernel_filtered(std::move(ref), scene);
     h = analysis::resolved_history(analysis::read_run_spectra(run->directory()), ref);
   } catch (const std::runtime_error& e) {
     throw ApiError(500, e.what());
@@ -118,6 +124,7 @@ Response resolved(const Services& s, const Context& c) {
   nlohmann::json body = analysis::resolved_history_to_json(h);
   const analysis::ShellSpectrum latest = analysis::spectrum_at(ref, h.samples.back().time);
   body["reference"] = reference->filename().string();
+  body["filter"] = filter;
   body["reference_spectrum"] = {
       {"t", latest.time}, {"k", latest.wavenumber}, {"energy", latest.energy}};
   return json_response(c.request, body);

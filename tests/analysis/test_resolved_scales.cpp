@@ -4,10 +4,12 @@
 
 #include <cmath>
 #include <fstream>
+#include <numbers>
 
 #include "analysis/resolved_scales.hpp"
 #include "analysis/writer.hpp"
 #include "scratch_directory.hpp"
+#include "sim/kernels.hpp"
 
 namespace sphles::analysis {
 namespace {
@@ -74,6 +76,41 @@ TEST(ResolvedScales, HistoryInterpolatesTheReferenceAndFindsTheFluxPeak) {
   EXPECT_TRUE(std::isnan(resolved_history(wide_run, wide_ref).l2_misfit));
   // A window that the reference does not cover gives no samples.
   EXPECT_TRUE(resolved_history(run, ref, 5.0, 6.0).samples.empty());
+}
+
+TEST(ResolvedScales, WindowRatioWeighsByEnergyAndTheKernelFilterScalesTheReference) {
+  // Shell 2 holds 1 and 3 in the run, 2 and 4 in the reference: the window's ratio is 4/6, not
+  // the mean of 0.5 and 0.75; shell 1 is empty in the reference and has none.
+  const std::vector<ShellSpectrum> run = {spectrum(1.0, {0.0, 0.5, 1.0}),
+                                          spectrum(2.0, {0.0, 0.5, 3.0})};
+  const std::vector<ShellSpectrum> ref = {spectrum(1.0, {0.0, 0.0, 2.0}),
+                                          spectrum(2.0, {0.0, 0.0, 4.0})};
+  const ResolvedHistory h = resolved_history(run, ref);
+  ASSERT_EQ(h.mean_shell.size(), 2u);
+  EXPECT_TRUE(std::isnan(h.mean_shell_ratio[0]));
+  EXPECT_DOUBLE_EQ(h.mean_shell_ratio[1], 4.0 / 6.0);
+  const nlohmann::json j = resolved_history_to_json(h);
+  EXPECT_TRUE(j.at("mean_shell_ratio").at("ratio")[0].is_null());
+  EXPECT_DOUBLE_EQ(j.at("mean_shell_ratio").at("ratio")[1].get<double>(), 4.0 / 6.0);
+
+  // The filtered reference is E_ref(k) Ŵ(k)² of the scene's kernel at its D_K; against it a run
+  // that carries exactly that spectrum has ratio 1 in every shell.
+  sim::Scene scene;
+  scene.case_type = sim::CaseType::TaylorGreen3D;
+  scene.box_length_ = 2.0 * std::numbers::pi;
+  scene.particles_per_side = 32;
+  scene.kernel = sim::KernelType::WendlandC6;
+  scene.kernel_diameter_over_spacing = 8.0;
+  const std::vector<ShellSpectrum> filtered =
+      kernel_filtered({spectrum(1.0, {0.0, 1.0, 2.0, 3.0, 4.0})}, scene);
+  for (std::size_t p = 0; p < 5; ++p) {
+    const double w = sim::kernel_transfer(sim::KernelType::WendlandC6, 3,
+                                          0.5 * scene.kernel_diameter(), static_cast<double>(p));
+    EXPECT_DOUBLE_EQ(filtered[0].energy[p], static_cast<double>(p) * w * w);
+  }
+  EXPECT_LT(filtered[0].energy[4], 0.9 * 4.0);  // k = 4 = k_kern: the filter takes a third
+  const ResolvedScales r = resolved_scales(filtered[0], filtered[0], 4.0);
+  for (double ratio : r.shell_ratio) EXPECT_DOUBLE_EQ(ratio, 1.0);
 }
 
 TEST(ResolvedScales, ReadsARunDirectoryAndNamesWhatIsMissing) {

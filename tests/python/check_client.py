@@ -104,6 +104,16 @@ def main():
         check(job["state"] == "done" and job["time"] == 0.3, f"reference job {job['id']} done")
         check(client.resolved(run_id)["reference"] == job["directory"],
               "resolved scales against the computed reference")
+        plain, filtered = client.resolved(run_id), client.resolved(run_id, filter="kernel")
+        check(filtered["filter"] == "kernel" and
+              filtered["samples"][-1]["reference_resolved_energy"] <
+              plain["samples"][-1]["reference_resolved_energy"],
+              "against the kernel-filtered reference, less reference energy")
+        try:
+            client.resolved(run_id, filter="gaussian")
+            check(False, "an unknown filter was accepted")
+        except ApiError as e:
+            check(e.status == 400 and e.field == "filter", f"400 naming the filter: {e}")
 
         omega2 = client.slice(run_id, "omega2")
         check(omega2.ndim == 2 and omega2.shape[0] > 8 and np.all(np.isfinite(omega2)),

@@ -10,12 +10,14 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <numbers>
 
 #include "scene/document.hpp"
 #include "scene/presets.hpp"
 #include "scene/schema.hpp"
 #include "scene_test_support.hpp"
 #include "sim/initial_conditions.hpp"
+#include "sim/kernels.hpp"
 #include "sim/scene.hpp"
 #include "sim/scene_warnings.hpp"
 
@@ -678,6 +680,52 @@ TEST_F(CliTest, UnitsCsvGivesTheUnitOfEveryColumnOfTheRunsCsvFiles) {
                  (dir_ / "reference").string());
   ASSERT_EQ(r.exit_code, 0) << r.output;
   expect_units_for_every_column(dir_ / "reference");
+}
+
+TEST_F(CliTest, CompareJudgesARunAgainstAReferenceAndItsKernelFilteredForm) {
+  // A 24² 2D Taylor-Green run with D_K = 4Δl (k_kern = 6, k_SPH = 3) against a 32² reference of
+  // the same flow: the vortices' energy lies in shell 1.
+  const auto scene = write("tgv.json", R"({"case": "tgv2d", "particles_per_side": 24,
+      "kernel": {"diameter_over_spacing": 4}, "time": {"end": 0.1}, "packing": {"enabled": false},
+      "analysis": {"every": 0.05, "products": ["energy", "spectrum"]}})");
+  const std::string run = (dir_ / "run").string(), ref = (dir_ / "ref").string();
+  ProcessResult r = run_sphles("run " + scene + " --out " + run);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_sphles("reference " + scene + " --set reference.points_per_side=32 --out " + ref);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  r = run_sphles("compare " + run + " " + ref);
+  ASSERT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("k_kern = 6, k_SPH = 3"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("(each shell over the 3 times)"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("E_res misfit: L2"), std::string::npos) << r.output;
+  const auto plain =
+      nlohmann::json::parse(run_sphles("compare " + run + " " + ref + " --json").output);
+  const auto filtered = nlohmann::json::parse(
+      run_sphles("compare " + run + " " + ref + " --json --filter kernel").output);
+  EXPECT_EQ(plain.at("filter"), "none");
+  EXPECT_EQ(filtered.at("filter"), "kernel");
+  // Filtering divides each ratio by Ŵ(k)² of the run's kernel at its D_K (2π/24 · 4).
+  const double w =
+      kernel_transfer(KernelType::WendlandC4, 2, 0.5 * 4.0 * 2.0 * std::numbers::pi / 24.0, 1.0);
+  const auto& samples = plain.at("samples");
+  ASSERT_EQ(samples.size(), 3u);
+  double run_sum = 0.0, ref_sum = 0.0;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const double ratio = samples[i].at("shell_ratio")[0];
+    EXPECT_NEAR(filtered.at("samples")[i].at("shell_ratio")[0].get<double>(), ratio / (w * w),
+                1e-12 * ratio);
+    run_sum += ratio * samples[i].at("reference_resolved_energy").get<double>();
+    ref_sum += samples[i].at("reference_resolved_energy").get<double>();
+  }
+  // The window's ratio weighs each time by the shell's energy (here all resolved energy).
+  EXPECT_NEAR(plain.at("mean_shell_ratio").at("ratio")[0].get<double>(), run_sum / ref_sum, 1e-9);
+  EXPECT_LT(plain.at("mean_shell_ratio").at("ratio")[0].get<double>(), 1.0);
+  r = run_sphles("compare " + run + " " + ref + " --filter kernel");
+  EXPECT_NE(r.output.find("filtered by the run's kernel"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("W(k)^2 of wendland_c4"), std::string::npos) << r.output;
+  r = run_sphles("compare " + run + " " + ref + " --filter gaussian");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--filter"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -4,7 +4,9 @@
 // streams of docs/api.md. Clients are Boost.Beast / raw sockets; nothing is mocked.
 #include "control/scene_schema.hpp"
 #include "server_test_support.hpp"
+#include "sim/kernels.hpp"
 
+#include <numbers>
 #include <set>
 
 namespace {
@@ -590,6 +592,18 @@ TEST(Server, ResolvedScalesAgainstTheReferenceRunOfTheFlow) {
   EXPECT_LT(ratio, 1.1);
   EXPECT_NEAR(body["reference_spectrum"]["t"].get<double>(), samples[6]["t"].get<double>(), 1e-9);
   EXPECT_FALSE(body["reference_spectrum"]["energy"].empty());
+  EXPECT_EQ(body["filter"], "none");
+  // Against the reference filtered by the run's kernel, every ratio is the plain one over Ŵ(k)².
+  const Reply f = api.get("/api/runs/" + id + "/resolved?filter=kernel");
+  ASSERT_EQ(f.status, 200) << f.body;
+  const json filtered = f.body_json();
+  EXPECT_EQ(filtered["filter"], "kernel");
+  const double w = sphles::sim::kernel_transfer(sphles::sim::KernelType::WendlandC4, 2,
+                                                0.5 * 8.0 * 2.0 * std::numbers::pi / 16.0, 1.0);
+  EXPECT_NEAR(filtered["samples"][6]["shell_ratio"][0].get<double>(),
+              samples[6]["shell_ratio"][0].get<double>() / (w * w), 1e-12);
+  EXPECT_EQ(filtered["mean_shell_ratio"]["shell"], json({1.0, 2.0}));
+  expect_error(api.get("/api/runs/" + id + "/resolved?filter=gaussian"), 400, "filter");
   // Another Reynolds number: none, and why.
   scene["fluid"] = {{"dynamic_viscosity", 0.02}};
   const std::string other = api.create({{"scene", scene}, {"start", false}});

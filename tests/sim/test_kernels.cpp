@@ -93,6 +93,39 @@ TYPED_TEST(KernelTest, GradientMatchesFiniteDifference) {
   }
 }
 
+// Ŵ(k) by the radial quadrature against the kernel summed over a fine lattice,
+// Σ_j Δl^n W(|x_j|) cos(k·x_j), along an axis and a diagonal (the transform depends on |k| only).
+TYPED_TEST(KernelTest, TransferMatchesTheLatticeSumInEveryDirection) {
+  constexpr int dim = TypeParam::dim;
+  using Shape = typename TypeParam::shape;
+  const double support = 0.9;
+  const Kernel<Shape, dim> kernel(support);
+  const int n = dim == 3 ? 24 : 60;  // lattice points per support radius
+  const double dl = support / n;
+  EXPECT_NEAR(kernel_transfer(Shape::type, dim, support, 0.0), 1.0, 1e-12);
+  for (const double kh : {0.5, 1.5, std::numbers::pi, 5.0}) {
+    const double k = kh / support;
+    const double on_axis = kernel_transfer(Shape::type, dim, support, k);
+    double axis_sum = 0.0, diagonal_sum = 0.0;
+    const double diagonal = k / std::sqrt(static_cast<double>(dim));
+    for (int i = -n; i <= n; ++i)
+      for (int j = -n; j <= n; ++j)
+        for (int l = (dim == 3 ? -n : 0); l <= (dim == 3 ? n : 0); ++l) {
+          const double r = dl * std::sqrt(static_cast<double>(i * i + j * j + l * l));
+          const double w = kernel.value(r) * std::pow(dl, dim);
+          axis_sum += w * std::cos(k * dl * i);
+          diagonal_sum += w * std::cos(diagonal * dl * (i + j + l));
+        }
+    EXPECT_NEAR(on_axis, axis_sum, 2e-5) << "k H = " << kh;
+    EXPECT_NEAR(on_axis, diagonal_sum, 2e-5) << "k H = " << kh;
+  }
+  // The filter damps: below one and falling over the resolved range.
+  EXPECT_LT(kernel_transfer(Shape::type, dim, support, 2.0 / support),
+            kernel_transfer(Shape::type, dim, support, 1.0 / support));
+  EXPECT_THROW(kernel_transfer(Shape::type, 4, support, 1.0), std::invalid_argument);
+  EXPECT_THROW(kernel_transfer(Shape::type, dim, 0.0, 1.0), std::invalid_argument);
+}
+
 TYPED_TEST(KernelTest, CompactSupportAndShape) {
   constexpr int dim = TypeParam::dim;
   const double support = 0.8;
