@@ -110,17 +110,17 @@ void finish_tgv2d(RunResult& r) {
   r.energy_error_end = r.history.back().kinetic_energy / r.history.back().reference_energy - 1.0;
 }
 
-/// "k:ratio" of every shell of `s` (NaN ratios as "-"), separated by spaces.
-std::string shell_ratio_list(const analysis::ResolvedScales& s) {
+/// "k:ratio" of every shell (NaN ratios as "-"), separated by spaces.
+std::string shell_ratio_list(const std::vector<double>& shell, const std::vector<double>& ratio) {
   std::ostringstream out;
   out << std::setprecision(3);
-  for (std::size_t p = 0; p < s.shell.size(); ++p) {
+  for (std::size_t p = 0; p < shell.size(); ++p) {
     if (p > 0) out << ' ';
-    out << s.shell[p] << ':';
-    if (std::isnan(s.shell_ratio[p]))
+    out << shell[p] << ':';
+    if (std::isnan(ratio[p]))
       out << '-';
     else
-      out << s.shell_ratio[p];
+      out << ratio[p];
   }
   return out.str();
 }
@@ -133,13 +133,16 @@ void finish_resolved(RunResult& r, const std::vector<analysis::ShellSpectrum>& s
       analysis::resolved_history(spectra, reference, 0.0, kMisfitEndTime);
   r.resolved_misfit = h.l2_misfit;
   r.resolved_max_error = h.max_relative_error;
+  const analysis::ResolvedHistory window =
+      analysis::resolved_history(spectra, reference, kShellWindowStart, kShellWindowEnd);
+  r.shell_ratios_window = shell_ratio_list(window.mean_shell, window.mean_shell_ratio);
   if (!h.flux.empty()) {
     r.resolved_flux_peak_time = h.flux_peak_time;
     r.reference_resolved_flux_peak_time = h.reference_flux_peak_time;
   }
   for (const analysis::ResolvedScales& s : h.samples) {
-    if (std::abs(s.time - 8.0) < 1e-6) r.shell_ratios_t8 = shell_ratio_list(s);
-    if (std::abs(s.time - 9.0) < 1e-6) r.shell_ratios_t9 = shell_ratio_list(s);
+    if (std::abs(s.time - 8.0) < 1e-6) r.shell_ratios_t8 = shell_ratio_list(s.shell, s.shell_ratio);
+    if (std::abs(s.time - 9.0) < 1e-6) r.shell_ratios_t9 = shell_ratio_list(s.shell, s.shell_ratio);
     for (Sample& sample : r.history)
       if (std::abs(sample.time - s.time) < 1e-9) {
         sample.resolved_energy = s.resolved_energy;
@@ -342,7 +345,7 @@ void write_summary_header(std::ostream& out) {
          "mean_energy_injection,mean_viscous_dissipation,mean_film_dissipation,"
          "mean_energy_change,budget_imbalance,energy_error_end,speed_l1_error_end,"
          "resolved_reference,resolved_misfit,resolved_max_error,shell_ratios_t8,shell_ratios_t9,"
-         "resolved_flux_peak_time,reference_resolved_flux_peak_time\n";
+         "shell_ratios_window,resolved_flux_peak_time,reference_resolved_flux_peak_time\n";
 }
 
 void write_summary_row(std::ostream& out, const RunResult& r) {
@@ -365,7 +368,7 @@ void write_summary_row(std::ostream& out, const RunResult& r) {
       << ',' << optional_number(t2, r.energy_error_end) << ','
       << optional_number(t2, r.speed_l1_error_end) << ',' << r.resolved_reference << ','
       << optional_number(t3, r.resolved_misfit) << ',' << optional_number(t3, r.resolved_max_error)
-      << ',' << r.shell_ratios_t8 << ',' << r.shell_ratios_t9 << ','
+      << ',' << r.shell_ratios_t8 << ',' << r.shell_ratios_t9 << ',' << r.shell_ratios_window << ','
       << optional_number(t3, r.resolved_flux_peak_time) << ','
       << optional_number(t3, r.reference_resolved_flux_peak_time) << '\n';
 }

@@ -17,6 +17,10 @@
 namespace sphles::accuracy {
 
 inline constexpr double kMisfitEndTime = 12.0;  // the 3D comparison window t ∈ [0, 12]
+// The shells' window: the nine analysis times around the Taylor-Green dissipation peak, where a
+// shell at one time swings with the phase of the roll-up (accuracy.md, "How the errors are
+// measured").
+inline constexpr double kShellWindowStart = 7.5, kShellWindowEnd = 9.5;
 
 /// Studies: "tgv2d_re100", "tgv2d_re1000", "tgv3d_re5000", "peers", "kolmogorov".
 struct RunSpec {
@@ -75,6 +79,7 @@ struct RunResult {
   double resolved_misfit = std::numeric_limits<double>::quiet_NaN();     // L2 of E_res
   double resolved_max_error = std::numeric_limits<double>::quiet_NaN();  // max |E_res/E_res,ref-1|
   std::string shell_ratios_t8, shell_ratios_t9;  // "k:E(k)/E_ref(k)" for k <= k_kern, by spaces
+  std::string shell_ratios_window;  // each shell's energy over the window over the reference's
   double resolved_flux_peak_time = std::numeric_limits<double>::quiet_NaN();  // -dE_res/dt
   double reference_resolved_flux_peak_time = std::numeric_limits<double>::quiet_NaN();
   // tgv3d (t in [0, 12] on the DNS time grid); NaN without a DNS at the run's Re
