@@ -88,8 +88,13 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
   e.packing_seconds = packing_seconds(spec, document, scale, packing_cache_dir);
   e.seconds_to_end = e.packing_seconds + e.solver_seconds;
   if (!spec.analysis.enabled()) return e;
-  // The analysis thread runs with one OpenMP thread (AnalysisPipeline's default), as here.
+  // The analysis thread runs with one OpenMP thread (AnalysisPipeline's default), as here; the
+  // caller's count comes back however this scope ends (the estimating thread serves requests).
   const int threads = omp_get_max_threads();
+  struct RestoreThreads {
+    int count;
+    ~RestoreThreads() { omp_set_num_threads(count); }
+  } restore{threads};
   omp_set_num_threads(1);
   analysis::AnalysisConfig config = spec.analysis;
   // As the run loop takes it: the 3D view's points carried along when the view is rendered.
@@ -119,7 +124,6 @@ StepTimeEstimate estimate_step_time(const RunSpec& spec, const ResourceEstimate&
     render::render_frame_images(frame, spec.render, case_name, view3d.enabled);
     e.render_seconds_per_frame = seconds_since(timed);
   }
-  omp_set_num_threads(threads);
   e.frames = resources.analysis_frames;
   // The slower of the solver and the analysis chain sets the pace; the other one shares the
   // cores with it while it works (all of its time when the solver's threads take every core).

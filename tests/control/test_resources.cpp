@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
+#include <omp.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -13,6 +14,7 @@
 #include <array>
 #include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -483,6 +485,29 @@ TEST(StepTimeEstimate, CalibratesASmallCopyAndScalesByTheParticleCount) {
   sim::setup_run(packed.scene, options);  // now cached
   EXPECT_EQ(estimate_step_time(packed, packed_resources, 1, cache).packing_seconds, 0.0);
   fs::remove_all(cache);
+}
+
+// An estimate that fails while timing the analysis leaves the caller's OpenMP thread count as it
+// was (the estimating thread goes on serving): here the frame's scratch directory cannot be made,
+// because a file holds its name.
+TEST(StepTimeEstimate, AFailureWhileTimingTheAnalysisRestoresTheThreadCount) {
+  const fs::path tmp =
+      fs::temp_directory_path() / ("sphles_step_tmp_" + std::to_string(::getpid()));
+  fs::create_directories(tmp);
+  std::ofstream(tmp / ("sphles-estimate-" + std::to_string(::getpid()))) << "in the way";
+  const char* old_tmpdir = std::getenv("TMPDIR");
+  const std::string saved = old_tmpdir ? old_tmpdir : "";
+  ::setenv("TMPDIR", tmp.c_str(), 1);
+  const RunSpec analysed = spec_of(
+      with(with(with({{"case", "tgv2d"}}, "particles_per_side", 16), "packing.enabled", false),
+           "analysis", {{"every", 0.1}, {"products", {"energy", "spectrum"}}}));
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(3);
+  EXPECT_ANY_THROW(estimate_step_time(analysed, estimate_resources(analysed), 1));
+  EXPECT_EQ(omp_get_max_threads(), 3);
+  omp_set_num_threads(threads);
+  old_tmpdir ? ::setenv("TMPDIR", saved.c_str(), 1) : ::unsetenv("TMPDIR");
+  fs::remove_all(tmp);
 }
 
 }  // namespace
