@@ -58,10 +58,15 @@ double total_energy_misfit(const std::filesystem::path& run, const std::filesyst
 
 int compare_command(CompareOptions o) {
   try {
-    nlohmann::json document = scene::read_scene_file(std::filesystem::path(o.run) / "scene.json");
-    document.erase("reference");
-    document.erase("render");
-    const sim::Scene scene = analysis::parse_run_config(document).scene;
+    const bool filtered = o.filter == "kernel";
+    // The run's scene, read when the default reference or the kernel filter needs it.
+    sim::Scene scene;
+    if (o.reference.empty() || filtered) {
+      nlohmann::json document = scene::read_scene_file(std::filesystem::path(o.run) / "scene.json");
+      document.erase("reference");
+      document.erase("render");
+      scene = analysis::parse_run_config(document).scene;
+    }
     if (o.reference.empty()) {
       // The shipped reference of the run's flow (data/reference/).
       const auto found = analysis::find_reference_run(scene, SPHLES_REFERENCE_DIR);
@@ -75,7 +80,6 @@ int compare_command(CompareOptions o) {
       o.reference = found->string();
     }
     const auto run = analysis::read_run_spectra(o.run);
-    const bool filtered = o.filter == "kernel";
     const auto ref = filtered
                          ? analysis::kernel_filtered(analysis::read_run_spectra(o.reference), scene)
                          : analysis::read_run_spectra(o.reference);
@@ -144,8 +148,8 @@ void add_compare_command(CLI::App& app, int& exit_code) {
   cmd->footer(
       "At the run's spectra times: the resolved energy E_res = sum of E(k) over k <= k_SPH = "
       "k_kern/2, the shell ratios E(k)/E_ref(k) up to k_kern, the energy above k_kern, and over "
-      "time the misfit of E_res and the peak of -dE_res/dt, and each shell's ratio averaged over "
-      "the times compared (SPEC §9; docs/reference.md). REF is a "
+      "time the misfit of E_res and the peak of -dE_res/dt, and each shell's energy summed over "
+      "the times compared over the reference's (SPEC §9; docs/reference.md). REF is a "
       "`sphles reference` run directory of the same flow; without it, the one shipped in "
       "data/reference/ for the run's case and Reynolds number.");
   cmd->add_option("run", o->run, "run directory with spectra/")->required()->type_name("RUN");
