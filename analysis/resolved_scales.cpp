@@ -195,18 +195,27 @@ nlohmann::json ratios_or_null(const std::vector<double>& ratios) {
 
 }  // namespace
 
+std::vector<double> kernel_transfer_squared(const sim::Scene& scene,
+                                            const std::vector<double>& wavenumbers) {
+  std::vector<double> out;
+  for (double k : wavenumbers) {
+    const double w =
+        sim::kernel_transfer(scene.kernel, scene.dimension(), 0.5 * scene.kernel_diameter(), k);
+    out.push_back(w * w);
+  }
+  return out;
+}
+
 std::vector<ShellSpectrum> kernel_filtered(std::vector<ShellSpectrum> reference,
                                            const sim::Scene& run_scene) {
-  const double support_radius = 0.5 * run_scene.kernel_diameter();
-  std::vector<double> transfer;  // Ŵ(k)² per shell, the same shells at every time
-  for (ShellSpectrum& s : reference) {
-    for (std::size_t p = transfer.size(); p < s.wavenumber.size(); ++p) {
-      const double w = sim::kernel_transfer(run_scene.kernel, run_scene.dimension(), support_radius,
-                                            s.wavenumber[p]);
-      transfer.push_back(w * w);
-    }
+  // The same shells at every time: the factors once, for the spectrum with the most shells.
+  const ShellSpectrum* widest = nullptr;
+  for (const ShellSpectrum& s : reference)
+    if (!widest || s.wavenumber.size() > widest->wavenumber.size()) widest = &s;
+  const std::vector<double> transfer =
+      widest ? kernel_transfer_squared(run_scene, widest->wavenumber) : std::vector<double>{};
+  for (ShellSpectrum& s : reference)
     for (std::size_t p = 0; p < s.energy.size(); ++p) s.energy[p] *= transfer[p];
-  }
   return reference;
 }
 

@@ -47,6 +47,10 @@ ShellSpectrum spectrum_at(const std::vector<ShellSpectrum>& reference, double ti
 std::vector<ShellSpectrum> kernel_filtered(std::vector<ShellSpectrum> reference,
                                            const sim::Scene& run_scene);
 
+/// Ŵ(k)² of the scene's kernel at its D_K at each wavenumber: the factor kernel_filtered applies.
+std::vector<double> kernel_transfer_squared(const sim::Scene& scene,
+                                            const std::vector<double>& wavenumbers);
+
 struct ResolvedScales {
   double time = 0.0;
   double kernel_wavenumber = 0.0;  // k_kern

@@ -100,11 +100,9 @@ int compare_command(CompareOptions o) {
     if (filtered) {
       std::printf("the reference's E(k) times W(k)^2 of %s at D_K = %g:",
                   std::string(sim::kernel_name(scene.kernel)).c_str(), scene.kernel_diameter());
-      for (double k : first.shell) {
-        const double w =
-            sim::kernel_transfer(scene.kernel, scene.dimension(), 0.5 * scene.kernel_diameter(), k);
-        std::printf(" %g: %.3f", k, w * w);
-      }
+      const std::vector<double> transfer = analysis::kernel_transfer_squared(scene, first.shell);
+      for (std::size_t p = 0; p < first.shell.size(); ++p)
+        std::printf(" %g: %.3f", first.shell[p], transfer[p]);
       std::printf("\n");
     }
     std::printf("%8s %11s %11s %7s %11s %11s  E(k)/E_ref(k) at k =", "t", "E_res", "E_res,ref",
