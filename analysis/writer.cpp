@@ -3,12 +3,16 @@
 
 #include "io/image_data.hpp"
 
+#include <charconv>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
+#include <system_error>
 
 namespace sphles::analysis {
 
@@ -16,6 +20,13 @@ namespace {
 
 /// What a CSV cell holds for a value the frame does not have (numpy and pandas read it as NaN).
 const std::string kNan = "nan";
+
+/// The indices of a run directory the writer appends a row to per analysis time (docs/analysis.md).
+const std::filesystem::path kSpectraIndex = "spectra/index.csv";
+const std::filesystem::path kSlicesIndex = "slices/index.csv";
+const std::filesystem::path kSnapshotsIndex = "snapshots/index.csv";
+const std::filesystem::path kFieldsIndex = "fields/index.csv";
+const std::filesystem::path kSummaryIndex = "stats/snapshots.csv";
 
 /// Appends a line to a CSV index, writing the header when the file is new.
 void append_line(const std::filesystem::path& path, const std::string& header,
@@ -35,6 +46,39 @@ std::string number(double x) {
 }
 
 }  // namespace
+
+void truncate_rows_after(const std::filesystem::path& path, double time) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) return;
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  std::string kept;
+  std::size_t begin = 0;
+  for (bool header = true;; header = false) {
+    const std::size_t end = text.find('\n', begin);
+    if (end == std::string::npos) break;  // no line, or the last one cut short: dropped
+    const std::string_view line(text.data() + begin, end - begin);
+    double t = 0.0;
+    const auto [next, error] = std::from_chars(line.data(), line.data() + line.size(), t);
+    const bool timed = error == std::errc() && (next == line.data() + line.size() || *next == ',');
+    if (header || (timed && t <= time)) {
+      kept += line;
+      kept += '\n';
+    }
+    begin = end + 1;
+  }
+  // Without a whole header line the file is removed, so that its writer starts it afresh.
+  if (kept.empty())
+    std::filesystem::remove(path);
+  else
+    replace_atomically(path, kept);
+}
+
+void truncate_indices_after(const std::filesystem::path& run_directory, double time) {
+  for (const auto& index :
+       {kSpectraIndex, kSlicesIndex, kSnapshotsIndex, kFieldsIndex, kSummaryIndex})
+    truncate_rows_after(run_directory / index, time);
+}
 
 void replace_atomically(const std::filesystem::path& path, const std::string& content) {
   const std::filesystem::path temporary = path.string() + ".tmp";
@@ -152,7 +196,7 @@ void RunDirectoryWriter::write_spectrum(const AnalysisFrame& frame, const Spectr
   }
   const std::string file = timed_file_name("E", frame.time, ".csv");
   replace_atomically(directory_ / "spectra" / file, csv.str());
-  append_line(directory_ / "spectra" / "index.csv",
+  append_line(directory_ / kSpectraIndex,
               "t,step,file,e_v_grid,dissipation_spectral,dissipation_spectral_resolved,k_kernel,"
               "k_resolution,delta_k,L_c",
               number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
@@ -184,7 +228,7 @@ void RunDirectoryWriter::write_slice(const AnalysisFrame& frame, const SliceProd
     hi = std::max(hi, v);
   }
   static constexpr const char* kAxis[] = {"x", "y", "z"};
-  const auto index = directory_ / "slices" / "index.csv";
+  const auto index = directory_ / kSlicesIndex;
   append_line(index,
               "t,step,field,units,normal_axis,position,axis_u,axis_v,width,height,spacing,min,"
               "max,file,vti",
@@ -250,7 +294,7 @@ void RunDirectoryWriter::write_particles(const AnalysisFrame& frame, const Parti
   if (p.file.empty())
     io::write_particle_snapshot(directory_ / "snapshots" / file, p.snapshot->particles, frame.time,
                                 frame.step, fields, metadata_);
-  const auto index = directory_ / "snapshots" / "index.csv";
+  const auto index = directory_ / kSnapshotsIndex;
   append_line(index, "t,step,file,particles,fields",
               number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
                   std::to_string(p.file.empty() ? p.snapshot->size() : p.count) + ',' + names);
@@ -298,7 +342,7 @@ void RunDirectoryWriter::write_fields(const AnalysisFrame& frame, const GridFiel
   }
   const std::string file = timed_file_name("fields", frame.time, ".vti");
   io::write_vti(directory_ / "fields" / file, image, metadata_.code_version);
-  const auto index = directory_ / "fields" / "index.csv";
+  const auto index = directory_ / kFieldsIndex;
   append_line(index, "t,step,file,points_per_side,spacing,arrays",
               number(frame.time) + ',' + std::to_string(frame.step) + ',' + file + ',' +
                   std::to_string(f.grid.points_per_side) + ',' + number(h) + ',' + names);
@@ -310,7 +354,7 @@ void RunDirectoryWriter::write_fields(const AnalysisFrame& frame, const GridFiel
 
 /// One line of stats/snapshots.csv per analysed snapshot, whatever its products.
 void RunDirectoryWriter::write_summary(const AnalysisFrame& frame) {
-  append_line(directory_ / "stats" / "snapshots.csv",
+  append_line(directory_ / kSummaryIndex,
               "t,step,e_v,e_v_grid,mean_omega2,dissipation_vorticity,dissipation_spectral,"
               "tau_sfs_max,tau_sfs_mean,analysis_seconds,dropped_snapshots,"
               "dissipation_spectral_resolved,dissipation_energy",

@@ -38,6 +38,16 @@ double index_number(const std::map<std::string, std::string>& row, const std::st
 /// half a file, and a crash leaves the old file or the new one.
 void replace_atomically(const std::filesystem::path& path, const std::string& content);
 
+/// Keeps the header and the rows whose first column (the time) is at most `time` of an
+/// existing CSV (an index or timeseries.csv; nothing if it does not exist). A restart from a
+/// checkpoint at `time` writes every later row again, and a crash after that checkpoint may
+/// have left some of them; a row cut short or without a time is dropped too, and a file
+/// without a whole header line is removed.
+void truncate_rows_after(const std::filesystem::path& path, double time);
+
+/// truncate_rows_after for every index RunDirectoryWriter appends to, under `run_directory`.
+void truncate_indices_after(const std::filesystem::path& run_directory, double time);
+
 /// Writes a 2D float64 array as NumPy .npy (format 1.0) with shape (rows, columns).
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,
                std::size_t columns);

@@ -75,25 +75,6 @@ std::string RenderSink::error() const {
   return error_;
 }
 
-void RenderSink::truncate_index_after(const std::filesystem::path& frames_dir, double time) {
-  const std::filesystem::path index = frames_dir / "index.csv";
-  std::ifstream in(index);
-  if (!in) return;
-  std::string text, line;
-  std::getline(in, line);
-  text = kIndexHeader;
-  while (std::getline(in, line))
-    if (std::strtod(line.c_str(), nullptr) <= time) text += line + "\n";
-  in.close();
-  const std::filesystem::path temporary = index.string() + ".tmp";
-  {
-    std::ofstream out(temporary, std::ios::trunc);
-    out << text;
-    if (!out.flush()) throw std::runtime_error("cannot write '" + temporary.string() + "'");
-  }
-  std::filesystem::rename(temporary, index);
-}
-
 void RenderSink::run() {
   int nice = -1;  // none set yet
   while (auto frame = mailbox_.take()) {

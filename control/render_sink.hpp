@@ -56,9 +56,6 @@ class RenderSink {
   RenderCounters counters() const;
   std::string error() const;  // first failure, empty if none
 
-  /// Removes the rows of frames/index.csv after `time` (a restarted run renders them again).
-  static void truncate_index_after(const std::filesystem::path& frames_dir, double time);
-
  private:
   void run();
   void render_one(const analysis::AnalysisFrame& frame);

@@ -36,17 +36,6 @@ void write_text_atomically(const std::filesystem::path& path, const std::string&
   std::filesystem::rename(temporary, path);
 }
 
-void truncate_timeseries_after(const std::filesystem::path& path, double time) {
-  std::ifstream in(path);
-  if (!in) return;
-  std::string text, line;
-  if (std::getline(in, line)) text += line + "\n";
-  while (std::getline(in, line))
-    if (std::strtod(line.c_str(), nullptr) <= time) text += line + "\n";
-  in.close();
-  write_text_atomically(path, text);
-}
-
 void seed_dissipation(const std::filesystem::path& path, double time,
                       analysis::DissipationEstimator& estimator) {
   std::ifstream in(path);

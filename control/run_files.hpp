@@ -25,9 +25,6 @@ std::string read_text(const std::filesystem::path& path);
 /// Writes `text` to a temporary beside `path`, then renames it over `path`.
 void write_text_atomically(const std::filesystem::path& path, const std::string& text);
 
-/// Keeps the rows of an existing timeseries.csv up to `time` (a restart continues it).
-void truncate_timeseries_after(const std::filesystem::path& path, double time);
-
 /// Feeds the (t, e_v) rows of a time series inside the estimator's window before `time`.
 void seed_dissipation(const std::filesystem::path& path, double time,
                       analysis::DissipationEstimator& estimator);

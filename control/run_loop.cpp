@@ -540,8 +540,10 @@ void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& p
       simulation =
           restore_from_file(options, scene0, start_checkpoint, checkpoint_dir, *log, packing);
     }
-    truncate_timeseries_after(directory / "timeseries.csv", simulation->time());
-    RenderSink::truncate_index_after(directory / "frames", simulation->time());
+    // Whatever a crash after that checkpoint left of later times is written again.
+    analysis::truncate_rows_after(directory / "timeseries.csv", simulation->time());
+    analysis::truncate_rows_after(directory / "frames" / "index.csv", simulation->time());
+    analysis::truncate_indices_after(directory, simulation->time());
   } else {
     simulation = set_up(scene0, packing);
   }

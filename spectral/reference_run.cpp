@@ -37,22 +37,6 @@ std::string number(double v) {
   return s.str();
 }
 
-/// Keeps the header and the rows of a CSV whose first column is at most `time` (a restart
-/// writes the later rows again).
-void truncate_rows_after(const std::filesystem::path& path, double time) {
-  std::ifstream in(path);
-  if (!in) return;
-  std::string line, kept;
-  bool header = true;
-  while (std::getline(in, line)) {
-    if (header || line.empty() || std::stod(line.substr(0, line.find(','))) <= time)
-      kept += line + '\n';
-    header = false;
-  }
-  in.close();
-  io::detail::write_file_atomically(path, kept, "index '" + path.string() + "'");
-}
-
 void write_json_atomically(const std::filesystem::path& path, const json& j) {
   std::string text = j.dump(2);
   text.push_back('\n');
@@ -453,14 +437,12 @@ class ReferenceRun {
       analysis::write_units_file(dir_, analysis::RunKind::Reference, {});
       writer_.emplace(dir_);
       if (options_.restart) {
-        truncate_rows_after(series_, solver_.time());
-        truncate_rows_after(dir_ / "spectra" / "index.csv", solver_.time());
-        truncate_rows_after(dir_ / "slices" / "index.csv", solver_.time());
-        truncate_rows_after(dir_ / "stats" / "snapshots.csv", solver_.time());
-        truncate_rows_after(dir_ / "frames" / "index.csv", solver_.time());
-      } else {
-        std::ofstream(series_) << reference_timeseries_header() << '\n';
+        analysis::truncate_rows_after(series_, solver_.time());
+        analysis::truncate_rows_after(dir_ / "frames" / "index.csv", solver_.time());
+        analysis::truncate_indices_after(dir_, solver_.time());
       }
+      if (!options_.restart || !std::filesystem::exists(series_))
+        std::ofstream(series_) << reference_timeseries_header() << '\n';
       out_.open(series_, std::ios::app);
     });
     agree(false);

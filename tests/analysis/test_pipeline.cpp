@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numeric>
 #include <random>
 
@@ -958,6 +959,36 @@ TEST_F(WriterTest, UnwritableDirectoryIsAClearError) {
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("cannot create"), std::string::npos);
   }
+}
+
+// A restart from a checkpoint at t writes every later row again: whatever a crash after that
+// checkpoint left of them goes, a row cut short goes, the rest stays byte for byte.
+TEST_F(WriterTest, RestartTruncationKeepsTheRowsUpToTheCheckpointTime) {
+  std::filesystem::create_directories(dir_ / "spectra");
+  std::filesystem::create_directories(dir_ / "stats");
+  const auto slurp = [](const std::filesystem::path& path) {
+    std::ifstream in(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  };
+  std::ofstream(dir_ / "spectra" / "index.csv", std::ios::binary)
+      << "t,step,file\n0,0,E_t0.csv\n0.25,10,E_t0.25.csv\n0.5,20,E_t0.5.csv\n"
+         "0.75,30,E_t0.75.csv\n0.7";  // a crash while the 1.0 row was being appended
+  std::ofstream(dir_ / "stats" / "snapshots.csv", std::ios::binary) << "t,step";  // no whole line
+  truncate_indices_after(dir_, 0.5);
+  EXPECT_EQ(slurp(dir_ / "spectra" / "index.csv"),
+            "t,step,file\n0,0,E_t0.csv\n0.25,10,E_t0.25.csv\n0.5,20,E_t0.5.csv\n");
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "stats" / "snapshots.csv"));
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "fields" / "index.csv"));  // none, none made
+
+  // timeseries.csv: rows without a time go too; 17 significant digits compare exactly.
+  const std::filesystem::path series = dir_ / "timeseries.csv";
+  std::ofstream(series, std::ios::binary)
+      << "t,step,e_v\n0,0,0.125\n0.10000000000000001,1,0.124\nnan,2,0.1\n"
+         "0.20000000000000001,2,0.123\n";
+  truncate_rows_after(series, 0.1);
+  EXPECT_EQ(slurp(series), "t,step,e_v\n0,0,0.125\n0.10000000000000001,1,0.124\n");
+  truncate_rows_after(dir_ / "missing.csv", 1.0);
+  EXPECT_FALSE(std::filesystem::exists(dir_ / "missing.csv"));
 }
 
 TEST(Dissipation, SlopeIsExactForLinearDecayAndWindowed) {

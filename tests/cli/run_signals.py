@@ -8,7 +8,8 @@ signal stopped it, leave a complete checkpoint (no temporary file beside it) and
 that checkpoint with `--restart`. tests/mpi/check_mpi_run.py uses `stop_by_signal` for a 2-rank
 run stopped through mpiexec. A run with analysis and rendered frames interrupted by SIGINT
 writes the products and frames of every analysis time it reached (none is dropped), and its
-restart writes the rest: every analysis time once.
+restart writes the rest: every analysis time once. A restart from a checkpoint older than the
+run's last outputs (what a crash leaves) writes the later times again, each once.
 Usage: run_signals.py SPHLES SCENE WORKDIR
 """
 import csv
@@ -127,6 +128,53 @@ def outputs_across_interrupt(sphles, out, env):
           f"the restart added the rest, each once", flush=True)
 
 
+def outputs_after_a_crash(sphles, out, env):
+    """A crash after a checkpoint leaves the outputs of later times; the restart from that
+    checkpoint writes them again, and every index still lists each analysis time once."""
+    every = 0.01
+    command = [sphles, "run", "tgv2d", "--threads", "1", "--out", out,
+               "--set", "particles_per_side=24", "--set", "time.end=0.1",
+               "--set", "packing.enabled=false", "--set", "checkpoint.every=0.05",
+               "--set", f'analysis={{"every":{every},'
+               '"products":["energy","spectrum","vorticity","slices"]}']
+    print("+", " ".join(command), flush=True)
+    done = subprocess.run(command, env=env, capture_output=True, text=True, timeout=300)
+    if done.returncode != 0:
+        sys.exit(f"the run to be restarted failed:\n{done.stderr}")
+    indices = ["timeseries.csv", "spectra/index.csv", "stats/snapshots.csv", "slices/index.csv"]
+
+    def contents():
+        """Every index's rows, without the wall time the analysis took."""
+        result = {}
+        for name in indices:
+            with open(os.path.join(out, name)) as f:
+                result[name] = [{k: v for k, v in row.items() if k != "analysis_seconds"}
+                                for row in csv.DictReader(f)]
+        return result
+
+    before = contents()
+    directory = os.path.join(out, "checkpoints")
+    checkpoints = sorted(f for f in os.listdir(directory) if f.endswith(".h5"))
+    if len(checkpoints) < 2:
+        sys.exit(f"expected a checkpoint at t = 0.05 and one at the end, got {checkpoints}")
+    # The run as a crash at t = 0.1 would leave it, continued from the older checkpoint.
+    older = os.path.join(directory, checkpoints[0])
+    done = subprocess.run([sphles, "run", "--restart", older], env=env, capture_output=True,
+                          text=True, timeout=300)
+    if done.returncode != 0:
+        sys.exit(f"the restart from {checkpoints[0]} failed:\n{done.stderr}")
+    after = contents()
+    for name in indices:
+        if after[name] != before[name]:
+            sys.exit(f"{name} after the restart from {checkpoints[0]}: "
+                     f"{[r['t'] for r in after[name]]}, expected {[r['t'] for r in before[name]]}")
+    times = analysis_times(os.path.join(out, "spectra", "index.csv"), "t")
+    if len(times) != 11 or len(set(times)) != 11:
+        sys.exit(f"spectra at {times}, expected t = 0, 0.01, ..., 0.1 once each")
+    print(f"restarted from {checkpoints[0]} after the end: {', '.join(indices)} as before, "
+          f"each analysis time once", flush=True)
+
+
 def main():
     sphles, scene, work = sys.argv[1:4]
     shutil.rmtree(work, ignore_errors=True)
@@ -135,6 +183,7 @@ def main():
     for signum in (signal.SIGINT, signal.SIGTERM, signal.SIGUSR1):
         stop_by_signal([], sphles, scene, os.path.join(work, signum.name), signum, env)
     outputs_across_interrupt(sphles, os.path.join(work, "analysed"), env)
+    outputs_after_a_crash(sphles, os.path.join(work, "crashed"), env)
 
 
 if __name__ == "__main__":
