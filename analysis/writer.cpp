@@ -74,10 +74,11 @@ void truncate_rows_after(const std::filesystem::path& path, double time) {
     replace_atomically(path, kept);
 }
 
-void truncate_indices_after(const std::filesystem::path& run_directory, double time) {
-  for (const auto& index :
-       {kSpectraIndex, kSlicesIndex, kSnapshotsIndex, kFieldsIndex, kSummaryIndex})
-    truncate_rows_after(run_directory / index, time);
+void truncate_run_files_after(const std::filesystem::path& run_directory, double time) {
+  for (const std::filesystem::path& file :
+       {std::filesystem::path("timeseries.csv"), std::filesystem::path("frames/index.csv"),
+        kSpectraIndex, kSlicesIndex, kSnapshotsIndex, kFieldsIndex, kSummaryIndex})
+    truncate_rows_after(run_directory / file, time);
 }
 
 void replace_atomically(const std::filesystem::path& path, const std::string& content) {

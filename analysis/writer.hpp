@@ -45,8 +45,9 @@ void replace_atomically(const std::filesystem::path& path, const std::string& co
 /// without a whole header line is removed.
 void truncate_rows_after(const std::filesystem::path& path, double time);
 
-/// truncate_rows_after for every index RunDirectoryWriter appends to, under `run_directory`.
-void truncate_indices_after(const std::filesystem::path& run_directory, double time);
+/// truncate_rows_after for every CSV a restart of a run (particle or reference) continues:
+/// timeseries.csv, frames/index.csv and the indices RunDirectoryWriter appends to.
+void truncate_run_files_after(const std::filesystem::path& run_directory, double time);
 
 /// Writes a 2D float64 array as NumPy .npy (format 1.0) with shape (rows, columns).
 void write_npy(const std::filesystem::path& path, std::span<const double> values, std::size_t rows,

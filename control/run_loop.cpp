@@ -541,9 +541,7 @@ void RunImpl::solve(std::unique_ptr<sim::Simulation>& simulation, std::string& p
           restore_from_file(options, scene0, start_checkpoint, checkpoint_dir, *log, packing);
     }
     // Whatever a crash after that checkpoint left of later times is written again.
-    analysis::truncate_rows_after(directory / "timeseries.csv", simulation->time());
-    analysis::truncate_rows_after(directory / "frames" / "index.csv", simulation->time());
-    analysis::truncate_indices_after(directory, simulation->time());
+    analysis::truncate_run_files_after(directory, simulation->time());
   } else {
     simulation = set_up(scene0, packing);
   }

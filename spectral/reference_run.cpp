@@ -436,11 +436,7 @@ class ReferenceRun {
       write_json_atomically(dir_ / "scene.json", scene_document_);
       analysis::write_units_file(dir_, analysis::RunKind::Reference, {});
       writer_.emplace(dir_);
-      if (options_.restart) {
-        analysis::truncate_rows_after(series_, solver_.time());
-        analysis::truncate_rows_after(dir_ / "frames" / "index.csv", solver_.time());
-        analysis::truncate_indices_after(dir_, solver_.time());
-      }
+      if (options_.restart) analysis::truncate_run_files_after(dir_, solver_.time());
       if (!options_.restart || !std::filesystem::exists(series_))
         std::ofstream(series_) << reference_timeseries_header() << '\n';
       out_.open(series_, std::ios::app);

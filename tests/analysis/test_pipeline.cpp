@@ -974,7 +974,7 @@ TEST_F(WriterTest, RestartTruncationKeepsTheRowsUpToTheCheckpointTime) {
       << "t,step,file\n0,0,E_t0.csv\n0.25,10,E_t0.25.csv\n0.5,20,E_t0.5.csv\n"
          "0.75,30,E_t0.75.csv\n0.7";  // a crash while the 1.0 row was being appended
   std::ofstream(dir_ / "stats" / "snapshots.csv", std::ios::binary) << "t,step";  // no whole line
-  truncate_indices_after(dir_, 0.5);
+  truncate_run_files_after(dir_, 0.5);
   EXPECT_EQ(slurp(dir_ / "spectra" / "index.csv"),
             "t,step,file\n0,0,E_t0.csv\n0.25,10,E_t0.25.csv\n0.5,20,E_t0.5.csv\n");
   EXPECT_FALSE(std::filesystem::exists(dir_ / "stats" / "snapshots.csv"));
